@@ -1,0 +1,1 @@
+"""pygran-liggghts: run PyGran simulations on the LIGGGHTS DEM library."""

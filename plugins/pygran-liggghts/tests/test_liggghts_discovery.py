@@ -1,0 +1,30 @@
+"""Finding libliggghts: explicit path, loader, and the install message when missing."""
+
+import pytest
+from pygran_core import registry
+from pygran_core.errors import EngineError
+from pygran_liggghts.library import LIBRARY_ENV, find_library
+
+
+def test_registered():
+    assert registry.lookup("engine", "liggghts").distribution == "pygran-liggghts"
+
+
+def test_explicit_path_wins(tmp_path, monkeypatch):
+    lib = tmp_path / "libliggghts.so"
+    lib.write_bytes(b"")
+    monkeypatch.setenv(LIBRARY_ENV, str(lib))
+    assert find_library() == str(lib)
+
+
+def test_explicit_path_must_exist(tmp_path, monkeypatch):
+    monkeypatch.setenv(LIBRARY_ENV, str(tmp_path / "nope.so"))
+    with pytest.raises(EngineError, match="is not a file"):
+        find_library()
+
+
+def test_missing_library_says_how_to_install(monkeypatch):
+    monkeypatch.delenv(LIBRARY_ENV, raising=False)
+    monkeypatch.setattr("ctypes.util.find_library", lambda name: None)
+    with pytest.raises(EngineError, match="apt-get install -y liggghts libliggghts-dev"):
+        find_library()

@@ -1,0 +1,1 @@
+"""pygran-native: PyGran's embedded DEM engine (compiled Cython/OpenMP kernels)."""

@@ -1,0 +1,1 @@
+"""pygran-readers: trajectory and mesh file formats for PyGran."""

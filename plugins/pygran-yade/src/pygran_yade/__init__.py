@@ -1,0 +1,1 @@
+"""pygran-yade: run PyGran simulations on YADE."""

@@ -1,0 +1,48 @@
+"""PyGran's exceptions: every error PyGran raises on purpose derives from :class:`PyGranError`."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+
+
+class PyGranError(Exception):
+    """Base class of every error raised by PyGran and its plugins."""
+
+
+class ConfigError(PyGranError, ValueError):
+    """A parameter, keyword or material value is invalid."""
+
+
+class PluginNotFound(PyGranError, LookupError):
+    """No installed plugin provides the requested engine, model, reader or writer."""
+
+
+class PluginError(PyGranError):
+    """A plugin failed to load, or two plugins claim the same name."""
+
+
+class UnsupportedFeature(PyGranError):
+    """The chosen engine (or format) cannot honour a request."""
+
+
+class ReadError(PyGranError):
+    """A file cannot be read; the message names the file, and where known the frame and line."""
+
+
+class EngineError(PyGranError):
+    """The solver behind an engine reported an error or died."""
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """Return ``" Did you mean 'x'?"`` for the closest choice, or an empty string."""
+    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" Did you mean {close[0]!r}?" if close else ""
+
+
+def unknown_key(kind: str, key: str, known: Iterable[str]) -> ConfigError:
+    """A :class:`ConfigError` for an unknown keyword that suggests the closest known one."""
+    known = sorted(known)
+    return ConfigError(
+        f"Unknown {kind} {key!r}.{did_you_mean(key, known)} Known: {', '.join(known)}."
+    )

@@ -1,0 +1,155 @@
+"""File access for trajectories and meshes: the base classes formats implement, and lookup.
+
+Formats live in plugins (``pygran-readers`` and third-party ones); this module holds what
+they share: :class:`Frame` (one snapshot), :class:`Trajectory` (a lazy, random-access
+sequence of frames) and :class:`TrajectoryWriter` (appends one frame at a time), plus
+:func:`open_trajectory` / :func:`open_writer`, which pick the format through the registry.
+"""
+
+from __future__ import annotations
+
+import abc
+import glob
+import os
+import re
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pygran_core.errors import ReadError
+
+PathLike = str | os.PathLike[str]
+
+
+@dataclass
+class Frame:
+    """One snapshot: per-element arrays (all of the same length) plus scalar metadata.
+
+    ``arrays`` maps column names (``"id"``, ``"x"``, ``"radius"``, ...) to 1-D arrays, or
+    to 2-D arrays for mesh ``points`` / ``cells``. ``box`` is ``(3, 2)`` lower/upper
+    bounds or ``None``; ``boundary`` the LIGGGHTS boundary flags such as
+    ``("pp", "pp", "ff")``; ``timestep`` the step number; ``time`` in the file's units.
+    """
+
+    arrays: dict[str, np.ndarray]
+    timestep: int | None = None
+    time: float | None = None
+    box: np.ndarray | None = None
+    boundary: tuple[str, ...] | None = None
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+
+class Trajectory(abc.ABC):
+    """A lazy sequence of frames: opening reads headers only; frames are read on demand.
+
+    Subclasses implement :attr:`n_frames` and :meth:`_read_frame`; indexing, negative
+    indices, bounds checks and iteration live here once.
+    """
+
+    @property
+    @abc.abstractmethod
+    def n_frames(self) -> int:
+        """Number of frames."""
+
+    @abc.abstractmethod
+    def _read_frame(self, index: int) -> Frame:
+        """Read frame ``index`` (already checked: ``0 <= index < n_frames``)."""
+
+    def read_frame(self, index: int) -> Frame:
+        """Frame ``index``; negative indices count from the end."""
+        n = self.n_frames
+        if not -n <= index < n:
+            raise IndexError(f"Frame {index} is out of range: the trajectory has {n} frames")
+        return self._read_frame(index % n)
+
+    def __len__(self) -> int:
+        return self.n_frames
+
+    def __getitem__(self, index: int) -> Frame:
+        return self.read_frame(index)
+
+    def __iter__(self) -> Iterator[Frame]:
+        for index in range(self.n_frames):
+            yield self._read_frame(index)
+
+    def close(self) -> None:
+        """Release open files; the default holds none."""
+
+    def __enter__(self) -> Trajectory:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class TrajectoryWriter(abc.ABC):
+    """Appends frames to a file; each frame is flushed so a crash loses at most one."""
+
+    @abc.abstractmethod
+    def write_frame(self, frame: Frame) -> None:
+        """Append and flush one frame."""
+
+    def close(self) -> None:
+        """Finish the file; the default holds nothing open."""
+
+    def __enter__(self) -> TrajectoryWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def natural_key(text: str) -> list[Any]:
+    """Sort key that orders embedded numbers numerically: ``f2`` before ``f10``."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", text)]
+
+
+def expand_paths(pattern: PathLike | Sequence[PathLike]) -> list[Path]:
+    """Expand a path, a glob pattern or a list of them into existing files, in natural order.
+
+    Raises :class:`ReadError` naming the pattern when nothing matches.
+    """
+    if isinstance(pattern, (str, os.PathLike)):
+        text = os.fspath(pattern)
+        if glob.has_magic(text):
+            found = sorted(glob.glob(text), key=natural_key)
+            if not found:
+                raise ReadError(f"No file matches {text!r} (looked in {Path(text).parent.resolve()})")
+            return [Path(p) for p in found]
+        path = Path(text)
+        if not path.is_file():
+            raise ReadError(f"File not found: {path.resolve()}")
+        return [path]
+    paths: list[Path] = []
+    for item in pattern:
+        paths.extend(expand_paths(item))
+    if not paths:
+        raise ReadError("An empty list of files was given")
+    return paths
+
+
+def open_trajectory(
+    pattern: PathLike | Sequence[PathLike], format: str | None = None, **options: Any
+) -> Trajectory:
+    """Open one file, a glob or a list of files as a lazy :class:`Trajectory`.
+
+    The format is ``format`` if given, else the first reader whose ``can_open`` accepts the
+    first file, else the reader registered for the longest matching extension.
+    """
+    from pygran_core import registry
+
+    paths = expand_paths(pattern)
+    spec = registry.reader_for(paths[0], format)
+    return spec.open(paths, **options)
+
+
+def open_writer(path: PathLike, format: str | None = None, **options: Any) -> TrajectoryWriter:
+    """Open a :class:`TrajectoryWriter` for ``path``; the format comes from ``format`` or the name."""
+    from pygran_core import registry
+
+    spec = registry.writer_for(Path(path), format)
+    return spec.open(Path(path), **options)
+
