@@ -30,7 +30,10 @@ def _describe(kind: str, provided: registry.Provided) -> str:
 
 
 def cmd_plugins(args: argparse.Namespace) -> int:
-    """Print every engine, model, reader and writer with the distribution providing it."""
+    """Print every plugin, then every engine, model, reader and writer with its distribution."""
+    print("plugins:")
+    for name, (dist, dist_version) in sorted(registry.plugins().items()):
+        print(f"  {name:<16} {dist} {dist_version}")
     for kind in registry.KINDS:
         items = registry.available(kind)
         print(f"{kind}s:")

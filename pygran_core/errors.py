@@ -43,6 +43,4 @@ def did_you_mean(word: str, choices: Iterable[str]) -> str:
 def unknown_key(kind: str, key: str, known: Iterable[str]) -> ConfigError:
     """A :class:`ConfigError` for an unknown keyword that suggests the closest known one."""
     known = sorted(known)
-    return ConfigError(
-        f"Unknown {kind} {key!r}.{did_you_mean(key, known)} Known: {', '.join(known)}."
-    )
+    return ConfigError(f"Unknown {kind} {key!r}.{did_you_mean(key, known)} Known: {', '.join(known)}.")

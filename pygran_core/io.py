@@ -152,4 +152,3 @@ def open_writer(path: PathLike, format: str | None = None, **options: Any) -> Tr
 
     spec = registry.writer_for(Path(path), format)
     return spec.open(Path(path), **options)
-

@@ -37,7 +37,7 @@ install_python_packages() {
         return
     fi
     log "installing pygran-core and plugins (${PLUGINS[*]}) into $VENV"
-    "$VENV/bin/python" -m pip install -q --upgrade pip "setuptools>=68" wheel
+    "$VENV/bin/python" -m pip install -q --upgrade pip "setuptools>=77" wheel
     local args=(-e "$ROOT[test]")
     for plugin in "${PLUGINS[@]}"; do args+=(-e "$ROOT/plugins/$plugin[test]"); done
     "$VENV/bin/python" -m pip install -q "${args[@]}"

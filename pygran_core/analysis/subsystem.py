@@ -186,9 +186,7 @@ class SubSystem:
 
     def copy(self) -> SubSystem:
         """An independent copy (arrays and metadata)."""
-        return type(self)._from_parts(
-            {k: _frozen(v) for k, v in self._fields.items()}, dict(self._meta)
-        )
+        return type(self)._from_parts({k: _frozen(v) for k, v in self._fields.items()}, dict(self._meta))
 
     # -- explicit in-place transforms -----------------------------------------------------
 
@@ -204,7 +202,9 @@ class SubSystem:
             raise KeyError(f"{type(self).__name__} has no attributes {unknown}; it has {self.keys()}")
         return names
 
-    def translate(self, offset: float | Sequence[float], attr: Sequence[str] | str | None = None) -> SubSystem:
+    def translate(
+        self, offset: float | Sequence[float], attr: Sequence[str] | str | None = None
+    ) -> SubSystem:
         """Add ``offset`` (one value, or one per attribute) to ``attr`` in place; returns self."""
         names = self._targets(attr)
         offsets = np.broadcast_to(np.asarray(offset, dtype=float), (len(names),) + np.shape(offset)[1:])

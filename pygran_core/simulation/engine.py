@@ -98,9 +98,7 @@ class Engine(abc.ABC):
         from pygran_core.registry import engines_with
 
         able = [name for name in engines_with(capability) if name != self.name]
-        alternative = (
-            f"Engines that can: {', '.join(able)}." if able else "No installed engine can."
-        )
+        alternative = f"Engines that can: {', '.join(able)}." if able else "No installed engine can."
         raise UnsupportedFeature(
             f"The {self.name} engine does not support {what or capability} "
             f"(capability {capability!r}). {alternative}"

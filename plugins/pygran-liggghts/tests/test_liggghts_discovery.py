@@ -1,9 +1,10 @@
 """Finding libliggghts: explicit path, loader, and the install message when missing."""
 
 import pytest
+from pygran_liggghts.library import LIBRARY_ENV, find_library
+
 from pygran_core import registry
 from pygran_core.errors import EngineError
-from pygran_liggghts.library import LIBRARY_ENV, find_library
 
 
 def test_registered():

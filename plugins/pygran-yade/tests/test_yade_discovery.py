@@ -1,9 +1,10 @@
 """Finding the YADE launcher: explicit path, PATH, and the install message when missing."""
 
 import pytest
+from pygran_yade.launcher import LAUNCHER_ENV, find_launcher
+
 from pygran_core import registry
 from pygran_core.errors import EngineError
-from pygran_yade.launcher import LAUNCHER_ENV, find_launcher
 
 
 def test_registered():

@@ -6,7 +6,9 @@ from pygran_liggghts.library import find_library
 
 
 def _create(**specs: object) -> None:
-    raise UnsupportedFeature("The LIGGGHTS engine's front end is not part of this pygran-liggghts release yet")
+    raise UnsupportedFeature(
+        "The LIGGGHTS engine's front end is not part of this pygran-liggghts release yet"
+    )
 
 
 @hookimpl

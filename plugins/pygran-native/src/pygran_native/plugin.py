@@ -12,7 +12,9 @@ def locate_solver() -> str:
 
 
 def _create(**specs: object) -> None:
-    raise UnsupportedFeature("The native engine's time-step loop is not part of this pygran-native release yet")
+    raise UnsupportedFeature(
+        "The native engine's time-step loop is not part of this pygran-native release yet"
+    )
 
 
 @hookimpl

@@ -1,0 +1,1 @@
+"""pygran-broken: a test plugin."""

@@ -1,0 +1,1 @@
+"""pygran-toy-clash: a test plugin."""

@@ -1,0 +1,1 @@
+"""pygran-toy-twin: a test plugin."""

@@ -1,0 +1,1 @@
+"""pygran-toy: a test plugin."""

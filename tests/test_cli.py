@@ -1,0 +1,30 @@
+"""The pygran command."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+PYGRAN = str(Path(sys.executable).with_name("pygran"))
+
+
+def test_version():
+    out = subprocess.run([PYGRAN, "--version"], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "pygran 0.1.0"
+
+
+def test_plugins_lists_every_plugin_with_distribution():
+    out = subprocess.run([PYGRAN, "plugins"], capture_output=True, text=True, check=True).stdout
+    for line in (
+        "native           pygran-native 0.1.0",
+        "liggghts         pygran-liggghts 0.1.0",
+        "yade             pygran-yade 0.1.0",
+        "readers          pygran-readers 0.1.0",
+    ):
+        assert line in out
+    assert "HertzMindlin" in out and "pygran-core 0.1.0" in out
+    assert "solver: compiled kernels" in out
+
+
+def test_no_command_is_a_usage_error():
+    out = subprocess.run([PYGRAN], capture_output=True, text=True)
+    assert out.returncode == 2 and "usage: pygran" in out.stderr

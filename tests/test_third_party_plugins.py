@@ -1,0 +1,87 @@
+"""Third-party plugins installed with pip: found by name; conflicts and failures are clear."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from pygran_core import io, registry
+from pygran_core.errors import PluginError, PluginNotFound
+from pygran_core.registry import PluginLoadWarning
+
+
+def test_toy_engine_reader_writer_found_by_name(with_plugins, tmp_path):
+    with_plugins("pygran-toy")
+    provided = registry.lookup("engine", "toy")
+    assert (provided.distribution, provided.version, provided.plugin) == ("pygran-toy", "0.0.1", "toy")
+    engine = provided.spec.factory(tmp_path / "out", dt=1e-3, progress=False)
+    engine.add_particle((0, 0, 1))
+    engine.run(100)
+    assert engine.positions[0, 2] == pytest.approx(1 - 0.5 * 9.81 * 0.1**2)
+    engine.close()
+
+    with io.open_writer(tmp_path / "frame.toy") as writer:
+        writer.write_frame(io.Frame({"x": np.arange(3.0), "y": np.zeros(3), "z": np.ones(3)}))
+    trajectory = io.open_trajectory(tmp_path / "frame*.toy")
+    assert trajectory.n_frames == 1
+    np.testing.assert_array_equal(trajectory[0].arrays["x"], [0, 1, 2])
+
+
+def test_reader_chosen_by_content_when_extension_is_unknown(with_plugins, tmp_path):
+    with_plugins("pygran-toy")
+    path = tmp_path / "snapshot.txt"
+    path.write_text("# toy\n1 2 3\n")
+    assert registry.reader_for(path).name == "toy"
+    other = tmp_path / "other.txt"
+    other.write_text("1 2 3\n")
+    with pytest.raises(PluginNotFound, match="No installed reader recognises .*other.txt.*toy \\(.toy\\)"):
+        registry.reader_for(other)
+    assert registry.reader_for(other, format="toy").name == "toy"
+
+
+def test_capability_error_names_engines_that_can(with_plugins, tmp_path):
+    from pygran_core.errors import UnsupportedFeature
+
+    with_plugins("pygran-toy")
+    engine = registry.get_engine("toy").factory(tmp_path, progress=False)
+    engine.require("multisphere")
+    with pytest.raises(
+        UnsupportedFeature, match="toy engine does not support restart.*No installed engine can"
+    ):
+        engine.require("restart")
+    engine.close()
+
+
+def test_duplicate_item_name_names_both_distributions(with_plugins):
+    with_plugins("pygran-toy", "pygran-toy-clash")
+    with pytest.raises(PluginError) as info:
+        registry.available("engine")
+    text = str(info.value)
+    assert "engine name 'toy' is provided twice" in text
+    assert "pygran-toy 0.0.1" in text and "pygran-toy-clash 0.0.1" in text
+
+
+def test_duplicate_plugin_name_names_both_distributions(with_plugins):
+    with_plugins("pygran-toy", "pygran-toy-twin")
+    with pytest.raises(PluginError, match="named 'toy': pygran-toy(-twin)? and pygran-toy(-twin)?"):
+        registry.plugins()
+
+
+def test_failing_plugin_is_a_warning_naming_it(with_plugins, monkeypatch):
+    monkeypatch.delenv(registry.STRICT_ENV, raising=False)
+    with_plugins("pygran-broken")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        loaded = registry.plugins()
+    messages = [str(w.message) for w in caught if issubclass(w.category, PluginLoadWarning)]
+    assert "broken" not in loaded and "native" in loaded
+    assert len(messages) == 1
+    assert "'broken' from pygran-broken 0.0.1 failed to import" in messages[0]
+    assert "libbroken.so.1" in messages[0]
+
+
+def test_failing_plugin_is_an_error_when_strict(with_plugins, monkeypatch):
+    monkeypatch.setenv(registry.STRICT_ENV, "1")
+    with_plugins("pygran-broken")
+    with pytest.raises(PluginError, match="pygran-broken 0.0.1 failed to import.*PYGRAN_STRICT_PLUGINS"):
+        registry.plugins()
