@@ -1,0 +1,205 @@
+"""Material dictionaries (S.I. units) and their validation.
+
+Every material is a read-only mapping with the manual's keys (chapter 3). Copy it to
+change or extend it, e.g. ``dict(params.stearicAcid, radius=1e-4)``; the module's own
+mappings cannot be modified by accident.
+
+==================================  ===============================================  ========
+key                                 meaning                                          unit
+==================================  ===============================================  ========
+youngsModulus                       Young's modulus E                                Pa
+poissonsRatio                       Poisson's ratio nu, in (-1, 0.5)                 --
+coefficientFriction                 Coulomb sliding friction mu                      --
+coefficientRollingFriction          rolling friction mu_r (LIGGGHTS ``cdt``)         --
+cohesionEnergyDensity               Thornton-Ning JKR: surface energy Gamma of       J/m^2
+                                    each surface (work of adhesion is 2 Gamma);
+                                    SJKR (SpringDashpot, HertzMindlin): the           J/m^3
+                                    LIGGGHTS ``cohesion sjkr`` energy density k
+coefficientRestitution              normal restitution e, in (0, 1]                  --
+coefficientRollingViscousDamping    rolling viscous damping (LIGGGHTS ``epsd``)      --
+yieldPress                          limiting contact pressure p_y (Thornton-Ning)    Pa
+characteristicVelocity              impact velocity scale (hooke stiffness, impacts)  m/s
+density                             true (particle) density                          kg/m^3
+==================================  ===============================================  ========
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Callable, Iterable, Mapping
+from types import MappingProxyType
+
+from pygran_core.errors import ConfigError, unknown_key
+
+__all__ = [
+    "MATERIALS",
+    "KEYS",
+    "cohesionless",
+    "cohesive",
+    "glass",
+    "organic",
+    "stearicAcid",
+    "steel",
+    "validate",
+]
+
+_positive = (lambda x: x > 0, "must be > 0")
+_non_negative = (lambda x: x >= 0, "must be >= 0")
+
+#: Valid range of every known key: (predicate, description of the range).
+_RANGES: dict[str, tuple[Callable[[float], bool], str]] = {
+    "youngsModulus": _positive,
+    "poissonsRatio": (lambda x: -1 < x < 0.5, "must lie in (-1, 0.5)"),
+    "coefficientFriction": _non_negative,
+    "coefficientRollingFriction": _non_negative,
+    "cohesionEnergyDensity": _non_negative,
+    "coefficientRestitution": (lambda x: 0 < x <= 1, "must lie in (0, 1]"),
+    "coefficientRollingViscousDamping": _non_negative,
+    "yieldPress": _positive,
+    "characteristicVelocity": _positive,
+    "density": _positive,
+    "radius": _positive,
+    "mass": _positive,
+}
+
+#: The material keys of the manual (chapter 3); ``radius`` and ``mass`` are extra keys
+#: accepted only where a caller allows them (the contact models do).
+KEYS = frozenset(_RANGES) - {"radius", "mass"}
+
+
+def validate(material: Mapping[str, object], *, allow: Iterable[str] = ()) -> dict[str, float]:
+    """Check a material and return a new ``dict`` of its values as floats.
+
+    ``allow`` names extra keys accepted besides :data:`KEYS` (``"radius"``, ``"mass"``).
+    Raises :class:`~pygran_core.errors.ConfigError` for an unknown key (suggesting the
+    closest known one), a value that is not a real number (bools included), or a value
+    outside its physical range (naming key and value). Ints and floats are both accepted.
+    """
+    known = KEYS | (frozenset(allow) & _RANGES.keys())
+    if not isinstance(material, Mapping):
+        raise ConfigError(f"A material must be a mapping of keys to numbers, not {type(material).__name__}.")
+    clean: dict[str, float] = {}
+    for key, value in material.items():
+        if key not in known:
+            raise unknown_key("material key", str(key), known)
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise ConfigError(f"Material key {key!r} must be a real number, got {value!r}.")
+        number = float(value)
+        check, expected = _RANGES[key]
+        if not math.isfinite(number) or not check(number):
+            raise ConfigError(f"Material key {key!r} {expected}, got {value!r}.")
+        clean[key] = number
+    return clean
+
+
+def _material(**values: float) -> Mapping[str, float]:
+    return MappingProxyType(validate(values))
+
+
+#: Stearic acid, the manual's Listing 3.1.
+stearicAcid = _material(
+    youngsModulus=4.15e7,
+    poissonsRatio=0.25,
+    coefficientFriction=0.5,
+    coefficientRollingFriction=0.0,
+    cohesionEnergyDensity=0.033,
+    coefficientRestitution=0.9,
+    coefficientRollingViscousDamping=0.1,
+    yieldPress=2.2e6,
+    characteristicVelocity=0.1,
+    density=997.164,
+)
+
+# Representative literature values. Sources:
+# - glass (soda-lime): E, nu, density from standard soda-lime glass data (E ~ 63-72 GPa,
+#   nu ~ 0.22-0.24); restitution 0.97 and friction 0.092 measured for glass spheres by
+#   Foerster, Louge, Chang & Allia, Phys. Fluids 6 (1994) 1108; yieldPress ~ Vickers hardness.
+# - steel (AISI 52100 bearing balls): E 210 GPa, nu 0.3, density 7810 kg/m^3 (ASM Handbook
+#   vol. 1); restitution ~0.9 at ~1 m/s (Goldsmith, Impact, 1960); yieldPress ~ hardness.
+# - organic (microcrystalline cellulose granules): E ~ 8 GPa and nu ~ 0.3 (Roberts, Rowe &
+#   York, Int. J. Pharm. 105 (1994) 177), true density 1560 kg/m^3, Heckel mean yield
+#   pressure ~ 50-90 MPa.
+# - cohesive: the manual's cohesive organic powder (Listing 3.4), surface energy 0.04 J/m^2,
+#   typical of organic crystals such as lactose (~0.04-0.05 J/m^2).
+# - cohesionless (dry quartz sand): bulk modulus 37 GPa and shear modulus 44 GPa of quartz
+#   (Mavko, Mukerji & Dvorkin, The Rock Physics Handbook) give E = 94.5 GPa, nu = 0.074;
+#   density 2650 kg/m^3; interparticle friction ~0.5.
+# Rolling friction coefficients are typical calibrated values for the cdt model (1e-3 to
+# 1e-2; Ai, Chen, Rotter & Ooi, Powder Technol. 206 (2011) 269).
+glass = _material(
+    youngsModulus=6.3e10,
+    poissonsRatio=0.23,
+    coefficientFriction=0.092,
+    coefficientRollingFriction=0.002,
+    cohesionEnergyDensity=0.0,
+    coefficientRestitution=0.97,
+    coefficientRollingViscousDamping=0.0,
+    yieldPress=5.5e9,
+    characteristicVelocity=1.0,
+    density=2500.0,
+)
+
+steel = _material(
+    youngsModulus=2.1e11,
+    poissonsRatio=0.3,
+    coefficientFriction=0.2,
+    coefficientRollingFriction=0.002,
+    cohesionEnergyDensity=0.0,
+    coefficientRestitution=0.9,
+    coefficientRollingViscousDamping=0.0,
+    yieldPress=7.0e9,
+    characteristicVelocity=1.0,
+    density=7810.0,
+)
+
+organic = _material(
+    youngsModulus=8.0e9,
+    poissonsRatio=0.3,
+    coefficientFriction=0.5,
+    coefficientRollingFriction=0.005,
+    cohesionEnergyDensity=0.0,
+    coefficientRestitution=0.75,
+    coefficientRollingViscousDamping=0.0,
+    yieldPress=7.0e7,
+    characteristicVelocity=0.1,
+    density=1560.0,
+)
+
+cohesive = _material(
+    youngsModulus=6.0e9,
+    poissonsRatio=0.25,
+    coefficientFriction=0.5,
+    coefficientRollingFriction=0.01,
+    cohesionEnergyDensity=0.04,
+    coefficientRestitution=0.5,
+    coefficientRollingViscousDamping=0.0,
+    yieldPress=4.0e7,
+    characteristicVelocity=0.04,
+    density=1500.0,
+)
+
+cohesionless = _material(
+    youngsModulus=9.45e10,
+    poissonsRatio=0.074,
+    coefficientFriction=0.5,
+    coefficientRollingFriction=0.005,
+    cohesionEnergyDensity=0.0,
+    coefficientRestitution=0.8,
+    coefficientRollingViscousDamping=0.0,
+    yieldPress=1.1e10,
+    characteristicVelocity=1.0,
+    density=2650.0,
+)
+
+#: Every material above by name (read-only).
+MATERIALS: Mapping[str, Mapping[str, float]] = MappingProxyType(
+    {
+        "stearicAcid": stearicAcid,
+        "glass": glass,
+        "steel": steel,
+        "organic": organic,
+        "cohesive": cohesive,
+        "cohesionless": cohesionless,
+    }
+)
