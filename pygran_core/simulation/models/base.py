@@ -1,0 +1,265 @@
+"""The :class:`ContactModel` base class and the particle-wall impact it integrates."""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.integrate import solve_ivp
+
+from pygran_core import params
+from pygran_core.errors import ConfigError
+from pygran_core.simulation.models import mixing
+
+__all__ = ["ContactModel", "Impact"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Impact:
+    """A particle-wall impact, unpacked as ``time, soln, force = model.displacement()``.
+
+    ``soln[:, 0]`` is the normal overlap and ``soln[:, 1]`` its rate (positive while
+    approaching), from first touch (``soln[0] = (0, v)``) to the end of contact: the
+    separation point, or for a captured particle the point where it turns back towards
+    the wall for the second time. ``force`` is the normal force on the particle (positive
+    repulsive) at each time.
+    """
+
+    time: Array
+    soln: Array
+    force: Array
+    captured: bool
+
+    def __iter__(self) -> Iterator[Array]:
+        return iter((self.time, self.soln, self.force))
+
+    @property
+    def restitution(self) -> float:
+        """Normal coefficient of restitution ``|v_out / v_in|``; 0 for a captured particle."""
+        return 0.0 if self.captured else abs(float(self.soln[-1, 1] / self.soln[0, 1]))
+
+    @property
+    def contact_time(self) -> float:
+        """Duration of the contact; ``inf`` for a captured particle."""
+        return math.inf if self.captured else float(self.time[-1] - self.time[0])
+
+    @property
+    def max_overlap(self) -> float:
+        return float(self.soln[:, 0].max())
+
+    @property
+    def max_force(self) -> float:
+        return float(self.force.max())
+
+
+class ContactModel(abc.ABC):
+    """Base class of the contact models: a normal force law plus friction and rolling resistance.
+
+    ``Model(material=dict)`` takes a material with the keys of :mod:`pygran_core.params`
+    plus ``radius`` and optionally ``mass`` (else computed from ``density``). By default
+    the contact is particle-wall: a flat wall (infinite radius and mass) of the same
+    material. ``partner`` gives the other body's material instead, with its own
+    ``radius``/``mass`` for a sphere-sphere contact (omit them for a wall); properties
+    missing from it are taken from ``material``. Pair values come from
+    :mod:`~pygran_core.simulation.models.mixing`.
+
+    Sign conventions: the overlap ``delta > 0`` in contact, its rate positive while the
+    bodies approach; normal forces are positive when repulsive. Tangential vectors lie on
+    the last array axis. ``max_overlap`` is the normal history (largest overlap of the
+    contact so far) for models with hysteresis; ``None`` means the contact is loading.
+    """
+
+    #: Material keys a model cannot do without (``density`` or ``mass`` is always needed).
+    required: ClassVar[tuple[str, ...]] = ("youngsModulus", "poissonsRatio", "radius")
+
+    def __init__(self, material: Mapping[str, float], *, partner: Mapping[str, float] | None = None) -> None:
+        mine = params.validate(material, allow=("radius", "mass"))
+        theirs = {} if partner is None else params.validate(partner, allow=("radius", "mass"))
+        missing = [key for key in self.required if key not in mine]
+        if "mass" not in mine and "density" not in mine:
+            missing.append("density")
+        if missing:
+            raise ConfigError(f"{type(self).__name__} needs the material key(s) {', '.join(missing)}.")
+        self.material: Mapping[str, float] = MappingProxyType(mine)
+        for key, value in mine.items():
+            if key not in ("radius", "mass"):
+                theirs.setdefault(key, value)
+        self.radius = mine["radius"]
+        self.mass = _sphere_mass(mine)
+        other_mass = theirs.get("mass", _sphere_mass(theirs)) if "radius" in theirs else math.inf
+        self.effective_radius = float(mixing.effective_radius(self.radius, theirs.get("radius", math.inf)))
+        self.effective_mass = float(mixing.effective_mass(self.mass, other_mass))
+        moduli = (mine["youngsModulus"], mine["poissonsRatio"],
+                  theirs["youngsModulus"], theirs["poissonsRatio"])
+        self.effective_modulus = float(mixing.effective_modulus(*moduli))
+        self.effective_shear_modulus = float(mixing.effective_shear_modulus(*moduli))
+
+        def pair(key: str, rule: Callable[[float, float], float]) -> float | None:
+            return float(rule(mine[key], theirs[key])) if key in mine else None
+
+        self.friction = pair("coefficientFriction", mixing.pair_friction)
+        self.rolling_friction = pair("coefficientRollingFriction", mixing.pair_friction)
+        self.restitution_coefficient = pair("coefficientRestitution", mixing.pair_restitution)
+        self.cohesion = pair("cohesionEnergyDensity", mixing.pair_cohesion) or 0.0
+        self.yield_pressure = pair("yieldPress", mixing.pair_yield_pressure)
+
+    @property
+    def coefficients(self) -> Mapping[str, float]:
+        """The pair coefficients of this contact (read-only)."""
+        names = ("effective_radius", "effective_mass", "effective_modulus", "effective_shear_modulus",
+                 "friction", "rolling_friction", "restitution_coefficient", "cohesion", "yield_pressure")
+        values = {name: getattr(self, name) for name in names} | self._model_coefficients()
+        return MappingProxyType({k: v for k, v in values.items() if v is not None})
+
+    def _model_coefficients(self) -> dict[str, float]:
+        """Model-specific constant coefficients (stiffness, damping...)."""
+        return {}
+
+    # --- force laws -------------------------------------------------------------------
+    @abc.abstractmethod
+    def normal_force(self, overlap: ArrayLike, overlap_rate: ArrayLike,
+                     max_overlap: ArrayLike | None = None) -> Array:
+        """Normal force (positive repulsive) at the given overlap and overlap rate."""
+
+    @abc.abstractmethod
+    def _tangential_coefficients(self, overlap: Array, max_overlap: ArrayLike | None) -> tuple[Array, Array]:
+        """Tangential stiffness ``k_t`` and damping ``gamma_t`` at the given overlap."""
+
+    def _in_contact(self, overlap: Array, max_overlap: ArrayLike | None) -> NDArray[np.bool_]:
+        return overlap > 0
+
+    def _separation_overlap(self, max_overlap: float) -> float:
+        """Overlap at which an unloading contact with this history breaks."""
+        return 0.0
+
+    def tangential_force(self, overlap: ArrayLike, tangential_overlap: ArrayLike,
+                         tangential_rate: ArrayLike, normal_force: ArrayLike,
+                         max_overlap: ArrayLike | None = None) -> tuple[Array, Array]:
+        """Tangential force with history and Coulomb limit; returns ``(force, tangential_overlap)``.
+
+        ``F_t = -k_t xi - gamma_t v_t``, with ``xi`` the accumulated tangential
+        displacement (the history the engine integrates, shape ``(..., d)``) and ``v_t`` the
+        tangential relative velocity. If ``|F_t| > mu |F_n|`` the force is scaled down to
+        ``mu |F_n|`` and the history is reset to match it,
+        ``xi <- r (xi + gamma_t v_t / k_t) - gamma_t v_t / k_t`` with ``r = mu |F_n| / |F_t|``
+        (LAMMPS/LIGGGHTS ``tangential_history``). Out of contact both are zero.
+        """
+        if self.friction is None:
+            raise ConfigError(f"{type(self).__name__}: the tangential force needs 'coefficientFriction'.")
+        overlap = np.asarray(overlap, float)
+        xi = np.asarray(tangential_overlap, float)
+        rate = np.asarray(tangential_rate, float)
+        kt, gammat = (c[..., None] for c in self._tangential_coefficients(overlap, max_overlap))
+        contact = self._in_contact(overlap, max_overlap)[..., None]
+        trial = -kt * xi - gammat * rate
+        magnitude = np.linalg.norm(trial, axis=-1, keepdims=True)
+        limit = self.friction * np.abs(np.asarray(normal_force, float))[..., None]
+        slip = magnitude > limit
+        ratio = np.where(slip, limit / np.where(slip, magnitude, 1.0), 1.0)
+        viscous = np.divide(gammat * rate, kt, out=np.zeros(np.broadcast_shapes(rate.shape, kt.shape)),
+                            where=kt > 0)
+        history = np.where(slip, ratio * (xi + viscous) - viscous, xi)
+        return np.where(contact, ratio * trial, 0.0), np.where(contact, history, 0.0)
+
+    def rolling_torque(self, normal_force: ArrayLike, angular_velocity: ArrayLike) -> Array:
+        """Rolling resistance torque on body 1, LIGGGHTS ``rolling_friction cdt``.
+
+        ``M_r = -mu_r R* |F_n| w / |w|`` with ``w = omega_1 - omega_2`` the relative angular
+        velocity (shape ``(..., 3)``); zero where ``w = 0``. Body 2 gets ``-M_r``.
+        """
+        if self.rolling_friction is None:
+            raise ConfigError(
+                f"{type(self).__name__}: the rolling torque needs 'coefficientRollingFriction'.")
+        w = np.asarray(angular_velocity, float)
+        norm = np.linalg.norm(w, axis=-1, keepdims=True)
+        direction = np.divide(w, norm, out=np.zeros_like(w), where=norm > 0)
+        moment = self.rolling_friction * self.effective_radius * np.abs(np.asarray(normal_force, float))
+        return -moment[..., None] * direction
+
+    # --- impacts ----------------------------------------------------------------------
+    @abc.abstractmethod
+    def contactTime(self, velocity: float | None = None) -> float:
+        """Duration of a particle-wall impact at ``velocity`` (default ``characteristicVelocity``)."""
+
+    def _velocity(self, velocity: float | None) -> float:
+        if velocity is None:
+            if "characteristicVelocity" not in self.material:
+                raise ConfigError(
+                    f"{type(self).__name__}: give an impact velocity or 'characteristicVelocity'.")
+            return self.material["characteristicVelocity"]
+        if not velocity > 0:
+            raise ConfigError(f"The impact velocity must be > 0, got {velocity!r}.")
+        return float(velocity)
+
+    def displacement(self, velocity: float | None = None, samples: int = 400) -> Impact:
+        """Integrate a normal impact at ``velocity`` (default ``characteristicVelocity``).
+
+        Solves ``m* d2delta/dt2 = -F_n(delta, ddelta/dt)`` from ``delta = 0``,
+        ``ddelta/dt = v`` with ``scipy.integrate.solve_ivp`` in two phases, each ended by an
+        event: loading until the overlap rate vanishes, then unloading (with that maximum
+        overlap as history) until the contact breaks, or until the overlap rate vanishes
+        again (the particle is captured). Each phase is sampled at ``samples`` times.
+        Unpack the result as ``time, soln, force``; see :class:`Impact`.
+        """
+        v0 = self._velocity(velocity)
+        span = 50 * self.contactTime(v0)
+        options = {"method": "DOP853", "rtol": 1e-10, "atol": 1e-13 * np.array([v0 * span, v0]),
+                   "dense_output": True}
+
+        def rhs(t: float, y: Array, history: float | None) -> tuple[float, float]:
+            return y[1], -float(self.normal_force(y[0], y[1], history)) / self.effective_mass
+
+        def turning(t: float, y: Array, history: float | None) -> float:
+            return y[1]
+
+        def returning(t: float, y: Array, history: float | None) -> float:
+            return y[1]
+
+        def separating(t: float, y: Array, history: float | None) -> float:
+            return y[0] - separation
+
+        turning.terminal, turning.direction = True, -1
+        returning.terminal, returning.direction = True, 1
+        separating.terminal, separating.direction = True, -1
+
+        loading = solve_ivp(rhs, (0.0, span), (0.0, v0), events=turning, args=(None,), **options)
+        if loading.status != 1:
+            raise RuntimeError(f"{type(self).__name__}: the impact did not turn back within {span:g} s.")
+        t1, y1 = loading.t_events[0][0], loading.y_events[0][0]
+        history = float(y1[0])
+        separation = self._separation_overlap(history)
+        unloading = solve_ivp(rhs, (t1, t1 + span), y1, events=[separating, returning], args=(history,),
+                              **options)
+        if unloading.status != 1:
+            raise RuntimeError(f"{type(self).__name__}: the contact neither broke nor captured the particle.")
+        captured = unloading.t_events[1].size > 0
+        t2 = (unloading.t_events[1] if captured else unloading.t_events[0])[0]
+
+        times = (np.linspace(0.0, t1, samples), np.linspace(t1, t2, samples)[1:])
+        states = [loading.sol(times[0]).T, unloading.sol(times[1]).T]
+        forces = [self.normal_force(states[0][:, 0], states[0][:, 1]),
+                  self.normal_force(states[1][:, 0], states[1][:, 1], history)]
+        return Impact(np.concatenate(times), np.concatenate(states), np.concatenate(forces), captured)
+
+    def restitution(self, velocity: float | None = None) -> float:
+        """Coefficient of restitution realised by a particle-wall impact at ``velocity``."""
+        return self.displacement(velocity).restitution
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(material={dict(self.material)!r})"
+
+
+def _sphere_mass(material: Mapping[str, float]) -> float:
+    if "mass" in material:
+        return material["mass"]
+    if "density" not in material:
+        raise ConfigError("A sphere needs 'density' or 'mass'.")
+    return 4.0 / 3.0 * math.pi * material["radius"] ** 3 * material["density"]

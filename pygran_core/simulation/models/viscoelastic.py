@@ -1,0 +1,140 @@
+"""Visco-elastic models with simplified-JKR cohesion: :class:`SpringDashpot`, :class:`HertzMindlin`."""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from pygran_core.simulation.models.base import Array, ContactModel
+
+__all__ = ["HertzMindlin", "SpringDashpot"]
+
+
+class _Viscoelastic(ContactModel):
+    """Shared normal law ``F_n = k_n delta + gamma_n ddelta/dt - F_sjkr`` for ``delta > 0``.
+
+    Cohesion (LIGGGHTS ``cohesion sjkr``), on when ``cohesionEnergyDensity`` k > 0:
+    ``F_sjkr = k A`` with ``A = pi delta (2 R* - delta)``, the area of the lens cut by the
+    overlap (LIGGGHTS' sphere-wall area; equal to its sphere-sphere area to first order).
+    Here k is the LIGGGHTS energy density in J/m^3, not the JKR surface energy in J/m^2.
+
+    Clamping (LIGGGHTS ``limitForce``, default off as in LIGGGHTS): by default the
+    visco-elastic force is not clamped, so near the end of a contact the damping makes it
+    attractive and the contact lasts until the overlap returns to zero; this is what makes
+    the realised restitution equal the requested one. With ``limitForce=True`` the
+    visco-elastic part is clamped at ``>= 0`` (before cohesion is added), the particle
+    leaves with the speed it had when that force vanished, and the realised restitution is
+    higher than the requested one.
+    """
+
+    required = (*ContactModel.required, "coefficientRestitution")
+
+    def __init__(self, material: Mapping[str, float], *, partner: Mapping[str, float] | None = None,
+                 limitForce: bool = False) -> None:
+        super().__init__(material, partner=partner)
+        self.limit_force = bool(limitForce)
+        e = self.restitution_coefficient
+        #: LIGGGHTS' damping parameter: ``beta = ln e / sqrt(ln^2 e + pi^2)`` (<= 0).
+        self.beta = math.log(e) / math.hypot(math.log(e), math.pi)
+
+    @abc.abstractmethod
+    def _normal_coefficients(self, overlap: Array) -> tuple[Array, Array]:
+        """Normal ``k_n`` and ``gamma_n`` at the given (positive) overlap."""
+
+    def normal_force(self, overlap: ArrayLike, overlap_rate: ArrayLike,
+                     max_overlap: ArrayLike | None = None) -> Array:
+        """Normal force; ``max_overlap`` is unused (no normal history)."""
+        overlap = np.asarray(overlap, float)
+        contact = overlap > 0
+        delta = np.where(contact, overlap, 0.0)
+        kn, gamman = self._normal_coefficients(delta)
+        force = kn * delta + gamman * np.asarray(overlap_rate, float)
+        if self.limit_force:
+            force = np.maximum(force, 0.0)
+        force = force - self.cohesion * np.pi * delta * (2 * self.effective_radius - delta)
+        return np.where(contact, force, 0.0)
+
+
+class SpringDashpot(_Viscoelastic):
+    """Linear spring-dashpot (LIGGGHTS ``pair_style gran model hooke``).
+
+    ``F_n = k_n delta + gamma_n ddelta/dt`` (positive repulsive), with (LIGGGHTS docs,
+    gran model hooke; Cundall & Strack, Geotechnique 29 (1979) 47):
+
+    - ``k_n = 16/15 sqrt(R*) E* (15 m* V^2 / (16 sqrt(R*) E*))^(1/5)``, V the
+      ``characteristicVelocity``: the undamped spring reaches the Hertzian maximum overlap
+      of an impact at V;
+    - ``gamma_n = sqrt(4 m* k_n / (1 + (pi / ln e)^2))``, giving restitution e exactly;
+    - ``k_t = k_n``, ``gamma_t = gamma_n`` (tangential history, Coulomb limit ``mu |F_n|``).
+
+    Contact time ``pi / sqrt(k_n/m* - (gamma_n / 2m*)^2)``, independent of velocity.
+    Cohesion and clamping as in :class:`_Viscoelastic`.
+    """
+
+    required = (*_Viscoelastic.required, "characteristicVelocity")
+
+    def __init__(self, material: Mapping[str, float], *, partner: Mapping[str, float] | None = None,
+                 limitForce: bool = False) -> None:
+        super().__init__(material, partner=partner, limitForce=limitForce)
+        R, E, m = self.effective_radius, self.effective_modulus, self.effective_mass
+        V = self.material["characteristicVelocity"]
+        self.kn = 16 / 15 * math.sqrt(R) * E * (15 * m * V**2 / (16 * math.sqrt(R) * E)) ** 0.2
+        # sqrt(4 m k / (1 + (pi/ln e)^2)) written so that e = 1 gives 0
+        self.gamman = -self.beta * math.sqrt(4 * m * self.kn)
+        self.kt, self.gammat = self.kn, self.gamman
+
+    def _model_coefficients(self) -> dict[str, float]:
+        return {"kn": self.kn, "gamman": self.gamman, "kt": self.kt, "gammat": self.gammat}
+
+    def _normal_coefficients(self, overlap: Array) -> tuple[Array, Array]:
+        return np.full_like(overlap, self.kn), np.full_like(overlap, self.gamman)
+
+    def _tangential_coefficients(self, overlap: Array, max_overlap: ArrayLike | None) -> tuple[Array, Array]:
+        return np.full_like(overlap, self.kt), np.full_like(overlap, self.gammat)
+
+    def contactTime(self, velocity: float | None = None) -> float:
+        m = self.effective_mass
+        return math.pi / math.sqrt(self.kn / m - (self.gamman / (2 * m)) ** 2)
+
+
+class HertzMindlin(_Viscoelastic):
+    """Hertz normal, Mindlin tangential, with viscous damping (LIGGGHTS ``gran model hertz``).
+
+    With ``a = sqrt(R* delta)`` (LIGGGHTS docs, gran model hertz; Hertz 1882; Mindlin 1949;
+    damping after Tsuji et al., Powder Technol. 71 (1992) 239):
+
+    - ``F_n = k_n delta + gamma_n ddelta/dt`` (positive repulsive), ``k_n = 4/3 E* a``;
+    - ``gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*)``, ``S_n = 2 E* a``,
+      ``beta = ln e / sqrt(ln^2 e + pi^2)``; this damping (proportional to ``delta^(1/4)``)
+      gives a restitution independent of the impact velocity and equal to e when the
+      force is not clamped;
+    - ``F_t = -k_t xi - gamma_t v_t``, ``k_t = 8 G* a``,
+      ``gamma_t = -2 sqrt(5/6) beta sqrt(k_t m*)``, Coulomb limit ``mu |F_n|``.
+
+    :meth:`contactTime` is the undamped Hertz value ``2.868 (m*^2 / (R* E*^2 v))^(1/5)``;
+    damping lengthens the contact slightly. Cohesion and clamping as in
+    :class:`_Viscoelastic`.
+    """
+
+    def _model_coefficients(self) -> dict[str, float]:
+        return {"beta": self.beta}
+
+    def _damping(self, stiffness: Array) -> Array:
+        return -2 * math.sqrt(5 / 6) * self.beta * np.sqrt(stiffness * self.effective_mass)
+
+    def _normal_coefficients(self, overlap: Array) -> tuple[Array, Array]:
+        a = np.sqrt(self.effective_radius * overlap)
+        return 4 / 3 * self.effective_modulus * a, self._damping(2 * self.effective_modulus * a)
+
+    def _tangential_coefficients(self, overlap: Array, max_overlap: ArrayLike | None) -> tuple[Array, Array]:
+        kt = 8 * self.effective_shear_modulus * np.sqrt(self.effective_radius * np.maximum(overlap, 0.0))
+        return kt, self._damping(kt)
+
+    def contactTime(self, velocity: float | None = None) -> float:
+        v = self._velocity(velocity)
+        m, R, E = self.effective_mass, self.effective_radius, self.effective_modulus
+        return 2.868 * (m**2 / (R * E**2 * v)) ** 0.2
