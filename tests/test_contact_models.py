@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from pygran_core import params
+from pygran_core import params, registry
 from pygran_core.errors import ConfigError
 from pygran_core.simulation.models import ContactModel, HertzMindlin, SpringDashpot, ThorntonNing, plugin
 
@@ -309,6 +309,7 @@ def test_plugin_registers_the_three_models():
     specs = list(plugin.pygran_models())
     assert [(s.name, s.model) for s in specs] == [
         ("SpringDashpot", SpringDashpot), ("HertzMindlin", HertzMindlin), ("ThorntonNing", ThorntonNing)]
+    assert registry.get_model("ThorntonNing").model is ThorntonNing
 
 
 # --- properties over random valid materials ----------------------------------------------
