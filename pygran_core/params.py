@@ -124,7 +124,7 @@ stearicAcid = _material(
 #   typical of organic crystals such as lactose (~0.04-0.05 J/m^2).
 # - cohesionless (dry quartz sand): bulk modulus 37 GPa and shear modulus 44 GPa of quartz
 #   (Mavko, Mukerji & Dvorkin, The Rock Physics Handbook) give E = 94.5 GPa, nu = 0.074;
-#   density 2650 kg/m^3; interparticle friction ~0.5.
+#   density 2650 kg/m^3; interparticle friction ~0.5; yieldPress ~ hardness of quartz.
 # Rolling friction coefficients are typical calibrated values for the cdt model (1e-3 to
 # 1e-2; Ai, Chen, Rotter & Ooi, Powder Technol. 206 (2011) 269).
 glass = _material(

@@ -1,4 +1,20 @@
-"""Visco-elastic models with simplified-JKR cohesion: :class:`SpringDashpot`, :class:`HertzMindlin`."""
+"""Visco-elastic models with simplified-JKR cohesion: :class:`SpringDashpot`, :class:`HertzMindlin`.
+
+Both share the normal law ``F_n = k_n delta + gamma_n ddelta/dt - k A`` for ``delta > 0``
+(zero otherwise; positive repulsive, overlap rate positive while approaching), where:
+
+- cohesion is LIGGGHTS' ``cohesion sjkr`` (simplified JKR), on when
+  ``cohesionEnergyDensity`` k > 0: ``A = pi delta (2 R* - delta)`` is the area of the lens
+  cut by the overlap (LIGGGHTS' sphere-wall area, equal to its sphere-sphere area to first
+  order). k is LIGGGHTS' cohesion energy density in J/m^3, not the JKR surface energy in
+  J/m^2 that :class:`~pygran_core.simulation.models.ThorntonNing` reads from the same key;
+- the visco-elastic part is not clamped by default (LIGGGHTS ``limitForce off``): near the
+  end of a contact the damping makes it attractive and the contact lasts until the overlap
+  returns to zero, which is what makes the realised restitution equal the requested one.
+  With ``limitForce=True`` it is clamped at ``>= 0`` (before cohesion is added), the
+  particle leaves with the speed it had when that force vanished, and the realised
+  restitution is higher than requested.
+"""
 
 from __future__ import annotations
 
@@ -15,21 +31,7 @@ __all__ = ["HertzMindlin", "SpringDashpot"]
 
 
 class _Viscoelastic(ContactModel):
-    """Shared normal law ``F_n = k_n delta + gamma_n ddelta/dt - F_sjkr`` for ``delta > 0``.
-
-    Cohesion (LIGGGHTS ``cohesion sjkr``), on when ``cohesionEnergyDensity`` k > 0:
-    ``F_sjkr = k A`` with ``A = pi delta (2 R* - delta)``, the area of the lens cut by the
-    overlap (LIGGGHTS' sphere-wall area; equal to its sphere-sphere area to first order).
-    Here k is the LIGGGHTS energy density in J/m^3, not the JKR surface energy in J/m^2.
-
-    Clamping (LIGGGHTS ``limitForce``, default off as in LIGGGHTS): by default the
-    visco-elastic force is not clamped, so near the end of a contact the damping makes it
-    attractive and the contact lasts until the overlap returns to zero; this is what makes
-    the realised restitution equal the requested one. With ``limitForce=True`` the
-    visco-elastic part is clamped at ``>= 0`` (before cohesion is added), the particle
-    leaves with the speed it had when that force vanished, and the realised restitution is
-    higher than the requested one.
-    """
+    """The normal law, SJKR cohesion and clamping shared by the visco-elastic models (see module)."""
 
     required = (*ContactModel.required, "coefficientRestitution")
 
@@ -72,7 +74,9 @@ class SpringDashpot(_Viscoelastic):
     - ``k_t = k_n``, ``gamma_t = gamma_n`` (tangential history, Coulomb limit ``mu |F_n|``).
 
     Contact time ``pi / sqrt(k_n/m* - (gamma_n / 2m*)^2)``, independent of velocity.
-    Cohesion and clamping as in :class:`_Viscoelastic`.
+
+    Cohesion (``cohesionEnergyDensity`` k > 0, J/m^3): SJKR, ``F_n -= k pi delta (2 R* - delta)``.
+    Not clamped unless ``limitForce=True``; see the module docstring for both conventions.
     """
 
     required = (*_Viscoelastic.required, "characteristicVelocity")
@@ -116,8 +120,10 @@ class HertzMindlin(_Viscoelastic):
       ``gamma_t = -2 sqrt(5/6) beta sqrt(k_t m*)``, Coulomb limit ``mu |F_n|``.
 
     :meth:`contactTime` is the undamped Hertz value ``2.868 (m*^2 / (R* E*^2 v))^(1/5)``;
-    damping lengthens the contact slightly. Cohesion and clamping as in
-    :class:`_Viscoelastic`.
+    damping lengthens the contact slightly.
+
+    Cohesion (``cohesionEnergyDensity`` k > 0, J/m^3): SJKR, ``F_n -= k pi delta (2 R* - delta)``.
+    Not clamped unless ``limitForce=True``; see the module docstring for both conventions.
     """
 
     def _model_coefficients(self) -> dict[str, float]:
