@@ -1,0 +1,436 @@
+"""VTK meshes and particles: legacy ``.vtk`` (own parser), ``.vtu`` (meshio), ``.vtp`` (vtk).
+
+Every file is one frame; a glob of files is a sequence of frames. A file whose cells are
+all vertices (or that has none) holds particles; it becomes ``x y z`` plus one column per
+point-data array (3-component arrays split into ``<name>x``, ``<name>y``, ``<name>z``, as
+LIGGGHTS names them: ``v`` -> ``vx vy vz``). Any other file is a mesh (see
+:class:`pygran_core.io.Frame` for the mesh arrays). ``kind="mesh"`` or
+``kind="particles"`` forces one reading.
+
+The legacy reader handles ``POLYDATA`` and ``UNSTRUCTURED_GRID`` in ASCII and binary,
+with the classic and the VTK 5.1 (``OFFSETS``/``CONNECTIVITY``) cell layouts; numbers are
+parsed a whole section at a time with numpy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pygran_core.errors import ReadError
+from pygran_core.io import Frame, PathLike, Trajectory
+
+#: legacy type name -> big-endian binary dtype
+DTYPES = {
+    "unsigned_char": ">u1", "char": ">i1", "unsigned_short": ">u2", "short": ">i2",
+    "unsigned_int": ">u4", "int": ">i4", "unsigned_long": ">u8", "long": ">i8",
+    "float": ">f4", "double": ">f8", "vtktypeint64": ">i8", "vtktypeuint64": ">u8",
+    "vtkidtype": ">i8", "vtktypeint32": ">i4",
+}
+#: polydata section -> VTK cell type of its cells (by size where it matters)
+POLY_SECTIONS = ("VERTICES", "LINES", "POLYGONS", "TRIANGLE_STRIPS")
+VERTEX, POLY_VERTEX = 1, 2
+_POLY_TYPE = {"VERTICES": (1, 2), "LINES": (3, 4), "TRIANGLE_STRIPS": (6, 6)}
+_POLYGON_TYPE = {3: 5, 4: 9}  # triangle, quad; other sizes are polygons (7)
+MESHIO_TYPES = {"vertex": 1, "line": 3, "triangle": 5, "polygon": 7, "quad": 9, "tetra": 10,
+                "hexahedron": 12, "wedge": 13, "pyramid": 14}
+
+
+def can_open(path: Path) -> bool:
+    """True for a legacy VTK header or a VTK XML file."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(256)
+    except OSError:
+        return False
+    return head.startswith(b"# vtk DataFile") or (head.lstrip().startswith(b"<") and b"<VTKFile" in head)
+
+
+@dataclass
+class Mesh:
+    """What a VTK file holds, before it becomes a Frame."""
+
+    points: np.ndarray
+    cells: list[np.ndarray] = field(default_factory=list)  # one int array per cell
+    cell_types: list[int] = field(default_factory=list)
+    point_data: dict[str, np.ndarray] = field(default_factory=dict)
+    cell_data: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+class _Legacy:
+    """Cursor over a legacy VTK file's bytes; raises ReadError naming the line."""
+
+    def __init__(self, path: Path, data: bytes) -> None:
+        self.path, self.data, self.pos = path, data, 0
+        self.binary = False
+
+    def fail(self, message: str, pos: int | None = None) -> ReadError:
+        line = self.data.count(b"\n", 0, self.pos if pos is None else pos) + 1
+        return ReadError(f"{self.path}: frame 0, line {line}: {message}")
+
+    def line(self) -> str | None:
+        """The next non-blank line, or None at the end of the file."""
+        while self.pos < len(self.data):
+            end = self.data.find(b"\n", self.pos)
+            end = len(self.data) if end < 0 else end
+            text = self.data[self.pos:end].decode("latin-1").strip()
+            start, self.pos = self.pos, end + 1
+            if text:
+                self.last = start
+                return text
+        return None
+
+    def words(self, expect: int | None = None, what: str = "section") -> list[str]:
+        text = self.line()
+        if text is None:
+            raise self.fail(f"the file ends where a {what} line was expected")
+        words = text.split()
+        if expect is not None and len(words) < expect:
+            raise self.fail(f"bad {what} line {text[:80]!r}", self.last)
+        return words
+
+    def count(self, word: str) -> int:
+        try:
+            value = int(word)
+        except ValueError:
+            raise self.fail(f"{word[:40]!r} is not a count", self.last) from None
+        if value < 0:
+            raise self.fail(f"negative count {value}", self.last)
+        return value
+
+    def numbers(self, count: int, type_name: str) -> np.ndarray:
+        """``count`` numbers of a legacy type, ASCII or big-endian binary."""
+        dtype = DTYPES.get(type_name.lower())
+        if dtype is None:
+            raise self.fail(f"unsupported data type {type_name!r}", self.last)
+        start = self.pos
+        if self.binary:
+            size = np.dtype(dtype).itemsize * count
+            if self.pos + size > len(self.data):
+                raise self.fail(f"the file ends inside {count} binary {type_name} values")
+            values = np.frombuffer(self.data, dtype=dtype, count=count, offset=self.pos)
+            self.pos += size
+            values = values.astype(dtype[1:])  # native byte order
+        else:
+            end = self._token_end(count)
+            kind = np.float64 if dtype[1] == "f" else np.int64
+            try:
+                values = np.fromstring(self.data[start:end], dtype=kind, sep=" ")
+            except ValueError:
+                values = np.empty(0)
+            if len(values) != count:
+                raise self.fail(f"expected {count} {type_name} numbers, found a non-number or fewer "
+                                f"values", start)
+        return values
+
+    def _token_end(self, count: int) -> int:
+        """Byte offset just past the ``count``-th whitespace-separated token from ``pos``."""
+        if count == 0:
+            return self.pos
+        chunk = np.frombuffer(self.data, dtype=np.uint8, offset=self.pos)
+        space = chunk <= 32
+        ends = np.flatnonzero(~space & np.append(space[1:], True))
+        if len(ends) < count:
+            raise self.fail(f"the file ends inside a block of {count} numbers")
+        end = self.pos + int(ends[count - 1]) + 1
+        self.pos = end
+        return end
+
+
+def read_legacy(path: Path) -> Mesh:
+    """Parse a legacy VTK file (POLYDATA or UNSTRUCTURED_GRID, ASCII or BINARY)."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ReadError(f"{path}: cannot read the file: {exc}") from exc
+    cur = _Legacy(path, data)
+    if not (cur.line() or "").startswith("# vtk DataFile"):
+        raise cur.fail("not a legacy VTK file (no '# vtk DataFile' header)")
+    if cur.line() is None:
+        raise cur.fail("the file ends after its first line")
+    mode = (cur.line() or "").upper()
+    if mode not in ("ASCII", "BINARY"):
+        raise cur.fail(f"expected ASCII or BINARY, found {mode[:40]!r}", cur.last)
+    cur.binary = mode == "BINARY"
+    words = cur.words(2, "DATASET")
+    if words[0].upper() != "DATASET" or words[1].upper() not in ("POLYDATA", "UNSTRUCTURED_GRID"):
+        raise cur.fail(f"only DATASET POLYDATA and UNSTRUCTURED_GRID are read, found {' '.join(words)!r}",
+                       cur.last)
+    points = None
+    sections: list[tuple[str, list[np.ndarray]]] = []
+    cell_types: np.ndarray | None = None
+    target: dict[str, np.ndarray] | None = None
+    sizes = {"POINT_DATA": 0, "CELL_DATA": 0}
+    point_data: dict[str, np.ndarray] = {}
+    cell_data: dict[str, np.ndarray] = {}
+    field_data: dict[str, np.ndarray] = {}
+    target_size = 0
+    while (text := cur.line()) is not None:
+        words = text.split()
+        key = words[0].upper()
+        if key == "POINTS":
+            if len(words) < 3:
+                raise cur.fail(f"bad POINTS line {text[:80]!r}", cur.last)
+            n = cur.count(words[1])
+            points = cur.numbers(3 * n, words[2]).astype(np.float64).reshape(n, 3)
+        elif key in POLY_SECTIONS or key == "CELLS":
+            if len(words) < 3:
+                raise cur.fail(f"bad {key} line {text[:80]!r}", cur.last)
+            sections.append((key, _read_cells(cur, cur.count(words[1]), cur.count(words[2]))))
+        elif key == "CELL_TYPES":
+            if len(words) < 2:
+                raise cur.fail(f"bad CELL_TYPES line {text[:80]!r}", cur.last)
+            cell_types = cur.numbers(cur.count(words[1]), "int")
+        elif key in sizes:
+            if len(words) < 2:
+                raise cur.fail(f"bad {key} line {text[:80]!r}", cur.last)
+            sizes[key] = cur.count(words[1])
+            target = point_data if key == "POINT_DATA" else cell_data
+            target_size = sizes[key]
+        elif key == "METADATA":
+            while (skip := cur.line()) is not None and skip.upper().startswith(("INFORMATION", "NAME", "DATA", "COMPONENT")):
+                pass
+            if skip is not None:
+                cur.pos = cur.last  # not metadata: read it as a section
+        elif key == "FIELD" and target is None:  # dataset-level field data (e.g. TIME)
+            _read_attribute(cur, words, field_data, None)
+        elif target is not None and key in ("SCALARS", "VECTORS", "NORMALS", "TENSORS",
+                                            "TEXTURE_COORDINATES", "FIELD", "LOOKUP_TABLE"):
+            _read_attribute(cur, words, target, target_size)
+        else:
+            raise cur.fail(f"unknown or misplaced section {text[:60]!r}", cur.last)
+    if points is None:
+        raise cur.fail("the file has no POINTS section")
+    return _assemble(cur, points, sections, cell_types, point_data, cell_data)
+
+
+def _read_cells(cur: _Legacy, n: int, size: int) -> list[np.ndarray]:
+    """Cells of a VERTICES/LINES/POLYGONS/CELLS section, classic or VTK 5.1 layout."""
+    save = cur.pos
+    peek = cur.line()
+    if peek is not None and peek.upper().startswith("OFFSETS"):
+        words = peek.split()
+        offsets = cur.numbers(n, words[1] if len(words) > 1 else "vtktypeint64")
+        words = cur.words(2, "CONNECTIVITY")
+        if words[0].upper() != "CONNECTIVITY":
+            raise cur.fail(f"expected CONNECTIVITY, found {words[0][:40]!r}", cur.last)
+        connectivity = cur.numbers(size, words[1])
+        if n == 0:
+            return []
+        if offsets[0] != 0 or np.any(np.diff(offsets) < 0) or offsets[-1] != size:
+            raise cur.fail("cell OFFSETS are not increasing from 0 to the connectivity size")
+        return np.split(connectivity.astype(np.int64), offsets[1:-1])
+    cur.pos = save
+    flat = cur.numbers(size, "int").astype(np.int64)
+    cells, at = [], 0
+    # Cell sizes are only known one cell at a time in the classic layout; when every cell
+    # has the same size (the usual case) the whole block is reshaped at once.
+    if n and size % n == 0 and flat[0] + 1 == size // n and np.all(flat[:: size // n] == flat[0]):
+        table = flat.reshape(n, size // n)[:, 1:]
+        return list(table)
+    for _ in range(n):
+        if at >= size or flat[at] < 0 or at + 1 + flat[at] > size:
+            raise cur.fail("the cell list is shorter than its header says or has a bad cell size")
+        cells.append(flat[at + 1: at + 1 + flat[at]])
+        at += 1 + int(flat[at])
+    if at != size:
+        raise cur.fail(f"the cell list has {size - at} values more than its {n} cells use")
+    return cells
+
+
+def _read_attribute(cur: _Legacy, words: list[str], target: dict[str, np.ndarray], n: int | None) -> None:
+    """One data array into ``target``; ``n`` is the tuple count (None: any, for field data)."""
+    key = words[0].upper()
+    if key == "FIELD":
+        if len(words) < 3:
+            raise cur.fail(f"bad FIELD line {' '.join(words)[:80]!r}", cur.last)
+        for _ in range(cur.count(words[2])):
+            name, ncomp, ntuples, type_name = (cur.words(4, "field array") + [""])[:4]
+            if name.upper() == "NULL_ARRAY":
+                continue
+            k, m = cur.count(ncomp), cur.count(ntuples)
+            values = cur.numbers(k * m, type_name)
+            target[name] = values.reshape(m, k) if k > 1 else values
+            if n is not None and m != n:
+                raise cur.fail(f"field array {name!r} has {m} tuples, the data section {n}", cur.last)
+        return
+    if key == "LOOKUP_TABLE":  # a colour table: skip its 4 values per entry
+        if len(words) < 3:
+            raise cur.fail("bad LOOKUP_TABLE line", cur.last)
+        cur.numbers(4 * cur.count(words[2]), "unsigned_char" if cur.binary else "float")
+        return
+    if len(words) < 3:
+        raise cur.fail(f"bad {key} line {' '.join(words)[:80]!r}", cur.last)
+    name = words[1]
+    if key == "SCALARS":
+        type_name, k = words[2], cur.count(words[3]) if len(words) > 3 else 1
+        save = cur.pos
+        table = cur.line()
+        if table is None or not table.upper().startswith("LOOKUP_TABLE"):
+            cur.pos = save
+    elif key == "TEXTURE_COORDINATES":
+        if len(words) < 4:
+            raise cur.fail("bad TEXTURE_COORDINATES line", cur.last)
+        k, type_name = cur.count(words[2]), words[3]
+    else:
+        k, type_name = (9 if key == "TENSORS" else 3), words[2]
+    assert n is not None
+    values = cur.numbers(k * n, type_name)
+    target[name] = values.reshape(n, 3, 3) if key == "TENSORS" else (values.reshape(n, k) if k > 1 else values)
+
+
+def _assemble(cur: _Legacy, points: np.ndarray, sections: list[tuple[str, list[np.ndarray]]],
+              cell_types: np.ndarray | None, point_data: dict[str, np.ndarray],
+              cell_data: dict[str, np.ndarray]) -> Mesh:
+    cells: list[np.ndarray] = []
+    types: list[int] = []
+    for key, section in sorted(sections, key=lambda s: POLY_SECTIONS.index(s[0]) if s[0] in POLY_SECTIONS else 0):
+        cells.extend(section)
+        if key == "POLYGONS":
+            types.extend(_POLYGON_TYPE.get(len(c), 7) for c in section)
+        elif key in _POLY_TYPE:
+            one, many = _POLY_TYPE[key]
+            types.extend(one if len(c) == 1 or key == "LINES" and len(c) == 2 else many for c in section)
+    if any(key == "CELLS" for key, _ in sections):
+        if cell_types is None or len(cell_types) != len(cells):
+            raise cur.fail(f"CELL_TYPES must give one type for each of the {len(cells)} cells")
+        types = [int(t) for t in cell_types]
+    for c in cells:
+        if len(c) and (c.min() < 0 or c.max() >= len(points)):
+            raise cur.fail(f"a cell refers to point {int(c.max())} but there are {len(points)} points")
+    for name, values in point_data.items():
+        if len(values) != len(points):
+            raise cur.fail(f"point data {name!r} has {len(values)} values for {len(points)} points")
+    for name, values in cell_data.items():
+        if len(values) != len(cells):
+            raise cur.fail(f"cell data {name!r} has {len(values)} values for {len(cells)} cells")
+    return Mesh(points, cells, types, point_data, cell_data)
+
+
+def read_vtu(path: Path) -> Mesh:
+    """An XML unstructured grid, through meshio."""
+    import meshio
+
+    mesh = meshio.read(path, file_format="vtu")
+    cells: list[np.ndarray] = []
+    types: list[int] = []
+    cell_data: dict[str, list[np.ndarray]] = {name: [] for name in mesh.cell_data}
+    for block_index, block in enumerate(mesh.cells):
+        if block.type not in MESHIO_TYPES:
+            raise ReadError(f"{path}: frame 0: unsupported cell type {block.type!r}")
+        cells.extend(np.asarray(block.data, dtype=np.int64))
+        types.extend([MESHIO_TYPES[block.type]] * len(block.data))
+        for name, blocks in mesh.cell_data.items():
+            cell_data[name].append(np.asarray(blocks[block_index]))
+    return Mesh(np.asarray(mesh.points, dtype=np.float64), cells, types,
+                {k: np.asarray(v) for k, v in mesh.point_data.items()},
+                {k: np.concatenate(v) for k, v in cell_data.items()})
+
+
+def read_vtp(path: Path) -> Mesh:
+    """An XML polydata file, through the ``vtk`` package (meshio does not read it)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonCore import vtkCommand
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    errors: list[str] = []
+    reader = vtkXMLPolyDataReader()
+    reader.AddObserver(vtkCommand.ErrorEvent, lambda obj, event: errors.append(event))
+    reader.GetExecutive().AddObserver(vtkCommand.ErrorEvent, lambda obj, event: errors.append(event))
+    reader.SetFileName(str(path))
+    reader.Update()
+    poly = reader.GetOutput()
+    if errors or reader.GetErrorCode():
+        raise ReadError(f"{path}: frame 0: vtk cannot read the file")
+    points = poly.GetPoints()
+    coords = vtk_to_numpy(points.GetData()).astype(np.float64) if points is not None else np.empty((0, 3))
+    cells: list[np.ndarray] = []
+    types: list[int] = []
+    for key, get in (("VERTICES", poly.GetVerts), ("LINES", poly.GetLines),
+                     ("POLYGONS", poly.GetPolys), ("TRIANGLE_STRIPS", poly.GetStrips)):
+        array = get()
+        offsets = vtk_to_numpy(array.GetOffsetsArray()).astype(np.int64)
+        connectivity = vtk_to_numpy(array.GetConnectivityArray()).astype(np.int64)
+        section = np.split(connectivity, offsets[1:-1]) if len(offsets) > 1 else []
+        cells.extend(section)
+        if key == "POLYGONS":
+            types.extend(_POLYGON_TYPE.get(len(c), 7) for c in section)
+        else:
+            one, many = _POLY_TYPE[key]
+            types.extend(one if len(c) == 1 or key == "LINES" and len(c) == 2 else many for c in section)
+
+    def arrays(data: Any) -> dict[str, np.ndarray]:
+        return {data.GetArrayName(i): vtk_to_numpy(data.GetArray(i)).copy()
+                for i in range(data.GetNumberOfArrays()) if data.GetArray(i) is not None}
+
+    return Mesh(coords, cells, types, arrays(poly.GetPointData()), arrays(poly.GetCellData()))
+
+
+READERS = {".vtk": read_legacy, ".vtu": read_vtu, ".vtp": read_vtp}
+
+
+def _reader_for(path: Path) -> Any:
+    suffix = path.suffix.lower()
+    if suffix in READERS:
+        return READERS[suffix]
+    with open(path, "rb") as handle:
+        head = handle.read(512)
+    if head.startswith(b"# vtk DataFile"):
+        return read_legacy
+    return read_vtp if b'type="PolyData"' in head else read_vtu
+
+
+def mesh_frame(mesh: Mesh, kind: str | None) -> Frame:
+    """A Frame from a mesh: particles when every cell is a vertex (or ``kind`` says so)."""
+    vertices_only = all(t in (VERTEX, POLY_VERTEX) for t in mesh.cell_types)
+    if kind == "particles" or (kind is None and vertices_only):
+        arrays = {"x": mesh.points[:, 0].copy(), "y": mesh.points[:, 1].copy(), "z": mesh.points[:, 2].copy()}
+        for name, values in mesh.point_data.items():
+            if values.ndim == 1:
+                arrays[name] = values
+            elif values.shape[1:] == (3,):
+                arrays.update({f"{name}{axis}": values[:, j].copy() for j, axis in enumerate("xyz")})
+            else:
+                flat = values.reshape(len(values), -1)
+                arrays.update({f"{name}[{j + 1}]": flat[:, j].copy() for j in range(flat.shape[1])})
+        return Frame(arrays, attrs={"kind": "particles"})
+    width = max((len(c) for c in mesh.cells), default=0)
+    cells = np.full((len(mesh.cells), width), -1, dtype=np.int64)
+    for row, cell in enumerate(mesh.cells):
+        cells[row, : len(cell)] = cell
+    arrays = {"points": mesh.points, "cells": cells, "cell_types": np.asarray(mesh.cell_types, dtype=np.int64)}
+    clash = set(mesh.point_data) & set(mesh.cell_data) | set(arrays) & (set(mesh.point_data) | set(mesh.cell_data))
+    point_keys = {n: f"point:{n}" if n in clash else n for n in mesh.point_data}
+    cell_keys = {n: f"cell:{n}" if n in clash else n for n in mesh.cell_data}
+    arrays.update({point_keys[n]: v for n, v in mesh.point_data.items()})
+    arrays.update({cell_keys[n]: v for n, v in mesh.cell_data.items()})
+    return Frame(arrays, attrs={"kind": "mesh", "point_data": list(point_keys.values()),
+                                "cell_data": list(cell_keys.values())})
+
+
+class VTKTrajectory(Trajectory):
+    """One frame per VTK file, read when asked for."""
+
+    def __init__(self, paths: Sequence[PathLike], kind: str | None = None) -> None:
+        if kind not in (None, "mesh", "particles"):
+            raise ReadError(f"kind must be 'mesh', 'particles' or None, got {kind!r}")
+        self.paths = [Path(p) for p in paths]
+        self.kind = kind
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.paths)
+
+    def _read_frame(self, index: int) -> Frame:
+        path = self.paths[index]
+        try:
+            mesh = _reader_for(path)(path)
+        except ReadError as exc:
+            raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
+        except Exception as exc:  # noqa: BLE001 - meshio/vtk raise many kinds on bad files
+            raise ReadError(f"{path}: frame {index}: cannot read it: {type(exc).__name__}: {exc}") from exc
+        return mesh_frame(mesh, self.kind)
