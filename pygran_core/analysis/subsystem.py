@@ -1,23 +1,40 @@
 """The :class:`SubSystem` base: a set of elements (particles, mesh cells) with named arrays.
 
 A SubSystem maps attribute names to per-element numpy arrays of one length N (1-D, or
-N x k for vectors such as mesh points) and holds scalar metadata (``timestep``, ``box``,
-``units``, ...). Arrays are read-only to the user; the methods that change them
-(:meth:`translate`, :meth:`scale`, :meth:`noise`) replace them explicitly. Slicing with an
-int, a slice, an integer array or a boolean mask returns a new object of the same class.
+N x k for vectors such as mesh cells) and holds metadata (``timestep``, ``box``, ``units``,
+and for meshes the shared ``points``). Arrays are read-only to the user; the methods that
+change them (:meth:`translate`, :meth:`scale`, :meth:`noise`, :meth:`convert`) replace them
+explicitly. Slicing with an int, a slice, an integer array or a boolean mask returns a new
+object of the same class.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator, Mapping, Sequence
 from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
+from pygran_core import units as _units
 from pygran_core.errors import did_you_mean
 
 Selection = int | slice | Sequence[int] | np.ndarray
+
+_XYZ = ("x", "y", "z")
+
+#: LIGGGHTS column (and metadata) names -> physical dimension, for unit conversion.
+DIMENSIONS: dict[str, str] = {
+    **dict.fromkeys((*_XYZ, "xu", "yu", "zu", "radius", "diameter", "box"), "length"),
+    **dict.fromkeys(("vx", "vy", "vz"), "velocity"),
+    **dict.fromkeys(("fx", "fy", "fz"), "force"),
+    **dict.fromkeys(("omegax", "omegay", "omegaz"), "angular_velocity"),
+    **dict.fromkeys(("tqx", "tqy", "tqz"), "torque"),
+    "mass": "mass",
+    "density": "density",
+    "time": "time",
+}
 
 
 def _frozen(values: Any) -> np.ndarray:
@@ -26,16 +43,25 @@ def _frozen(values: Any) -> np.ndarray:
     return array
 
 
+def _signed_geometric_mean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    product = np.multiply.outer(np.asarray(a, dtype=float), np.asarray(b, dtype=float)).ravel()
+    return np.sign(product) * np.sqrt(np.abs(product))
+
+
 class SubSystem:
-    """Named per-element arrays plus scalar metadata.
+    """Named per-element arrays plus metadata.
 
     ``SubSystem(x=[...], y=[...], timestep=100)`` builds one from arrays (anything with a
     length) and scalars; ``SubSystem(SubSystem=other)`` (or ``Particles(Particles=other)``,
-    any class name of the object's hierarchy) copies another.
+    any class name of the object's hierarchy) copies another. ``units`` (default ``"si"``)
+    names the unit system the numbers are in; :meth:`convert` changes it.
     """
 
     #: Attributes that :meth:`translate`, :meth:`scale` and :meth:`noise` act on by default.
-    coordinate_keys: tuple[str, ...] = ("x", "y", "z")
+    coordinate_keys: tuple[str, ...] = _XYZ
+    #: Attribute name -> dimension (a key of :data:`pygran_core.units.DIMENSIONS`) for :meth:`convert`;
+    #: attributes not listed (``id``, ``type``, custom ``c_*`` columns) are left as they are.
+    dimensions: Mapping[str, str] = DIMENSIONS
 
     _fields: dict[str, np.ndarray]
     _meta: dict[str, Any]
@@ -43,7 +69,7 @@ class SubSystem:
     def __init__(self, **data: Any) -> None:
         source = self._copy_source(data)
         fields: dict[str, np.ndarray] = {}
-        meta: dict[str, Any] = {}
+        meta: dict[str, Any] = {"units": "si"}
         if source is not None:
             fields.update({k: _frozen(v) for k, v in source._fields.items()})
             meta.update(source._meta)
@@ -55,8 +81,10 @@ class SubSystem:
         lengths = {key: len(value) for key, value in fields.items()}
         if len(set(lengths.values())) > 1:
             raise ValueError(f"{type(self).__name__} attributes have different lengths: {lengths}")
+        _units.exponent("length", meta["units"], "si")  # an unknown unit system is a ConfigError
         object.__setattr__(self, "_fields", fields)
         object.__setattr__(self, "_meta", meta)
+        object.__setattr__(self, "_origin", None)
 
     def _copy_source(self, data: dict[str, Any]) -> SubSystem | None:
         """Pop and return the object of a copy construction such as ``Particles=other``."""
@@ -73,6 +101,7 @@ class SubSystem:
         new = object.__new__(cls)
         object.__setattr__(new, "_fields", fields)
         object.__setattr__(new, "_meta", dict(meta))
+        object.__setattr__(new, "_origin", None)
         return new
 
     def _derive(self, fields: dict[str, np.ndarray]) -> SubSystem:
@@ -91,7 +120,7 @@ class SubSystem:
 
     @property
     def meta(self) -> Mapping[str, Any]:
-        """Read-only view of the scalar metadata."""
+        """Read-only view of the metadata."""
         return MappingProxyType(self._meta)
 
     def keys(self) -> list[str]:
@@ -139,7 +168,12 @@ class SubSystem:
         if isinstance(selection, str):
             return getattr(self, selection)
         index = self._normalise(selection)
-        return self._derive({key: value[index] for key, value in self._fields.items()})
+        new = self._derive({key: value[index] for key, value in self._fields.items()})
+        if self._origin is not None:
+            units, fields, meta = self._origin
+            sliced = {key: value[index] for key, value in fields.items()}
+            object.__setattr__(new, "_origin", (units, sliced, meta))
+        return new
 
     def _normalise(self, selection: Selection) -> slice | np.ndarray:
         n = len(self)
@@ -171,6 +205,7 @@ class SubSystem:
         """Concatenation over the attributes both have (the left's metadata is kept)."""
         if not isinstance(other, SubSystem):
             return NotImplemented
+        self._check_same_units(other)
         common = [key for key in self._fields if key in other._fields]
         return self._derive({k: np.concatenate((self._fields[k], other._fields[k])) for k in common})
 
@@ -178,11 +213,33 @@ class SubSystem:
         """Append ``other``; it must have every attribute this object has (extra ones are dropped)."""
         if not isinstance(other, SubSystem):
             return NotImplemented
+        self._check_same_units(other)
         missing = [key for key in self._fields if key not in other._fields]
         if missing:
             raise ValueError(f"Cannot append: the other {type(other).__name__} lacks {missing}")
         self._replace({k: np.concatenate((v, other._fields[k])) for k, v in self._fields.items()})
         return self
+
+    def __mul__(self, other: SubSystem) -> SubSystem:
+        """The manual's product: ``len(self) * len(other)`` elements whose attributes are the
+        geometric means of every pair, ``sqrt(a_i * b_j)`` at index ``i * len(other) + j``.
+
+        Only 1-D attributes both objects have are kept (the left's metadata too). A product
+        ``a_i * b_j < 0`` (e.g. coordinates on both sides of the origin) gives
+        ``-sqrt(|a_i * b_j|)``, so the result stays real.
+        """
+        if not isinstance(other, SubSystem):
+            return NotImplemented
+        self._check_same_units(other)
+        common = [k for k, v in self._fields.items() if v.ndim == 1 and np.ndim(other._fields.get(k)) == 1]
+        return self._derive({k: _signed_geometric_mean(self._fields[k], other._fields[k]) for k in common})
+
+    def _check_same_units(self, other: SubSystem) -> None:
+        if self.units != other.units:
+            raise ValueError(
+                f"Cannot combine {type(self).__name__} in {self.units!r} units with one in "
+                f"{other.units!r} units; convert() one of them first"
+            )
 
     def copy(self) -> SubSystem:
         """An independent copy (arrays and metadata)."""
@@ -190,38 +247,112 @@ class SubSystem:
 
     # -- explicit in-place transforms -----------------------------------------------------
 
-    def _replace(self, fields: dict[str, np.ndarray]) -> None:
-        for value in fields.values():
+    def _replace(self, arrays: dict[str, np.ndarray]) -> None:
+        """Swap in new arrays (per-element fields or array metadata such as mesh points)."""
+        for key, value in arrays.items():
             value.setflags(write=False)
-        self._fields.update(fields)
+            (self._fields if key in self._fields else self._meta)[key] = value
+        object.__setattr__(self, "_origin", None)
+
+    def _array(self, name: str) -> np.ndarray:
+        return self._fields[name] if name in self._fields else self._meta[name]
 
     def _targets(self, attr: Sequence[str] | str | None) -> list[str]:
         names = list(self.coordinate_keys if attr is None else [attr] if isinstance(attr, str) else attr)
-        unknown = [name for name in names if name not in self._fields]
+        arrays = [*self._fields, *(k for k, v in self._meta.items() if isinstance(v, np.ndarray))]
+        unknown = [name for name in names if name not in arrays]
         if unknown:
-            raise KeyError(f"{type(self).__name__} has no attributes {unknown}; it has {self.keys()}")
+            raise KeyError(f"{type(self).__name__} has no attributes {unknown}; it has {arrays}")
         return names
 
     def translate(
         self, offset: float | Sequence[float], attr: Sequence[str] | str | None = None
     ) -> SubSystem:
-        """Add ``offset`` (one value, or one per attribute) to ``attr`` in place; returns self."""
+        """Add ``offset`` (one value, or one per attribute) to ``attr`` in place; returns self.
+
+        For a vector attribute such as mesh ``points`` (N, 3), ``offset`` may be a 3-vector.
+        """
         names = self._targets(attr)
-        offsets = np.broadcast_to(np.asarray(offset, dtype=float), (len(names),) + np.shape(offset)[1:])
-        self._replace({n: self._fields[n] + o for n, o in zip(names, offsets)})
+        offset = np.asarray(offset, dtype=float)
+        if len(names) == 1 and self._array(names[0]).ndim == 2:
+            self._replace({names[0]: self._array(names[0]) + offset})
+            return self
+        offsets = np.broadcast_to(offset, (len(names),) + offset.shape[1:])
+        self._replace({n: self._array(n) + o for n, o in zip(names, offsets)})
         return self
 
     def scale(self, factor: float, attr: Sequence[str] | str | None = None) -> SubSystem:
         """Multiply ``attr`` by ``factor`` in place; returns self."""
-        self._replace({n: self._fields[n] * factor for n in self._targets(attr)})
+        self._replace({n: self._array(n) * factor for n in self._targets(attr)})
         return self
 
     def noise(
         self, sigma: float, attr: Sequence[str] | str | None = None, *, seed: int | np.random.Generator
     ) -> SubSystem:
         """Add Gaussian noise of standard deviation ``sigma`` to ``attr`` in place; returns self."""
+        if sigma < 0:
+            raise ValueError(f"noise: sigma must be >= 0, got {sigma}")
         rng = np.random.default_rng(seed)
         self._replace(
-            {n: self._fields[n] + rng.normal(0.0, sigma, self._fields[n].shape) for n in self._targets(attr)}
+            {n: self._array(n) + rng.normal(0.0, sigma, self._array(n).shape) for n in self._targets(attr)}
         )
         return self
+
+    # -- units and output -------------------------------------------------------------------
+
+    def convert(self, units: str) -> SubSystem:
+        """Express every attribute of known dimension in ``units`` (si, cgs, micro, nano), in place.
+
+        Each conversion is computed from the numbers as they were before the first
+        conversion, so converting back returns exactly the original arrays
+        (``p.convert("micro").convert("si")`` is bit-identical). Returns self.
+        """
+        _units.exponent("length", units, "si")  # validates the name
+        if self._origin is None:
+            object.__setattr__(self, "_origin", (self.units, dict(self._fields), dict(self._meta)))
+        source, fields, meta = self._origin
+
+        def to_target(key: str, value: Any) -> Any:
+            dimension = self.dimensions.get(key)
+            if dimension is None or value is None or units == source:
+                return value
+            return _units.convert(np.asarray(value, dtype=float), dimension, source, units)
+
+        new_fields = {k: to_target(k, v) for k, v in fields.items()}
+        for value in new_fields.values():
+            value.setflags(write=False)
+        self._fields.clear()
+        self._fields.update(new_fields)
+        self._meta.clear()
+        self._meta.update({k: to_target(k, v) for k, v in meta.items()}, units=units)
+        return self
+
+    @classmethod
+    def _frame_kwargs(cls, frame: Any) -> dict[str, Any]:
+        """Constructor keywords for one :class:`~pygran_core.io.Frame` (its arrays and metadata)."""
+        meta = {"timestep": frame.timestep, "time": frame.time, "box": frame.box, "boundary": frame.boundary}
+        return {
+            **frame.arrays,
+            **{k: v for k, v in meta.items() if v is not None},
+            "units": frame.attrs.get("units", "si"),
+        }
+
+    def _to_frame(self) -> Any:
+        from pygran_core.io import Frame
+
+        box = self._meta.get("box")
+        return Frame(
+            arrays=dict(self._fields),
+            timestep=self._meta.get("timestep"),
+            time=self._meta.get("time"),
+            box=None if box is None else np.asarray(box, dtype=float),
+            boundary=self._meta.get("boundary"),
+            attrs={"units": self.units},
+        )
+
+    def write(self, path: str | os.PathLike[str], format: str | None = None, **options: Any) -> None:
+        """Write this object as one frame to ``path`` (any registered writer; by extension or ``format``)."""
+        from pygran_core.io import open_writer
+
+        with open_writer(path, format, **options) as writer:
+            writer.write_frame(self._to_frame())

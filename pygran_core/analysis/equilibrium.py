@@ -1,0 +1,158 @@
+"""Neighbour analysis of one configuration: contacts, overlaps, coordination, force chains.
+
+Pairs come from scipy's cKDTree (compiled); everything after is vectorised numpy, so there is
+no Python loop over particles or pairs. Periodic boundaries (``boundary`` flags ``p`` with a
+``box``) use minimum-image distances.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from pygran_core.analysis.particles import Particles
+
+#: Relative tolerance on "touching": distance <= (r_i + r_j) * (1 + CONTACT_TOLERANCE).
+CONTACT_TOLERANCE = 1e-9
+
+
+class ForceChains(NamedTuple):
+    """Result of :meth:`Neighbors.forceChain`."""
+
+    chains: list[np.ndarray]  #: particle indices of each chain, largest chain first
+    contacts: np.ndarray  #: (K, 2) particle pairs in contact
+    forces: np.ndarray  #: (K,) normal force of each contact
+    strong: np.ndarray  #: (K,) bool, contacts carrying more than threshold x the mean force
+    ax: Any = None  #: the matplotlib Axes drawn on, when plotted
+
+
+class Neighbors:
+    """Neighbour pairs of a :class:`Particles` object.
+
+    With ``cutoff=None`` two particles are neighbours when they touch or overlap
+    (``d <= r_i + r_j``); with a ``cutoff`` (a length) when ``d <= cutoff``. Overlaps are
+    always those of touching pairs, whatever the cutoff.
+    """
+
+    def __init__(self, particles: Particles, cutoff: float | None = None) -> None:
+        if not isinstance(particles, Particles):
+            raise TypeError(f"Neighbors needs a Particles object, not {type(particles).__name__}")
+        if cutoff is not None and cutoff <= 0:
+            raise ValueError(f"Neighbors: cutoff must be positive, got {cutoff}")
+        self.particles = particles
+        self.cutoff = cutoff
+        radii = particles._radii() if len(particles) else np.zeros(0)
+        data, boxsize = particles._tree_data() if len(particles) else (np.zeros((0, 3)), None)
+        reach = max(2 * radii.max(initial=0.0), cutoff or 0.0) * (1 + CONTACT_TOLERANCE)
+        pairs = cKDTree(data, boxsize=boxsize).query_pairs(reach, output_type="ndarray") if reach else None
+        pairs = np.zeros((0, 2), dtype=np.intp) if pairs is None else pairs.astype(np.intp)
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+        delta = data[pairs[:, 1]] - data[pairs[:, 0]]
+        if boxsize is not None:
+            periodic = boxsize > 0
+            delta[:, periodic] -= boxsize[periodic] * np.round(delta[:, periodic] / boxsize[periodic])
+        distance = np.sqrt((delta**2).sum(axis=1))
+        touch = radii[pairs[:, 0]] + radii[pairs[:, 1]]
+        self._overlap = touch - distance
+        self._touching = distance <= touch * (1 + CONTACT_TOLERANCE)
+        chosen = self._touching if cutoff is None else distance <= cutoff
+        self._all_pairs, self._delta = pairs, delta
+        self._pairs, self._distances = pairs[chosen], distance[chosen]
+
+    @property
+    def pairs(self) -> np.ndarray:
+        """(M, 2) indices ``i < j`` of the neighbour pairs, sorted."""
+        return self._pairs
+
+    @property
+    def distances(self) -> np.ndarray:
+        """(M,) centre distance of each pair in :attr:`pairs`."""
+        return self._distances
+
+    @property
+    def overlaps(self) -> np.ndarray:
+        """(K, 3) rows ``(overlap, i, j)`` for every pair whose spheres overlap (overlap > 0)."""
+        hit = self._overlap > 0
+        return np.column_stack((self._overlap[hit], self._all_pairs[hit])).astype(float).reshape(-1, 3)
+
+    def coon(self, type1: int | None = None, type2: int | None = None) -> np.ndarray:
+        """Coordination number of every particle; with ``type1`` and ``type2``, the number of
+        ``type2`` neighbours of each ``type1`` particle (in the order of those particles)."""
+        n = len(self.particles)
+        i, j = self._pairs.T
+        if type1 is None and type2 is None:
+            return np.bincount(self._pairs.ravel(), minlength=n)
+        if type1 is None or type2 is None:
+            raise ValueError("coon: give both type1 and type2, or neither")
+        types = self.particles.type
+        counts = np.bincount(i[types[j] == type2], minlength=n) + np.bincount(
+            j[types[i] == type2], minlength=n
+        )
+        return counts[types == type1]
+
+    def filter(self, percent: float) -> Particles:
+        """The particles that overlap no neighbour by more than ``percent`` % of their own radius."""
+        if percent < 0:
+            raise ValueError(f"filter: percent must be >= 0, got {percent}")
+        radii = self.particles._radii()
+        i, j = self._all_pairs.T
+        limit = percent / 100.0
+        bad = np.concatenate((i[self._overlap > limit * radii[i]], j[self._overlap > limit * radii[j]]))
+        keep = np.ones(len(self.particles), dtype=bool)
+        keep[bad] = False
+        return self.particles[keep]
+
+    def forceChain(
+        self,
+        threshold: float = 1.0,
+        min_size: int = 3,
+        stiffness: float = 1.0,
+        plot: bool = False,
+        ax: Any = None,
+        axes: tuple[int, int] = (0, 2),
+    ) -> ForceChains:
+        """Force chains: clusters of particles linked by contacts that carry more than
+        ``threshold`` times the mean contact force, with at least ``min_size`` particles.
+
+        Contact forces are Hertzian, ``stiffness * sqrt(R*) * overlap**1.5`` with
+        ``R* = r_i r_j / (r_i + r_j)``; ``stiffness`` (``4/3 E*``) only scales them, so the
+        chains do not depend on it. With ``plot=True`` the strong contacts are drawn on ``ax``
+        (a new figure if None) in the plane of ``axes``, line widths proportional to force.
+        """
+        radii = self.particles._radii() if len(self.particles) else np.zeros(0)
+        hit = self._overlap > 0
+        contacts, overlap = self._all_pairs[hit], self._overlap[hit]
+        r_i, r_j = radii[contacts[:, 0]], radii[contacts[:, 1]]
+        forces = stiffness * np.sqrt(r_i * r_j / (r_i + r_j)) * overlap**1.5
+        strong = forces > threshold * forces.mean() if forces.size else np.zeros(0, dtype=bool)
+        n = len(self.particles)
+        links = contacts[strong]
+        graph = coo_matrix((np.ones(len(links)), (links[:, 0], links[:, 1])), shape=(n, n))
+        _, label = connected_components(graph, directed=False)
+        sizes = np.bincount(label, minlength=n)
+        members = np.split(np.argsort(label, kind="stable"), np.cumsum(sizes)[:-1])
+        big = np.flatnonzero(sizes >= max(min_size, 2))
+        chains = [members[c] for c in big[np.argsort(-sizes[big], kind="stable")]]
+        if plot:
+            ax = self._plot(contacts[strong], forces[strong], ax, axes)
+        return ForceChains(chains, contacts, forces, strong, ax)
+
+    def _plot(self, links: np.ndarray, forces: np.ndarray, ax: Any, axes: tuple[int, int]) -> Any:
+        from matplotlib.collections import LineCollection
+
+        if ax is None:
+            import matplotlib.pyplot as plt
+
+            _, ax = plt.subplots()
+        centres = self.particles.positions[:, list(axes)]
+        widths = 0.5 + 3.0 * forces / forces.max() if forces.size else []
+        ax.add_collection(LineCollection(centres[links], linewidths=widths, colors="black"))
+        ax.set_xlabel("xyz"[axes[0]])
+        ax.set_ylabel("xyz"[axes[1]])
+        ax.autoscale()
+        ax.set_aspect("equal")
+        return ax

@@ -1,0 +1,289 @@
+"""Particles: a SubSystem of spheres (LIGGGHTS columns) and the granular statistics on them.
+
+All statistics are vectorised with numpy or run in scipy's compiled cKDTree; none loops over
+particles in Python. Lengths are in the object's ``units``; angles in degrees.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from pygran_core.analysis.subsystem import SubSystem
+from pygran_core.errors import unknown_key
+
+_SHAPES = ("box", "cylinder-x", "cylinder-y", "cylinder-z")
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class RDF(NamedTuple):
+    """Radial distribution function: ``g`` at bin centres ``r``; ``references`` are the indices
+    of the particles used as centres (all of them when every direction is periodic)."""
+
+    g: np.ndarray
+    r: np.ndarray
+    references: np.ndarray
+
+
+class ScaleSegregation(NamedTuple):
+    """Danckwerts' correlation coefficient ``R`` at each separation ``r`` of grid cells."""
+
+    R: np.ndarray
+    r: np.ndarray
+
+
+class Particles(SubSystem):
+    """Spherical particles: one array per LIGGGHTS column (``id``, ``type``, ``x``, ``radius``,
+    ``vx``, ``fx``, ...) plus ``positions`` (N, 3), and the statistics of powder technology."""
+
+    # -- geometry helpers -------------------------------------------------------------------
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Centres as an (N, 3) array (a new array each call)."""
+        return np.column_stack((self.x, self.y, self.z)).astype(float, copy=False).reshape(-1, 3)
+
+    def _radii(self) -> np.ndarray:
+        return np.asarray(self.radius, dtype=float)
+
+    def _periodic(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(lower bounds, box lengths, periodic mask) of the simulation box; periodic needs a box."""
+        box, boundary = self._meta.get("box"), self._meta.get("boundary")
+        if box is None or boundary is None:
+            return np.zeros(3), np.zeros(3), np.zeros(3, dtype=bool)
+        box = np.asarray(box, dtype=float).reshape(3, 2)
+        periodic = np.array([str(flag).startswith("p") for flag in boundary][:3], dtype=bool)
+        return box[:, 0], box[:, 1] - box[:, 0], periodic
+
+    def _tree_data(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """Positions ready for a cKDTree and its ``boxsize`` (None unless some axis is periodic)."""
+        positions = self.positions
+        lower, length, periodic = self._periodic()
+        if not periodic.any():
+            return positions, None
+        shifted = positions - np.where(periodic, lower, 0.0)
+        shifted[:, periodic] %= length[periodic]
+        return shifted, np.where(periodic, length, 0.0)
+
+    def _extent(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper corners of the region the spheres occupy (centres +- radius)."""
+        positions, radii = self.positions, self._radii()[:, None]
+        return (positions - radii).min(axis=0), (positions + radii).max(axis=0)
+
+    def _require(self, what: str) -> None:
+        if len(self) == 0:
+            raise ValueError(f"{what} needs at least one particle; this {type(self).__name__} is empty")
+
+    # -- structure ---------------------------------------------------------------------------
+
+    def computeRDF(self, dr: float | None = None, rMax: float | None = None) -> RDF:
+        """Radial distribution function g(r) on bins of width ``dr`` (default ``rMax / 100``) up to ``rMax``.
+
+        Periodic directions (``boundary`` flags ``p`` with a ``box``) wrap around; along the
+        others only particles at least ``rMax`` from the faces of the particles' bounding box
+        serve as centres, which removes edge effects. The number density is
+        ``(N - 1) / V`` with ``V`` the periodic box lengths times the bounding extents, so an
+        ideal gas gives g = 1. ``rMax`` defaults to half the smallest periodic length or a
+        quarter of the smallest non-periodic extent. Pair counting runs in cKDTree.
+        """
+        if len(self) < 2:
+            raise ValueError(
+                f"computeRDF needs at least two particles; this {type(self).__name__} has {len(self)}"
+            )
+        data, boxsize = self._tree_data()
+        periodic = np.zeros(3, dtype=bool) if boxsize is None else boxsize > 0
+        lower = np.where(periodic, 0.0, data.min(axis=0))
+        length = np.where(periodic, 0.0 if boxsize is None else boxsize, data.max(axis=0) - lower)
+        limit = np.where(periodic, length / 2, length / 4)
+        rMax = float(limit.min() if rMax is None else rMax)
+        if rMax <= 0 or (periodic & (rMax > length / 2)).any():
+            raise ValueError(
+                f"computeRDF: rMax={rMax} must be > 0 and at most half of each periodic box length"
+            )
+        nbins = max(1, int(round(rMax / (dr or rMax / 100))))
+        edges = np.linspace(0.0, rMax, nbins + 1)
+        inside = ((data >= lower + rMax) & (data <= lower + length - rMax)) | periodic
+        references = np.flatnonzero(inside.all(axis=1))
+        if references.size == 0:
+            raise ValueError(
+                f"computeRDF: no particle lies at least rMax={rMax:g} from every non-periodic face of the "
+                f"region {lower} + {length}; choose a smaller rMax"
+            )
+        tree = cKDTree(data, boxsize=boxsize)
+        ref_tree = cKDTree(data[references], boxsize=boxsize)
+        counts = ref_tree.count_neighbors(tree, edges, cumulative=False)[1:]
+        volume = np.prod(np.where(periodic | (length > 0), length, 1.0))
+        shells = 4.0 / 3.0 * np.pi * np.diff(edges**3)
+        g = counts / (references.size * (len(self) - 1) / volume * shells)
+        return RDF(g, 0.5 * (edges[1:] + edges[:-1]), references)
+
+    rdf = computeRDF
+
+    def computeCOM(self) -> np.ndarray:
+        """Centre of mass: weighted by ``mass`` if present, else by volume (uniform density)."""
+        self._require("computeCOM")
+        weights = np.asarray(self.mass, dtype=float) if "mass" in self else self._radii() ** 3
+        return weights @ self.positions / weights.sum()
+
+    def computeROG(self) -> float:
+        """Radius of gyration ``sqrt(<|r_i - r_mean|^2>)`` of the centres (unweighted)."""
+        self._require("computeROG")
+        positions = self.positions
+        return float(np.sqrt(((positions - positions.mean(axis=0)) ** 2).sum(axis=1).mean()))
+
+    def computeRadius(self, N: int = 100) -> float:
+        """Radius of the assembly: mean distance from the centroid of the ``N`` farthest centres."""
+        self._require("computeRadius")
+        positions = self.positions
+        distance = np.sqrt(((positions - positions.mean(axis=0)) ** 2).sum(axis=1))
+        return float(np.sort(distance)[-N:].mean())
+
+    # -- mass, volume, density ------------------------------------------------------------------
+
+    def computeMass(self, density: float | None = None) -> np.ndarray:
+        """Mass of each particle: ``density * 4/3 pi r^3``, or the ``mass`` column, or the
+        ``density`` column times the volume (in that order)."""
+        if density is None and "mass" in self:
+            return np.asarray(self.mass, dtype=float)
+        if density is None and "density" not in self:
+            raise ValueError(
+                "computeMass needs a true density: pass density=... or give the particles a 'mass' or "
+                f"'density' attribute (they have {self.keys()})"
+            )
+        rho = np.asarray(self.density if density is None else density, dtype=float)
+        return rho * 4.0 / 3.0 * np.pi * self._radii() ** 3
+
+    def computeVolume(self, shape: str = "box") -> float:
+        """Volume of the ``shape`` enclosing every sphere: ``box`` or ``cylinder-x|y|z`` (whose
+        radius is the mean half-extent across its axis). 0 for no particles."""
+        if shape not in _SHAPES:
+            raise unknown_key("shape", shape, _SHAPES)
+        if len(self) == 0:
+            return 0.0
+        lower, upper = self._extent()
+        extent = upper - lower
+        if shape == "box":
+            return float(np.prod(extent))
+        axis = _AXES[shape[-1]]
+        across = np.delete(extent, axis)
+        return float(np.pi * (across.sum() / 4) ** 2 * extent[axis])
+
+    def computeDensity(self, density: float | None = None, shape: str = "box") -> float:
+        """Bulk density: total mass (see :meth:`computeMass`) over :meth:`computeVolume`."""
+        self._require("computeDensity")
+        return float(self.computeMass(density).sum() / self.computeVolume(shape))
+
+    def computeDensityLocal(
+        self, density: float | None = None, dr: float | None = None, axis: str = "z"
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Bulk density in slabs of thickness ``dr`` (default one diameter) along ``axis``.
+
+        A particle counts in the slab holding its centre; a slab's volume is ``dr`` times
+        the cross-section of the box enclosing every sphere. Returns (slab centres, densities).
+        """
+        if axis not in _AXES:
+            raise unknown_key("axis", axis, _AXES)
+        self._require("computeDensityLocal")
+        k = _AXES[axis]
+        lower, upper = self._extent()
+        dr = float(dr or 2 * self._radii().max())
+        nbins = max(1, int(np.ceil((upper[k] - lower[k]) / dr - 1e-9)))
+        slab = np.minimum(((self.positions[:, k] - lower[k]) // dr).astype(np.intp), nbins - 1)
+        mass = np.bincount(slab, weights=self.computeMass(density), minlength=nbins)
+        area = np.prod(np.delete(upper - lower, k))
+        return lower[k] + dr * (np.arange(nbins) + 0.5), mass / (area * dr)
+
+    def computeAngleRepose(self) -> float:
+        """Angle of repose of a heap, in degrees: ``arctan(H / L)`` with ``H`` the height of the
+        spheres and ``L`` the mean base half-width ``(extent_x + extent_y) / 4``."""
+        self._require("computeAngleRepose")
+        lower, upper = self._extent()
+        extent = upper - lower
+        return float(np.degrees(np.arctan2(extent[2], (extent[0] + extent[1]) / 4)))
+
+    # -- mixing and segregation -------------------------------------------------------------------
+
+    def _species_grid(
+        self, resol: float | None, species: int | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Bin particles on a cubic grid of side ``resol`` (default three mean diameters).
+
+        Returns (volume of ``species`` per cell, total volume per cell, particle count per cell,
+        integer cell coordinates), each restricted to the non-empty cells.
+        """
+        self._require("Mixing statistics")
+        if "type" not in self:
+            raise ValueError(f"Mixing statistics need a 'type' attribute; the particles have {self.keys()}")
+        types = np.unique(self.type)
+        if species is None:
+            if types.size != 2:
+                raise ValueError(
+                    f"Mixing statistics of {types.size} types {types.tolist()}: pass species=<type> to "
+                    "compare one type against the rest"
+                )
+            species = types[0]
+        elif species not in types:
+            raise ValueError(f"species={species} is not among the particle types {types.tolist()}")
+        radii = self._radii()
+        resol = float(resol or 6 * radii.mean())
+        positions = self.positions
+        cell = ((positions - positions.min(axis=0)) // resol).astype(np.intp)
+        shape = tuple(cell.max(axis=0) + 1)
+        flat = np.ravel_multi_index(cell.T, shape)
+        occupied, flat = np.unique(flat, return_inverse=True)
+        volume = radii**3
+        total = np.bincount(flat, weights=volume)
+        part = np.bincount(flat, weights=np.where(self.type == species, volume, 0.0), minlength=occupied.size)
+        return part, total, np.bincount(flat), np.column_stack(np.unravel_index(occupied, shape))
+
+    def computeIntensitySegregation(self, resol: float | None = None, species: int | None = None) -> float:
+        """Danckwerts' intensity of segregation ``var(a) / (mean(a) (1 - mean(a)))``, where ``a``
+        is the volume fraction of ``species`` in each non-empty grid cell of side ``resol``.
+
+        1 when every cell holds one species only; near 0 for a fine random mixture.
+        """
+        part, total, _, _ = self._species_grid(resol, species)
+        fraction = part / total
+        mean = fraction.mean()
+        return float(fraction.var() / (mean * (1.0 - mean)))
+
+    def computeScaleSegregation(
+        self, resol: float | None = None, maxDist: float | None = None, species: int | None = None
+    ) -> ScaleSegregation:
+        """Danckwerts' coefficient of correlation ``R(r) = <(a_i - m)(a_j - m)> / var(a)`` over every
+        pair of non-empty grid cells ``r`` apart, up to ``maxDist`` (default ten cells).
+
+        ``a`` is the volume fraction of ``species`` per cell of side ``resol``. The average is
+        exact (all pairs, found with cKDTree), one value per distinct separation; ``R(0) = 1``.
+        """
+        part, total, _, cells = self._species_grid(resol, species)
+        resol = float(resol or 6 * self._radii().mean())
+        reach = 10.0 if maxDist is None else maxDist / resol
+        fraction = part / total
+        deviation = fraction - fraction.mean()
+        variance = deviation.var()
+        if variance == 0:
+            raise ValueError("computeScaleSegregation: the composition is the same in every cell")
+        pairs = cKDTree(cells).query_pairs(reach + 1e-9, output_type="ndarray")
+        d2 = ((cells[pairs[:, 0]] - cells[pairs[:, 1]]) ** 2).sum(axis=1)
+        products = deviation[pairs[:, 0]] * deviation[pairs[:, 1]]
+        sums = np.bincount(d2, weights=products, minlength=1)
+        counts = np.bincount(d2, minlength=1)
+        sums[0], counts[0] = (deviation**2).sum(), deviation.size
+        seen = np.flatnonzero(counts)
+        return ScaleSegregation(sums[seen] / counts[seen] / variance, np.sqrt(seen) * resol)
+
+    def computeLaceyIndex(self, resol: float | None = None, species: int | None = None) -> float:
+        """Lacey's mixing index ``(s0^2 - s^2) / (s0^2 - sr^2)`` on grid cells of side ``resol``.
+
+        ``s^2`` is the variance of the volume fraction of ``species`` over non-empty cells about
+        its overall fraction ``p``; ``s0^2 = p (1 - p)`` (fully segregated) and
+        ``sr^2 = s0^2 / n`` (random, ``n`` mean particles per cell). 0 segregated, ~1 random.
+        """
+        part, total, count, _ = self._species_grid(resol, species)
+        p = part.sum() / total.sum()
+        s2 = ((part / total - p) ** 2).mean()
+        s0 = p * (1.0 - p)
+        return float((s0 - s2) / (s0 - s0 / count.mean()))

@@ -1,0 +1,241 @@
+"""System: builds SubSystems (Particles, Mesh, user subclasses) from trajectories and moves
+them through the frames together.
+
+``System(Particles='traj*.dump', Mesh='mesh*.vtk', units='si')``: every keyword that starts
+with an upper-case letter names a SubSystem class and gives its data; lower-case keywords
+(other than ``units`` and ``module``) are passed to that class's constructor on every frame,
+as in the manual's ``System(CoarseParticles='traj.dump', scale=3, percent=10.0,
+module='coarseGrained')``. A class name is looked up first in ``module`` and then in
+:mod:`pygran_core.analysis`.
+
+``module`` is a module object, an importable module name (``'coarseGrained'``; the running
+script counts when its file is ``coarseGrained.py``, and ``coarseGrained.py`` in the current
+directory is found too), or the path of a ``.py`` file. Loading a file never changes
+``sys.path`` or ``sys.modules``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import sys
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from pygran_core import units as _units
+from pygran_core.analysis.subsystem import SubSystem
+from pygran_core.errors import ConfigError, did_you_mean
+from pygran_core.io import Trajectory, open_trajectory
+
+PathLike = str | os.PathLike[str]
+
+
+def load_module(module: ModuleType | PathLike) -> ModuleType:
+    """The module ``module`` names: see the module docstring for the accepted forms."""
+    if isinstance(module, ModuleType):
+        return module
+    text = os.fspath(module)
+    if text.endswith(".py") or os.sep in text or "/" in text:
+        return _module_from_file(Path(text))
+    main = sys.modules.get("__main__")
+    main_file = getattr(main, "__file__", None)
+    if main is not None and main_file and Path(main_file).stem == text:
+        return main
+    try:
+        return importlib.import_module(text)
+    except ModuleNotFoundError as exc:
+        if exc.name != text:
+            raise
+        local = Path.cwd() / f"{text}.py"
+        if local.is_file():
+            return _module_from_file(local)
+        raise ConfigError(
+            f"module={text!r}: no such module (looked on sys.path and for {local}); give an importable "
+            "module name, the path of a .py file, or the module object"
+        ) from None
+
+
+def _module_from_file(path: Path) -> ModuleType:
+    if not path.is_file():
+        raise ConfigError(f"module={os.fspath(path)!r}: file not found ({path.resolve()})")
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    if spec is None or spec.loader is None:
+        raise ConfigError(f"module={os.fspath(path)!r} cannot be imported as Python source")
+    module = importlib.util.module_from_spec(spec)
+    previous = sys.modules.get(spec.name)
+    sys.modules[spec.name] = module  # only while it runs: decorators such as dataclass look it up
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        if previous is None:
+            del sys.modules[spec.name]
+        else:
+            sys.modules[spec.name] = previous
+    return module
+
+
+def resolve_class(name: str, module: ModuleType | None = None) -> type[SubSystem]:
+    """The SubSystem subclass called ``name`` in ``module``, else in :mod:`pygran_core.analysis`."""
+    from pygran_core import analysis
+
+    places = [m for m in (module, analysis) if m is not None]
+    for place in places:
+        candidate = getattr(place, name, None)
+        if isinstance(candidate, type) and issubclass(candidate, SubSystem):
+            return candidate
+    known = sorted(
+        {
+            k
+            for place in places
+            for k, v in vars(place).items()
+            if isinstance(v, type) and issubclass(v, SubSystem)
+        }
+    )
+    hint = "" if module is not None else " A class of your own needs module=... (see System's documentation)."
+    raise ConfigError(
+        f"System: unknown SubSystem class {name!r}.{did_you_mean(name, known)} "
+        f"Known: {', '.join(known)}.{hint}"
+    )
+
+
+class _Source:
+    """One SubSystem of a System: a trajectory read frame by frame, or a fixed object."""
+
+    def __init__(self, cls: type[SubSystem], value: Any, options: dict[str, Any]) -> None:
+        self.cls, self.options = cls, options
+        self.trajectory: Trajectory | None = None
+        self.fixed: SubSystem | None = None
+        if isinstance(value, SubSystem):
+            if not isinstance(value, cls):
+                raise ConfigError(f"System: {cls.__name__}= was given a {type(value).__name__}")
+            self.fixed = value
+        elif isinstance(value, tuple) and len(value) == 2 and isinstance(value[1], dict):
+            self.trajectory = open_trajectory(value[0], **value[1])
+        elif isinstance(value, (str, os.PathLike)) or (
+            isinstance(value, Sequence) and value and all(isinstance(v, (str, os.PathLike)) for v in value)
+        ):
+            self.trajectory = open_trajectory(value)
+        else:
+            raise ConfigError(
+                f"System: {cls.__name__}= takes a file name or glob, a list of files, (file, options) or a "
+                f"{cls.__name__} object, not {value!r}"
+            )
+
+    @property
+    def n_frames(self) -> int:
+        return 1 if self.trajectory is None else self.trajectory.n_frames
+
+    def build(self, index: int, units: str) -> SubSystem:
+        if self.trajectory is None:
+            assert self.fixed is not None
+            return self.fixed if self.fixed.units == units else self.fixed.copy().convert(units)
+        frame = self.trajectory.read_frame(min(index, self.trajectory.n_frames - 1))
+        obj = self.cls(**self.cls._frame_kwargs(frame), **self.options)
+        return obj if obj.units == units else obj.convert(units)
+
+
+class System:
+    """A DEM system: one or more SubSystems read from trajectories, moved frame by frame.
+
+    ``len(system)`` is the number of frames; ``for frame in system`` visits every frame from
+    the first (yielding its index) and rewinds at the end; :meth:`goto` jumps anywhere
+    (negative counts from the end). ``system.Particles`` (or any given class name) is the
+    SubSystem of the current frame, read when first used. Trajectories of one frame and
+    ready-made objects stay the same in every frame.
+    """
+
+    def __init__(self, units: str = "si", module: ModuleType | PathLike | None = None, **kwargs: Any) -> None:
+        _units.exponent("length", units, "si")  # unknown unit systems are a ConfigError
+        user_module = None if module is None else load_module(module)
+        options = {k: v for k, v in kwargs.items() if not k[:1].isupper()}
+        named = {k: v for k, v in kwargs.items() if k[:1].isupper()}
+        if not named:
+            raise ConfigError(
+                "System needs at least one SubSystem, e.g. System(Particles='traj*.dump', Mesh='mesh*.vtk')"
+            )
+        self._sources = {
+            name: _Source(resolve_class(name, user_module), v, options) for name, v in named.items()
+        }
+        counts = {name: s.n_frames for name, s in self._sources.items() if s.n_frames > 1}
+        if len(set(counts.values())) > 1:
+            raise ConfigError(f"System: the trajectories have different numbers of frames: {counts}")
+        self._n_frames = max(counts.values(), default=1)
+        self._units = units
+        self._frame = 0
+        self._current: dict[str, SubSystem] = {}
+
+    @property
+    def units(self) -> str:
+        """The unit system every SubSystem is expressed in."""
+        return self._units
+
+    @property
+    def frame(self) -> int:
+        """Index of the current frame."""
+        return self._frame
+
+    @property
+    def names(self) -> list[str]:
+        """Names of the SubSystems (``['Particles', 'Mesh']``)."""
+        return list(self._sources)
+
+    def __len__(self) -> int:
+        return self._n_frames
+
+    def __getattr__(self, name: str) -> SubSystem:
+        sources = self.__dict__.get("_sources", {})
+        if name not in sources:
+            raise AttributeError(
+                f"System has no attribute {name!r}.{did_you_mean(name, sources)} "
+                f"Its SubSystems: {', '.join(sources) or 'none'}."
+            )
+        if name not in self._current:
+            self._current[name] = sources[name].build(self._frame, self._units)
+        return self._current[name]
+
+    def goto(self, frame: int) -> int:
+        """Make ``frame`` (negative counts from the end) the current frame; returns its index."""
+        n = self._n_frames
+        if not isinstance(frame, int) or not -n <= frame < n:
+            raise IndexError(f"Frame {frame!r} is out of range: the system has {n} frames (0..{n - 1})")
+        if frame % n != self._frame:
+            self._frame = frame % n
+            self._current = {}
+        return self._frame
+
+    def rewind(self) -> int:
+        """Go back to the first frame."""
+        return self.goto(0)
+
+    def next(self) -> int:
+        """Advance one frame and return its index; StopIteration after the last frame."""
+        if self._frame + 1 >= self._n_frames:
+            raise StopIteration(f"The system has no frame after {self._frame}")
+        return self.goto(self._frame + 1)
+
+    __next__ = next
+
+    def __iter__(self) -> Iterator[int]:
+        for frame in range(self._n_frames):
+            self.goto(frame)
+            yield frame
+        self.rewind()
+
+    def __repr__(self) -> str:
+        where = f"frame {self._frame} of {self._n_frames}, units={self._units!r}"
+        return f"System({', '.join(self._sources)}; {where})"
+
+    def __enter__(self) -> System:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Close the trajectories' files."""
+        for source in self._sources.values():
+            if source.trajectory is not None:
+                source.trajectory.close()
