@@ -65,11 +65,27 @@ def can_open(path: Path) -> bool:
         return False
 
 
+def _read_chunk(handle: IO[bytes]) -> tuple[bytes, str | None]:
+    """Up to ``_CHUNK`` bytes, and what went wrong if the (compressed) stream broke off."""
+    parts: list[bytes] = []
+    size = 0
+    try:
+        while size < _CHUNK:
+            part = handle.read1(_CHUNK - size)  # type: ignore[attr-defined]
+            if not part:
+                break
+            parts.append(part)
+            size += len(part)
+    except (EOFError, OSError, gzip.BadGzipFile) as exc:
+        return b"".join(parts), f"the compressed stream is damaged ({exc})"
+    return b"".join(parts), None
+
+
 def _scan(path: Path, file_index: int) -> list[_Block]:
     """Blocks of one file: every frame starts with the same line as the file's first line."""
     try:
         with _open_binary(path) as handle:
-            head = handle.read(_CHUNK)
+            head, problem = _read_chunk(handle)
             first_line = head.split(b"\n", 1)[0].rstrip()
             if not first_line.startswith(b"ITEM:"):
                 return [_Block(file_index, 0, len(head), 1, "not a LAMMPS dump: the first line is "
@@ -81,7 +97,6 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
             skip = 0 if head.startswith(marker[1:]) else 1
             starts, lines = [0], [1]
             buf, base, counted, line = head, 0, 0, 1  # buf = file[base:base+len(buf)]
-            problem = None
             while True:
                 pos = buf.find(marker)
                 while pos >= 0:
@@ -94,11 +109,7 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
                         starts.append(base + pos + 1)
                         lines.append(line)
                     pos = buf.find(marker, pos + 1)
-                try:
-                    chunk = handle.read(_CHUNK)
-                except (EOFError, OSError, gzip.BadGzipFile) as exc:
-                    problem = f"the compressed stream is damaged ({exc})"
-                    chunk = b""
+                chunk, problem = (b"", problem) if problem else _read_chunk(handle)
                 if not chunk:
                     end = base + len(buf)
                     break
@@ -339,7 +350,7 @@ class DumpTrajectory(Trajectory):
                 if not np.array_equal(as_int, column):
                     row = int(np.flatnonzero(as_int != column)[0])
                     raise self._error(index, header.body_line + row,
-                                      f"integer column {name!r} holds {column[row]!r}")
+                                      f"integer column {name!r} holds {float(column[row])!r}")
                 arrays[name] = as_int
             else:
                 arrays[name] = np.ascontiguousarray(column)

@@ -1,0 +1,221 @@
+"""LIGGGHTS/LAMMPS text dumps: conformance, the real hopper run, column handling and errors."""
+
+import gzip
+import shutil
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pygran_core.errors import ReadError
+from pygran_core.io import Frame, open_trajectory, open_writer
+from pygran_core.testing import FormatConformance, assert_frames_equal, particle_frames
+from pygran_readers.dump import DumpTrajectory, format_frame
+
+HEADER = "ITEM: TIMESTEP\n{step}\nITEM: NUMBER OF ATOMS\n{n}\nITEM: BOX BOUNDS pp pp ff\n0 1\n0 2\n0 3\n"
+
+
+def dump_text(rows_per_frame, columns="id type x y z", step=100):
+    """Frames whose row r of frame k is ``r+1 1 k r 0.5 ...`` (one value per column)."""
+    out = []
+    for k, n in enumerate(rows_per_frame):
+        out.append(HEADER.format(step=step * k, n=n) + f"ITEM: ATOMS {columns}\n")
+        for r in range(n):
+            out.append(" ".join([str(r + 1), "1", str(k), str(r), "0.5"][: len(columns.split())]
+                                + ["0.25"] * (len(columns.split()) - 5)) + "\n")
+    return "".join(out)
+
+
+class TestDump(FormatConformance):
+    reader = "dump"
+    writer = "dump"
+    suffix = ".dump"
+
+    def bad_files(self, tmp_path):
+        good = dump_text([3, 2])
+        cases = {
+            "truncated": (good + dump_text([4])[:-12], 2),
+            "lying": (good + dump_text([4]).replace("\n4\n", "\n6\n", 1), 2),
+            "lying-more": (dump_text([3]).replace("\n3\n", "\n2\n", 1) + good, 0),
+            "nonnumeric": (good + dump_text([4]).replace("0.5\n", "O.5\n", 1) + good, 2),
+            "unknown-column": (good + dump_text([2], "id type x y zz"), 2),
+            "bad-int": (good + dump_text([2]).replace("\n1 1 0", "\n1.5 1 0", 1), 2),
+            "no-atoms-item": (good + "ITEM: TIMESTEP\n5\nITEM: NUMBER OF ATOMS\n1\n", 2),
+            "not-dump": ("hello\n", 0),
+        }
+        paths = []
+        for name, (text, readable) in cases.items():
+            path = tmp_path / f"{name}{self.suffix}"
+            path.write_text(text)
+            paths.append((path, readable))
+        return paths
+
+
+class TestDumpGzip(TestDump):
+    suffix = ".dump.gz"
+
+    def make_sample(self, tmp_path):
+        frames = particle_frames()
+        with open_writer(tmp_path / "plain.dump") as out:
+            for frame in frames:
+                out.write_frame(frame)
+        target = tmp_path / "sample.dump.gz"
+        target.write_bytes(gzip.compress((tmp_path / "plain.dump").read_bytes()))
+        return target, frames
+
+    def bad_files(self, tmp_path):
+        out = []
+        for path, readable in super().bad_files(tmp_path):
+            target = path.with_name(path.name.replace(".dump.gz", "-z.dump.gz"))
+            target.write_bytes(gzip.compress(path.read_bytes()))
+            out.append((target, readable))
+        cut = tmp_path / "cut.dump.gz"
+        cut.write_bytes(gzip.compress(dump_text([50, 50, 50]).encode())[:-40])
+        return [*out, (cut, 2)]
+
+
+class TestDumpPerFrameFiles(TestDump):
+    """Writing ``out*.dump`` gives one file per frame named by timestep, read back as a glob."""
+
+    def make_sample(self, tmp_path):
+        frames = particle_frames()
+        with open_writer(tmp_path / "out*.dump") as out:
+            for frame in frames:
+                out.write_frame(frame)
+        assert sorted(p.name for p in tmp_path.glob("out*.dump")) == [
+            "out0.dump", "out1000.dump", "out2000.dump", "out3000.dump"]
+        return str(tmp_path / "out*.dump"), frames
+
+
+def test_hopper_fixture(fixtures, tmp_path):
+    for path in (fixtures / "liggghts-hopper").glob("particles*.dump"):
+        shutil.copy(path, tmp_path)
+    trajectory = open_trajectory(str(tmp_path / "particles*.dump"))
+    assert len(trajectory) == 31
+    counts = [len(frame.arrays["id"]) for frame in trajectory]
+    # NUMBER OF ATOMS of each file, in natural order (checked against the text)
+    text_counts = [int(p.read_text().split("\n")[3]) for p in
+                   sorted(tmp_path.glob("particles*.dump"), key=lambda p: int(p.stem[9:]))]
+    assert counts == text_counts and counts[0] == 0 and max(counts) == 571 and counts[-1] == 423
+    last = trajectory[-1]
+    assert last.timestep == 30000 and trajectory[5].timestep == 5000
+    assert list(last.arrays) == "id type x y z radius vx vy vz fx fy fz".split()
+    assert last.arrays["id"].dtype == np.int64 and last.arrays["type"].dtype == np.int64
+    # the first atom row of particles30000.dump
+    assert last.arrays["id"][0] == 204
+    assert last.arrays["x"][0] == -3.00853e-05 and last.arrays["y"][0] == -0.000250325
+    assert last.arrays["vz"][0] == -0.100362 and last.arrays["fz"][0] == -5.1365e-09
+    assert np.all(last.arrays["radius"] == 5e-05)
+    np.testing.assert_array_equal(last.box, [[-0.001, 0.001], [-0.001, 0.001], [0, 0.004]])
+    assert last.boundary == ("ff", "ff", "ff")
+    assert trajectory[0].arrays["x"].shape == (0,)
+
+
+def test_scaled_triclinic_and_custom_columns(tmp_path):
+    text = ("ITEM: UNITS\nsi\nITEM: TIME\n0.25\nITEM: TIMESTEP\n7\nITEM: NUMBER OF ATOMS\n2\n"
+            "ITEM: BOX BOUNDS xy xz yz pp pp pp\n-0.5 11 1\n0 20 -0.5\n0 30 0\n"
+            "ITEM: ATOMS id mol type xs ys zs c_stress[1] f_force v_var diameter\n"
+            "1 3 2 0.5 0.5 0.5 1.5 2.5 3.5 0.001\n2 3 1 0 0 1 -1 -2 -3 0.002\n"
+            "ITEM: TIME\n0.5\nITEM: TIMESTEP\n8\nITEM: NUMBER OF ATOMS\n0\n"
+            "ITEM: BOX BOUNDS xy xz yz pp pp pp\n-0.5 11 1\n0 20 -0.5\n0 30 0\n"
+            "ITEM: ATOMS id mol type xs ys zs c_stress[1] f_force v_var diameter\n")
+    (tmp_path / "t.dump").write_text(text)
+    trajectory = open_trajectory(tmp_path / "t.dump")
+    assert len(trajectory) == 2
+    frame = trajectory[0]
+    assert frame.timestep == 7 and frame.time == 0.25 and frame.attrs["units"] == "si"
+    assert list(frame.arrays) == ["id", "mol", "type", "x", "y", "z", "c_stress[1]", "f_force", "v_var",
+                                  "diameter"]
+    assert frame.arrays["mol"].dtype == np.int64
+    # xlo = -0.5 - min(0, 1, -0.5, 0.5) = 0, lx = (11 - 1) - 0 = 10, ylo = 0 - min(0, 0) = 0 ...
+    np.testing.assert_allclose(frame.arrays["x"], [0 + 5 + 0.5 * 1 + 0.5 * -0.5, -0.5])
+    np.testing.assert_allclose(frame.arrays["y"], [10 + 0, 0])
+    np.testing.assert_allclose(frame.arrays["z"], [15, 30])
+    np.testing.assert_array_equal(frame.attrs["tilt"], [1, -0.5, 0])
+    assert frame.arrays["c_stress[1]"].tolist() == [1.5, -1]
+    assert trajectory[1].time == 0.5 and len(trajectory[1].arrays["id"]) == 0
+
+
+def test_triclinic_written_back(tmp_path):
+    frame = Frame({"id": np.array([1, 2]), "x": np.array([0.1, 0.2])}, timestep=3,
+                  box=np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 3.0]]), boundary=("pp", "pp", "ff"),
+                  attrs={"tilt": np.array([0.5, 0.0, 0.0])})
+    text = format_frame(frame)
+    assert "ITEM: BOX BOUNDS xy xz yz pp pp ff\n0.0 1.0 0.5\n" in text
+    (tmp_path / "t.dump").write_text(text)
+    back = open_trajectory(tmp_path / "t.dump")[0]
+    assert_frames_equal(back, frame)
+    np.testing.assert_array_equal(back.attrs["tilt"], [0.5, 0, 0])
+
+
+@pytest.mark.parametrize("case, message", [
+    # frame 2 starts on line 24: its atom count is on line 27, ITEM: ATOMS on 32, rows from 33
+    ("truncated", r"truncated\.dump: frame 2, line 27: the frame is truncated"),
+    ("lying", r"lying\.dump: frame 2, line 27: the header lies about the atom count: ITEM: NUMBER OF "
+              r"ATOMS says 6 but 4 rows follow"),
+    ("nonnumeric", r"nonnumeric\.dump: frame 2, line 34: column 'z' holds 'O\.5', not a number"),
+    ("unknown-column", r"unknown-column\.dump: frame 2, line 32: unknown column 'zz'\. Did you mean 'z'\?"),
+    ("bad-int", r"bad-int\.dump: frame 2, line 33: integer column 'id' holds 1\.5"),
+])
+def test_error_names_file_frame_and_line(tmp_path, case, message):
+    good = dump_text([3, 2])
+    text = {
+        "truncated": good + dump_text([4])[:-12],
+        "lying": good + dump_text([4]).replace("\n4\n", "\n6\n", 1) + good,
+        "nonnumeric": good + dump_text([4]).replace("1 0.5\n", "1 O.5\n", 1),
+        "unknown-column": good + dump_text([2], "id type x y zz"),
+        "bad-int": good + dump_text([2]).replace("\n1 1 0", "\n1.5 1 0", 1),
+    }[case]
+    (tmp_path / f"{case}.dump").write_text(text)
+    trajectory = DumpTrajectory([tmp_path / f"{case}.dump"])
+    assert len(trajectory) in (3, 5)
+    assert [len(f.arrays["id"]) for f in (trajectory[0], trajectory[1])] == [3, 2]
+    with pytest.raises(ReadError, match=message):
+        trajectory[2]
+
+
+def test_extra_columns_option(tmp_path):
+    (tmp_path / "e.dump").write_text(dump_text([2], "id type x y z myprop"))
+    with pytest.raises(ReadError, match="unknown column 'myprop'"):
+        open_trajectory(tmp_path / "e.dump")[0]
+    frame = open_trajectory(tmp_path / "e.dump", extra_columns=["myprop"])[0]
+    assert frame.arrays["myprop"].tolist() == [0.25, 0.25]
+
+
+def test_glob_with_an_empty_last_file(tmp_path):
+    (tmp_path / "p0.dump").write_text(dump_text([2]))
+    (tmp_path / "p10.dump").write_text("")
+    trajectory = open_trajectory(str(tmp_path / "p*.dump"))
+    assert len(trajectory[0].arrays["id"]) == 2
+    with pytest.raises(ReadError, match=r"p10\.dump: frame 1, line 1: not a LAMMPS dump"):
+        trajectory[1]
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_fuzz_mutated_dump_raises_only_read_error(tmp_path, data):
+    original = bytearray(dump_text([3, 0, 2], "id type x y z vx c_a[1]").encode())
+    for _ in range(data.draw(st.integers(1, 4))):
+        where = data.draw(st.integers(0, len(original) - 1))
+        action = data.draw(st.sampled_from(["flip", "delete", "insert", "cut"]))
+        byte = data.draw(st.sampled_from(list(b"0123456789 .-e\nxI:")))
+        if action == "flip":
+            original[where] = byte
+        elif action == "delete":
+            del original[where]
+        elif action == "insert":
+            original.insert(where, byte)
+        else:
+            del original[where:]
+        if not original:
+            original = bytearray(b" ")
+    path = tmp_path / "fuzz.dump"
+    path.write_bytes(bytes(original))
+    try:
+        trajectory = DumpTrajectory([path])
+        for frame in trajectory:
+            assert all(len(v) == len(frame.arrays["id"]) for v in frame.arrays.values()) if "id" in \
+                frame.arrays else True
+    except ReadError:
+        pass
