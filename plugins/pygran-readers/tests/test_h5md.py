@@ -1,0 +1,143 @@
+"""H5MD: conformance, the standard layout seen by plain h5py, crash safety, dump round trip."""
+
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import h5py
+import numpy as np
+import pytest
+
+from pygran_core.errors import ReadError
+from pygran_core.io import Frame, open_trajectory, open_writer
+from pygran_core.testing import FormatConformance, assert_frames_equal, particle_frames
+
+
+class TestH5MD(FormatConformance):
+    reader = "h5md"
+    writer = "h5md"
+    suffix = ".h5md"
+
+    def bad_files(self, tmp_path):
+        plain = tmp_path / "plain.h5"
+        with h5py.File(plain, "w") as f:
+            f["data"] = np.arange(3)
+        return [*super().bad_files(tmp_path), (plain, 0)]
+
+
+def test_standard_layout_in_plain_h5py(tmp_path):
+    frames = particle_frames()
+    with open_writer(tmp_path / "t.h5md", units="si") as out:
+        for frame in frames:
+            out.write_frame(frame)
+    with h5py.File(tmp_path / "t.h5md", "r") as f:
+        assert list(f["h5md"].attrs["version"]) == [1, 1]
+        assert f["h5md/creator"].attrs["name"] == "PyGran"
+        group = f["particles/all"]
+        assert {"position", "velocity", "force", "id", "species", "radius", "box"} <= set(group)
+        position = group["position"]
+        assert position["value"].shape == (4, 12, 3) and position["value"].maxshape == (None, None, 3)
+        assert position["value"].chunks is not None and position["value"].compression == "gzip"
+        assert position["value"].attrs["unit"] == "m" and position["time"].attrs["unit"] == "s"
+        assert position["step"][:].tolist() == [0, 1000, 2000, 3000]
+        # step and time are one dataset, hard-linked into every element
+        assert group["id/step"].id == position["step"].id
+        np.testing.assert_array_equal(position["value"][2, :, 0], frames[2].arrays["x"])
+        ids = group["id/value"][:]
+        assert ids.dtype == np.int64 and ids[0, 5:].tolist() == [-1] * 7 and ids[1].tolist() == [-1] * 12
+        np.testing.assert_array_equal(group["species/value"][3, :3], frames[3].arrays["type"])
+        assert np.isnan(position["value"][3, 3:]).all()
+        assert f["observables/all/particle_number/value"][:].tolist() == [5, 0, 12, 3]
+        box = group["box"]
+        assert box.attrs["dimension"] == 3 and list(box.attrs["boundary"]) == ["periodic", "none", "none"]
+        np.testing.assert_array_equal(box["edges/value"][0], [2.0, 4.0, 0.1])
+        assert "c_stress[2]" in group
+
+
+def test_triclinic_box(tmp_path):
+    frame = Frame({"id": np.array([1]), "x": np.array([0.5])}, timestep=1, time=0.5,
+                  box=np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 3.0]]), attrs={"tilt": np.array([0.1, 0.2, 0.3])})
+    with open_writer(tmp_path / "t.h5", format="h5md") as out:
+        out.write_frame(frame)
+    back = open_trajectory(tmp_path / "t.h5")[0]
+    assert_frames_equal(back, frame)
+    assert back.time == 0.5
+    np.testing.assert_array_equal(back.attrs["tilt"], [0.1, 0.2, 0.3])
+    with h5py.File(tmp_path / "t.h5") as f:
+        np.testing.assert_array_equal(f["particles/all/box/edges/value"][0],
+                                      [[1, 0, 0], [0.1, 2, 0], [0.2, 0.3, 3]])
+
+
+def test_changing_columns_is_refused(tmp_path):
+    from pygran_core.errors import UnsupportedFeature
+
+    with open_writer(tmp_path / "t.h5md") as out:
+        out.write_frame(Frame({"id": np.array([1]), "x": np.array([0.5])}))
+        with pytest.raises(UnsupportedFeature, match="columns"):
+            out.write_frame(Frame({"id": np.array([1])}))
+
+
+def test_dump_to_h5md_to_dump_preserves_every_value(fixtures, tmp_path):
+    for path in (fixtures / "liggghts-hopper").glob("particles*.dump"):
+        shutil.copy(path, tmp_path)
+    source = open_trajectory(str(tmp_path / "particles*.dump"))
+    with open_writer(tmp_path / "hopper.h5md") as out:
+        for frame in source:
+            out.write_frame(frame)
+    with open_trajectory(tmp_path / "hopper.h5md") as h5, open_writer(tmp_path / "back.dump") as out:
+        assert len(h5) == 31
+        for frame in h5:
+            out.write_frame(frame)
+    back = open_trajectory(tmp_path / "back.dump")
+    assert len(back) == 31
+    for got, want in zip(back, source):
+        assert_frames_equal(got, want)  # ints equal, floats bitwise
+    # and the text values are the same numbers as the original text
+    original = (tmp_path / "particles30000.dump").read_text().split("\n")[9].split()
+    rewritten = (tmp_path / "back.dump").read_text().split("ITEM: ATOMS")[-1].split("\n")[1].split()
+    assert [float(v) for v in rewritten] == [float(v) for v in original]
+
+
+WRITER = textwrap.dedent("""
+    import sys
+    import numpy as np
+    from pygran_core.io import Frame, open_writer
+
+    out = open_writer(sys.argv[1])
+    k = 0
+    while True:
+        n = 20000 + 1000 * (k % 7)
+        frame = Frame({"id": np.arange(n), "x": np.full(n, float(k)), "vx": np.arange(n) * 0.5},
+                      timestep=k)
+        out.write_frame(frame)
+        print(k, flush=True)
+        k += 1
+""")
+
+
+def test_killed_writer_leaves_completed_frames_readable(tmp_path):
+    path = tmp_path / "killed.h5md"
+    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(path)], stdout=subprocess.PIPE, text=True)
+    try:
+        done = [int(proc.stdout.readline()) for _ in range(6)]
+    finally:
+        proc.kill()
+        proc.wait()
+        proc.stdout.close()
+    assert done == list(range(6))
+    trajectory = open_trajectory(path)
+    assert len(trajectory) >= 6
+    for k in range(len(trajectory)):
+        frame = trajectory[k]
+        n = 20000 + 1000 * (k % 7)
+        assert frame.timestep == k and len(frame.arrays["id"]) == n
+        np.testing.assert_array_equal(frame.arrays["id"], np.arange(n))
+        assert np.all(frame.arrays["x"] == k)
+
+
+def test_not_h5md(tmp_path):
+    with h5py.File(tmp_path / "other.h5", "w") as f:
+        f.create_group("particles")
+    with pytest.raises(ReadError, match=r"other\.h5: no /particles group"):
+        open_trajectory(tmp_path / "other.h5")
