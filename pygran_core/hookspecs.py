@@ -54,7 +54,8 @@ CAPABILITIES = frozenset(
 class EngineSpec:
     """An engine a plugin provides.
 
-    ``factory(**specs)`` builds the :class:`~pygran_core.simulation.engine.Engine`;
+    ``factory(spec)`` builds the :class:`~pygran_core.simulation.engine.Engine` from a
+    :class:`~pygran_core.simulation.specs.SimulationSpec`;
     ``locate_solver()`` returns a one-line description of the solver it will drive (path,
     version, threads) or raises :class:`~pygran_core.errors.EngineError` whose message
     says how to install the missing solver.
@@ -154,14 +155,30 @@ def pygran_engines() -> Iterable[EngineSpec]:
         [project.entry-points."pygran.engines"]
         toy = "pygran_toy.plugin"
 
+        import numpy as np
         from pygran_core import Engine, hookimpl
         from pygran_core.hookspecs import EngineSpec
 
         class ToyEngine(Engine):
-            capabilities = frozenset({"periodic"})
+            # Particles that fly in straight lines: a complete, if useless, engine.
 
-            def _advance(self, nsteps: int) -> None:
-                self.time += nsteps * self.dt
+            name = "toy"
+            capabilities = frozenset({"spring-dashpot", "periodic"})
+
+            def __init__(self, spec):  # spec: pygran_core.simulation.specs.SimulationSpec
+                super().__init__(spec)
+                self.x, self.v = np.zeros((0, 3)), np.zeros((0, 3))
+
+            def _create(self, request):  # createParticles(1, 'single', x, y, z, vel=...)
+                self.x = np.vstack([self.x, request.position])
+                self.v = np.vstack([self.v, request.velocity])
+                return 1
+
+            def _advance(self, nsteps):
+                self.x = self.x + nsteps * self.dt * self.v
+
+            def _extract(self, quantity):
+                return {"x": self.x, "v": self.v}[quantity]
 
         @hookimpl
         def pygran_engines():

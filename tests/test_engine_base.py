@@ -2,24 +2,32 @@
 
 import logging
 
+import numpy as np
 import pytest
 
 from pygran_core import Engine
 from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
+from pygran_core.simulation.calls import parse_monitor
+from pygran_core.simulation.models import SpringDashpot
+from pygran_core.simulation.specs import parse_simulation
 
 
 class CountingEngine(Engine):
     name = "counting"
-    capabilities = frozenset({"periodic"})
+    capabilities = frozenset({"periodic", "spring-dashpot"})
 
-    def __init__(self, output, **options):
-        super().__init__(output, **options)
+    def __init__(self, output, **params):
+        params = {"box": (0, 1, 0, 1, 0, 1), "output": str(output), "traj": {"pfile": None}, **params}
+        super().__init__(parse_simulation(params, "counting", SpringDashpot))
         self.chunks = []
         self.removed = []
         self.released = 0
 
     def _advance(self, nsteps):
         self.chunks.append(nsteps)
+
+    def _extract(self, quantity):
+        return np.zeros((2, 3)) if quantity in ("x", "v") else np.arange(2)
 
     def _remove(self, handle):
         self.removed.append(handle.label)
@@ -130,3 +138,24 @@ def test_unsupported_capability_message(tmp_path):
         engine.require("periodic")
         with pytest.raises(UnsupportedFeature, match="counting engine does not support mesh walls"):
             engine.require("mesh-walls", "mesh walls")
+
+
+def test_spec_needing_a_missing_capability_is_refused_at_once(tmp_path):
+    with pytest.raises(UnsupportedFeature, match="does not support restart files"):
+        CountingEngine(tmp_path, restart=100)
+
+
+def test_events_split_the_run_and_monitors_sample(tmp_path):
+    engine = CountingEngine(tmp_path, dt=1e-3, progress=False)
+    engine.max_run_chunks = 1
+    monitor = engine.monitor(parse_monitor({"freq": 30, "quantities": ("n", "time")}))
+    engine.run(100)
+    assert engine.chunks == [30, 30, 30, 10]
+    np.testing.assert_array_equal(monitor.values["step"], [0, 30, 60, 90])
+    np.testing.assert_array_equal(monitor.values["n"], [2, 2, 2, 2])
+    np.testing.assert_allclose(monitor.values["time"], [0, 0.03, 0.06, 0.09])
+    assert (tmp_path / "monitor.txt").read_text().splitlines()[0] == "# step time n time"
+    engine.remove(monitor)
+    engine.run(40)
+    assert len(monitor.values["step"]) == 4
+    engine.close()

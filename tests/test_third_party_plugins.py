@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from pygran_core import io, registry
+from pygran_core import io, params, registry, simulation
 from pygran_core.errors import PluginError, PluginNotFound
 from pygran_core.registry import PluginLoadWarning
 
@@ -14,11 +14,20 @@ def test_toy_engine_reader_writer_found_by_name(with_plugins, tmp_path):
     with_plugins("pygran-toy")
     provided = registry.lookup("engine", "toy")
     assert (provided.distribution, provided.version, provided.plugin) == ("pygran-toy", "0.0.1", "toy")
-    engine = provided.spec.factory(tmp_path / "out", dt=1e-3, progress=False)
-    engine.add_particle((0, 0, 1))
-    engine.run(100)
-    assert engine.positions[0, 2] == pytest.approx(1 - 0.5 * 9.81 * 0.1**2)
-    engine.close()
+    species = ({"material": dict(params.glass, coefficientRollingFriction=0.0), "radius": 1e-3},)
+    with simulation.DEM(
+        engine="toy",
+        box=(-1, 1, -1, 1, 0, 2),
+        gravity=(9.81, 0, 0, -1),
+        species=species,
+        output=str(tmp_path / "out"),
+        dt=1e-3,
+        traj={"pfile": None},
+        progress=False,
+    ) as sim:
+        sim.createParticles(1, "single", 0, 0, 1, vel=(1, 0, 0))
+        sim.run(100)
+        np.testing.assert_allclose(sim.extractCoords()[0], [0.1, 0, 1 - 0.5 * 9.81 * 0.1**2])
 
     with io.open_writer(tmp_path / "frame.toy") as writer:
         writer.write_frame(io.Frame({"x": np.arange(3.0), "y": np.zeros(3), "z": np.ones(3)}))
@@ -43,13 +52,13 @@ def test_capability_error_names_engines_that_can(with_plugins, tmp_path):
     from pygran_core.errors import UnsupportedFeature
 
     with_plugins("pygran-toy")
-    engine = registry.get_engine("toy").factory(tmp_path, progress=False)
-    engine.require("multisphere")
-    with pytest.raises(
-        UnsupportedFeature, match="toy engine does not support restart.*No installed engine can"
-    ):
-        engine.require("restart")
-    engine.close()
+    able = [name for name in registry.engines_with("restart") if name != "toy"]
+    with simulation.DEM(engine="toy", box=(0, 1, 0, 1, 0, 1), output=str(tmp_path), progress=False) as sim:
+        sim.engine.require("multisphere")
+        with pytest.raises(UnsupportedFeature) as info:
+            sim.engine.require("restart")
+    expected = f"Engines that can: {', '.join(able)}." if able else "No installed engine can."
+    assert str(info.value) == f"The toy engine does not support restart (capability 'restart'). {expected}"
 
 
 def test_duplicate_item_name_names_both_distributions(with_plugins):

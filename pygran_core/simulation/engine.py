@@ -3,8 +3,9 @@
 An engine owns a solver. The base class owns the behaviour that must not differ between
 engines: the output directory (created, never ``chdir``-ed into), the log of every call in
 ``<output>/pygran.log``, capability checks that name the engines able to do what was asked,
-handle bookkeeping for ``remove``, the progress bar and step/time accounting of ``run``,
-and closing (also as a context manager). An engine implements the ``_underscored`` hooks.
+handle bookkeeping for ``remove``, and ``run``: the progress bar, step/time accounting and
+the schedule of trajectory frames, monitor samples and checkpoints, between which the
+solver runs without returning to Python. An engine implements the ``_underscored`` hooks.
 """
 
 from __future__ import annotations
@@ -12,17 +13,38 @@ from __future__ import annotations
 import abc
 import itertools
 import logging
-import os
 import sys
-from dataclasses import dataclass
-from numbers import Integral, Real
-from pathlib import Path
-from typing import Any, ClassVar
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
 
 from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
+from pygran_core.simulation.specs import positive_float, positive_int
+
+if TYPE_CHECKING:
+    from pygran_core.io import Frame, TrajectoryWriter
+    from pygran_core.simulation.calls import (
+        CreateSpec,
+        InsertSpec,
+        MonitorSpec,
+        MotionSpec,
+        ViscousSpec,
+        WallSpec,
+    )
+    from pygran_core.simulation.specs import SimulationSpec
 
 LOG_NAME = "pygran.log"
 _LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
+
+#: Built-in contact model -> the capability an engine needs to run it.
+MODEL_CAPABILITY = {
+    "SpringDashpot": "spring-dashpot",
+    "HertzMindlin": "hertz-mindlin",
+    "ThorntonNing": "thornton-ning",
+}
+#: Per-particle quantities ``extract`` knows, with their shape per particle.
+EXTRACTABLE = {"x": 3, "v": 3, "omega": 3, "f": 3, "torque": 3, "radius": 1, "mass": 1, "id": 1, "type": 1}
 
 
 @dataclass(frozen=True)
@@ -35,51 +57,81 @@ class Handle:
     engine_id: int
 
 
-def positive_int(value: Any, name: str) -> int:
-    """``value`` as an int > 0, or a :class:`ConfigError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, Integral) or value <= 0:
-        raise ConfigError(f"{name} must be a positive integer, got {value!r}")
-    return int(value)
+@dataclass
+class Monitor:
+    """Scalars sampled during ``run``: ``values[name]`` is an array, one entry per sample."""
 
+    handle: Handle
+    spec: MonitorSpec
+    path: Any
+    samples: list[tuple[float, ...]] = field(default_factory=list)
 
-def positive_float(value: Any, name: str) -> float:
-    """``value`` (int or float) as a float > 0, or a :class:`ConfigError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, Real) or not value > 0:
-        raise ConfigError(f"{name} must be a positive number, got {value!r}")
-    return float(value)
+    @property
+    def values(self) -> dict[str, np.ndarray]:
+        table = np.array(self.samples, float).reshape(-1, 2 + len(self.spec.quantities))
+        names = ("step", "time", *self.spec.quantities)
+        return {name: table[:, i] for i, name in enumerate(names)}
 
 
 class Engine(abc.ABC):
-    """Base class of DEM engines.
+    """Base class of DEM engines, built from a validated :class:`SimulationSpec`.
 
-    Subclasses set :attr:`name` and :attr:`capabilities` and implement :meth:`_advance`;
-    they override :meth:`_remove` and :meth:`_close` when they hold solver resources.
+    Subclasses set :attr:`name` and :attr:`capabilities` and implement :meth:`_advance`,
+    :meth:`_extract` and the hooks of the calls they support; the others raise
+    :class:`UnsupportedFeature`. Hooks receive validated specs and return the solver's
+    label for what they created.
     """
 
     name: ClassVar[str] = "engine"
     capabilities: ClassVar[frozenset[str]] = frozenset()
-    #: Upper bound on the number of progress updates (and Python round trips) per ``run``.
+    #: Upper bound on the progress updates (and Python round trips) per ``run`` between events.
     max_run_chunks: ClassVar[int] = 100
 
     _ids = itertools.count(1)
 
-    def __init__(
-        self, output: str | os.PathLike[str], *, dt: float | None = None, progress: bool | None = None
-    ) -> None:
-        self.output = Path(output).resolve()
+    def __init__(self, spec: SimulationSpec) -> None:
+        self.spec = spec
+        self.output = spec.output
         self.output.mkdir(parents=True, exist_ok=True)
-        self.dt = None if dt is None else positive_float(dt, "dt")
-        self.progress = progress
+        self.dt = spec.dt
         self.step = 0
         self.time = 0.0
         self.closed = False
         self._engine_id = next(Engine._ids)
         self._handles: dict[int, Handle] = {}
         self._handle_ids = itertools.count(1)
+        self._monitors: dict[int, Monitor] = {}
+        self._writers: dict[str, TrajectoryWriter] = {}
         self._logger = logging.getLogger(f"pygran.simulation.{self.name}")
         self._log_handler = logging.FileHandler(self.output / LOG_NAME, encoding="utf-8")
         self._log_handler.setFormatter(logging.Formatter(_LOG_FORMAT))
         self.log("%s engine opened, output in %s", self.name, self.output)
+        self._check_spec(spec)
+
+    def _check_spec(self, spec: SimulationSpec) -> None:
+        """Refuse, before the solver starts, whatever of ``spec`` this engine cannot do."""
+        capability = MODEL_CAPABILITY.get(spec.model.__name__)
+        if capability is not None:
+            self.require(capability, f"the {spec.model.__name__} contact model")
+        if any(spec.domain.periodic):
+            self.require("periodic", "periodic boundaries")
+        if spec.meshes:
+            self.require("mesh-walls", "mesh walls")
+        if spec.restart is not None:
+            self.require("restart", "restart files")
+        if spec.nsim > 1 or spec.nprocs not in (None, 1):
+            self.require("mpi", "several MPI ranks (nSim, nprocs)")
+        if spec.threads not in (None, 1):
+            self.require("threads", "threads")
+        for species in spec.species:
+            if species.style == "multisphere":
+                self.require("multisphere", "multisphere particles")
+            if species.radius.kind != "constant":
+                self.require("polydisperse", "size distributions")
+            if species.material.get("cohesionEnergyDensity", 0) > 0:
+                self.require("cohesion", "cohesion")
+            if species.material.get("coefficientRollingFriction", 0) > 0:
+                self.require("rolling-friction", "rolling friction")
 
     # -- common behaviour ------------------------------------------------------------
 
@@ -114,58 +166,170 @@ class Engine(abc.ABC):
         self._handles[handle.id] = handle
         return handle
 
+    def _call(self, kind: str, hook: Any, spec: Any) -> Handle:
+        self._check_open()
+        self.log("%s %s", kind, spec)
+        return self._new_handle(kind, hook(spec))
+
     @property
     def handles(self) -> tuple[Handle, ...]:
         """Handles of the objects not yet removed, oldest first."""
         return tuple(self._handles.values())
 
+    # -- calls -------------------------------------------------------------------------
+
+    def insert(self, spec: InsertSpec) -> Handle:
+        if spec.mechanism == "by_rate":
+            self.require("insert-by-rate", "insertion by rate")
+        return self._call("insertion", self._insert, spec)
+
+    def create_particles(self, spec: CreateSpec) -> int:
+        """Create particles now; returns how many were created."""
+        self._check_open()
+        count = self._create(spec)
+        self.log("create %s: %d particles", spec, count)
+        return count
+
+    def setup_wall(self, spec: WallSpec) -> Handle:
+        self.require("mesh-walls" if spec.kind == "mesh" else "primitive-walls", f"{spec.kind} walls")
+        return self._call("wall", self._wall, spec)
+
+    def move_mesh(self, spec: MotionSpec) -> Handle:
+        self.require("moving-mesh", "moving meshes")
+        return self._call("motion", self._move_mesh, spec)
+
+    def add_viscous(self, spec: ViscousSpec) -> Handle:
+        return self._call("viscous", self._viscous, spec)
+
+    def monitor(self, spec: MonitorSpec) -> Monitor:
+        handle = self._call("monitor", lambda s: s.file, spec)
+        monitor = Monitor(handle, spec, self.output / spec.file)
+        monitor.path.write_text("# step time " + " ".join(spec.quantities) + "\n")
+        self._monitors[handle.id] = monitor
+        return monitor
+
+    def extract(self, quantity: str) -> np.ndarray:
+        """A per-particle quantity (see :data:`EXTRACTABLE`) as a numpy array ordered by id."""
+        self._check_open()
+        if quantity not in EXTRACTABLE:
+            from pygran_core.errors import unknown_key
+
+            raise unknown_key("quantity", quantity, EXTRACTABLE)
+        return self._extract(quantity)
+
+    def command(self, text: str) -> None:
+        """Pass a solver-native command through unchanged."""
+        self.require("raw-commands", "raw solver commands")
+        self._check_open()
+        self.log("command %s", text)
+        self._command(text)
+
     def remove(self, handle: Handle) -> None:
         """Remove what ``handle`` refers to (an insertion, wall, mesh motion, force, monitor)."""
         self._check_open()
+        if isinstance(handle, Monitor):
+            handle = handle.handle
         if not isinstance(handle, Handle) or handle.engine_id != self._engine_id:
             raise ConfigError(f"{handle!r} is not a handle returned by this simulation")
         if handle.id not in self._handles:
             raise ConfigError(f"{handle.kind} {handle.label!r} was already removed")
-        self._remove(handle)
+        if handle.kind == "monitor":
+            del self._monitors[handle.id]
+        else:
+            self._remove(handle)
         del self._handles[handle.id]
         self.log("remove %s %s", handle.kind, handle.label)
+
+    # -- running -----------------------------------------------------------------------
 
     def run(self, nsteps: int, dt: float | None = None, *, progress: bool | None = None) -> None:
         """Advance ``nsteps`` time steps (of ``dt``, or the simulation's time step).
 
-        A progress bar is shown on a terminal unless ``progress=False`` (here or at
-        construction); Python regains control only between the bar's updates.
+        Trajectory frames, monitor samples and checkpoints are taken at their frequencies
+        (in absolute steps); the solver runs uninterrupted between them and between the
+        progress bar's updates, shown on a terminal unless ``progress=False``.
         """
         self._check_open()
         nsteps = positive_int(nsteps, "nsteps")
         if dt is not None:
             self.dt = positive_float(dt, "dt")
         if self.dt is None:
-            raise ConfigError("No time step: pass dt to run(nsteps, dt) or to the simulation")
+            raise ConfigError("No time step: pass dt to run(nsteps, dt) or dt=... to DEM")
         self.log("run %d steps of dt=%g from step %d", nsteps, self.dt, self.step)
-        show = progress if progress is not None else self.progress
+        show = progress if progress is not None else self.spec.progress
         if show is None:
             show = sys.stderr.isatty()
         from tqdm import tqdm
 
+        end = self.step + nsteps
+        if self.step == 0:
+            self._on_event()
         with tqdm(total=nsteps, unit="step", disable=not show, desc=f"{self.name} run") as bar:
             for chunk in self._chunks(nsteps):
-                self._advance(chunk)
+                try:
+                    self._advance(chunk)
+                except EngineError:
+                    self.log("solver error at step %d", self.step, level=logging.ERROR)
+                    raise
                 self.step += chunk
                 self.time += chunk * self.dt
                 bar.update(chunk)
+                self._on_event()
+        assert self.step == end
+
+    def _frequencies(self) -> list[int]:
+        freqs = [m.spec.freq for m in self._monitors.values()]
+        if self.spec.traj.pfile is not None or self.spec.traj.mfile is not None:
+            freqs.append(self.spec.traj.freq)
+        if self.spec.restart is not None:
+            freqs.append(self.spec.restart.freq)
+        return freqs
 
     def _chunks(self, nsteps: int) -> list[int]:
-        """Split a run into at most :attr:`max_run_chunks` nearly equal pieces."""
+        """Split a run at every event step, and into at most :attr:`max_run_chunks` pieces."""
+        start, end = self.step, self.step + nsteps
+        stops = {end}
+        for freq in self._frequencies():
+            stops.update(range((start // freq + 1) * freq, end, freq))
         pieces = min(nsteps, self.max_run_chunks)
-        base, extra = divmod(nsteps, pieces)
-        return [base + 1] * extra + [base] * (pieces - extra)
+        stops.update(start + (nsteps * k) // pieces for k in range(1, pieces))
+        ordered = sorted(s for s in stops if s > start)
+        return [b - a for a, b in zip([start, *ordered], ordered)]
+
+    def _on_event(self) -> None:
+        """Take the trajectory frame, monitor samples and checkpoint due at this step."""
+        traj = self.spec.traj
+        if self.step % traj.freq == 0:
+            if traj.pfile is not None:
+                self._write("particles", traj.pfile, self._frame)
+            if traj.mfile is not None and self.spec.meshes:
+                self._write("meshes", traj.mfile, self._mesh_frame)
+        for monitor in self._monitors.values():
+            if self.step % monitor.spec.freq == 0:
+                row = (float(self.step), self.time, *(self._scalar(q) for q in monitor.spec.quantities))
+                monitor.samples.append(row)
+                with monitor.path.open("a") as handle:
+                    handle.write(" ".join(repr(v) for v in row) + "\n")
+        restart = self.spec.restart
+        if restart is not None and self.step > 0 and self.step % restart.freq == 0:
+            restart.directory.mkdir(parents=True, exist_ok=True)
+            self._checkpoint(restart.directory / restart.fname)
+
+    def _write(self, key: str, path: Any, make_frame: Any) -> None:
+        if key not in self._writers:
+            from pygran_core.io import open_writer
+
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._writers[key] = open_writer(path)
+        self._writers[key].write_frame(make_frame())
 
     def close(self) -> None:
-        """Release the solver and the log file; closing twice is harmless."""
+        """Finish output files and release the solver; closing twice is harmless."""
         if self.closed:
             return
         try:
+            for writer in self._writers.values():
+                writer.close()
             self._close()
         finally:
             self.closed = True
@@ -184,8 +348,78 @@ class Engine(abc.ABC):
     def _advance(self, nsteps: int) -> None:
         """Integrate ``nsteps`` steps of :attr:`dt` in the solver."""
 
+    @abc.abstractmethod
+    def _extract(self, quantity: str) -> np.ndarray:
+        """A per-particle quantity ordered by id: (N, 3) for vectors, (N,) for scalars."""
+
+    def _unsupported(self, what: str) -> UnsupportedFeature:
+        return UnsupportedFeature(f"The {self.name} engine does not implement {what}")
+
+    def _insert(self, spec: InsertSpec) -> str:
+        raise self._unsupported("insert")
+
+    def _create(self, spec: CreateSpec) -> int:
+        raise self._unsupported("createParticles")
+
+    def _wall(self, spec: WallSpec) -> str:
+        raise self._unsupported("setupWall")
+
+    def _move_mesh(self, spec: MotionSpec) -> str:
+        raise self._unsupported("moveMesh")
+
+    def _viscous(self, spec: ViscousSpec) -> str:
+        raise self._unsupported("addViscous")
+
+    def _command(self, text: str) -> None:
+        raise self._unsupported("raw commands")
+
+    def _scalar(self, quantity: str) -> float:
+        """A monitored scalar (see :data:`~pygran_core.simulation.calls.MONITOR_QUANTITIES`)."""
+        if quantity == "n":
+            return float(len(self._extract("id")))
+        if quantity == "time":
+            return self.time
+        if quantity == "ke":
+            v = self._extract("v")
+            return float(0.5 * np.sum(self._extract("mass") * np.einsum("ij,ij->i", v, v)))
+        raise self._unsupported(f"the monitor quantity {quantity!r}")
+
+    def _frame(self) -> Frame:
+        """The particles now, as a trajectory frame with the ``traj`` columns."""
+        from pygran_core.io import Frame
+
+        columns = {"id": "id", "type": "type", "radius": "radius", "mass": "mass"}
+        vectors = {
+            "x": ("x", "y", "z"),
+            "v": ("vx", "vy", "vz"),
+            "f": ("fx", "fy", "fz"),
+            "omega": ("omegax", "omegay", "omegaz"),
+            "torque": ("tqx", "tqy", "tqz"),
+        }
+        wanted = set(self.spec.traj.args)
+        arrays: dict[str, np.ndarray] = {}
+        for quantity, names in vectors.items():
+            if wanted & set(names):
+                values = self._extract(quantity)
+                arrays.update({n: values[:, i] for i, n in enumerate(names) if n in wanted})
+        for quantity, name in columns.items():
+            if name in wanted:
+                arrays[name] = self._extract(quantity)
+        order = [a for a in self.spec.traj.args if a in arrays]
+        box = np.array(self.spec.domain.box, float)
+        boundary = tuple(flag * 2 if len(flag) == 1 else flag for flag in self.spec.domain.boundary)
+        return Frame(
+            {k: arrays[k] for k in order}, timestep=self.step, time=self.time, box=box, boundary=boundary
+        )
+
+    def _mesh_frame(self) -> Frame:
+        raise self._unsupported("mesh output")
+
+    def _checkpoint(self, path: Any) -> None:
+        raise self._unsupported("checkpoints")
+
     def _remove(self, handle: Handle) -> None:
-        """Delete the solver object behind ``handle``; engines that create objects override."""
+        """Delete the solver object behind ``handle``."""
         raise UnsupportedFeature(f"The {self.name} engine cannot remove a {handle.kind}")
 
     def _close(self) -> None:

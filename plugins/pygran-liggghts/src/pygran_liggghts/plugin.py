@@ -5,7 +5,7 @@ from pygran_core.hookspecs import EngineSpec, hookimpl
 from pygran_liggghts.library import find_library
 
 
-def _create(**specs: object) -> None:
+def _create(spec: object) -> None:
     raise UnsupportedFeature(
         "The LIGGGHTS engine's front end is not part of this pygran-liggghts release yet"
     )

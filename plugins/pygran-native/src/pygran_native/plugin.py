@@ -11,7 +11,7 @@ def locate_solver() -> str:
     return f"compiled kernels {_kernels.__file__} ({_kernels.openmp_threads()} OpenMP threads)"
 
 
-def _create(**specs: object) -> None:
+def _create(spec: object) -> None:
     raise UnsupportedFeature(
         "The native engine's time-step loop is not part of this pygran-native release yet"
     )

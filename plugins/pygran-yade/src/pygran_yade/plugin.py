@@ -5,7 +5,7 @@ from pygran_core.hookspecs import EngineSpec, hookimpl
 from pygran_yade.launcher import find_launcher
 
 
-def _create(**specs: object) -> None:
+def _create(spec: object) -> None:
     raise UnsupportedFeature("The YADE engine's front end is not part of this pygran-yade release yet")
 
 

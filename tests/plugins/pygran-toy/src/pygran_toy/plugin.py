@@ -11,33 +11,48 @@ from pygran_core import Engine, hookimpl
 from pygran_core.hookspecs import EngineSpec, ReaderSpec, WriterSpec
 from pygran_core.io import Frame, Trajectory, TrajectoryWriter
 
-GRAVITY = np.array([0.0, 0.0, -9.81])
-
 
 class ToyEngine(Engine):
-    """Point masses in free fall: exact constant-acceleration update, no contacts."""
+    """Point masses in free fall (exact constant-acceleration update); contacts are ignored."""
 
     name = "toy"
-    capabilities = frozenset({"multisphere"})
+    capabilities = frozenset({"spring-dashpot", "multisphere"})
 
-    def __init__(self, output, **options):
-        super().__init__(output, **options)
-        self.positions = np.zeros((0, 3))
-        self.velocities = np.zeros((0, 3))
+    def __init__(self, spec):
+        super().__init__(spec)
+        self.gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
+        self.x = np.zeros((0, 3))
+        self.v = np.zeros((0, 3))
+        self.radius = np.zeros(0)
 
-    def add_particle(self, position, velocity=(0.0, 0.0, 0.0)):
-        self.positions = np.vstack([self.positions, position])
-        self.velocities = np.vstack([self.velocities, velocity])
-        return self._new_handle("particle", f"p{len(self.positions)}")
+    def _create(self, request):
+        if request.style != "single":
+            raise self._unsupported(f"createParticles style {request.style!r}")
+        species = self.spec.species[request.species - 1]
+        self.x = np.vstack([self.x, request.position])
+        self.v = np.vstack([self.v, request.velocity])
+        self.radius = np.append(self.radius, request.radius or species.radius.mean)
+        return 1
 
     def _advance(self, nsteps):
         t = nsteps * self.dt
-        self.positions = self.positions + self.velocities * t + 0.5 * GRAVITY * t**2
-        self.velocities = self.velocities + GRAVITY * t
+        self.x = self.x + self.v * t + 0.5 * self.gravity * t**2
+        self.v = self.v + self.gravity * t
 
-    def _remove(self, handle):
-        index = int(handle.label[1:]) - 1
-        self.positions[index] = np.nan
+    def _extract(self, quantity):
+        n = len(self.x)
+        values = {
+            "x": self.x,
+            "v": self.v,
+            "radius": self.radius,
+            "id": np.arange(1, n + 1),
+            "type": np.ones(n, int),
+            "mass": np.ones(n),
+            "omega": np.zeros((n, 3)),
+            "f": np.tile(self.gravity, (n, 1)),
+            "torque": np.zeros((n, 3)),
+        }
+        return values[quantity].copy()
 
 
 class ToyTrajectory(Trajectory):

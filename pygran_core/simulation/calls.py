@@ -1,0 +1,462 @@
+"""Validated requests for the calls a simulation takes after it is set up.
+
+Each ``parse_*`` function turns the keywords of one ``simulation.DEM`` method (manual,
+section 4.2) into a frozen record that engines map onto their solver.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from numbers import Integral
+from typing import Any
+
+import numpy as np
+
+from pygran_core.errors import ConfigError, unknown_key
+from pygran_core.simulation.specs import (
+    SimulationSpec,
+    Vector,
+    check_keys,
+    finite_number,
+    number_tuple,
+    one_of,
+    positive_float,
+    positive_int,
+)
+
+# -- regions ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Region:
+    """A region of space: ``block`` (xlo, xhi, ylo, yhi, zlo, zhi), ``cylinder`` (axis, c1,
+    c2, radius, lo, hi: LIGGGHTS order, the axis one of x/y/z) or ``sphere`` (x, y, z, r)."""
+
+    kind: str
+    args: tuple[Any, ...]
+
+    def bounds(self) -> np.ndarray:
+        """Axis-aligned bounding box, shape (3, 2)."""
+        if self.kind == "block":
+            return np.array(self.args, float).reshape(3, 2)
+        if self.kind == "sphere":
+            centre, radius = np.array(self.args[:3]), self.args[3]
+            return np.column_stack([centre - radius, centre + radius])
+        axis, c1, c2, radius, lo, hi = self.args
+        along = "xyz".index(axis)
+        across = [i for i in range(3) if i != along]
+        out = np.empty((3, 2))
+        out[along] = lo, hi
+        out[across[0]] = c1 - radius, c1 + radius
+        out[across[1]] = c2 - radius, c2 + radius
+        return out
+
+    def volume(self) -> float:
+        if self.kind == "block":
+            return float(np.prod(np.diff(self.bounds(), axis=1)))
+        if self.kind == "sphere":
+            return 4.0 / 3.0 * math.pi * self.args[3] ** 3
+        _, _, _, radius, lo, hi = self.args
+        return math.pi * radius**2 * (hi - lo)
+
+    def contains(self, points: np.ndarray, margin: float | np.ndarray = 0.0) -> np.ndarray:
+        """Which ``points`` (n, 3) lie inside, at least ``margin`` (per point) from the surface."""
+        points = np.asarray(points, float)
+        margin = np.asarray(margin, float)
+        if self.kind == "block":
+            box = self.bounds()
+            return np.all(
+                (points >= box[:, 0] + margin[..., None]) & (points <= box[:, 1] - margin[..., None]), axis=1
+            )
+        if self.kind == "sphere":
+            return np.linalg.norm(points - np.array(self.args[:3]), axis=1) <= self.args[3] - margin
+        axis, c1, c2, radius, lo, hi = self.args
+        along = "xyz".index(axis)
+        across = [i for i in range(3) if i != along]
+        r = np.hypot(points[:, across[0]] - c1, points[:, across[1]] - c2)
+        z = points[:, along]
+        return (r <= radius - margin) & (z >= lo + margin) & (z <= hi - margin)
+
+
+REGION_ARITY = {"block": 6, "cylinder": 6, "sphere": 4}
+
+
+def parse_region(value: Any, spec: SimulationSpec) -> Region:
+    """``('block', xlo, ...)`` and friends; ``None`` or ``'sim_box'`` is the whole box."""
+    if value is None or value == "sim_box":
+        return Region("block", tuple(v for pair in spec.domain.box for v in pair))
+    if isinstance(value, str) or not isinstance(value, Sequence) or not value:
+        raise ConfigError(
+            f"region must be a tuple such as ('block', xlo, xhi, ylo, yhi, zlo, zhi): {value!r}"
+        )
+    kind = one_of(value[0], "region type", list(REGION_ARITY))
+    args = tuple(value[1:])
+    if len(args) != REGION_ARITY[kind]:
+        raise ConfigError(f"region {kind!r} takes {REGION_ARITY[kind]} values, got {len(args)}: {value!r}")
+    if kind == "cylinder":
+        axis = one_of(args[0], "cylinder axis", ("x", "y", "z"))
+        numbers = tuple(finite_number(v, "cylinder region") for v in args[1:])
+        if numbers[2] <= 0 or numbers[3] >= numbers[4]:
+            raise ConfigError(f"cylinder region needs radius > 0 and lo < hi: {value!r}")
+        return Region(kind, (axis, *numbers))
+    numbers = tuple(finite_number(v, f"{kind} region") for v in args)
+    region = Region(kind, numbers)
+    if kind == "sphere" and numbers[3] <= 0 or kind == "block" and np.any(np.diff(region.bounds()) <= 0):
+        raise ConfigError(f"region {value!r} is empty")
+    return region
+
+
+# -- species selection, velocities --------------------------------------------------------
+
+
+def parse_species_selection(value: Any, spec: SimulationSpec) -> tuple[int, ...]:
+    """``'all'`` or a species number (1-based) or a sequence of them."""
+    known = tuple(s.type for s in spec.species)
+    if not known:
+        raise ConfigError("No species defined: pass species=({'material': ..., 'radius': ...},) to DEM")
+    if value == "all":
+        return known
+    chosen = (value,) if isinstance(value, Integral) else tuple(value)
+    for item in chosen:
+        if isinstance(item, bool) or item not in known:
+            raise ConfigError(f"species {item!r} does not exist; defined species: {known} or 'all'")
+    return tuple(int(i) for i in chosen)
+
+
+@dataclass(frozen=True)
+class VelocityDistribution:
+    """Initial velocities: ``constant`` ``mean``, or ``uniform``/``gaussian`` with ``spread``."""
+
+    kind: str = "constant"
+    mean: Vector = (0.0, 0.0, 0.0)
+    spread: Vector = (0.0, 0.0, 0.0)
+
+    def sample(self, count: int, rng: np.random.Generator) -> np.ndarray:
+        mean, spread = np.array(self.mean), np.array(self.spread)
+        if self.kind == "uniform":
+            return mean + spread * rng.uniform(-1.0, 1.0, (count, 3))
+        if self.kind == "gaussian":
+            return mean + spread * rng.standard_normal((count, 3))
+        return np.tile(mean, (count, 1))
+
+
+def parse_velocity(kind: Any, values: Any) -> VelocityDistribution:
+    kind = one_of(str(kind).lower(), "vel_type", ("constant", "uniform", "gaussian"))
+    size = 3 if kind == "constant" else 6
+    numbers = number_tuple(values, f"vel ({kind})", size)
+    return VelocityDistribution(kind, numbers[:3], numbers[3:] if size == 6 else (0.0, 0.0, 0.0))
+
+
+# -- insert ------------------------------------------------------------------------------------
+
+PACK_TARGETS = ("particles_in_region", "volumefraction_region", "mass_in_region")
+RATE_TARGETS = ("particlerate", "massrate")
+
+
+@dataclass(frozen=True)
+class InsertSpec:
+    """Insert particles of ``species`` (number fractions ``weights``) into ``region``.
+
+    ``by_pack``: once (or every ``freq`` steps) until the region holds ``value`` particles,
+    volume fraction or mass (``target``). ``by_rate``: ``value`` particles or kg per second
+    (``target``), every ``freq`` steps, for ``duration`` seconds (``None``: until removed).
+    """
+
+    mechanism: str
+    target: str
+    value: float
+    species: tuple[int, ...]
+    weights: tuple[float, ...]
+    region: Region
+    velocity: VelocityDistribution
+    omega: Vector = (0.0, 0.0, 0.0)
+    freq: int | None = None
+    duration: float | None = None
+    all_in: bool = True
+    seed: int = 0
+
+
+INSERT_KEYS = (
+    "species",
+    "value",
+    "insert",
+    "mech",
+    "region",
+    "vel_type",
+    "vel",
+    "omega",
+    "freq",
+    "all_in",
+    "rate",
+    "rate_type",
+    "weights",
+    "duration",
+    "seed",
+    "orientation",
+    "set_property",
+)
+
+
+def parse_insert(kwargs: Mapping[str, Any], spec: SimulationSpec, seed: int) -> InsertSpec:
+    check_keys("insert keyword", kwargs, INSERT_KEYS)
+    for unsupported in ("orientation", "set_property"):
+        if unsupported in kwargs:
+            raise ConfigError(f"insert: {unsupported!r} applies to multisphere/property fixes, not spheres")
+    mechanism = one_of(kwargs.get("insert", "by_pack"), "insert mechanism", ("by_pack", "by_rate"))
+    species = parse_species_selection(kwargs.get("species", "all"), spec)
+    weights = tuple(kwargs.get("weights", [1.0 / len(species)] * len(species)))
+    if len(weights) != len(species) or min(weights) < 0 or not math.isclose(sum(weights), 1.0, rel_tol=1e-6):
+        raise ConfigError(f"insert weights {weights} must be {len(species)} fractions summing to 1")
+    if mechanism == "by_pack":
+        target = one_of(kwargs.get("mech", "particles_in_region"), "insert by_pack mech", PACK_TARGETS)
+        value = kwargs.get("value")
+    else:
+        target = one_of(
+            kwargs.get("rate_type", kwargs.get("mech", "particlerate")), "insert rate_type", RATE_TARGETS
+        )
+        value = kwargs.get("rate", kwargs.get("value"))
+    if value is None:
+        raise ConfigError(f"insert {mechanism}: give the amount as value=... (or rate=... for by_rate)")
+    value = positive_float(value, "insert value")
+    if target == "volumefraction_region" and value >= 0.74:
+        raise ConfigError(
+            f"insert volume fraction {value} is above close packing (0.74); use <= 0.5 for random insertion"
+        )
+    if target == "particles_in_region" and value != int(value):
+        raise ConfigError(f"insert particles_in_region needs a whole number of particles, got {value}")
+    freq = kwargs.get("freq", "once")
+    duration = kwargs.get("duration")
+    return InsertSpec(
+        mechanism=mechanism,
+        target=target,
+        value=value,
+        species=species,
+        weights=tuple(float(w) for w in weights),
+        region=parse_region(kwargs.get("region"), spec),
+        velocity=parse_velocity(kwargs.get("vel_type", "constant"), kwargs.get("vel", (0, 0, 0))),
+        omega=_omega(kwargs.get("omega", (0, 0, 0))),
+        freq=None if freq == "once" else positive_int(freq, "insert freq"),
+        duration=None if duration is None else positive_float(duration, "insert duration"),
+        all_in=kwargs.get("all_in", "yes") in ("yes", True),
+        seed=int(kwargs.get("seed", seed)),
+    )
+
+
+def _omega(value: Any) -> Vector:
+    """``(wx, wy, wz)`` or the manual's ``('constant', wx, wy, wz)``."""
+    if isinstance(value, Sequence) and len(value) == 4 and value[0] == "constant":
+        value = value[1:]
+    return number_tuple(value, "omega")  # type: ignore[return-value]
+
+
+# -- create particles --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CreateSpec:
+    """Particles of one species: ``single`` at ``position``, a ``lattice`` of spacing
+    ``spacing`` filling ``region``, or ``random``: ``count`` placed without overlap in ``region``."""
+
+    species: int
+    style: str
+    position: Vector | None = None
+    region: Region | None = None
+    spacing: float | None = None
+    count: int | None = None
+    velocity: Vector = (0.0, 0.0, 0.0)
+    omega: Vector = (0.0, 0.0, 0.0)
+    radius: float | None = None
+    seed: int = 0
+
+
+def parse_create(
+    species: Any, style: Any, args: Sequence[Any], kwargs: Mapping[str, Any], spec: SimulationSpec, seed: int
+) -> CreateSpec:
+    check_keys("createParticles keyword", kwargs, ("vel", "omega", "radius", "region", "spacing", "seed"))
+    (chosen,) = parse_species_selection(species, spec) if species != "all" else (None,)
+    if chosen is None:
+        raise ConfigError("createParticles needs one species number, not 'all'")
+    style = one_of(style, "createParticles style", ("single", "lattice", "random"))
+    common = {
+        "species": chosen,
+        "style": style,
+        "velocity": number_tuple(kwargs.get("vel", (0, 0, 0)), "vel"),
+        "omega": _omega(kwargs.get("omega", (0, 0, 0))),
+        "radius": None if kwargs.get("radius") is None else positive_float(kwargs["radius"], "radius"),
+        "seed": int(kwargs.get("seed", seed)),
+    }
+    if style == "single":
+        if len(args) != 3:
+            raise ConfigError(
+                f"createParticles(species, 'single', x, y, z): give 3 coordinates, got {args!r}"
+            )
+        return CreateSpec(position=number_tuple(args, "position"), **common)  # type: ignore[arg-type]
+    region = parse_region(kwargs.get("region"), spec)
+    if style == "lattice":
+        spacing = kwargs.get("spacing", args[0] if args else None)
+        if spacing is None:
+            raise ConfigError("createParticles(species, 'lattice', spacing, region=...): give the spacing")
+        return CreateSpec(region=region, spacing=positive_float(spacing, "spacing"), **common)  # type: ignore[arg-type]
+    if len(args) != 1:
+        raise ConfigError("createParticles(species, 'random', count, region=...): give the count")
+    return CreateSpec(region=region, count=positive_int(args[0], "count"), **common)  # type: ignore[arg-type]
+
+
+# -- walls, meshes -----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class WallSpec:
+    """A primitive wall (``plane`` x/y/z at ``peq``, or a ``cylinder`` of ``radius``
+    about an axis) or a mesh wall made of the simulation's mesh ``mesh``; its material is
+    that of species ``species`` (a mesh's own material when it has one)."""
+
+    kind: str
+    species: int
+    plane: str | None = None
+    peq: float | None = None
+    axis: str | None = None
+    centre: tuple[float, float] | None = None
+    radius: float | None = None
+    mesh: str | None = None
+
+
+def parse_wall(kwargs: Mapping[str, Any], spec: SimulationSpec) -> WallSpec:
+    check_keys(
+        "setupWall keyword", kwargs, ("wtype", "species", "plane", "peq", "axis", "centre", "radius", "mesh")
+    )
+    wtype = one_of(kwargs.get("wtype", "primitive"), "wtype", ("primitive", "mesh"))
+    (species,) = parse_species_selection(kwargs.get("species", 1), spec)[:1]
+    if wtype == "mesh":
+        names = [m.name for m in spec.meshes]
+        name = kwargs.get("mesh", names[0] if len(names) == 1 else None)
+        if name not in names:
+            raise (
+                unknown_key("mesh", str(name), names)
+                if names
+                else ConfigError(
+                    "setupWall(wtype='mesh') needs a mesh: pass mesh={'name': {'file': ...}} to DEM"
+                )
+            )
+        return WallSpec("mesh", species, mesh=name)
+    plane = kwargs.get("plane")
+    if plane is not None:
+        plane = {"planex": "xplane", "planey": "yplane", "planez": "zplane"}.get(plane, plane)
+        plane = one_of(plane, "plane", ("xplane", "yplane", "zplane"))
+        if kwargs.get("peq") is None:
+            raise ConfigError(f"setupWall(plane={plane!r}) needs peq, the plane's coordinate")
+        return WallSpec("plane", species, plane=plane, peq=finite_number(kwargs["peq"], "peq"))
+    if kwargs.get("radius") is not None:
+        axis = one_of(kwargs.get("axis", "z"), "cylinder axis", ("x", "y", "z"))
+        centre = number_tuple(kwargs.get("centre", (0, 0)), "centre", 2)
+        return WallSpec(
+            "cylinder", species, axis=axis, centre=centre, radius=positive_float(kwargs["radius"], "radius")
+        )  # type: ignore[arg-type]
+    raise ConfigError("setupWall(wtype='primitive') needs plane='zplane' and peq=..., or axis/centre/radius")
+
+
+@dataclass(frozen=True)
+class MotionSpec:
+    """Rigid motion of a mesh: ``rotate`` about ``axis`` through ``origin`` with angular
+    speed ``omega`` (rad/s), ``linear`` at ``velocity``, or ``wiggle`` with ``amplitude``
+    (vector) and ``period`` (s)."""
+
+    mesh: str
+    kind: str
+    axis: Vector | None = None
+    origin: Vector = (0.0, 0.0, 0.0)
+    omega: float | None = None
+    velocity: Vector | None = None
+    amplitude: Vector | None = None
+    period: float | None = None
+
+
+def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> MotionSpec:
+    names = [m.name for m in spec.meshes]
+    if mesh not in names:
+        raise unknown_key("mesh", str(mesh), names)
+    check_keys(
+        "moveMesh keyword",
+        kwargs,
+        ("rotate", "linear", "wiggle", "axis", "origin", "period", "omega", "velocity", "amplitude"),
+    )
+    kinds = [k for k in ("rotate", "linear", "wiggle") if kwargs.get(k)]
+    if len(kinds) != 1:
+        raise ConfigError("moveMesh needs exactly one of rotate=True, linear=(vx, vy, vz) or wiggle=True")
+    kind = kinds[0]
+    if kind == "linear":
+        return MotionSpec(mesh, kind, velocity=number_tuple(kwargs["linear"], "linear velocity"))  # type: ignore[arg-type]
+    if kind == "wiggle":
+        return MotionSpec(
+            mesh,
+            kind,
+            amplitude=number_tuple(kwargs.get("amplitude"), "amplitude"),  # type: ignore[arg-type]
+            period=positive_float(kwargs.get("period"), "period"),
+        )
+    if ("period" in kwargs) == ("omega" in kwargs):
+        raise ConfigError("moveMesh(rotate=True) needs either period= (s) or omega= (rad/s)")
+    omega = (
+        2 * math.pi / positive_float(kwargs["period"], "period")
+        if "period" in kwargs
+        else finite_number(kwargs["omega"], "omega")
+    )
+    axis = np.array(number_tuple(kwargs.get("axis", (0, 0, 1)), "axis"))
+    if not np.linalg.norm(axis) > 0:
+        raise ConfigError("moveMesh axis must not be zero")
+    return MotionSpec(
+        mesh,
+        kind,
+        axis=tuple(axis / np.linalg.norm(axis)),
+        origin=number_tuple(kwargs.get("origin", (0, 0, 0)), "origin"),  # type: ignore[arg-type]
+        omega=omega,
+    )
+
+
+# -- forces, monitors ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ViscousSpec:
+    """A drag force ``F = -gamma * scale * v`` on particles of ``species``."""
+
+    gamma: float
+    species: tuple[int, ...]
+    scale: float = 1.0
+
+
+def parse_viscous(kwargs: Mapping[str, Any], spec: SimulationSpec) -> ViscousSpec:
+    check_keys("addViscous keyword", kwargs, ("gamma", "species", "scale"))
+    if "gamma" not in kwargs:
+        raise ConfigError("addViscous needs gamma, the drag coefficient (kg/s)")
+    return ViscousSpec(
+        positive_float(kwargs["gamma"], "gamma"),
+        parse_species_selection(kwargs.get("species", "all"), spec),
+        positive_float(kwargs.get("scale", 1.0), "scale"),
+    )
+
+
+MONITOR_QUANTITIES = ("ke", "ke_rot", "n", "contacts", "time", "wall_force")
+
+
+@dataclass(frozen=True)
+class MonitorSpec:
+    """Scalars sampled every ``freq`` steps, kept in memory and written to ``file``."""
+
+    quantities: tuple[str, ...]
+    freq: int
+    file: str
+
+
+def parse_monitor(kwargs: Mapping[str, Any]) -> MonitorSpec:
+    check_keys("monitor keyword", kwargs, ("quantities", "freq", "file", "name"))
+    quantities = kwargs.get("quantities", ("ke",))
+    quantities = (quantities,) if isinstance(quantities, str) else tuple(quantities)
+    for quantity in quantities:
+        one_of(quantity, "monitor quantity", MONITOR_QUANTITIES)
+    return MonitorSpec(
+        quantities,
+        positive_int(kwargs.get("freq", 100), "monitor freq"),
+        str(kwargs.get("file", kwargs.get("name", "monitor") + ".txt")),
+    )

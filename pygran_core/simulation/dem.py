@@ -1,0 +1,180 @@
+"""``simulation.DEM``: the engine-neutral front end of a DEM simulation (manual, chapter 4).
+
+``DEM(**params)`` validates every keyword into a :class:`~.specs.SimulationSpec`, picks the
+engine (``engine=``; by default ``native`` if installed, else the only installed engine),
+and forwards each call, validated into its own spec, to that engine. Errors in the input
+are :class:`~pygran_core.errors.ConfigError` raised before the solver sees anything.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pygran_core import registry
+from pygran_core.errors import ConfigError, PluginNotFound
+from pygran_core.simulation import calls
+from pygran_core.simulation.engine import Engine, Handle, Monitor
+from pygran_core.simulation.models import ContactModel
+from pygran_core.simulation.specs import SimulationSpec, parse_simulation
+
+DEFAULT_ENGINE = "native"
+DEFAULT_MODEL = "SpringDashpot"
+
+
+def resolve_engine(name: str | None) -> str:
+    """The engine to use: ``name``, else ``native`` if installed, else the only one installed."""
+    installed = registry.available("engine")
+    if name is not None:
+        registry.lookup("engine", name)
+        return name
+    if DEFAULT_ENGINE in installed:
+        return DEFAULT_ENGINE
+    if len(installed) == 1:
+        return next(iter(installed))
+    if not installed:
+        raise PluginNotFound(f"No DEM engine is installed. {registry.install_hint(DEFAULT_ENGINE)}")
+    raise ConfigError(
+        f"Several engines are installed ({', '.join(sorted(installed))}): choose one with engine=..."
+    )
+
+
+def resolve_model(model: Any) -> type[ContactModel]:
+    """A contact model class from a class or a registered model name."""
+    if isinstance(model, str):
+        return registry.get_model(model).model
+    if isinstance(model, type) and issubclass(model, ContactModel):
+        return model
+    raise ConfigError(
+        "model must be a contact model class such as simulation.models.HertzMindlin, or its name; "
+        f"got {model!r}"
+    )
+
+
+class DEM:
+    """A DEM simulation on one engine; a context manager that closes the engine.
+
+    The keywords are those of the manual's chapter 4 (``box``, ``boundary``, ``gravity``,
+    ``species``, ``mesh``, ``traj``, ``output``, ``restart``, ``dt``, ...), plus ``engine``,
+    ``seed`` (every random choice derives from it), ``threads``/``nprocs`` and
+    ``progress``. Each method returns what the engine created: a :class:`Handle` to pass to
+    :meth:`remove`, a :class:`Monitor`, a count or an array.
+    """
+
+    def __init__(self, **params: Any) -> None:
+        engine_name = resolve_engine(params.pop("engine", None))
+        model = resolve_model(params.pop("model", DEFAULT_MODEL))
+        self.spec: SimulationSpec = parse_simulation(params, engine_name, model)
+        self._seeds = np.random.SeedSequence(self.spec.seed)
+        factory = registry.get_engine(engine_name).factory
+        self.engine: Engine = factory(self.spec)
+
+    def _seed(self) -> int:
+        """A fresh seed for one call, derived reproducibly from the simulation's ``seed``."""
+        return int(self._seeds.spawn(1)[0].generate_state(1)[0])
+
+    # -- particles ---------------------------------------------------------------------
+
+    def insert(self, species: Any = "all", value: Any = None, **kwargs: Any) -> Handle:
+        """Insert particles by pack or by rate into a region (manual 4.2.1); returns a handle."""
+        request = {"species": species, **kwargs} | ({} if value is None else {"value": value})
+        return self.engine.insert(calls.parse_insert(request, self.spec, self._seed()))
+
+    def createParticles(self, species: Any, style: str, *args: Any, **kwargs: Any) -> int:  # noqa: N802
+        """Create particles now: ``'single'`` at x, y, z; ``'lattice'`` or ``'random'`` in a
+        region. Returns how many were created."""
+        return self.engine.create_particles(
+            calls.parse_create(species, style, args, kwargs, self.spec, self._seed())
+        )
+
+    # -- walls and meshes ----------------------------------------------------------------
+
+    def setupWall(
+        self,
+        wtype: str = "primitive",
+        species: Any = 1,
+        plane: str | None = None,  # noqa: N802
+        peq: float | None = None,
+        **kwargs: Any,
+    ) -> Handle:
+        """A primitive wall (``plane='zplane', peq=0``, or a cylinder) or a mesh wall."""
+        request = {"wtype": wtype, "species": species, "plane": plane, "peq": peq, **kwargs}
+        return self.engine.setup_wall(calls.parse_wall(request, self.spec))
+
+    def moveMesh(self, name: str, **kwargs: Any) -> Handle:  # noqa: N802
+        """Move mesh ``name``: ``rotate=True`` (``axis``, ``origin``, ``period`` or ``omega``),
+        ``linear=(vx, vy, vz)`` or ``wiggle=True`` (``amplitude``, ``period``)."""
+        return self.engine.move_mesh(calls.parse_motion(name, kwargs, self.spec))
+
+    # -- forces, monitors, raw commands ---------------------------------------------------
+
+    def addViscous(self, **kwargs: Any) -> Handle:  # noqa: N802
+        """A drag force ``-gamma * scale * v`` on ``species`` (default all)."""
+        return self.engine.add_viscous(calls.parse_viscous(kwargs, self.spec))
+
+    add_viscous = addViscous
+
+    def monitor(self, **kwargs: Any) -> Monitor:
+        """Sample ``quantities`` (``ke``, ``n``, ...) every ``freq`` steps into ``file`` and memory."""
+        return self.engine.monitor(calls.parse_monitor(kwargs))
+
+    def command(self, text: str) -> None:
+        """Pass a solver-native command through (engines with ``raw-commands``)."""
+        self.engine.command(text)
+
+    # -- running and results ------------------------------------------------------------------
+
+    def run(self, nsteps: int, dt: float | None = None, *, progress: bool | None = None) -> None:
+        """Advance ``nsteps`` steps of ``dt`` (default: the ``dt`` given to DEM)."""
+        self.engine.run(nsteps, dt, progress=progress)
+
+    def remove(self, handle: Handle | Monitor) -> None:
+        """Remove an insertion, wall, mesh motion, force or monitor."""
+        self.engine.remove(handle)
+
+    def extractCoords(self) -> np.ndarray:  # noqa: N802
+        """Positions, (N, 3), ordered by particle id."""
+        return self.engine.extract("x")
+
+    def extractVelocities(self) -> np.ndarray:  # noqa: N802
+        return self.engine.extract("v")
+
+    def extractOmegas(self) -> np.ndarray:  # noqa: N802
+        return self.engine.extract("omega")
+
+    def extractForces(self) -> np.ndarray:  # noqa: N802
+        return self.engine.extract("f")
+
+    def extractRadii(self) -> np.ndarray:  # noqa: N802
+        return self.engine.extract("radius")
+
+    def extractIds(self) -> np.ndarray:  # noqa: N802
+        return self.engine.extract("id")
+
+    @property
+    def output(self) -> Any:
+        """The output directory (absolute)."""
+        return self.spec.output
+
+    @property
+    def step(self) -> int:
+        return self.engine.step
+
+    @property
+    def time(self) -> float:
+        return self.engine.time
+
+    def close(self) -> None:
+        """Finish the output files and release the engine."""
+        self.engine.close()
+
+    def __enter__(self) -> DEM:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        spec = self.spec
+        return f"DEM(engine={spec.engine!r}, model={spec.model.__name__}, output={str(spec.output)!r})"

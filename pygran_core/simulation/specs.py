@@ -1,0 +1,539 @@
+"""Engine-neutral specifications: what a user asked for, validated once, in SI units.
+
+:func:`parse_simulation` turns the keywords of ``simulation.DEM(**params)`` (manual,
+chapter 4) into a :class:`SimulationSpec`; the ``parse_*`` functions below do the same for
+each call (``insert``, ``setupWall``, ...). Engines receive only these frozen records, so
+each engine maps one well-defined request onto its solver and never re-validates input.
+Unknown keywords are a :class:`~pygran_core.errors.ConfigError` that names the closest
+known one; numbers may be ints or floats everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from numbers import Integral, Real
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pygran_core import params as materials
+from pygran_core.errors import ConfigError, unknown_key
+
+Vector = tuple[float, float, float]
+BOUNDARY_FLAGS = frozenset("pfsm")
+
+
+# -- small validators --------------------------------------------------------------------
+
+
+def positive_int(value: Any, name: str) -> int:
+    """``value`` as an int > 0, or a :class:`ConfigError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, Integral) or value <= 0:
+        raise ConfigError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def positive_float(value: Any, name: str) -> float:
+    """``value`` (int or float) as a float > 0, or a :class:`ConfigError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, Real) or not value > 0:
+        raise ConfigError(f"{name} must be a positive number, got {value!r}")
+    return float(value)
+
+
+def finite_number(value: Any, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+        raise ConfigError(f"{name} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def number_tuple(value: Any, name: str, size: int = 3) -> tuple[float, ...]:
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != size:
+        raise ConfigError(f"{name} must be a sequence of {size} numbers, got {value!r}")
+    return tuple(finite_number(v, f"{name}[{i}]") for i, v in enumerate(value))
+
+
+def one_of(value: Any, name: str, choices: Sequence[str]) -> str:
+    if value not in choices:
+        raise unknown_key(f"{name}", str(value), choices)
+    return value
+
+
+def check_keys(kind: str, given: Mapping[str, Any], known: Sequence[str]) -> None:
+    for key in given:
+        if key not in known:
+            raise unknown_key(kind, key, known)
+
+
+# -- domain, gravity -----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Domain:
+    """The simulation box ``((xlo, xhi), (ylo, yhi), (zlo, zhi))`` and its boundary flags.
+
+    Each flag is one letter for both faces (``"p"`` periodic, ``"f"`` fixed, ``"s"``
+    shrink-wrapped, ``"m"`` shrink-wrapped with a minimum) or two letters, lower then upper
+    face (``"fs"``); periodic faces come in pairs.
+    """
+
+    box: tuple[tuple[float, float], ...]
+    boundary: tuple[str, str, str] = ("f", "f", "f")
+
+    @property
+    def periodic(self) -> tuple[bool, bool, bool]:
+        return tuple(flag == "p" for flag in self.boundary)  # type: ignore[return-value]
+
+    @property
+    def lengths(self) -> np.ndarray:
+        return np.array([hi - lo for lo, hi in self.box])
+
+
+def parse_box(value: Any) -> tuple[tuple[float, float], ...]:
+    numbers = number_tuple(value, "box", 6)
+    box = tuple((numbers[2 * i], numbers[2 * i + 1]) for i in range(3))
+    for axis, (lo, hi) in zip("xyz", box):
+        if not lo < hi:
+            raise ConfigError(f"box: {axis} lower bound {lo} must be below the upper bound {hi}")
+    return box
+
+
+def parse_boundary(value: Any) -> tuple[str, str, str]:
+    if isinstance(value, str) or not isinstance(value, Sequence) or len(value) != 3:
+        raise ConfigError(f"boundary must be three flags such as ('p', 'p', 'f'), got {value!r}")
+    flags = []
+    for axis, flag in zip("xyz", value):
+        if not isinstance(flag, str) or not 1 <= len(flag) <= 2 or set(flag) - BOUNDARY_FLAGS:
+            raise ConfigError(
+                f"boundary {axis}: {flag!r} is not a flag; use one or two of p, f, s, m (e.g. 'f', 'fs')"
+            )
+        if "p" in flag and flag not in ("p", "pp"):
+            raise ConfigError(f"boundary {axis}: {flag!r} mixes periodic and non-periodic faces")
+        flags.append("p" if flag == "pp" else flag if len(flag) == 1 or flag[0] != flag[1] else flag[0])
+    return tuple(flags)  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class Gravity:
+    """Gravitational acceleration ``magnitude`` (m/s^2) along the unit vector ``direction``."""
+
+    magnitude: float
+    direction: Vector
+
+    @property
+    def vector(self) -> np.ndarray:
+        return self.magnitude * np.asarray(self.direction)
+
+
+def parse_gravity(value: Any) -> Gravity:
+    """Gravity as ``(g, dx, dy, dz)`` (published scripts) or ``(dx, dy, dz, g)`` (manual).
+
+    The form is recognised by which triple is a unit vector; a tuple where both or neither
+    triple is a unit vector is ambiguous or wrong and is rejected.
+    """
+    numbers = number_tuple(value, "gravity", 4)
+    first, last = np.array(numbers[1:]), np.array(numbers[:3])
+    first_unit = math.isclose(float(np.linalg.norm(first)), 1.0, rel_tol=1e-6)
+    last_unit = math.isclose(float(np.linalg.norm(last)), 1.0, rel_tol=1e-6)
+    if first_unit == last_unit:
+        raise ConfigError(
+            f"gravity {tuple(numbers)} is ambiguous or invalid: give (magnitude, dx, dy, dz) or "
+            "(dx, dy, dz, magnitude) with (dx, dy, dz) a unit vector, e.g. (9.81, 0, 0, -1)"
+        )
+    magnitude, direction = (numbers[0], first) if first_unit else (numbers[3], last)
+    if magnitude < 0:
+        raise ConfigError(f"gravity magnitude must be >= 0, got {magnitude}")
+    return Gravity(magnitude, tuple(float(d) for d in direction))  # type: ignore[arg-type]
+
+
+# -- particle sizes, species ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RadiusDistribution:
+    """A particle size distribution.
+
+    ``("constant", r)``; ``("normal", mean, std)`` and ``("lognormal", median, sigma)``
+    (sigma of ln r), both truncated to 3 standard deviations so the largest radius is
+    known in advance; ``("poly", (r1, r2, ...), (w1, w2, ...))`` with number fractions.
+    """
+
+    kind: str
+    values: tuple[float, ...]
+    weights: tuple[float, ...] = ()
+
+    @property
+    def max(self) -> float:
+        if self.kind == "constant":
+            return self.values[0]
+        if self.kind == "normal":
+            return self.values[0] + 3 * self.values[1]
+        if self.kind == "lognormal":
+            return self.values[0] * math.exp(3 * self.values[1])
+        return max(self.values)
+
+    @property
+    def min(self) -> float:
+        if self.kind == "constant":
+            return self.values[0]
+        if self.kind == "normal":
+            return self.values[0] - 3 * self.values[1]
+        if self.kind == "lognormal":
+            return self.values[0] * math.exp(-3 * self.values[1])
+        return min(self.values)
+
+    @property
+    def mean(self) -> float:
+        if self.kind in ("constant", "normal"):
+            return self.values[0]
+        if self.kind == "lognormal":
+            return self.values[0] * math.exp(self.values[1] ** 2 / 2)
+        return float(np.dot(self.values, self.weights))
+
+    def sample(self, count: int, rng: np.random.Generator) -> np.ndarray:
+        """``count`` radii drawn with ``rng``."""
+        if self.kind == "constant":
+            return np.full(count, self.values[0])
+        if self.kind == "poly":
+            return rng.choice(np.array(self.values), size=count, p=np.array(self.weights))
+        location, spread = self.values
+        normal = rng.standard_normal(count)
+        while np.any(bad := np.abs(normal) > 3):
+            normal[bad] = rng.standard_normal(int(bad.sum()))
+        return location + spread * normal if self.kind == "normal" else location * np.exp(spread * normal)
+
+
+def parse_radius(value: Any) -> RadiusDistribution:
+    if isinstance(value, Real) and not isinstance(value, bool):
+        value = ("constant", value)
+    if isinstance(value, str) or not isinstance(value, Sequence) or not value:
+        raise ConfigError(
+            f"radius must be a number or a distribution such as ('normal', 1e-4, 1e-5): {value!r}"
+        )
+    kind, *args = value
+    kinds = {"constant": 1, "normal": 2, "gaussian": 2, "lognormal": 2, "poly": 2}
+    kind = one_of(kind, "radius distribution", list(kinds))
+    kind = "normal" if kind == "gaussian" else kind
+    if len(args) != kinds[kind]:
+        raise ConfigError(f"radius ('{kind}', ...) takes {kinds[kind]} values, got {len(args)}: {value!r}")
+    if kind == "poly":
+        radii, weights = (tuple(finite_number(v, "radius poly") for v in seq) for seq in args)
+        if len(radii) != len(weights) or not radii:
+            raise ConfigError(f"radius ('poly', radii, weights) needs as many weights as radii: {value!r}")
+        if min(radii) <= 0 or min(weights) < 0 or sum(weights) <= 0:
+            raise ConfigError(f"radius ('poly', ...): radii must be > 0 and weights >= 0: {value!r}")
+        total = sum(weights)
+        return RadiusDistribution(kind, radii, tuple(w / total for w in weights))
+    numbers = tuple(finite_number(v, f"radius {kind}") for v in args)
+    dist = RadiusDistribution(kind, numbers)
+    if numbers[0] <= 0 or (len(numbers) > 1 and numbers[1] < 0) or dist.min <= 0:
+        raise ConfigError(f"radius {value!r} allows radii <= 0 (the distribution is cut at 3 sigma)")
+    return dist
+
+
+@dataclass(frozen=True)
+class Species:
+    """A particle component: shape style, material, density and size distribution."""
+
+    type: int
+    material: Mapping[str, float]
+    density: float
+    radius: RadiusDistribution
+    style: str = "sphere"
+
+
+SPECIES_KEYS = ("style", "material", "density", "radius")
+
+
+def parse_species(value: Any, index: int) -> Species:
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"species {index} must be a dict with keys {SPECIES_KEYS}, got {value!r}")
+    check_keys(f"species {index} keyword", value, SPECIES_KEYS)
+    if "material" not in value or "radius" not in value:
+        raise ConfigError(f"species {index} needs 'material' and 'radius'")
+    material = materials.validate(value["material"])
+    density = value.get("density", material.get("density"))
+    if density is None:
+        raise ConfigError(f"species {index}: give 'density' or a material with 'density'")
+    style = one_of(value.get("style", "sphere"), f"species {index} style", ("sphere", "multisphere"))
+    return Species(
+        index,
+        material,
+        positive_float(density, f"species {index} density"),
+        parse_radius(value["radius"]),
+        style,
+    )
+
+
+# -- meshes, output ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """A triangle-mesh wall read from an STL file, placed by ``scale``, ``rotate``, ``translate``."""
+
+    name: str
+    file: Path
+    material: Mapping[str, float]
+    mtype: str = "mesh/surface"
+    scale: float = 1.0
+    rotate: tuple[Vector, float] | None = None  # (axis, angle in degrees)
+    translate: Vector = (0.0, 0.0, 0.0)
+
+
+MESH_KEYS = ("file", "material", "mtype", "args", "scale", "rotate", "translate", "move", "import")
+MESH_TYPES = ("mesh/surface", "mesh/surface/stress", "mesh/surface/stress/servo")
+
+
+def _mesh_args(args: Any, name: str) -> dict[str, Any]:
+    """Placement from ``args``: a dict, or LIGGGHTS words such as ``('scale 1e-3', 'move 0 0 1')``."""
+    if isinstance(args, Mapping):
+        return dict(args)
+    words = " ".join(args if not isinstance(args, str) else [args]).split()
+    found: dict[str, Any] = {}
+    i = 0
+    while i < len(words):
+        key = words[i]
+        if key not in ("scale", "move", "translate", "rotate"):
+            raise unknown_key(f"mesh {name!r} argument", key, ("scale", "move", "rotate"))
+        try:
+            if key == "scale":
+                found["scale"], i = float(words[i + 1]), i + 2
+            elif key in ("move", "translate"):
+                found["translate"], i = tuple(float(w) for w in words[i + 1 : i + 4]), i + 4
+            else:  # LIGGGHTS: rotate axis ax ay az angle a
+                found["rotate"], i = (
+                    (tuple(float(w) for w in words[i + 2 : i + 5]), float(words[i + 6])),
+                    i + 7,
+                )
+        except (IndexError, ValueError):
+            raise ConfigError(f"mesh {name!r}: cannot read {key!r} from args {args!r}") from None
+    return found
+
+
+def parse_mesh(name: str, value: Any, base: Path) -> MeshSpec:
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"mesh {name!r} must be a dict with keys such as 'file' and 'material'")
+    check_keys(f"mesh {name!r} keyword", value, MESH_KEYS)
+    if "file" not in value:
+        raise ConfigError(f"mesh {name!r} needs 'file' (an STL file)")
+    path = Path(value["file"])
+    path = path if path.is_absolute() else base / path
+    if not path.is_file():
+        raise ConfigError(f"mesh {name!r}: file {path} does not exist")
+    placement = {
+        **_mesh_args(value.get("args", {}), name),
+        **{k: value[k] for k in ("scale", "rotate", "translate") if k in value},
+    }
+    if "move" in value:
+        placement["translate"] = value["move"]
+    rotate = placement.get("rotate")
+    if rotate is not None:
+        axis, angle = rotate
+        rotate = (
+            number_tuple(axis, f"mesh {name!r} rotate axis"),
+            finite_number(angle, f"mesh {name!r} rotate angle"),
+        )
+    return MeshSpec(
+        name=name,
+        file=path,
+        material=materials.validate(value.get("material", {})) if "material" in value else {},
+        mtype=one_of(value.get("mtype", "mesh/surface"), f"mesh {name!r} mtype", MESH_TYPES),
+        scale=positive_float(placement.get("scale", 1.0), f"mesh {name!r} scale"),
+        rotate=rotate,
+        translate=number_tuple(placement.get("translate", (0, 0, 0)), f"mesh {name!r} translate"),
+    )
+
+
+@dataclass(frozen=True)
+class TrajectorySpec:
+    """Trajectory output: particle file ``pfile`` and mesh file ``mfile`` every ``freq`` steps.
+
+    The file extension picks the writer (``.dump``, ``.h5``, ``.vtk``); ``None`` writes nothing.
+    ``sel`` is ``"all"`` or a species number; ``args`` the particle columns.
+    """
+
+    freq: int = 1000
+    pfile: Path | None = None
+    mfile: Path | None = None
+    sel: str | int = "all"
+    style: str = "custom"
+    args: tuple[str, ...] = ("id", "type", "x", "y", "z", "radius", "vx", "vy", "vz", "fx", "fy", "fz")
+    margs: tuple[str, ...] = ("id", "stress")
+    dump_modify: tuple[str, ...] = ()
+
+
+TRAJ_KEYS = ("freq", "pfile", "mfile", "dir", "sel", "style", "args", "margs")
+
+
+def parse_traj(value: Any, output: Path, dump_modify: Any) -> TrajectorySpec:
+    value = {} if value is None else value
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"traj must be a dict with keys {TRAJ_KEYS}, got {value!r}")
+    check_keys("traj keyword", value, TRAJ_KEYS)
+    directory = output / value.get("dir", "")
+    files = {}
+    for key, default in (("pfile", "traj.dump"), ("mfile", None)):
+        name = value.get(key, default)
+        files[key] = None if name is None else directory / name
+    sel = value.get("sel", "all")
+    if sel != "all" and (isinstance(sel, bool) or not isinstance(sel, Integral) or sel < 1):
+        raise ConfigError(f"traj sel must be 'all' or a species number (1, 2, ...), got {sel!r}")
+    dump_modify = () if dump_modify is None else tuple(str(d) for d in dump_modify)
+    return TrajectorySpec(
+        freq=positive_int(value.get("freq", 1000), "traj freq"),
+        sel=sel,
+        style=one_of(value.get("style", "custom"), "traj style", ("custom", "custom/vtk", "atom")),
+        args=tuple(value.get("args", TrajectorySpec.args)),
+        margs=tuple(value.get("margs", TrajectorySpec.margs)),
+        dump_modify=dump_modify,
+        **files,
+    )
+
+
+@dataclass(frozen=True)
+class RestartSpec:
+    """Checkpoints every ``freq`` steps in ``directory``; ``resume`` from ``lastfile`` or the newest."""
+
+    freq: int
+    directory: Path
+    fname: str = "restart.h5"
+    resume: bool = False
+    lastfile: Path | None = None
+
+
+def parse_restart(value: Any, output: Path) -> RestartSpec | None:
+    """The manual's 5-tuple ``(freq, dir, fname, resume, lastfile)``, a dict, or a frequency."""
+    if value is None:
+        return None
+    if isinstance(value, Integral) and not isinstance(value, bool):
+        value = (value,)
+    if isinstance(value, Mapping):
+        check_keys("restart keyword", value, ("freq", "dir", "fname", "resume", "lastfile"))
+        value = tuple(value.get(k) for k in ("freq", "dir", "fname", "resume", "lastfile"))
+    if isinstance(value, str) or not isinstance(value, Sequence) or not 1 <= len(value) <= 5:
+        raise ConfigError(
+            f"restart must be (freq, dir, fname, resume, lastfile), a dict or an int: {value!r}"
+        )
+    freq, directory, fname, resume, lastfile = (*value, *([None] * (5 - len(value))))
+    directory = output / (directory or "restart")
+    return RestartSpec(
+        freq=positive_int(freq, "restart freq"),
+        directory=directory,
+        fname=fname or "restart.h5",
+        resume=bool(resume),
+        lastfile=None if lastfile in (None, "None") else directory / lastfile,
+    )
+
+
+# -- the whole simulation --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SimulationSpec:
+    """Everything ``simulation.DEM(**params)`` was given, validated."""
+
+    engine: str
+    model: type
+    output: Path
+    domain: Domain
+    species: tuple[Species, ...] = ()
+    meshes: tuple[MeshSpec, ...] = ()
+    gravity: Gravity | None = None
+    dt: float | None = None
+    seed: int = 12345
+    units: str = "si"
+    nns_type: str = "bin"
+    nns_skin: float | None = None
+    traj: TrajectorySpec = field(default_factory=TrajectorySpec)
+    restart: RestartSpec | None = None
+    nsim: int = 1
+    threads: int | None = None
+    nprocs: int | None = None
+    progress: bool | None = None
+
+    @property
+    def max_radius(self) -> float:
+        return max((s.radius.max for s in self.species), default=0.0)
+
+    @property
+    def skin(self) -> float:
+        """Neighbour-list skin: ``nns_skin``, else the largest particle radius."""
+        return self.nns_skin if self.nns_skin is not None else self.max_radius
+
+
+SIMULATION_KEYS = (
+    "engine",
+    "model",
+    "nSim",
+    "units",
+    "nns_type",
+    "nns_skin",
+    "dim",
+    "box",
+    "boundary",
+    "gravity",
+    "species",
+    "mesh",
+    "output",
+    "restart",
+    "dump_modify",
+    "traj",
+    "dt",
+    "seed",
+    "threads",
+    "nprocs",
+    "progress",
+)
+
+
+def default_output(model: type) -> str:
+    """The manual's default output folder: the model's name and the time of day."""
+    return f"{model.__name__}-{time.strftime('%d%m%Y-%H%M%S')}"
+
+
+def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> SimulationSpec:
+    """Validate ``simulation.DEM`` keywords; ``engine`` and ``model`` are already resolved."""
+    check_keys("simulation keyword", params, SIMULATION_KEYS)
+    if "box" not in params:
+        raise ConfigError("box is required: (xmin, xmax, ymin, ymax, zmin, zmax) in metres")
+    dim = params.get("dim", 3)
+    if dim != 3:
+        raise ConfigError(f"dim={dim!r}: only 3-D simulations are supported")
+    units = one_of(params.get("units", "si"), "units", ("si",))
+    cwd = Path(os.getcwd())
+    output = cwd / params.get("output", default_output(model))
+    species_in = params.get("species", ())
+    if isinstance(species_in, Mapping):
+        species_in = (species_in,)
+    meshes_in = params.get("mesh", {}) or {}
+    if not isinstance(meshes_in, Mapping):
+        raise ConfigError("mesh must be a dict of {name: {'file': ..., 'material': ...}}")
+    seed = params.get("seed", 12345)
+    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
+    threads, nprocs = params.get("threads"), params.get("nprocs")
+    return SimulationSpec(
+        engine=engine,
+        model=model,
+        output=output,
+        domain=Domain(parse_box(params["box"]), parse_boundary(params.get("boundary", ("f", "f", "f")))),
+        species=tuple(parse_species(s, i) for i, s in enumerate(species_in, start=1)),
+        meshes=tuple(parse_mesh(name, m, cwd) for name, m in meshes_in.items()),
+        gravity=None if params.get("gravity") is None else parse_gravity(params["gravity"]),
+        dt=None if params.get("dt") is None else positive_float(params["dt"], "dt"),
+        seed=int(seed),
+        units=units,
+        nns_type=one_of(params.get("nns_type", "bin"), "nns_type", ("bin", "nsq", "multi")),
+        nns_skin=None if params.get("nns_skin") is None else positive_float(params["nns_skin"], "nns_skin"),
+        traj=parse_traj(params.get("traj"), output, params.get("dump_modify")),
+        restart=parse_restart(params.get("restart"), output),
+        nsim=positive_int(params.get("nSim", 1), "nSim"),
+        threads=None if threads is None else positive_int(threads, "threads"),
+        nprocs=None if nprocs is None else positive_int(nprocs, "nprocs"),
+        progress=params.get("progress"),
+    )

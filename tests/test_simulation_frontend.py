@@ -1,0 +1,318 @@
+"""simulation.DEM keyword validation into engine-neutral specs (no solver needed)."""
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pygran_core import params, registry, simulation
+from pygran_core.errors import ConfigError, PluginNotFound, UnsupportedFeature
+from pygran_core.simulation import calls
+from pygran_core.simulation.dem import resolve_engine, resolve_model
+from pygran_core.simulation.models import HertzMindlin, SpringDashpot
+from pygran_core.simulation.specs import (
+    parse_boundary,
+    parse_gravity,
+    parse_radius,
+    parse_simulation,
+)
+
+FIXTURES = Path(__file__).resolve().parents[2] / "shared" / "fixtures"
+MATERIAL = dict(params.glass, coefficientRollingFriction=0.0)
+BASE = {"box": (0, 1e-2, 0, 1e-2, 0, 2e-2), "species": ({"material": MATERIAL, "radius": 5e-4},)}
+
+
+def spec(**overrides):
+    return parse_simulation({**BASE, **overrides}, "toy", SpringDashpot)
+
+
+def test_unknown_keyword_suggests_the_closest():
+    with pytest.raises(ConfigError, match="Unknown simulation keyword 'boundry'. Did you mean 'boundary'"):
+        spec(boundry=("p", "p", "f"))
+    with pytest.raises(ConfigError, match="Unknown species 1 keyword 'radus'. Did you mean 'radius'"):
+        spec(species=({"material": MATERIAL, "radus": 1e-3},))
+
+
+@pytest.mark.parametrize(
+    ("value", "magnitude", "direction"),
+    [
+        ((9.81, 0, 0, -1), 9.81, (0, 0, -1)),
+        ((0, 0, -1, 9.81), 9.81, (0, 0, -1)),
+        ((9.81, 1, 0, 0), 9.81, (1, 0, 0)),
+        ((0, 1, 0, 3), 3.0, (0, 1, 0)),
+        ((1, 0, 0, 2), 2.0, (1, 0, 0)),
+    ],
+)
+def test_gravity_either_order(value, magnitude, direction):
+    gravity = parse_gravity(value)
+    assert gravity.magnitude == magnitude and gravity.direction == direction
+    np.testing.assert_allclose(gravity.vector, magnitude * np.array(direction))
+
+
+@pytest.mark.parametrize("value", [(1, 0, 0, 1), (9.81, 0, 0, -9.81), (9.81, 0, 0), "down"])
+def test_gravity_ambiguous_or_invalid(value):
+    with pytest.raises(ConfigError, match="gravity"):
+        parse_gravity(value)
+
+
+def test_box_and_boundary():
+    with pytest.raises(ConfigError, match="box: z lower bound 2.0 must be below the upper bound 1.0"):
+        spec(box=(0, 1, 0, 1, 2, 1))
+    with pytest.raises(ConfigError, match="box is required"):
+        parse_simulation({}, "toy", SpringDashpot)
+    assert parse_boundary(("p", "pp", "fs")) == ("p", "p", "fs")
+    assert parse_boundary(("f", "ff", "m")) == ("f", "f", "m")
+    assert spec(boundary=("p", "p", "f")).domain.periodic == (True, True, False)
+    for bad, message in (
+        (("p", "p"), "three flags"),
+        (("p", "x", "f"), "not a flag"),
+        (("pf", "p", "f"), "mixes"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            parse_boundary(bad)
+
+
+def test_radius_distributions_sample_what_they_promise():
+    rng = np.random.default_rng(3)
+    normal = parse_radius(("normal", 1e-4, 1e-5))
+    radii = normal.sample(20000, rng)
+    assert radii.mean() == pytest.approx(1e-4, rel=2e-3) and radii.std() == pytest.approx(1e-5, rel=0.05)
+    assert radii.max() <= normal.max == pytest.approx(1.3e-4) and radii.min() >= normal.min
+    lognormal = parse_radius(("lognormal", 1e-4, 0.2))
+    assert lognormal.sample(20000, rng).mean() == pytest.approx(lognormal.mean, rel=5e-3)
+    poly = parse_radius(("poly", (1e-4, 2e-4), (3, 1)))
+    assert poly.weights == (0.75, 0.25) and poly.mean == pytest.approx(1.25e-4)
+    assert np.mean(poly.sample(20000, rng) == 1e-4) == pytest.approx(0.75, abs=0.02)
+    assert parse_radius(2e-3) == parse_radius(("constant", 2e-3))
+    assert parse_radius(("gaussian", 1e-4, 1e-5)).kind == "normal"
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        (-1e-3, "allows radii <= 0"),
+        (("normal", 1e-4, 5e-5), "allows radii <= 0"),
+        (("weibull", 1), "radius distribution"),
+        (("poly", (1e-4,), (1, 2)), "as many weights"),
+        (("constant",), "takes 1 values"),
+        ("big", "radius must be"),
+    ],
+)
+def test_bad_radius(value, message):
+    with pytest.raises(ConfigError, match=message):
+        parse_radius(value)
+
+
+def test_species_material_is_validated():
+    with pytest.raises(ConfigError, match="youngsModulus"):
+        spec(species=({"material": dict(MATERIAL, youngsModulus=-1), "radius": 1e-3},))
+    with pytest.raises(ConfigError, match="needs 'material' and 'radius'"):
+        spec(species=({"radius": 1e-3},))
+    one = spec(species=({"material": MATERIAL, "radius": 1e-3, "density": 1000},)).species[0]
+    assert (
+        one.density == 1000.0 and one.type == 1 and one.material["youngsModulus"] == MATERIAL["youngsModulus"]
+    )
+
+
+def test_output_and_files_resolved_against_cwd_without_chdir(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    s = spec(output="run1", traj={"pfile": "traj.h5", "mfile": "mesh*.vtk", "freq": 50, "dir": "frames"})
+    assert s.output == tmp_path / "run1"
+    assert s.traj.pfile == tmp_path / "run1" / "frames" / "traj.h5" and s.traj.freq == 50
+    assert os.getcwd() == str(tmp_path)
+    default = spec()
+    assert default.output.name.startswith("SpringDashpot-") and default.traj.pfile.name == "traj.dump"
+    with pytest.raises(ConfigError, match="Unknown traj keyword 'frq'. Did you mean 'freq'"):
+        spec(traj={"frq": 10})
+
+
+def test_restart_forms(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    manual = spec(output="o", restart=(500, "chk", "state.h5", True, None)).restart
+    assert (manual.freq, manual.directory, manual.fname, manual.resume) == (
+        500,
+        tmp_path / "o" / "chk",
+        "state.h5",
+        True,
+    )
+    assert spec(restart=100).restart.freq == 100
+    with pytest.raises(ConfigError, match="restart freq must be a positive integer"):
+        spec(restart=(0,))
+
+
+def test_mesh_from_stl_with_liggghts_style_args(tmp_path, monkeypatch):
+    silo = FIXTURES / "meshes" / "silo.stl"
+    assert silo.is_file(), f"shared fixtures missing: {silo}"
+    mesh = spec(
+        mesh={
+            "hopper": {
+                "file": str(silo),
+                "mtype": "mesh/surface/stress",
+                "material": MATERIAL,
+                "args": ("scale 1e-3", "move 0 0 0.01", "rotate axis 0 0 1 angle 90"),
+            }
+        }
+    ).meshes[0]
+    assert (mesh.name, mesh.scale, mesh.translate, mesh.rotate) == (
+        "hopper",
+        1e-3,
+        (0, 0, 0.01),
+        ((0, 0, 1), 90.0),
+    )
+    as_dict = spec(mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}}).meshes[0]
+    assert as_dict.scale == 1e-3 and as_dict.mtype == "mesh/surface"
+    with pytest.raises(ConfigError, match="does not exist"):
+        spec(mesh={"m": {"file": str(tmp_path / "none.stl")}})
+    with pytest.raises(ConfigError, match="Unknown mesh 'm' argument 'scal'. Did you mean 'scale'"):
+        spec(mesh={"m": {"file": str(silo), "args": ("scal 2",)}})
+
+
+def test_numbers_may_be_int_or_float():
+    s = spec(dt=1, nns_skin=1, box=(0, 1, 0, 1, 0, 1))
+    assert s.dt == 1.0 and isinstance(s.dt, float) and s.skin == 1.0
+    assert spec().skin == 5e-4
+    with pytest.raises(ConfigError, match="dt must be a positive number"):
+        spec(dt="1e-5")
+    with pytest.raises(ConfigError, match="only 3-D"):
+        spec(dim=2)
+    with pytest.raises(ConfigError, match="Unknown units 'SI'"):
+        spec(units="SI")
+
+
+# -- per-call specs -----------------------------------------------------------------------
+
+
+def test_regions():
+    s = spec()
+    block = calls.parse_region(("block", 0, 1, 0, 2, 0, 3), s)
+    assert block.volume() == 6.0 and block.contains(np.array([[0.5, 1, 1], [2, 0, 0]])).tolist() == [
+        True,
+        False,
+    ]
+    cylinder = calls.parse_region(("cylinder", "z", 0, 0, 1, 0, 2), s)
+    assert cylinder.volume() == pytest.approx(2 * math.pi)
+    np.testing.assert_array_equal(cylinder.bounds(), [[-1, 1], [-1, 1], [0, 2]])
+    assert cylinder.contains(np.array([[0.5, 0.5, 1.0], [0.9, 0.9, 1.0]]), margin=0.1).tolist() == [
+        True,
+        False,
+    ]
+    sphere = calls.parse_region(("sphere", 0, 0, 0, 2), s)
+    assert sphere.volume() == pytest.approx(32 * math.pi / 3)
+    assert calls.parse_region(None, s).volume() == pytest.approx(2e-6)
+    with pytest.raises(ConfigError, match="Unknown region type 'cube'"):
+        calls.parse_region(("cube", 1), s)
+    with pytest.raises(ConfigError, match="takes 4 values"):
+        calls.parse_region(("sphere", 0, 0, 1), s)
+
+
+def test_insert_spec():
+    s = spec()
+    request = calls.parse_insert(
+        {
+            "species": 1,
+            "value": 100,
+            "region": ("block", 0, 1e-2, 0, 1e-2, 0, 1e-2),
+            "vel_type": "uniform",
+            "vel": (0, 0, -1, 0.1, 0.1, 0.1),
+            "freq": 1000,
+        },
+        s,
+        seed=7,
+    )
+    assert (request.mechanism, request.target, request.value, request.species, request.freq) == (
+        "by_pack",
+        "particles_in_region",
+        100.0,
+        (1,),
+        1000,
+    )
+    velocities = request.velocity.sample(1000, np.random.default_rng(0))
+    assert np.all(np.abs(velocities - (0, 0, -1)) <= 0.1)
+    rate = calls.parse_insert(
+        {"insert": "by_rate", "rate": 0.5, "rate_type": "massrate", "duration": 2}, s, 1
+    )
+    assert (rate.mechanism, rate.target, rate.value, rate.duration) == ("by_rate", "massrate", 0.5, 2.0)
+    for bad, message in (
+        ({"value": 10, "species": 3}, "species 3 does not exist"),
+        ({}, "give the amount"),
+        ({"value": 10.5}, "whole number"),
+        ({"value": 0.8, "mech": "volumefraction_region"}, "above close packing"),
+        ({"value": 1, "vel": (0, 0)}, "vel \\(constant\\) must be a sequence of 3"),
+        ({"value": 1, "regoin": None}, "Did you mean 'region'"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            calls.parse_insert(bad, s, 1)
+
+
+def test_create_wall_motion_viscous_monitor_specs():
+    silo = FIXTURES / "meshes" / "silo.stl"
+    s = spec(mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}})
+    single = calls.parse_create(1, "single", (0, 0, 1e-2), {"vel": (0, 0, -0.1), "omega": (1, 0, 0)}, s, 3)
+    assert single.position == (0, 0, 0.01) and single.velocity == (0, 0, -0.1) and single.omega == (1, 0, 0)
+    with pytest.raises(ConfigError, match="give 3 coordinates"):
+        calls.parse_create(1, "single", (0, 0), {}, s, 3)
+    assert calls.parse_create(1, "random", (50,), {"region": ("block", 0, 1, 0, 1, 0, 1)}, s, 3).count == 50
+    assert (
+        calls.parse_wall({"wtype": "primitive", "species": 1, "plane": "planez", "peq": 0}, s).plane
+        == "zplane"
+    )
+    assert calls.parse_wall({"wtype": "mesh"}, s).mesh == "hopper"
+    with pytest.raises(ConfigError, match="needs peq"):
+        calls.parse_wall({"plane": "zplane"}, s)
+    rotate = calls.parse_motion("hopper", {"rotate": True, "axis": (0, 0, 2), "period": 0.5}, s)
+    assert rotate.axis == (0, 0, 1) and rotate.omega == pytest.approx(4 * math.pi)
+    assert calls.parse_motion("hopper", {"linear": (0, 0, -0.1)}, s).velocity == (0, 0, -0.1)
+    with pytest.raises(ConfigError, match="Unknown mesh 'hoper'. Did you mean 'hopper'"):
+        calls.parse_motion("hoper", {"linear": (0, 0, 1)}, s)
+    with pytest.raises(ConfigError, match="exactly one of"):
+        calls.parse_motion("hopper", {}, s)
+    assert calls.parse_viscous({"gamma": 0.1}, s).species == (1,)
+    assert calls.parse_monitor({"quantities": "ke", "freq": 10}).quantities == ("ke",)
+    with pytest.raises(ConfigError, match="Unknown monitor quantity 'kee'"):
+        calls.parse_monitor({"quantities": ("kee",)})
+
+
+# -- DEM: engine and model resolution ------------------------------------------------------
+
+
+def test_engine_resolution():
+    assert resolve_engine(None) == "native"
+    with pytest.raises(PluginNotFound, match="Did you mean 'liggghts'"):
+        resolve_engine("ligghts")
+
+
+def test_model_resolution():
+    assert resolve_model("HertzMindlin") is HertzMindlin and resolve_model(SpringDashpot) is SpringDashpot
+    with pytest.raises(PluginNotFound, match="No model named 'Hertz'"):
+        resolve_model("Hertz")
+    with pytest.raises(ConfigError, match="model must be a contact model class"):
+        resolve_model(dict)
+
+
+def test_dem_on_a_third_party_engine(with_plugins, tmp_path):
+    with_plugins("pygran-toy")
+    assert registry.lookup("engine", "toy")
+    kwargs = {
+        **BASE,
+        "engine": "toy",
+        "output": str(tmp_path / "o"),
+        "dt": 1e-4,
+        "progress": False,
+        "seed": 5,
+        "traj": {"pfile": None},
+    }
+    with simulation.DEM(**kwargs) as sim:
+        first = [sim._seed() for _ in range(3)]
+        assert sim.createParticles(1, "single", 0.0, 0.0, 1e-2) == 1
+        monitor = sim.monitor(quantities=("n",), freq=10)
+        sim.run(20)
+        assert monitor.values["n"].tolist() == [1, 1, 1]
+        assert sim.step == 20 and sim.time == pytest.approx(2e-3)
+        with pytest.raises(UnsupportedFeature, match="toy engine does not support plane walls"):
+            sim.setupWall(species=1, plane="zplane", peq=0.0)
+    with simulation.DEM(**{**kwargs, "output": str(tmp_path / "p")}) as again:
+        assert [again._seed() for _ in range(3)] == first
+    log = (tmp_path / "o" / "pygran.log").read_text()
+    assert "create CreateSpec(species=1, style='single'" in log and "run 20 steps" in log
