@@ -315,7 +315,10 @@ def read_vtu(path: Path) -> Mesh:
     """An XML unstructured grid, through meshio."""
     import meshio
 
-    mesh = meshio.read(path, file_format="vtu")
+    try:
+        mesh = meshio.read(path, file_format="vtu")
+    except SystemExit as exc:  # meshio exits on some malformed XML
+        raise ReadError(f"{path}: frame 0: meshio cannot read the file") from exc
     cells: list[np.ndarray] = []
     types: list[int] = []
     cell_data: dict[str, list[np.ndarray]] = {name: [] for name in mesh.cell_data}
