@@ -16,7 +16,8 @@ from scipy.spatial import cKDTree
 
 from pygran_core.analysis.particles import Particles
 
-#: Relative tolerance on "touching": distance <= (r_i + r_j) * (1 + CONTACT_TOLERANCE).
+#: Relative round-off allowance: spheres touch when ``d <= (r_i + r_j) * (1 + CONTACT_TOLERANCE)``
+#: and overlap when ``r_i + r_j - d > (r_i + r_j) * CONTACT_TOLERANCE``.
 CONTACT_TOLERANCE = 1e-9
 
 
@@ -59,6 +60,7 @@ class Neighbors:
         touch = radii[pairs[:, 0]] + radii[pairs[:, 1]]
         self._overlap = touch - distance
         self._touching = distance <= touch * (1 + CONTACT_TOLERANCE)
+        self._overlapping = self._overlap > touch * CONTACT_TOLERANCE
         chosen = self._touching if cutoff is None else distance <= cutoff
         self._all_pairs, self._delta = pairs, delta
         self._pairs, self._distances = pairs[chosen], distance[chosen]
@@ -75,8 +77,8 @@ class Neighbors:
 
     @property
     def overlaps(self) -> np.ndarray:
-        """(K, 3) rows ``(overlap, i, j)`` for every pair whose spheres overlap (overlap > 0)."""
-        hit = self._overlap > 0
+        """(K, 3) rows ``(overlap, i, j)`` for every pair whose spheres overlap (beyond round-off)."""
+        hit = self._overlapping
         return np.column_stack((self._overlap[hit], self._all_pairs[hit])).astype(float).reshape(-1, 3)
 
     def coon(self, type1: int | None = None, type2: int | None = None) -> np.ndarray:
@@ -124,7 +126,7 @@ class Neighbors:
         (a new figure if None) in the plane of ``axes``, line widths proportional to force.
         """
         radii = self.particles._radii() if len(self.particles) else np.zeros(0)
-        hit = self._overlap > 0
+        hit = self._overlapping
         contacts, overlap = self._all_pairs[hit], self._overlap[hit]
         r_i, r_j = radii[contacts[:, 0]], radii[contacts[:, 1]]
         forces = stiffness * np.sqrt(r_i * r_j / (r_i + r_j)) * overlap**1.5

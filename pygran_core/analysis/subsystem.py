@@ -341,12 +341,13 @@ class SubSystem:
         from pygran_core.io import Frame
 
         box = self._meta.get("box")
+        boundary = self._meta.get("boundary") or (None if box is None else ("ff", "ff", "ff"))
         return Frame(
             arrays=dict(self._fields),
             timestep=self._meta.get("timestep"),
             time=self._meta.get("time"),
             box=None if box is None else np.asarray(box, dtype=float),
-            boundary=self._meta.get("boundary"),
+            boundary=boundary,
             attrs={"units": self.units},
         )
 

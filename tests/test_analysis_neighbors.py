@@ -1,0 +1,124 @@
+"""equilibrium.Neighbors: pairs, overlaps, coordination numbers, filter and force chains."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from pygran_core.analysis import Particles, equilibrium  # noqa: E402
+
+R = 0.5
+
+
+def make(positions, radius=R, **extra):
+    positions = np.asarray(positions, dtype=float).reshape(-1, 3)
+    n = len(positions)
+    return Particles(
+        id=np.arange(1, n + 1),
+        x=positions[:, 0],
+        y=positions[:, 1],
+        z=positions[:, 2],
+        radius=np.broadcast_to(np.asarray(radius, dtype=float), n),
+        **extra,
+    )
+
+
+def fcc(cells, periodic):
+    a = 2 * R * np.sqrt(2)
+    grid = np.stack(np.meshgrid(*[np.arange(cells)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]])
+    positions = ((grid[:, None, :] + basis + 0.25) * a).reshape(-1, 3)
+    box = {"box": [[0, cells * a]] * 3, "boundary": ("pp", "pp", "pp")} if periodic else {}
+    return make(positions, **box)
+
+
+def test_fcc_in_contact_has_coordination_twelve():
+    periodic = equilibrium.Neighbors(fcc(4, periodic=True))
+    np.testing.assert_array_equal(periodic.coon(), 12)
+    assert len(periodic.pairs) == 6 * 256
+    np.testing.assert_allclose(periodic.distances, 2 * R)
+    assert periodic.overlaps.shape == (0, 3)  # touching, not overlapping
+    open_lattice = fcc(4, periodic=False)
+    coon = equilibrium.Neighbors(open_lattice).coon()
+    lower, upper = open_lattice.positions.min(axis=0), open_lattice.positions.max(axis=0)
+    interior = ((open_lattice.positions > lower + 0.1) & (open_lattice.positions < upper - 0.1)).all(axis=1)
+    np.testing.assert_array_equal(coon[interior], 12)
+    assert coon[~interior].max() < 12
+
+
+def test_coordination_per_type_pair_on_a_rock_salt_lattice():
+    grid = np.stack(np.meshgrid(*[np.arange(4)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    types = 1 + grid.sum(axis=1) % 2
+    particles = make(grid * 2 * R, box=[[-R, 8 * R - R]] * 3, boundary=("pp", "pp", "pp"), type=types)
+    neighbors = equilibrium.Neighbors(particles)
+    np.testing.assert_array_equal(neighbors.coon(), 6)
+    np.testing.assert_array_equal(neighbors.coon(1, 2), 6)
+    np.testing.assert_array_equal(neighbors.coon(2, 2), 0)
+    assert len(neighbors.coon(1, 2)) == (types == 1).sum()
+    with pytest.raises(ValueError, match="give both type1 and type2"):
+        neighbors.coon(1)
+
+
+def test_pairs_overlaps_and_cutoff():
+    particles = make([[0, 0, 0], [0.9, 0, 0], [3.0, 0, 0]], radius=[0.5, 0.5, 0.5])
+    neighbors = equilibrium.Neighbors(particles)
+    np.testing.assert_array_equal(neighbors.pairs, [[0, 1]])
+    np.testing.assert_allclose(neighbors.overlaps, [[0.1, 0, 1]])
+    np.testing.assert_array_equal(neighbors.coon(), [1, 1, 0])
+    wide = equilibrium.Neighbors(particles, cutoff=2.2)
+    np.testing.assert_array_equal(wide.pairs, [[0, 1], [1, 2]])
+    np.testing.assert_allclose(wide.distances, [0.9, 2.1])
+    np.testing.assert_allclose(wide.overlaps, [[0.1, 0, 1]])
+    with pytest.raises(ValueError, match="cutoff must be positive"):
+        equilibrium.Neighbors(particles, cutoff=0)
+
+
+def test_periodic_pairs_use_the_minimum_image():
+    box = {"box": [[0, 10], [0, 1], [0, 1]], "boundary": ("pp", "ff", "ff")}
+    particles = make([[0.2, 0.5, 0.5], [9.7, 0.5, 0.5]], **box)
+    neighbors = equilibrium.Neighbors(particles)
+    np.testing.assert_allclose(neighbors.distances, [0.5])
+    np.testing.assert_allclose(neighbors.overlaps[:, 0], [0.5])
+
+
+def test_filter_removes_particles_overlapping_more_than_percent_of_their_radius():
+    particles = make([[0, 0, 0], [1.9, 0, 0], [10, 0, 0], [11.5, 0, 0]], radius=[1.0, 1.0, 1.0, 1.0])
+    # overlaps: 0.1 (10 % of r) for the first pair, 0.5 (50 %) for the second
+    kept = equilibrium.Neighbors(particles).filter(percent=20)
+    assert type(kept) is Particles
+    np.testing.assert_array_equal(kept.id, [1, 2])
+    np.testing.assert_array_equal(equilibrium.Neighbors(particles).filter(percent=5).id, [])
+    np.testing.assert_array_equal(equilibrium.Neighbors(particles).filter(percent=60).id, [1, 2, 3, 4])
+    # polydisperse: a 0.3 overlap is 30 % of r=1 but only 15 % of r=2
+    mixed = make([[0, 0, 0], [2.7, 0, 0]], radius=[1.0, 2.0])
+    np.testing.assert_array_equal(equilibrium.Neighbors(mixed).filter(percent=20).id, [2])
+
+
+def test_empty_and_single_particle_sets():
+    for particles in (make(np.zeros((0, 3))), make([[0, 0, 0]])):
+        neighbors = equilibrium.Neighbors(particles)
+        assert neighbors.pairs.shape == (0, 2) and neighbors.overlaps.shape == (0, 3)
+        assert len(neighbors.coon()) == len(particles)
+        assert len(neighbors.filter(10)) == len(particles)
+        assert neighbors.forceChain().chains == []
+
+
+def test_force_chain_finds_a_loaded_column_and_plots_it():
+    # a loose square layer (touching, no force) with a compressed column through it
+    grid = np.stack(np.meshgrid(np.arange(7), [0], np.arange(7), indexing="ij"), -1).reshape(-1, 3) * 2 * R
+    column = np.column_stack((np.full(5, 20.0), np.zeros(5), np.arange(5) * 0.8))  # overlap 0.2
+    pair = np.array([[30.0, 0, 0], [30.95, 0, 0]])  # a weak contact
+    particles = make(np.vstack((grid, column, pair)))
+    neighbors = equilibrium.Neighbors(particles)
+    fig, ax = plt.subplots()
+    result = neighbors.forceChain(plot=True, ax=ax)
+    assert len(result.contacts) == 5 and result.strong.sum() == 4
+    assert len(result.chains) == 1
+    np.testing.assert_array_equal(result.chains[0], np.arange(49, 54))
+    np.testing.assert_allclose(result.forces[result.strong], np.sqrt(R / 2) * 0.2**1.5)
+    assert result.ax is ax and len(ax.collections) == 1 and len(ax.collections[0].get_segments()) == 4
+    plt.close(fig)
+    assert neighbors.forceChain(min_size=6).chains == []
