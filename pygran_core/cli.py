@@ -3,11 +3,16 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from importlib.metadata import version
+from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from pygran_core import registry
 from pygran_core.errors import PyGranError
+from pygran_core.io import Frame, Trajectory, expand_paths, open_writer
 
 
 def _solver_status(provided: registry.Provided) -> str:
@@ -45,12 +50,104 @@ def cmd_plugins(args: argparse.Namespace) -> int:
     return 0
 
 
+def _open(pattern: str, format: str | None) -> tuple[Trajectory, str, int]:
+    """The trajectory, its reader's name and the number of files behind it."""
+    paths = expand_paths(pattern)
+    spec = registry.reader_for(paths[0], format)
+    return spec.open(paths), spec.name, len(paths)
+
+
+def _progress(frames: Iterable[Frame], total: int, what: str) -> Iterable[Frame]:
+    """A progress bar on stderr for runs longer than a second; silent when not a terminal."""
+    from tqdm import tqdm
+
+    return tqdm(frames, total=total, desc=what, unit="frame", delay=1.0, disable=None, leave=False)
+
+
+def _box_text(box: Any, boundary: Any) -> str:
+    if box is None:
+        return "none"
+    text = " x ".join(f"[{lo:g}, {hi:g}]" for lo, hi in np.asarray(box))
+    return f"{text} ({' '.join(boundary)})" if boundary else text
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """Frames, sizes, columns, box and timesteps of a trajectory or mesh sequence."""
+    trajectory, name, n_files = _open(args.file, args.format)
+    with trajectory:
+        sizes: list[int] = []
+        cells: list[int] = []
+        steps: list[int] = []
+        columns: list[str] = []
+        first: dict[str, Any] = {}
+        read_header = getattr(trajectory, "read_header", None)  # dump: no need to parse atoms
+        for index in _progress(range(len(trajectory)), len(trajectory), "reading"):  # type: ignore[arg-type]
+            if read_header is not None:
+                header = read_header(index)
+                size, box, boundary, names, step = (header["natoms"], header["box"], header["boundary"],
+                                                    header["columns"], header["timestep"])
+            else:
+                frame = trajectory[index]
+                arrays = frame.arrays
+                if "points" in arrays:
+                    size = len(arrays["points"])
+                    cells.append(len(arrays.get("cells", ())))
+                else:
+                    size = len(next(iter(arrays.values()))) if arrays else 0
+                box, boundary, names, step = frame.box, frame.boundary, list(arrays), frame.timestep
+            sizes.append(size)
+            if step is not None:
+                steps.append(step)
+            columns += [c for c in names if c not in columns]
+            first = first or {"box": box, "boundary": boundary}
+    files = f" ({n_files} files)" if n_files > 1 else ""
+    print(f"file:       {args.file}{files}")
+    print(f"format:     {name}")
+    print(f"frames:     {len(sizes)}")
+    if sizes:
+        label = "points:" if cells else "particles:"
+        print(f"{label:<12}{min(sizes)} min, {max(sizes)} max per frame")
+    if cells:
+        print(f"cells:      {min(cells)} min, {max(cells)} max per frame")
+    print(f"columns:    {' '.join(columns) or 'none'}")
+    if sizes:
+        print(f"box:        {_box_text(first.get('box'), first.get('boundary'))} (first frame)")
+    if steps:
+        print(f"timesteps:  {min(steps)} to {max(steps)}")
+    return 0
+
+
+def cmd_convert(args: argparse.Namespace) -> int:
+    """Read every frame of IN and write it to OUT, in the formats their names (or flags) say."""
+    trajectory, name, _ = _open(args.input, args.input_format)
+    options = {"units": args.units} if args.units else {}
+    with trajectory, open_writer(args.output, format=args.output_format, **options) as out:
+        count = 0
+        for frame in _progress(trajectory, len(trajectory), "converting"):
+            out.write_frame(frame)
+            count += 1
+    target = registry.writer_for(Path(args.output), args.output_format).name
+    print(f"converted {count} frames from {args.input} ({name}) to {args.output} ({target})")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="pygran", description="PyGran: DEM simulation and analysis.")
     parser.add_argument("--version", action="version", version=f"pygran {version('pygran-core')}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     plugins = commands.add_parser("plugins", help="list installed engines, models, readers and writers")
     plugins.set_defaults(func=cmd_plugins)
+    info = commands.add_parser("info", help="summarise a trajectory or mesh file (or a quoted glob)")
+    info.add_argument("file", help="a file, a quoted glob such as 'particles*.dump', ...")
+    info.add_argument("--format", help="reader name (default: detected from the file)")
+    info.set_defaults(func=cmd_info)
+    convert = commands.add_parser("convert", help="convert a trajectory, e.g. a dump glob to H5MD")
+    convert.add_argument("input", help="a file or a quoted glob")
+    convert.add_argument("output", help="the file to write; '*' in a dump name writes a file per frame")
+    convert.add_argument("--from", dest="input_format", help="reader name (default: detected)")
+    convert.add_argument("--to", dest="output_format", help="writer name (default: from the extension)")
+    convert.add_argument("--units", help="unit system written into the output (H5MD: si)")
+    convert.set_defaults(func=cmd_convert)
     return parser
 
 
