@@ -129,3 +129,65 @@ def test_translate_scale_noise_in_place(grains):
     np.testing.assert_array_equal(again.x, grains.x)
     with pytest.raises(KeyError, match=r"no attributes \['vx'\]"):
         grains.scale(2, "vx")
+
+
+# -- units, the '*' product, write ---------------------------------------------------------------
+
+
+def test_unit_conversion_round_trips_exactly():
+    rng = np.random.default_rng(5)
+    original = {k: rng.random(50) * 1e-3 for k in ("x", "y", "z", "radius", "vx", "fx")}
+    grains = Grains(id=np.arange(50), **original, box=((0, 1e-3),) * 3, time=0.25)
+    grains.convert("micro")
+    assert grains.units == "micro"
+    np.testing.assert_allclose(grains.x, original["x"] * 1e6, rtol=1e-15)
+    np.testing.assert_allclose(
+        grains.fx, original["fx"] * 1e9, rtol=1e-15
+    )  # N = 1e15 pg * 1e6 um / 1e12 us^2
+    np.testing.assert_allclose(grains.box, [[0, 1e3]] * 3)
+    assert grains.time == pytest.approx(0.25e6)
+    np.testing.assert_array_equal(grains.id, np.arange(50))
+    grains.convert("nano").convert("cgs").convert("si")
+    for key, values in original.items():
+        np.testing.assert_array_equal(grains.data[key], values)  # bit-identical
+    part = grains.convert("micro")[10:20]
+    np.testing.assert_array_equal(part.convert("si").x, original["x"][10:20])
+    with pytest.raises(Exception, match="Unknown unit system 'furlongs'"):
+        grains.convert("furlongs")
+
+
+def test_transform_after_conversion_is_kept():
+    grains = Grains(x=[1.0], y=[0.0], z=[0.0])
+    grains.convert("cgs").translate((50.0, 0.0, 0.0))
+    np.testing.assert_allclose(grains.convert("si").x, [1.5])
+
+
+def test_combining_different_units_is_refused():
+    a, b = SubSystem(x=[1.0]), SubSystem(x=[1.0]).convert("micro")
+    with pytest.raises(ValueError, match="'si' units with one in 'micro' units"):
+        a + b
+
+
+def test_product_is_the_geometric_mean_of_every_pair():
+    i = SubSystem(radius=[1.0], x=[5.0])
+    j = SubSystem(radius=[1.0, 4.0], x=[2.0, -8.0], vx=[1.0, 1.0])
+    k = SubSystem(radius=[9.0, 16.0, 25.0], x=[8.0, 8.0, 2.0])
+    result = i + j * k  # the manual's example: n_i + n_j n_k elements
+    assert len(result) == 1 + 2 * 3 and result.keys() == ["radius", "x"]
+    np.testing.assert_allclose(result.radius, [1, 3, 4, 5, 6, 8, 10])
+    np.testing.assert_allclose(result.x, [5, 4, 4, 2, -8, -8, -4])  # sign kept for negative products
+
+
+def test_write_and_read_back(tmp_path):
+    from pygran_core.analysis import Particles, System
+
+    particles = Particles(
+        id=[1, 2], x=[0.1, 0.2], y=[0.0, 0.0], z=[0.0, 1e-3], radius=[5e-5, 6e-5], timestep=7
+    )
+    particles.write(tmp_path / "one.dump")
+    again = System(Particles=str(tmp_path / "one.dump")).Particles
+    assert again.timestep == 7 and again.keys() == particles.keys()
+    for key in particles.keys():
+        np.testing.assert_array_equal(again.data[key], particles.data[key])
+    with pytest.raises(Exception, match="mesh|writer|format"):
+        particles.write(tmp_path / "one.unknownformat")
