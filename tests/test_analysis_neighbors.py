@@ -89,12 +89,34 @@ def test_filter_removes_particles_overlapping_more_than_percent_of_their_radius(
     # overlaps: 0.1 (10 % of r) for the first pair, 0.5 (50 %) for the second
     kept = equilibrium.Neighbors(particles).filter(percent=20)
     assert type(kept) is Particles
-    np.testing.assert_array_equal(kept.id, [1, 2])
-    np.testing.assert_array_equal(equilibrium.Neighbors(particles).filter(percent=5).id, [])
+    np.testing.assert_array_equal(kept.id, [1, 2, 3])  # one of the 50 % pair goes
+    np.testing.assert_array_equal(equilibrium.Neighbors(particles).filter(percent=5).id, [1, 3])
     np.testing.assert_array_equal(equilibrium.Neighbors(particles).filter(percent=60).id, [1, 2, 3, 4])
-    # polydisperse: a 0.3 overlap is 30 % of r=1 but only 15 % of r=2
+    # polydisperse: a 0.3 overlap is 30 % of r=1 but only 15 % of r=2; conflicts use the smaller
     mixed = make([[0, 0, 0], [2.7, 0, 0]], radius=[1.0, 2.0])
-    np.testing.assert_array_equal(equilibrium.Neighbors(mixed).filter(percent=20).id, [2])
+    assert len(equilibrium.Neighbors(mixed).filter(percent=20)) == 1
+    with pytest.raises(ValueError, match="percent must be >= 0"):
+        equilibrium.Neighbors(mixed).filter(-1)
+
+
+def test_filter_keeps_a_maximal_conflict_free_set_of_a_dense_packing():
+    rng = np.random.default_rng(6)
+    particles = make(rng.random((3000, 3)) * 10, radius=rng.uniform(0.2, 0.4, 3000))
+    kept = equilibrium.Neighbors(particles).filter(percent=10)
+    assert 0 < len(kept) < len(particles)
+    after = equilibrium.Neighbors(kept)
+    i, j = after.overlaps[:, 1:].astype(int).T
+    assert (after.overlaps[:, 0] <= 0.1 * np.minimum(kept.radius[i], kept.radius[j])).all()
+    # maximal: every removed particle conflicts with a kept one
+    removed = particles[~np.isin(particles.id, kept.id)]
+    both = equilibrium.Neighbors(kept + removed)
+    i, j = both.overlaps[:, 1:].astype(int).T
+    radius = np.concatenate((kept.radius, removed.radius))
+    conflict = both.overlaps[:, 0] > 0.1 * np.minimum(radius[i], radius[j])
+    n = len(kept)
+    blocked = np.zeros(len(removed), dtype=bool)
+    blocked[j[conflict & (i < n) & (j >= n)] - n] = True
+    assert blocked.all()
 
 
 def test_empty_and_single_particle_sets():

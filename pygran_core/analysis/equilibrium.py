@@ -97,15 +97,38 @@ class Neighbors:
         return counts[types == type1]
 
     def filter(self, percent: float) -> Particles:
-        """The particles that overlap no neighbour by more than ``percent`` % of their own radius."""
+        """The particles left once overlaps larger than ``percent`` % of a particle's radius are removed.
+
+        Two particles conflict when their overlap exceeds ``percent`` % of the radius of
+        either. Particles without conflicts are all kept; among the others a maximal set
+        without conflicts is kept (rounds of Luby's algorithm, vectorised over pairs; fewer
+        conflicts first, ties broken by index), so a conflicting pair loses one particle, not
+        both. The result has the class of the particles.
+        """
         if percent < 0:
             raise ValueError(f"filter: percent must be >= 0, got {percent}")
-        radii = self.particles._radii()
+        n = len(self.particles)
+        radii = self.particles._radii() if n else np.zeros(0)
         i, j = self._all_pairs.T
-        limit = percent / 100.0
-        bad = np.concatenate((i[self._overlap > limit * radii[i]], j[self._overlap > limit * radii[j]]))
-        keep = np.ones(len(self.particles), dtype=bool)
-        keep[bad] = False
+        edges = self._all_pairs[self._overlap > percent / 100.0 * np.minimum(radii[i], radii[j])]
+        degree = np.bincount(edges.ravel(), minlength=n)
+        priority = np.lexsort((-np.arange(n), -degree))  # ascending: most conflicts, then highest index first
+        rank = np.empty(n, dtype=np.intp)
+        rank[priority] = np.arange(n)
+        keep = degree == 0
+        active = ~keep
+        while edges.size:
+            best = np.full(n, -1, dtype=np.intp)
+            np.maximum.at(best, edges[:, 0], rank[edges[:, 1]])
+            np.maximum.at(best, edges[:, 1], rank[edges[:, 0]])
+            chosen = active & (rank > best)
+            keep |= chosen
+            dropped = np.zeros(n, dtype=bool)
+            dropped[edges[chosen[edges[:, 0]], 1]] = True
+            dropped[edges[chosen[edges[:, 1]], 0]] = True
+            active &= ~(chosen | dropped)
+            edges = edges[active[edges[:, 0]] & active[edges[:, 1]]]
+        keep |= active  # nodes whose conflicts were all resolved
         return self.particles[keep]
 
     def forceChain(

@@ -224,14 +224,19 @@ class SubSystem:
         """The manual's product: ``len(self) * len(other)`` elements whose attributes are the
         geometric means of every pair, ``sqrt(a_i * b_j)`` at index ``i * len(other) + j``.
 
-        Only 1-D attributes both objects have are kept (the left's metadata too). A product
-        ``a_i * b_j < 0`` (e.g. coordinates on both sides of the origin) gives
+        Only 1-D floating-point attributes both objects have are kept (the left's metadata
+        too): integer labels such as ``id`` and ``type`` have no geometric mean and are left
+        out. A product ``a_i * b_j < 0`` (e.g. coordinates on both sides of the origin) gives
         ``-sqrt(|a_i * b_j|)``, so the result stays real.
         """
         if not isinstance(other, SubSystem):
             return NotImplemented
         self._check_same_units(other)
-        common = [k for k, v in self._fields.items() if v.ndim == 1 and np.ndim(other._fields.get(k)) == 1]
+        common = [
+            k
+            for k, v in self._fields.items()
+            if v.ndim == 1 and v.dtype.kind == "f" and k in other._fields and other._fields[k].ndim == 1
+        ]
         return self._derive({k: _signed_geometric_mean(self._fields[k], other._fields[k]) for k in common})
 
     def _check_same_units(self, other: SubSystem) -> None:
