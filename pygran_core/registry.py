@@ -32,8 +32,8 @@ from pygran_core.hookspecs import EngineSpec, ModelSpec, ReaderSpec, WriterSpec
 
 ENTRY_POINT_GROUPS = ("pygran.engines", "pygran.models", "pygran.readers")
 CORE_DISTRIBUTION = "pygran-core"
-#: Plugin modules shipped inside the core distribution itself.
-BUILTIN_PLUGINS = ("pygran_core.simulation.models.plugin",)
+#: Plugins shipped inside the core distribution itself: plugin name -> module.
+BUILTIN_PLUGINS = {"core-models": "pygran_core.simulation.models.plugin"}
 STRICT_ENV = "PYGRAN_STRICT_PLUGINS"
 
 #: Which first-party distribution provides a name, for the "how to install" hint.
@@ -109,9 +109,9 @@ def _entry_points() -> Iterable[tuple[EntryPoint, str, str]]:
 def _register_plugins(manager: pluggy.PluginManager) -> dict[str, tuple[str, str]]:
     plugins: dict[str, tuple[str, str]] = {}
     core_version = version(CORE_DISTRIBUTION)
-    for module_name in BUILTIN_PLUGINS:
-        manager.register(importlib.import_module(module_name), name=module_name)
-        plugins[module_name] = (CORE_DISTRIBUTION, core_version)
+    for name, module_name in BUILTIN_PLUGINS.items():
+        manager.register(importlib.import_module(module_name), name=name)
+        plugins[name] = (CORE_DISTRIBUTION, core_version)
     for ep, dist, dist_version in _entry_points():
         if ep.name in plugins:
             other = plugins[ep.name][0]
