@@ -84,8 +84,13 @@ def cmd_info(args: argparse.Namespace) -> int:
         for index in _progress(range(len(trajectory)), len(trajectory), "reading"):  # type: ignore[arg-type]
             if read_header is not None:
                 header = read_header(index)
-                size, box, boundary, names, step = (header["natoms"], header["box"], header["boundary"],
-                                                    header["columns"], header["timestep"])
+                size, box, boundary, names, step = (
+                    header["natoms"],
+                    header["box"],
+                    header["boundary"],
+                    header["columns"],
+                    header["timestep"],
+                )
             else:
                 frame = trajectory[index]
                 arrays = frame.arrays

@@ -51,11 +51,22 @@ def test_info_on_the_mesh_sequence(hopper):
 
 
 def test_convert_dump_glob_to_h5md_and_back(hopper, tmp_path):
-    out = run("convert", str(hopper / "particles*.dump"), str(tmp_path / "hopper.h5md"), "--units", "si",
-              cwd=tmp_path)
+    out = run(
+        "convert",
+        str(hopper / "particles*.dump"),
+        str(tmp_path / "hopper.h5md"),
+        "--units",
+        "si",
+        cwd=tmp_path,
+    )
     assert out.returncode == 0, out.stdout + out.stderr
-    assert out.stdout.strip().endswith("converted 31 frames from " + str(hopper / "particles*.dump")
-                                       + " (dump) to " + str(tmp_path / "hopper.h5md") + " (h5md)")
+    assert out.stdout.strip().endswith(
+        "converted 31 frames from "
+        + str(hopper / "particles*.dump")
+        + " (dump) to "
+        + str(tmp_path / "hopper.h5md")
+        + " (h5md)"
+    )
     assert out.stderr == ""
     info = run("info", "hopper.h5md", cwd=tmp_path)
     assert "format:     h5md" in info.stdout and "particles:  0 min, 571 max per frame" in info.stdout
@@ -72,7 +83,9 @@ def test_convert_dump_glob_to_h5md_and_back(hopper, tmp_path):
 def test_errors_are_one_line_and_exit_1(hopper, tmp_path):
     missing = run("info", "nope.dump", cwd=tmp_path)
     assert missing.returncode == 1 and "pygran: error: File not found:" in missing.stdout
-    (tmp_path / "bad.dump").write_text((hopper / "particles1000.dump").read_text().replace(" 5e-05 ", " 5x-05 ", 1))
+    (tmp_path / "bad.dump").write_text(
+        (hopper / "particles1000.dump").read_text().replace(" 5e-05 ", " 5x-05 ", 1)
+    )
     bad = run("convert", "bad.dump", "out.h5md", cwd=tmp_path)
     assert bad.returncode == 1
     assert "bad.dump: frame 0, line 10: column 'radius' holds '5x-05', not a number" in bad.stdout

@@ -38,8 +38,14 @@ def particle_frames() -> list[Frame]:
         if n:
             arrays["x"][0] = 1 / 3
             arrays["vx"][-1] = -0.0
-        frames.append(Frame(arrays, timestep=1000 * k, box=np.array([[-1.0, 1.0], [-2.0, 2.0], [0.0, 0.1 * (k + 1)]]),
-                            boundary=("pp", "ff", "fm")))
+        frames.append(
+            Frame(
+                arrays,
+                timestep=1000 * k,
+                box=np.array([[-1.0, 1.0], [-2.0, 2.0], [0.0, 0.1 * (k + 1)]]),
+                boundary=("pp", "ff", "fm"),
+            )
+        )
     return frames
 
 

@@ -11,6 +11,8 @@ FIXTURES = Path(__file__).resolve().parents[3] / ".." / "shared" / "fixtures"
 def fixtures() -> Path:
     """``shared/fixtures``; a missing folder fails the test (it is part of the acceptance)."""
     if not (FIXTURES / "liggghts-hopper").is_dir():
-        pytest.fail(f"The shared fixtures are missing: expected {FIXTURES.resolve()}/liggghts-hopper "
-                    "(a checkout of the project with shared/ beside the repository)")
+        pytest.fail(
+            f"The shared fixtures are missing: expected {FIXTURES.resolve()}/liggghts-hopper "
+            "(a checkout of the project with shared/ beside the repository)"
+        )
     return FIXTURES

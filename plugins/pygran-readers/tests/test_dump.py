@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from pygran_readers.dump import DumpTrajectory, format_frame
 
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.testing import FormatConformance, assert_frames_equal, particle_frames
-from pygran_readers.dump import DumpTrajectory, format_frame
 
 HEADER = "ITEM: TIMESTEP\n{step}\nITEM: NUMBER OF ATOMS\n{n}\nITEM: BOX BOUNDS pp pp ff\n0 1\n0 2\n0 3\n"
 
@@ -22,8 +22,13 @@ def dump_text(rows_per_frame, columns="id type x y z", step=100):
     for k, n in enumerate(rows_per_frame):
         out.append(HEADER.format(step=step * k, n=n) + f"ITEM: ATOMS {columns}\n")
         for r in range(n):
-            out.append(" ".join([str(r + 1), "1", str(k), str(r), "0.5"][: len(columns.split())]
-                                + ["0.25"] * (len(columns.split()) - 5)) + "\n")
+            out.append(
+                " ".join(
+                    [str(r + 1), "1", str(k), str(r), "0.5"][: len(columns.split())]
+                    + ["0.25"] * (len(columns.split()) - 5)
+                )
+                + "\n"
+            )
     return "".join(out)
 
 
@@ -84,7 +89,11 @@ class TestDumpPerFrameFiles(TestDump):
             for frame in frames:
                 out.write_frame(frame)
         assert sorted(p.name for p in tmp_path.glob("out*.dump")) == [
-            "out0.dump", "out1000.dump", "out2000.dump", "out3000.dump"]
+            "out0.dump",
+            "out1000.dump",
+            "out2000.dump",
+            "out3000.dump",
+        ]
         return str(tmp_path / "out*.dump"), frames
 
 
@@ -95,8 +104,10 @@ def test_hopper_fixture(fixtures, tmp_path):
     assert len(trajectory) == 31
     counts = [len(frame.arrays["id"]) for frame in trajectory]
     # NUMBER OF ATOMS of each file, in natural order (checked against the text)
-    text_counts = [int(p.read_text().split("\n")[3]) for p in
-                   sorted(tmp_path.glob("particles*.dump"), key=lambda p: int(p.stem[9:]))]
+    text_counts = [
+        int(p.read_text().split("\n")[3])
+        for p in sorted(tmp_path.glob("particles*.dump"), key=lambda p: int(p.stem[9:]))
+    ]
     assert counts == text_counts and counts[0] == 0 and max(counts) == 571 and counts[-1] == 423
     last = trajectory[-1]
     assert last.timestep == 30000 and trajectory[5].timestep == 5000
@@ -113,20 +124,32 @@ def test_hopper_fixture(fixtures, tmp_path):
 
 
 def test_scaled_triclinic_and_custom_columns(tmp_path):
-    text = ("ITEM: UNITS\nsi\nITEM: TIME\n0.25\nITEM: TIMESTEP\n7\nITEM: NUMBER OF ATOMS\n2\n"
-            "ITEM: BOX BOUNDS xy xz yz pp pp pp\n-0.5 11 1\n0 20 -0.5\n0 30 0\n"
-            "ITEM: ATOMS id mol type xs ys zs c_stress[1] f_force v_var diameter\n"
-            "1 3 2 0.5 0.5 0.5 1.5 2.5 3.5 0.001\n2 3 1 0 0 1 -1 -2 -3 0.002\n"
-            "ITEM: TIME\n0.5\nITEM: TIMESTEP\n8\nITEM: NUMBER OF ATOMS\n0\n"
-            "ITEM: BOX BOUNDS xy xz yz pp pp pp\n-0.5 11 1\n0 20 -0.5\n0 30 0\n"
-            "ITEM: ATOMS id mol type xs ys zs c_stress[1] f_force v_var diameter\n")
+    text = (
+        "ITEM: UNITS\nsi\nITEM: TIME\n0.25\nITEM: TIMESTEP\n7\nITEM: NUMBER OF ATOMS\n2\n"
+        "ITEM: BOX BOUNDS xy xz yz pp pp pp\n-0.5 11 1\n0 20 -0.5\n0 30 0\n"
+        "ITEM: ATOMS id mol type xs ys zs c_stress[1] f_force v_var diameter\n"
+        "1 3 2 0.5 0.5 0.5 1.5 2.5 3.5 0.001\n2 3 1 0 0 1 -1 -2 -3 0.002\n"
+        "ITEM: TIME\n0.5\nITEM: TIMESTEP\n8\nITEM: NUMBER OF ATOMS\n0\n"
+        "ITEM: BOX BOUNDS xy xz yz pp pp pp\n-0.5 11 1\n0 20 -0.5\n0 30 0\n"
+        "ITEM: ATOMS id mol type xs ys zs c_stress[1] f_force v_var diameter\n"
+    )
     (tmp_path / "t.dump").write_text(text)
     trajectory = open_trajectory(tmp_path / "t.dump")
     assert len(trajectory) == 2
     frame = trajectory[0]
     assert frame.timestep == 7 and frame.time == 0.25 and frame.attrs["units"] == "si"
-    assert list(frame.arrays) == ["id", "mol", "type", "x", "y", "z", "c_stress[1]", "f_force", "v_var",
-                                  "diameter"]
+    assert list(frame.arrays) == [
+        "id",
+        "mol",
+        "type",
+        "x",
+        "y",
+        "z",
+        "c_stress[1]",
+        "f_force",
+        "v_var",
+        "diameter",
+    ]
     assert frame.arrays["mol"].dtype == np.int64
     # xlo = -0.5 - min(0, 1, -0.5, 0.5) = 0, lx = (11 - 1) - 0 = 10, ylo = 0 - min(0, 0) = 0 ...
     np.testing.assert_allclose(frame.arrays["x"], [0 + 5 + 0.5 * 1 + 0.5 * -0.5, -0.5])
@@ -138,9 +161,13 @@ def test_scaled_triclinic_and_custom_columns(tmp_path):
 
 
 def test_triclinic_written_back(tmp_path):
-    frame = Frame({"id": np.array([1, 2]), "x": np.array([0.1, 0.2])}, timestep=3,
-                  box=np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 3.0]]), boundary=("pp", "pp", "ff"),
-                  attrs={"tilt": np.array([0.5, 0.0, 0.0])})
+    frame = Frame(
+        {"id": np.array([1, 2]), "x": np.array([0.1, 0.2])},
+        timestep=3,
+        box=np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 3.0]]),
+        boundary=("pp", "pp", "ff"),
+        attrs={"tilt": np.array([0.5, 0.0, 0.0])},
+    )
     text = format_frame(frame)
     assert "ITEM: BOX BOUNDS xy xz yz pp pp ff\n0.0 1.0 0.5\n" in text
     (tmp_path / "t.dump").write_text(text)
@@ -149,15 +176,24 @@ def test_triclinic_written_back(tmp_path):
     np.testing.assert_array_equal(back.attrs["tilt"], [0.5, 0, 0])
 
 
-@pytest.mark.parametrize("case, message", [
-    # frame 2 starts on line 24: its atom count is on line 27, ITEM: ATOMS on 32, rows from 33
-    ("truncated", r"truncated\.dump: frame 2, line 27: the frame is truncated"),
-    ("lying", r"lying\.dump: frame 2, line 27: the header lies about the atom count: ITEM: NUMBER OF "
-              r"ATOMS says 6 but 4 rows follow"),
-    ("nonnumeric", r"nonnumeric\.dump: frame 2, line 34: column 'z' holds 'O\.5', not a number"),
-    ("unknown-column", r"unknown-column\.dump: frame 2, line 32: unknown column 'zz'\. Did you mean 'z'\?"),
-    ("bad-int", r"bad-int\.dump: frame 2, line 33: integer column 'id' holds 1\.5"),
-])
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        # frame 2 starts on line 24: its atom count is on line 27, ITEM: ATOMS on 32, rows from 33
+        ("truncated", r"truncated\.dump: frame 2, line 27: the frame is truncated"),
+        (
+            "lying",
+            r"lying\.dump: frame 2, line 27: the header lies about the atom count: ITEM: NUMBER OF "
+            r"ATOMS says 6 but 4 rows follow",
+        ),
+        ("nonnumeric", r"nonnumeric\.dump: frame 2, line 34: column 'z' holds 'O\.5', not a number"),
+        (
+            "unknown-column",
+            r"unknown-column\.dump: frame 2, line 32: unknown column 'zz'\. Did you mean 'z'\?",
+        ),
+        ("bad-int", r"bad-int\.dump: frame 2, line 33: integer column 'id' holds 1\.5"),
+    ],
+)
 def test_error_names_file_frame_and_line(tmp_path, case, message):
     good = dump_text([3, 2])
     text = {
@@ -215,7 +251,10 @@ def test_fuzz_mutated_dump_raises_only_read_error(tmp_path, data):
     try:
         trajectory = DumpTrajectory([path])
         for frame in trajectory:
-            assert all(len(v) == len(frame.arrays["id"]) for v in frame.arrays.values()) if "id" in \
-                frame.arrays else True
+            assert (
+                all(len(v) == len(frame.arrays["id"]) for v in frame.arrays.values())
+                if "id" in frame.arrays
+                else True
+            )
     except ReadError:
         pass

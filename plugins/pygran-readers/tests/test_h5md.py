@@ -56,8 +56,13 @@ def test_standard_layout_in_plain_h5py(tmp_path):
 
 
 def test_triclinic_box(tmp_path):
-    frame = Frame({"id": np.array([1]), "x": np.array([0.5])}, timestep=1, time=0.5,
-                  box=np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 3.0]]), attrs={"tilt": np.array([0.1, 0.2, 0.3])})
+    frame = Frame(
+        {"id": np.array([1]), "x": np.array([0.5])},
+        timestep=1,
+        time=0.5,
+        box=np.array([[0.0, 1.0], [0.0, 2.0], [0.0, 3.0]]),
+        attrs={"tilt": np.array([0.1, 0.2, 0.3])},
+    )
     with open_writer(tmp_path / "t.h5", format="h5md") as out:
         out.write_frame(frame)
     back = open_trajectory(tmp_path / "t.h5")[0]
@@ -65,8 +70,9 @@ def test_triclinic_box(tmp_path):
     assert back.time == 0.5
     np.testing.assert_array_equal(back.attrs["tilt"], [0.1, 0.2, 0.3])
     with h5py.File(tmp_path / "t.h5") as f:
-        np.testing.assert_array_equal(f["particles/all/box/edges/value"][0],
-                                      [[1, 0, 0], [0.1, 2, 0], [0.2, 0.3, 3]])
+        np.testing.assert_array_equal(
+            f["particles/all/box/edges/value"][0], [[1, 0, 0], [0.1, 2, 0], [0.2, 0.3, 3]]
+        )
 
 
 def test_changing_columns_is_refused(tmp_path):

@@ -25,8 +25,9 @@ class TestSTLBinary(FormatConformance):
         frames = []
         for k, n in enumerate((1, 4, 7)):
             points, cells = triangles(n)
-            meshio.write(tmp_path / f"wall{k}.stl", meshio.Mesh(points, [("triangle", cells)]),
-                         binary=self.binary)
+            meshio.write(
+                tmp_path / f"wall{k}.stl", meshio.Mesh(points, [("triangle", cells)]), binary=self.binary
+            )
             frames.append(Frame({"points": points, "cells": cells, "cell_types": np.full(n, 5)}))
         return str(tmp_path / "wall*.stl"), frames
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from pygran_readers.vtk import VTKTrajectory
 from vtkmodules.util.numpy_support import numpy_to_vtk
 from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkUnstructuredGrid
@@ -17,7 +18,6 @@ from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, open_trajectory
 from pygran_core.testing import FormatConformance
-from pygran_readers.vtk import VTKTrajectory
 
 TRIANGLE, QUAD, VERTEX = 5, 9, 1
 
@@ -29,8 +29,14 @@ def sample_meshes():
     for n in (4, 9, 16):
         points = rng.random((n, 3))
         cells = [[i, i + 1, i + 2] for i in range(n - 3)] + [[0, 1, 2, 3]]
-        meshes.append((points, cells, {"temperature": rng.random(n)},
-                       {"meshid": np.arange(len(cells), dtype=np.int32), "v": rng.random((len(cells), 3))}))
+        meshes.append(
+            (
+                points,
+                cells,
+                {"temperature": rng.random(n)},
+                {"meshid": np.arange(len(cells), dtype=np.int32), "v": rng.random((len(cells), 3))},
+            )
+        )
     return meshes
 
 
@@ -39,8 +45,11 @@ def expected_frame(points, cells, point_data, cell_data):
     table = np.full((len(cells), width), -1)
     for i, c in enumerate(cells):
         table[i, : len(c)] = c
-    arrays = {"points": points, "cells": table,
-              "cell_types": np.array([TRIANGLE if len(c) == 3 else QUAD for c in cells])}
+    arrays = {
+        "points": points,
+        "cells": table,
+        "cell_types": np.array([TRIANGLE if len(c) == 3 else QUAD for c in cells]),
+    }
     arrays.update(point_data)
     arrays.update(cell_data)
     return Frame(arrays)
@@ -134,9 +143,19 @@ class TestXMLUnstructured(_VTKCase):
     def write(self, path, mesh):
         points, cells, point_data, cell_data = mesh
         # meshio groups cells by type: triangles first, then the quad, as sample_meshes has them
-        blocks = [("triangle", [c for c in cells if len(c) == 3]), ("quad", [c for c in cells if len(c) == 4])]
-        meshio.write(path, meshio.Mesh(points, blocks, point_data=point_data,
-                                       cell_data={k: [v[:-1], v[-1:]] for k, v in cell_data.items()}))
+        blocks = [
+            ("triangle", [c for c in cells if len(c) == 3]),
+            ("quad", [c for c in cells if len(c) == 4]),
+        ]
+        meshio.write(
+            path,
+            meshio.Mesh(
+                points,
+                blocks,
+                point_data=point_data,
+                cell_data={k: [v[:-1], v[-1:]] for k, v in cell_data.items()},
+            ),
+        )
 
 
 def test_hopper_mesh_sequence(fixtures, tmp_path):
@@ -154,10 +173,16 @@ def test_hopper_mesh_sequence(fixtures, tmp_path):
     assert with_velocity == 20  # files with a "v 3 320 double" field (the valve moving)
     frame = meshes[-1]
     # the first POINTS row and the first POLYGONS row of mesh30000.vtk
-    np.testing.assert_allclose(frame.arrays["points"][:3],
-                               [[0, 0.000825, 0.00225], [0, 0.0009125, 0.002625],
-                                [0.00038118, 0.000825304, 0.00261034]], rtol=1e-7)
-    assert frame.arrays["cells"][0].tolist() == [0, 1, 2] and frame.arrays["cells"][-1].tolist() == [957, 958, 959]
+    np.testing.assert_allclose(
+        frame.arrays["points"][:3],
+        [[0, 0.000825, 0.00225], [0, 0.0009125, 0.002625], [0.00038118, 0.000825304, 0.00261034]],
+        rtol=1e-7,
+    )
+    assert frame.arrays["cells"][0].tolist() == [0, 1, 2] and frame.arrays["cells"][-1].tolist() == [
+        957,
+        958,
+        959,
+    ]
     assert (frame.arrays["cell_types"] == TRIANGLE).all()
     meshid = frame.arrays["meshid"]
     assert meshid[:3].tolist() == [0, 1, 2] and meshid[223] == 223 and meshid[224] == 0 and meshid[-1] == 95
@@ -197,9 +222,11 @@ def test_particles_as_points(tmp_path):
 
 
 def test_vtk51_offsets_layout(tmp_path):
-    text = ("# vtk DataFile Version 5.1\nvtk output\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n"
-            "0 0 0 1 0 0 0 1 0 1 1 0\nPOLYGONS 3 7\nOFFSETS vtktypeint64\n0 3 7\n"
-            "CONNECTIVITY vtktypeint64\n0 1 2 0 1 3 2\n")
+    text = (
+        "# vtk DataFile Version 5.1\nvtk output\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n"
+        "0 0 0 1 0 0 0 1 0 1 1 0\nPOLYGONS 3 7\nOFFSETS vtktypeint64\n0 3 7\n"
+        "CONNECTIVITY vtktypeint64\n0 1 2 0 1 3 2\n"
+    )
     (tmp_path / "m.vtk").write_text(text)
     frame = open_trajectory(tmp_path / "m.vtk")[0]
     assert frame.arrays["cells"].tolist() == [[0, 1, 2, -1], [0, 1, 3, 2]]

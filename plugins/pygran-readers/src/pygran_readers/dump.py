@@ -33,8 +33,14 @@ KNOWN_COLUMNS = INT_COLUMNS | frozenset(
 #: Custom columns: computes, fixes, variables and per-atom properties, optionally indexed.
 CUSTOM_COLUMN = re.compile(r"^(c|f|v|d|i|d2|i2)_[A-Za-z0-9_\-]+(\[\d+\])*$")
 #: Scaled column -> unscaled name and axis.
-SCALED = {"xs": ("x", 0), "ys": ("y", 1), "zs": ("z", 2), "xsu": ("xu", 0), "ysu": ("yu", 1),
-          "zsu": ("zu", 2)}
+SCALED = {
+    "xs": ("x", 0),
+    "ys": ("y", 1),
+    "zs": ("z", 2),
+    "xsu": ("xu", 0),
+    "ysu": ("yu", 1),
+    "zsu": ("zu", 2),
+}
 _CHUNK = 1 << 24
 _FRAME_START = re.compile(rb"^(ITEM: TIME(?:STEP)?)[ \t\r]*$", re.MULTILINE)
 
@@ -88,8 +94,16 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
             head, problem = _read_chunk(handle)
             first_line = head.split(b"\n", 1)[0].rstrip()
             if not first_line.startswith(b"ITEM:"):
-                return [_Block(file_index, 0, len(head), 1, "not a LAMMPS dump: the first line is "
-                               f"{first_line[:60].decode('latin-1')!r}, not an ITEM: line")]
+                return [
+                    _Block(
+                        file_index,
+                        0,
+                        len(head),
+                        1,
+                        "not a LAMMPS dump: the first line is "
+                        f"{first_line[:60].decode('latin-1')!r}, not an ITEM: line",
+                    )
+                ]
             # A frame starts at ITEM: TIME when present (LAMMPS writes it before the
             # timestep), else at ITEM: TIMESTEP; ITEM: UNITS appears in the first frame only.
             found = _FRAME_START.search(head)
@@ -100,7 +114,7 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
             while True:
                 pos = buf.find(marker)
                 while pos >= 0:
-                    after = buf[pos + len(marker): pos + len(marker) + 1]
+                    after = buf[pos + len(marker) : pos + len(marker) + 1]
                     if after in (b"\n", b"\r", b" ", b"\t") and skip:
                         skip -= 1
                     elif after in (b"\n", b"\r", b" ", b"\t"):
@@ -201,11 +215,17 @@ class DumpTrajectory(Trajectory):
         block = self._blocks[index % self.n_frames]
         if block.problem is not None:
             raise self._error(index, block.line, block.problem)
-        head = self._read_bytes(_Block(block.file, block.start, min(block.end, block.start + 65536),
-                                       block.line))
+        head = self._read_bytes(
+            _Block(block.file, block.start, min(block.end, block.start + 65536), block.line)
+        )
         header = self._parse_header(index % self.n_frames, head)
-        return {"timestep": header.timestep, "natoms": header.natoms, "box": header.box,
-                "boundary": header.boundary, "columns": header.columns}
+        return {
+            "timestep": header.timestep,
+            "natoms": header.natoms,
+            "box": header.box,
+            "boundary": header.boundary,
+            "columns": header.columns,
+        }
 
     def _parse_header(self, index: int, data: bytes) -> _Header:
         header = _Header()
@@ -277,8 +297,10 @@ class DumpTrajectory(Trajectory):
             if name in KNOWN_COLUMNS or name in self.extra_columns or CUSTOM_COLUMN.match(name):
                 continue
             raise self._error(
-                index, line, f"unknown column {name!r}.{did_you_mean(name, KNOWN_COLUMNS)} "
-                "Pass extra_columns=[...] to read it as floats."
+                index,
+                line,
+                f"unknown column {name!r}.{did_you_mean(name, KNOWN_COLUMNS)} "
+                "Pass extra_columns=[...] to read it as floats.",
             )
         if len(set(columns)) != len(columns):
             raise self._error(index, line, f"repeated column names in {columns}")
@@ -287,20 +309,27 @@ class DumpTrajectory(Trajectory):
 
     def _parse_atoms(self, index: int, data: bytes, header: _Header) -> np.ndarray:
         assert header.columns is not None and header.natoms is not None
-        body = data[header.body:]
+        body = data[header.body :]
         ncols, natoms = len(header.columns), header.natoms
         if natoms == 0:
             if body.strip():
                 raise self._error(index, header.body_line, "the header says 0 atoms but rows follow")
             return np.empty((0, ncols))
-        try:
-            table = np.loadtxt(io.BytesIO(body), dtype=np.float64, comments=None, ndmin=2,
-                               encoding="latin-1")
-        except ValueError as exc:
-            raise self._locate(index, body, header, str(exc)) from None
+        if not body.strip():
+            table = np.empty((0, ncols))
+        else:
+            try:
+                table = np.loadtxt(
+                    io.BytesIO(body), dtype=np.float64, comments=None, ndmin=2, encoding="latin-1"
+                )
+            except ValueError as exc:
+                raise self._locate(index, body, header, str(exc)) from None
         if table.shape[1] != ncols:
-            raise self._error(index, header.body_line,
-                              f"rows have {table.shape[1]} fields but ITEM: ATOMS names {ncols} columns")
+            raise self._error(
+                index,
+                header.body_line,
+                f"rows have {table.shape[1]} fields but ITEM: ATOMS names {ncols} columns",
+            )
         if table.shape[0] != natoms:
             last = self._blocks[index].end == self._file_end(index)
             if table.shape[0] < natoms and last:
@@ -308,7 +337,8 @@ class DumpTrajectory(Trajectory):
             else:
                 reason = "the header lies about the atom count"
             raise self._error(
-                index, header.natoms_line,
+                index,
+                header.natoms_line,
                 f"{reason}: ITEM: NUMBER OF ATOMS says {natoms} but {table.shape[0]} rows follow",
             )
         return table
@@ -349,8 +379,9 @@ class DumpTrajectory(Trajectory):
                     as_int = column.astype(np.int64)
                 if not np.array_equal(as_int, column):
                     row = int(np.flatnonzero(as_int != column)[0])
-                    raise self._error(index, header.body_line + row,
-                                      f"integer column {name!r} holds {float(column[row])!r}")
+                    raise self._error(
+                        index, header.body_line + row, f"integer column {name!r} holds {float(column[row])!r}"
+                    )
                 arrays[name] = as_int
             else:
                 arrays[name] = np.ascontiguousarray(column)
@@ -363,12 +394,19 @@ class DumpTrajectory(Trajectory):
             attrs["tilt"] = header.tilt
         if header.units is not None:
             attrs["units"] = header.units
-        return Frame(arrays, timestep=header.timestep, time=header.time, box=header.box,
-                     boundary=header.boundary, attrs=attrs)
+        return Frame(
+            arrays,
+            timestep=header.timestep,
+            time=header.time,
+            box=header.box,
+            boundary=header.boundary,
+            attrs=attrs,
+        )
 
 
-def _unscale(arrays: dict[str, np.ndarray], bounds: np.ndarray,
-             tilt: np.ndarray | None) -> dict[str, np.ndarray]:
+def _unscale(
+    arrays: dict[str, np.ndarray], bounds: np.ndarray, tilt: np.ndarray | None
+) -> dict[str, np.ndarray]:
     """Replace ``xs ys zs`` (and ``xsu ysu zsu``) by box coordinates, triclinic included."""
     xy, xz, yz = tilt if tilt is not None else (0.0, 0.0, 0.0)
     lo = bounds[:, 0] - [min(0.0, xy, xz, xy + xz), min(0.0, yz), 0.0]

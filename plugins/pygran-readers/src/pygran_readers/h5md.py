@@ -39,8 +39,16 @@ VECTORS = {
 }
 #: H5MD scalar element names that differ from the dump column.
 RENAMED = {"type": "species"}
-SI_UNITS = {"position": "m", "velocity": "m s-1", "force": "kg m s-2", "radius": "m",
-            "diameter": "m", "mass": "kg", "density": "kg m-3", "time": "s"}
+SI_UNITS = {
+    "position": "m",
+    "velocity": "m s-1",
+    "force": "kg m s-2",
+    "radius": "m",
+    "diameter": "m",
+    "mass": "kg",
+    "density": "kg m-3",
+    "time": "s",
+}
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _PARTICLE_CHUNK = 65536
 
@@ -61,8 +69,9 @@ def _elements(columns: Sequence[str]) -> list[tuple[str, tuple[str, ...]]]:
     for name in columns:
         if name in taken:
             continue
-        vector = next((e for e, cols in VECTORS.items() if name in cols
-                       and all(c in columns for c in cols)), None)
+        vector = next(
+            (e for e, cols in VECTORS.items() if name in cols and all(c in columns for c in cols)), None
+        )
         if vector is not None:
             elements.append((vector, VECTORS[vector]))
             taken.update(VECTORS[vector])
@@ -79,8 +88,13 @@ class H5MDWriter(TrajectoryWriter):
     name to unit string, written as ``unit`` attributes), ``compression`` level (gzip 0-9).
     """
 
-    def __init__(self, path: PathLike, group: str = "all", units: str | dict[str, str] | None = None,
-                 compression: int = 4) -> None:
+    def __init__(
+        self,
+        path: PathLike,
+        group: str = "all",
+        units: str | dict[str, str] | None = None,
+        compression: int = 4,
+    ) -> None:
         if isinstance(units, str) and units != "si":
             raise UnsupportedFeature(f"H5MD units must be 'si' or a mapping, got {units!r}")
         self.path = Path(path)
@@ -123,17 +137,23 @@ class H5MDWriter(TrajectoryWriter):
         self._boundary = frame.boundary
         if frame.boundary is not None:
             box.attrs["boundary"] = np.array(
-                ["periodic" if b.startswith("p") else "none" for b in frame.boundary], dtype=h5py.string_dtype()
+                ["periodic" if b.startswith("p") else "none" for b in frame.boundary],
+                dtype=h5py.string_dtype(),
             )
             box.attrs["pygran_boundary"] = " ".join(frame.boundary)
         self._triclinic = "tilt" in frame.attrs
-        self._edges = self._element(box, "edges", (0, 3, 3) if self._triclinic else (0, 3),
-                                    np.float64, np.nan)["value"]
+        self._edges = self._element(
+            box, "edges", (0, 3, 3) if self._triclinic else (0, 3), np.float64, np.nan
+        )["value"]
         self._bounds = self._element(box, "pygran_bounds", (0, 3, 2), np.float64, np.nan)["value"]
-        self._tilt = (self._element(box, "pygran_tilt", (0, 3), np.float64, np.nan)["value"]
-                      if self._triclinic else None)
-        self._number = self._element(f.create_group(f"observables/{self.group}"), "particle_number",
-                                     (0,), np.int64, -1)["value"]
+        self._tilt = (
+            self._element(box, "pygran_tilt", (0, 3), np.float64, np.nan)["value"]
+            if self._triclinic
+            else None
+        )
+        self._number = self._element(
+            f.create_group(f"observables/{self.group}"), "particle_number", (0,), np.int64, -1
+        )["value"]
         self._columns = columns
         f.swmr_mode = True
 
@@ -150,9 +170,15 @@ class H5MDWriter(TrajectoryWriter):
             group["time"] = self._clock["time"]
         chunks = (1, *(min(max(s, 1), _PARTICLE_CHUNK) for s in shape[1:2]), *shape[2:])
         value = group.create_dataset(
-            "value", shape=shape, maxshape=(None, *(None for _ in shape[1:2]), *shape[2:]), dtype=dtype,
-            chunks=chunks, fillvalue=fill, compression="gzip" if self.compression else None,
-            compression_opts=self.compression or None, shuffle=bool(self.compression),
+            "value",
+            shape=shape,
+            maxshape=(None, *(None for _ in shape[1:2]), *shape[2:]),
+            dtype=dtype,
+            chunks=chunks,
+            fillvalue=fill,
+            compression="gzip" if self.compression else None,
+            compression_opts=self.compression or None,
+            shuffle=bool(self.compression),
         )
         if name in self.units:
             value.attrs["unit"] = self.units[name]
@@ -178,8 +204,10 @@ class H5MDWriter(TrajectoryWriter):
                 f"out for {self._columns}; write frames with different columns to separate files"
             )
         if frame.boundary != self._boundary and frame.boundary is not None:
-            raise UnsupportedFeature(f"H5MD frame {self.count} changes the boundary flags to "
-                                     f"{frame.boundary} from {self._boundary}")
+            raise UnsupportedFeature(
+                f"H5MD frame {self.count} changes the boundary flags to "
+                f"{frame.boundary} from {self._boundary}"
+            )
         n = len(next(iter(frame.arrays.values()))) if frame.arrays else 0
         k = self.count
         step = frame.timestep if frame.timestep is not None else k
@@ -192,14 +220,20 @@ class H5MDWriter(TrajectoryWriter):
                 value.resize(n, axis=1)
             value.resize(k + 1, axis=0)
             if n:
-                data = (np.column_stack([frame.arrays[c] for c in cols]) if len(cols) == 3
-                        else np.asarray(frame.arrays[cols[0]]))
+                data = (
+                    np.column_stack([frame.arrays[c] for c in cols])
+                    if len(cols) == 3
+                    else np.asarray(frame.arrays[cols[0]])
+                )
                 value[k, :n] = data
         box = frame.box if frame.box is not None else np.full((3, 2), np.nan)
         box = np.asarray(box, dtype=np.float64)
         lengths = box[:, 1] - box[:, 0]
-        for dataset, data in ((self._edges, _edges(lengths, frame.attrs.get("tilt"), self._triclinic)),
-                              (self._bounds, box), (self._tilt, frame.attrs.get("tilt"))):
+        for dataset, data in (
+            (self._edges, _edges(lengths, frame.attrs.get("tilt"), self._triclinic)),
+            (self._bounds, box),
+            (self._tilt, frame.attrs.get("tilt")),
+        ):
             if dataset is not None:
                 dataset.resize(k + 1, axis=0)
                 dataset[k] = data
@@ -258,9 +292,7 @@ class H5MDTrajectory(Trajectory):
             raise ReadError(f"{self.path}: no particle group {group!r}; the file has {names}")
         self.group = group
         root = particles[group]
-        self._elements: list[tuple[str, Any]] = [
-            (name, obj) for name, obj in root.items() if name != "box"
-        ]
+        self._elements: list[tuple[str, Any]] = [(name, obj) for name, obj in root.items() if name != "box"]
         lengths = [len(obj["value"]) for _, obj in self._elements if isinstance(obj, h5py.Group)]
         number = self._file.get(f"observables/{group}/particle_number")
         self._number = number["value"] if number is not None else None
@@ -268,8 +300,11 @@ class H5MDTrajectory(Trajectory):
             lengths.append(len(self._number))
         box = root.get("box")
         self._box = box
-        self._box_parts = {n: box[n] for n in ("edges", "pygran_bounds", "pygran_tilt")
-                           if box is not None and isinstance(box.get(n), h5py.Group)}
+        self._box_parts = {
+            n: box[n]
+            for n in ("edges", "pygran_bounds", "pygran_tilt")
+            if box is not None and isinstance(box.get(n), h5py.Group)
+        }
         lengths += [len(g["value"]) for g in self._box_parts.values()]
         clock = next((obj for _, obj in self._elements if isinstance(obj, h5py.Group)), None)
         if clock is None:
@@ -330,5 +365,11 @@ class H5MDTrajectory(Trajectory):
         if "pygran_tilt" in self._box_parts:
             attrs["tilt"] = self._box_parts["pygran_tilt"]["value"][index]
         time = float(self._time[index])
-        return Frame(arrays, timestep=int(self._step[index]), time=None if np.isnan(time) else time,
-                     box=box, boundary=self._boundary, attrs=attrs)
+        return Frame(
+            arrays,
+            timestep=int(self._step[index]),
+            time=None if np.isnan(time) else time,
+            box=box,
+            boundary=self._boundary,
+            attrs=attrs,
+        )

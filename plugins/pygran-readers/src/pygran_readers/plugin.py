@@ -12,22 +12,49 @@ from pygran_readers import dump, h5md, stl, vtk
 
 @hookimpl
 def pygran_readers():
-    yield ReaderSpec(name="dump", extensions=(".dump", ".dump.gz", ".lammpstrj", ".lammpstrj.gz"),
-                     open=dump.DumpTrajectory, can_open=dump.can_open,
-                     description="LIGGGHTS/LAMMPS text dump (multi-frame, globs, gzip)")
-    yield ReaderSpec(name="vtk", extensions=(".vtk", ".vtu", ".vtp"), open=vtk.VTKTrajectory,
-                     can_open=vtk.can_open, kinds=frozenset({"mesh", "particles"}),
-                     description="VTK legacy and XML meshes or particle points, one frame per file")
-    yield ReaderSpec(name="stl", extensions=(".stl",), open=stl.STLTrajectory,
-                     kinds=frozenset({"mesh"}), description="STL surface mesh (ASCII or binary)")
-    yield ReaderSpec(name="h5md", extensions=(".h5md", ".h5", ".hdf5"), open=h5md.H5MDTrajectory,
-                     can_open=h5md.can_open, description="HDF5 in the H5MD layout")
+    yield ReaderSpec(
+        name="dump",
+        extensions=(".dump", ".dump.gz", ".lammpstrj", ".lammpstrj.gz"),
+        open=dump.DumpTrajectory,
+        can_open=dump.can_open,
+        description="LIGGGHTS/LAMMPS text dump (multi-frame, globs, gzip)",
+    )
+    yield ReaderSpec(
+        name="vtk",
+        extensions=(".vtk", ".vtu", ".vtp"),
+        open=vtk.VTKTrajectory,
+        can_open=vtk.can_open,
+        kinds=frozenset({"mesh", "particles"}),
+        description="VTK legacy and XML meshes or particle points, one frame per file",
+    )
+    yield ReaderSpec(
+        name="stl",
+        extensions=(".stl",),
+        open=stl.STLTrajectory,
+        kinds=frozenset({"mesh"}),
+        description="STL surface mesh (ASCII or binary)",
+    )
+    yield ReaderSpec(
+        name="h5md",
+        extensions=(".h5md", ".h5", ".hdf5"),
+        open=h5md.H5MDTrajectory,
+        can_open=h5md.can_open,
+        description="HDF5 in the H5MD layout",
+    )
 
 
 @hookimpl
 def pygran_writers():
-    yield WriterSpec(name="dump", extensions=(".dump",), open=dump.DumpWriter,
-                     description="LIGGGHTS/LAMMPS text dump; '*' in the name writes a file per frame")
-    yield WriterSpec(name="h5md", extensions=(".h5md", ".h5", ".hdf5"), open=h5md.H5MDWriter,
-                     description="HDF5 in the H5MD layout, flushed frame by frame",
-                     options={"group": "all", "units": None, "compression": 4})
+    yield WriterSpec(
+        name="dump",
+        extensions=(".dump",),
+        open=dump.DumpWriter,
+        description="LIGGGHTS/LAMMPS text dump; '*' in the name writes a file per frame",
+    )
+    yield WriterSpec(
+        name="h5md",
+        extensions=(".h5md", ".h5", ".hdf5"),
+        open=h5md.H5MDWriter,
+        description="HDF5 in the H5MD layout, flushed frame by frame",
+        options={"group": "all", "units": None, "compression": 4},
+    )

@@ -33,9 +33,13 @@ class STLTrajectory(Trajectory):
                 mesh = meshio.read(path, file_format="stl")
             triangles = np.asarray(mesh.get_cells_type("triangle"), dtype=np.int64).reshape(-1, 3)
         except Exception as exc:  # noqa: BLE001 - meshio raises many kinds on bad files
-            raise ReadError(f"{path}: frame {index}: not a readable STL file: {type(exc).__name__}: {exc}") \
-                from exc
+            raise ReadError(
+                f"{path}: frame {index}: not a readable STL file: {type(exc).__name__}: {exc}"
+            ) from exc
         points = np.asarray(mesh.points, dtype=np.float64) * self.scale
-        arrays = {"points": points, "cells": triangles,
-                  "cell_types": np.full(len(triangles), TRIANGLE, dtype=np.int64)}
+        arrays = {
+            "points": points,
+            "cells": triangles,
+            "cell_types": np.full(len(triangles), TRIANGLE, dtype=np.int64),
+        }
         return Frame(arrays, attrs={"kind": "mesh", "point_data": [], "cell_data": [], "scale": self.scale})

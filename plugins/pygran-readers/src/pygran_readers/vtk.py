@@ -26,18 +26,37 @@ from pygran_core.io import Frame, PathLike, Trajectory
 
 #: legacy type name -> big-endian binary dtype
 DTYPES = {
-    "unsigned_char": ">u1", "char": ">i1", "unsigned_short": ">u2", "short": ">i2",
-    "unsigned_int": ">u4", "int": ">i4", "unsigned_long": ">u8", "long": ">i8",
-    "float": ">f4", "double": ">f8", "vtktypeint64": ">i8", "vtktypeuint64": ">u8",
-    "vtkidtype": ">i8", "vtktypeint32": ">i4",
+    "unsigned_char": ">u1",
+    "char": ">i1",
+    "unsigned_short": ">u2",
+    "short": ">i2",
+    "unsigned_int": ">u4",
+    "int": ">i4",
+    "unsigned_long": ">u8",
+    "long": ">i8",
+    "float": ">f4",
+    "double": ">f8",
+    "vtktypeint64": ">i8",
+    "vtktypeuint64": ">u8",
+    "vtkidtype": ">i8",
+    "vtktypeint32": ">i4",
 }
 #: polydata section -> VTK cell type of its cells (by size where it matters)
 POLY_SECTIONS = ("VERTICES", "LINES", "POLYGONS", "TRIANGLE_STRIPS")
 VERTEX, POLY_VERTEX = 1, 2
 _POLY_TYPE = {"VERTICES": (1, 2), "LINES": (3, 4), "TRIANGLE_STRIPS": (6, 6)}
 _POLYGON_TYPE = {3: 5, 4: 9}  # triangle, quad; other sizes are polygons (7)
-MESHIO_TYPES = {"vertex": 1, "line": 3, "triangle": 5, "polygon": 7, "quad": 9, "tetra": 10,
-                "hexahedron": 12, "wedge": 13, "pyramid": 14}
+MESHIO_TYPES = {
+    "vertex": 1,
+    "line": 3,
+    "triangle": 5,
+    "polygon": 7,
+    "quad": 9,
+    "tetra": 10,
+    "hexahedron": 12,
+    "wedge": 13,
+    "pyramid": 14,
+}
 
 
 def can_open(path: Path) -> bool:
@@ -77,7 +96,7 @@ class _Legacy:
         while self.pos < len(self.data):
             end = self.data.find(b"\n", self.pos)
             end = len(self.data) if end < 0 else end
-            text = self.data[self.pos:end].decode("latin-1").strip()
+            text = self.data[self.pos : end].decode("latin-1").strip()
             start, self.pos = self.pos, end + 1
             if text:
                 self.last = start
@@ -123,8 +142,9 @@ class _Legacy:
             except ValueError:
                 values = np.empty(0)
             if len(values) != count:
-                raise self.fail(f"expected {count} {type_name} numbers, found a non-number or fewer "
-                                f"values", start)
+                raise self.fail(
+                    f"expected {count} {type_name} numbers, found a non-number or fewer values", start
+                )
         return values
 
     def _token_end(self, count: int) -> int:
@@ -158,8 +178,9 @@ def read_legacy(path: Path) -> Mesh:
     cur.binary = mode == "BINARY"
     words = cur.words(2, "DATASET")
     if words[0].upper() != "DATASET" or words[1].upper() not in ("POLYDATA", "UNSTRUCTURED_GRID"):
-        raise cur.fail(f"only DATASET POLYDATA and UNSTRUCTURED_GRID are read, found {' '.join(words)!r}",
-                       cur.last)
+        raise cur.fail(
+            f"only DATASET POLYDATA and UNSTRUCTURED_GRID are read, found {' '.join(words)!r}", cur.last
+        )
     points = None
     sections: list[tuple[str, list[np.ndarray]]] = []
     cell_types: np.ndarray | None = None
@@ -192,14 +213,23 @@ def read_legacy(path: Path) -> Mesh:
             target = point_data if key == "POINT_DATA" else cell_data
             target_size = sizes[key]
         elif key == "METADATA":
-            while (skip := cur.line()) is not None and skip.upper().startswith(("INFORMATION", "NAME", "DATA", "COMPONENT")):
+            while (skip := cur.line()) is not None and skip.upper().startswith(
+                ("INFORMATION", "NAME", "DATA", "COMPONENT")
+            ):
                 pass
             if skip is not None:
                 cur.pos = cur.last  # not metadata: read it as a section
         elif key == "FIELD" and target is None:  # dataset-level field data (e.g. TIME)
             _read_attribute(cur, words, field_data, None)
-        elif target is not None and key in ("SCALARS", "VECTORS", "NORMALS", "TENSORS",
-                                            "TEXTURE_COORDINATES", "FIELD", "LOOKUP_TABLE"):
+        elif target is not None and key in (
+            "SCALARS",
+            "VECTORS",
+            "NORMALS",
+            "TENSORS",
+            "TEXTURE_COORDINATES",
+            "FIELD",
+            "LOOKUP_TABLE",
+        ):
             _read_attribute(cur, words, target, target_size)
         else:
             raise cur.fail(f"unknown or misplaced section {text[:60]!r}", cur.last)
@@ -235,7 +265,7 @@ def _read_cells(cur: _Legacy, n: int, size: int) -> list[np.ndarray]:
     for _ in range(n):
         if at >= size or flat[at] < 0 or at + 1 + flat[at] > size:
             raise cur.fail("the cell list is shorter than its header says or has a bad cell size")
-        cells.append(flat[at + 1: at + 1 + flat[at]])
+        cells.append(flat[at + 1 : at + 1 + flat[at]])
         at += 1 + int(flat[at])
     if at != size:
         raise cur.fail(f"the cell list has {size - at} values more than its {n} cells use")
@@ -280,15 +310,24 @@ def _read_attribute(cur: _Legacy, words: list[str], target: dict[str, np.ndarray
         k, type_name = (9 if key == "TENSORS" else 3), words[2]
     assert n is not None
     values = cur.numbers(k * n, type_name)
-    target[name] = values.reshape(n, 3, 3) if key == "TENSORS" else (values.reshape(n, k) if k > 1 else values)
+    target[name] = (
+        values.reshape(n, 3, 3) if key == "TENSORS" else (values.reshape(n, k) if k > 1 else values)
+    )
 
 
-def _assemble(cur: _Legacy, points: np.ndarray, sections: list[tuple[str, list[np.ndarray]]],
-              cell_types: np.ndarray | None, point_data: dict[str, np.ndarray],
-              cell_data: dict[str, np.ndarray]) -> Mesh:
+def _assemble(
+    cur: _Legacy,
+    points: np.ndarray,
+    sections: list[tuple[str, list[np.ndarray]]],
+    cell_types: np.ndarray | None,
+    point_data: dict[str, np.ndarray],
+    cell_data: dict[str, np.ndarray],
+) -> Mesh:
     cells: list[np.ndarray] = []
     types: list[int] = []
-    for key, section in sorted(sections, key=lambda s: POLY_SECTIONS.index(s[0]) if s[0] in POLY_SECTIONS else 0):
+    for key, section in sorted(
+        sections, key=lambda s: POLY_SECTIONS.index(s[0]) if s[0] in POLY_SECTIONS else 0
+    ):
         cells.extend(section)
         if key == "POLYGONS":
             types.extend(_POLYGON_TYPE.get(len(c), 7) for c in section)
@@ -329,9 +368,13 @@ def read_vtu(path: Path) -> Mesh:
         types.extend([MESHIO_TYPES[block.type]] * len(block.data))
         for name, blocks in mesh.cell_data.items():
             cell_data[name].append(np.asarray(blocks[block_index]))
-    return Mesh(np.asarray(mesh.points, dtype=np.float64), cells, types,
-                {k: np.asarray(v) for k, v in mesh.point_data.items()},
-                {k: np.concatenate(v) for k, v in cell_data.items()})
+    return Mesh(
+        np.asarray(mesh.points, dtype=np.float64),
+        cells,
+        types,
+        {k: np.asarray(v) for k, v in mesh.point_data.items()},
+        {k: np.concatenate(v) for k, v in cell_data.items()},
+    )
 
 
 def read_vtp(path: Path) -> Mesh:
@@ -353,8 +396,12 @@ def read_vtp(path: Path) -> Mesh:
     coords = vtk_to_numpy(points.GetData()).astype(np.float64) if points is not None else np.empty((0, 3))
     cells: list[np.ndarray] = []
     types: list[int] = []
-    for key, get in (("VERTICES", poly.GetVerts), ("LINES", poly.GetLines),
-                     ("POLYGONS", poly.GetPolys), ("TRIANGLE_STRIPS", poly.GetStrips)):
+    for key, get in (
+        ("VERTICES", poly.GetVerts),
+        ("LINES", poly.GetLines),
+        ("POLYGONS", poly.GetPolys),
+        ("TRIANGLE_STRIPS", poly.GetStrips),
+    ):
         array = get()
         offsets = vtk_to_numpy(array.GetOffsetsArray()).astype(np.int64)
         connectivity = vtk_to_numpy(array.GetConnectivityArray()).astype(np.int64)
@@ -367,8 +414,11 @@ def read_vtp(path: Path) -> Mesh:
             types.extend(one if len(c) == 1 or key == "LINES" and len(c) == 2 else many for c in section)
 
     def arrays(data: Any) -> dict[str, np.ndarray]:
-        return {data.GetArrayName(i): vtk_to_numpy(data.GetArray(i)).copy()
-                for i in range(data.GetNumberOfArrays()) if data.GetArray(i) is not None}
+        return {
+            data.GetArrayName(i): vtk_to_numpy(data.GetArray(i)).copy()
+            for i in range(data.GetNumberOfArrays())
+            if data.GetArray(i) is not None
+        }
 
     return Mesh(coords, cells, types, arrays(poly.GetPointData()), arrays(poly.GetCellData()))
 
@@ -405,14 +455,26 @@ def mesh_frame(mesh: Mesh, kind: str | None) -> Frame:
     cells = np.full((len(mesh.cells), width), -1, dtype=np.int64)
     for row, cell in enumerate(mesh.cells):
         cells[row, : len(cell)] = cell
-    arrays = {"points": mesh.points, "cells": cells, "cell_types": np.asarray(mesh.cell_types, dtype=np.int64)}
-    clash = set(mesh.point_data) & set(mesh.cell_data) | set(arrays) & (set(mesh.point_data) | set(mesh.cell_data))
+    arrays = {
+        "points": mesh.points,
+        "cells": cells,
+        "cell_types": np.asarray(mesh.cell_types, dtype=np.int64),
+    }
+    clash = set(mesh.point_data) & set(mesh.cell_data) | set(arrays) & (
+        set(mesh.point_data) | set(mesh.cell_data)
+    )
     point_keys = {n: f"point:{n}" if n in clash else n for n in mesh.point_data}
     cell_keys = {n: f"cell:{n}" if n in clash else n for n in mesh.cell_data}
     arrays.update({point_keys[n]: v for n, v in mesh.point_data.items()})
     arrays.update({cell_keys[n]: v for n, v in mesh.cell_data.items()})
-    return Frame(arrays, attrs={"kind": "mesh", "point_data": list(point_keys.values()),
-                                "cell_data": list(cell_keys.values())})
+    return Frame(
+        arrays,
+        attrs={
+            "kind": "mesh",
+            "point_data": list(point_keys.values()),
+            "cell_data": list(cell_keys.values()),
+        },
+    )
 
 
 class VTKTrajectory(Trajectory):
