@@ -26,12 +26,24 @@ PathLike = str | os.PathLike[str]
 
 @dataclass
 class Frame:
-    """One snapshot: per-element arrays (all of the same length) plus scalar metadata.
+    """One snapshot: per-element arrays plus scalar metadata.
 
-    ``arrays`` maps column names (``"id"``, ``"x"``, ``"radius"``, ...) to 1-D arrays, or
-    to 2-D arrays for mesh ``points`` / ``cells``. ``box`` is ``(3, 2)`` lower/upper
-    bounds or ``None``; ``boundary`` the LIGGGHTS boundary flags such as
-    ``("pp", "pp", "ff")``; ``timestep`` the step number; ``time`` in the file's units.
+    Particles: ``arrays`` maps LIGGGHTS column names (``"id"``, ``"type"``, ``"x"``,
+    ``"radius"``, ``"vx"``, ``"c_stress[1]"``, ...) to 1-D arrays of one length, ``int64``
+    for ``id``/``type``/``mol`` and ``float64`` otherwise. Scaled coordinates are stored
+    unscaled as ``x y z``.
+
+    Meshes (``attrs["kind"] == "mesh"``): ``points`` is ``(P, 3)`` float64; ``cells`` is
+    ``(C, k)`` int64 point indices, one row per cell, padded with -1 when cells have
+    different sizes (triangles give ``(C, 3)``); ``cell_types`` is ``(C,)`` VTK cell type
+    ids (5 triangle, 9 quad, 7 polygon, 1 vertex); every other key is point data (length
+    P) or cell data (length C), listed in ``attrs["point_data"]`` / ``attrs["cell_data"]``
+    (``(n, k)`` for k-component data; a name that is both gets ``point:``/``cell:``).
+
+    ``box`` is ``(3, 2)`` lower/upper bounds or ``None`` (for a triclinic box, the bounds
+    as a dump writes them, with ``attrs["tilt"] = (xy, xz, yz)``); ``boundary`` the
+    LIGGGHTS boundary flags such as ``("pp", "pp", "ff")``; ``timestep`` the step number;
+    ``time`` in the file's units.
     """
 
     arrays: dict[str, np.ndarray]
