@@ -8,7 +8,8 @@ set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 VENV=${PYGRAN_VENV:-$ROOT/.venv}
-APT_PACKAGES=(python3 python3-venv python3-dev build-essential)
+APT_PACKAGES=(python3 python3-venv python3-dev build-essential
+    liggghts libliggghts-dev openmpi-bin libopenmpi-dev yade)
 PLUGINS=(pygran-readers pygran-native pygran-liggghts pygran-yade)
 
 log() { printf '\033[1m[pygran setup]\033[0m %s\n' "$*" >&2; }
