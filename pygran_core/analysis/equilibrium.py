@@ -51,7 +51,7 @@ class Neighbors:
         reach = max(2 * radii.max(initial=0.0), cutoff or 0.0) * (1 + CONTACT_TOLERANCE)
         pairs = cKDTree(data, boxsize=boxsize).query_pairs(reach, output_type="ndarray") if reach else None
         pairs = np.zeros((0, 2), dtype=np.intp) if pairs is None else pairs.astype(np.intp)
-        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+        pairs = pairs[np.argsort(pairs[:, 0] * len(particles) + pairs[:, 1])]
         delta = data[pairs[:, 1]] - data[pairs[:, 0]]
         if boxsize is not None:
             periodic = boxsize > 0
