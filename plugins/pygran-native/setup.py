@@ -1,8 +1,15 @@
 """Build of the compiled kernels (metadata lives in pyproject.toml)."""
 
+import numpy
 from Cython.Build import cythonize
 from setuptools import Extension, setup
 
-openmp = {"extra_compile_args": ["-O3", "-fopenmp"], "extra_link_args": ["-fopenmp"]}
-extensions = [Extension("pygran_native._kernels", ["src/pygran_native/_kernels.pyx"], **openmp)]
+# -O3 without -ffast-math or -march=native, so results are reproducible across machines;
+# -fno-math-errno only lets sqrt compile to one instruction (same results).
+openmp = {"extra_compile_args": ["-O3", "-fno-math-errno", "-fopenmp"], "extra_link_args": ["-fopenmp"]}
+extensions = [
+    Extension("pygran_native._kernels", ["src/pygran_native/_kernels.pyx"], **openmp),
+    Extension("pygran_native._solver", ["src/pygran_native/_solver.pyx"], include_dirs=[numpy.get_include()],
+              define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")], **openmp),
+]
 setup(ext_modules=cythonize(extensions, language_level=3))

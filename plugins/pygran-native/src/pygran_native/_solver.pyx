@@ -1,0 +1,1614 @@
+# cython: boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""Compiled core of the native DEM solver: data in C arrays, the time-step loop nogil/OpenMP.
+
+Layout (struct of arrays, particles stored in cell order, re-sorted at every neighbour
+rebuild):
+
+- particles: ``x, v, w, f, t, x0`` (3 per particle), ``r, m``, ``type``, ``pid``;
+- half neighbour list (CSR over particles): partner ``nb_j`` (j > i), periodic image
+  code ``nb_s`` (0..26) and ``hs`` history values per pair: tangential displacement (3),
+  the last normal force, and for Thornton-Ning the largest overlap, the unloading
+  curvature radius and the plastic offset;
+- wall list (CSR over particles): wall element ``wl_e`` and its ``hs`` history values;
+- wall elements: planes, cylinders and triangles (with mesh topology and rigid motion).
+
+A contact's tangential history is carried across rebuilds and re-sorts by looking the
+pair up in the previous list (its sign follows the pair's orientation). Pair forces go to
+per-thread buffers with a static schedule and are summed in thread order, so results are
+deterministic for a given thread count.
+"""
+
+from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite
+from libc.stdlib cimport malloc, calloc, realloc, free
+from libc.string cimport memcpy, memset
+from libc.stdint cimport int64_t, uint8_t
+from cython.parallel cimport prange, threadid
+cimport openmp
+
+import numpy as np
+cimport numpy as cnp
+
+cnp.import_array()
+
+DEF MAXCAND = 64
+DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
+
+cdef enum:
+    HOOKE = 0
+    HERTZ = 1
+    THORNTON_NING = 2
+
+cdef enum:
+    PLANE = 0
+    CYLINDER = 1
+    TRIANGLE = 2
+
+cdef enum:
+    FACE = 0
+    EDGE = 1
+    VERTEX = 2
+
+cdef struct Coef:
+    double E        # effective modulus E*
+    double G        # effective shear modulus G*
+    double mu       # sliding friction
+    double mur      # rolling friction
+    double damp     # hertz: -2 sqrt(5/6) beta; hooke: -2 beta
+    double tdamp    # hertz: gamma_t / gamma_n = sqrt(k_t / S_n) = sqrt(4 G* / E*)
+    double coh      # cohesion energy (SJKR density or JKR surface energy)
+    double py       # yield pressure (Thornton-Ning)
+    double vchar    # characteristic velocity (hooke)
+
+
+cdef struct Ctx:
+    int n, cap, hs, model, nt, nthreads, ncells, update, kick
+    int nc[3]
+    double cs[3]
+    double lo[3]
+    double grav[3]
+    double skin, dt, time
+    double *x
+    double *v
+    double *w
+    double *f
+    double *t
+    double *r
+    double *m
+    int *type
+    double *buf
+    int *perm
+    int *cell
+    int *nb_start
+    int *nb_j
+    uint8_t *nb_s
+    double *nb_h
+    int *ob_start
+    int *ob_j
+    uint8_t *ob_s
+    double *ob_h
+    int *wl_start
+    int *wl_e
+    double *wl_h
+    int *ow_start
+    int *ow_e
+    double *ow_h
+    int *cell_start
+    int *ctri_start
+    int *ctri
+    int *per
+    double *shiftv
+    int ne
+    int *ekind
+    int *etype
+    int *evid
+    int *emoving
+    double *egeo
+    double *emot
+    Coef *coef
+    double *visc
+
+
+cdef inline double dot3(const double* a, const double* b) noexcept nogil:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+cdef inline void cross3(const double* a, const double* b, double* c) noexcept nogil:
+    c[0] = a[1] * b[2] - a[2] * b[1]
+    c[1] = a[2] * b[0] - a[0] * b[2]
+    c[2] = a[0] * b[1] - a[1] * b[0]
+
+
+cdef void* grow(void* p, size_t nbytes) noexcept nogil:
+    """realloc that keeps the old block on failure (returns NULL then)."""
+    cdef void* q = realloc(p, nbytes if nbytes > 0 else 1)
+    return q
+
+
+# --- Thornton-Ning JKR geometry (the reference model's formulas) ------------------------
+cdef inline double tn_overlap(double a, double R, double E, double g) noexcept nogil:
+    return a * a / R - 2.0 * sqrt(M_PI * g * a / E)
+
+
+cdef inline double tn_force(double a, double R, double E, double g) noexcept nogil:
+    return 4.0 * E * a * a * a / (3.0 * R) - 4.0 * sqrt(M_PI * g * E * a * a * a)
+
+
+cdef inline double tn_sep_radius(double R, double E, double g) noexcept nogil:
+    return cbrt(M_PI * g * R * R / (4.0 * E))
+
+
+cdef double tn_contact_radius(double overlap, double R, double E, double g) noexcept nogil:
+    """Stable-branch contact radius at this overlap, -1 where the contact cannot exist."""
+    cdef double q, c, xmin, x, xn, slope
+    cdef int it
+    if overlap < tn_overlap(tn_sep_radius(R, E, g), R, E, g):
+        return -1.0
+    q = R * overlap
+    if g == 0.0:
+        return sqrt(q if q > 0.0 else 0.0)
+    c = 2.0 * R * sqrt(M_PI * g / E)
+    xmin = cbrt(c / 4.0)
+    x = sqrt(sqrt(2.0 * (q if q > 0.0 else 0.0)))
+    if cbrt(2.0 * c) > x:
+        x = cbrt(2.0 * c)
+    for it in range(200):
+        slope = 4.0 * x * x * x - c
+        xn = x - ((x * x * x * x - c * x - q) / slope if slope > 0.0 else 0.0)
+        if xn < xmin:
+            xn = xmin
+        if fabs(xn - x) <= 1e-15 * x:
+            x = xn
+            break
+        x = xn
+    return x * x
+
+
+cdef void tn_unloading(double dm, double R, const Coef* c, double* Rp, double* dp) noexcept nogil:
+    """Unloading curvature radius R_p and plastic offset delta_p for the largest overlap dm."""
+    cdef double am = tn_contact_radius(dm, R, c.E, c.coh)
+    cdef double ay = M_PI * c.py * R / (2.0 * c.E)
+    cdef double F1
+    Rp[0] = R
+    if am < 0.0:
+        am = 0.0
+    if am > ay:
+        F1 = 4.0 * c.E * ay * ay * ay / (3.0 * R) + M_PI * c.py * (am * am - ay * ay)
+        Rp[0] = 4.0 * c.E * am * am * am / (3.0 * F1)
+    dp[0] = am * am * (1.0 / R - 1.0 / Rp[0])
+
+
+cdef inline bint contact_force(int model, const Coef* c, double delta, double Rs, double ms,
+                               const double* n, const double* vr, const double* rw, const double* wrel,
+                               double* hist, double dt, bint update,
+                               double* F, double* Ft, double* Mr) noexcept nogil:
+    """Force on body i of a contact; False (and nothing set) when it is not in contact.
+
+    ``n`` points from j to i, ``delta`` is the overlap, ``vr = v_i - v_j`` at the centres,
+    ``rw = r_i w_i + r_j w_j``, ``wrel = w_i - w_j``. Sets ``F`` (total force on i), ``Ft``
+    (its tangential part, for torques) and ``Mr`` (rolling torque on i); updates ``hist``.
+    """
+    cdef double vn, vt[3], cw[3], a, kn, gn, kt, gt, fn, ftm, lim, ratio, s, wm, Rp, dp
+    cdef int k
+    vn = -dot3(vr, n)   # overlap rate, positive approaching
+    if model == THORNTON_NING:
+        if hist[4] == 0.0 and delta <= 0.0:
+            return False
+        Rp = hist[5]
+        dp = hist[6]
+        if delta > hist[4]:
+            tn_unloading(delta, Rs, c, &Rp, &dp)
+            if update:
+                hist[4] = delta
+                hist[5] = Rp
+                hist[6] = dp
+        a = tn_contact_radius(delta - dp, Rp, c.E, c.coh)
+        if a < 0.0:
+            return False
+        fn = tn_force(a, Rp, c.E, c.coh)
+        kt = 8.0 * c.G * a
+        gt = 0.0
+    else:
+        if delta <= 0.0:
+            return False
+        if model == HERTZ:
+            a = sqrt(Rs * delta)
+            kn = 4.0 / 3.0 * c.E * a
+            gn = c.damp * sqrt(2.0 * c.E * a * ms)
+            kt = 8.0 * c.G * a
+            gt = c.tdamp * gn
+        else:
+            a = sqrt(Rs)
+            kn = 16.0 / 15.0 * a * c.E * (15.0 * ms * c.vchar * c.vchar / (16.0 * a * c.E)) ** 0.2
+            gn = c.damp * sqrt(kn * ms)
+            kt = kn
+            gt = gn
+        fn = kn * delta + gn * vn
+        if c.coh > 0.0:
+            fn -= c.coh * M_PI * delta * (2.0 * Rs - delta)
+    hist[3] = fn
+    for k in range(3):
+        F[k] = fn * n[k]
+        Ft[k] = 0.0
+        Mr[k] = 0.0
+    if c.mu > 0.0:
+        cross3(rw, n, cw)
+        for k in range(3):
+            vt[k] = vr[k] + vn * n[k] - cw[k]
+        if update:
+            s = dot3(hist, n)
+            for k in range(3):
+                hist[k] += vt[k] * dt - s * n[k]
+        for k in range(3):
+            Ft[k] = -kt * hist[k] - gt * vt[k]
+        ftm = dot3(Ft, Ft)
+        lim = c.mu * fabs(fn)
+        if ftm > lim * lim:
+            ratio = lim / sqrt(ftm)
+            for k in range(3):
+                Ft[k] *= ratio
+                if update and kt > 0.0:
+                    hist[k] = ratio * (hist[k] + gt * vt[k] / kt) - gt * vt[k] / kt
+        for k in range(3):
+            F[k] += Ft[k]
+    if c.mur > 0.0:
+        wm = sqrt(dot3(wrel, wrel))
+        if wm > 0.0:
+            s = -c.mur * Rs * fabs(fn) / wm
+            for k in range(3):
+                Mr[k] = s * wrel[k]
+    return True
+
+
+# --- geometry of wall elements ----------------------------------------------------------
+cdef inline int closest_on_triangle(const double* p, const double* A, const double* B, const double* C,
+                                    double* q, int* feature) noexcept nogil:
+    """Closest point q on triangle ABC to p; returns FACE/EDGE/VERTEX and the feature index.
+
+    Feature: for VERTEX 0/1/2 = A/B/C; for EDGE 0/1/2 = AB/BC/CA (Voronoi regions).
+    """
+    cdef double ab[3], ac[3], ap[3], bp[3], cp[3], d1, d2, d3, d4, d5, d6, va, vb, vc, den, vv, ww
+    cdef int k
+    for k in range(3):
+        ab[k] = B[k] - A[k]
+        ac[k] = C[k] - A[k]
+        ap[k] = p[k] - A[k]
+    d1 = dot3(ab, ap)
+    d2 = dot3(ac, ap)
+    if d1 <= 0.0 and d2 <= 0.0:
+        memcpy(q, A, 3 * sizeof(double))
+        feature[0] = 0
+        return VERTEX
+    for k in range(3):
+        bp[k] = p[k] - B[k]
+    d3 = dot3(ab, bp)
+    d4 = dot3(ac, bp)
+    if d3 >= 0.0 and d4 <= d3:
+        memcpy(q, B, 3 * sizeof(double))
+        feature[0] = 1
+        return VERTEX
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        vv = d1 / (d1 - d3)
+        for k in range(3):
+            q[k] = A[k] + vv * ab[k]
+        feature[0] = 0
+        return EDGE
+    for k in range(3):
+        cp[k] = p[k] - C[k]
+    d5 = dot3(ab, cp)
+    d6 = dot3(ac, cp)
+    if d6 >= 0.0 and d5 <= d6:
+        memcpy(q, C, 3 * sizeof(double))
+        feature[0] = 2
+        return VERTEX
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        ww = d2 / (d2 - d6)
+        for k in range(3):
+            q[k] = A[k] + ww * ac[k]
+        feature[0] = 2
+        return EDGE
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        ww = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        for k in range(3):
+            q[k] = B[k] + ww * (C[k] - B[k])
+        feature[0] = 1
+        return EDGE
+    den = 1.0 / (va + vb + vc)
+    vv = vb * den
+    ww = vc * den
+    for k in range(3):
+        q[k] = A[k] + ab[k] * vv + ac[k] * ww
+    feature[0] = 0
+    return FACE
+
+
+cdef inline double primitive_gap(int kind, const double* g, const double* p, double* nrm) noexcept nogil:
+    """Distance from p to a plane or cylinder surface (negative behind it) and the unit normal."""
+    cdef double d, rho, u0, u1
+    cdef int ax, a0, a1
+    if kind == PLANE:
+        d = (p[0] - g[0]) * g[3] + (p[1] - g[1]) * g[4] + (p[2] - g[2]) * g[5]
+        nrm[0] = g[3]
+        nrm[1] = g[4]
+        nrm[2] = g[5]
+        return d
+    ax = <int>g[0]
+    a0 = (ax + 1) % 3
+    a1 = (ax + 2) % 3
+    u0 = p[a0] - g[1]
+    u1 = p[a1] - g[2]
+    rho = sqrt(u0 * u0 + u1 * u1)
+    nrm[ax] = 0.0
+    if rho > 0.0:
+        nrm[a0] = u0 / rho
+        nrm[a1] = u1 / rho
+    else:
+        nrm[a0] = 1.0
+        nrm[a1] = 0.0
+    if g[4] != 0.0:   # inside
+        nrm[a0] = -nrm[a0]
+        nrm[a1] = -nrm[a1]
+        return g[3] - rho
+    return rho - g[3]
+
+
+cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogil:
+    """Rotation matrix (row major) of angle |w| tau about w (Rodrigues)."""
+    cdef double wm = sqrt(dot3(w, w)), th, c, s, k0, k1, k2, C
+    if wm == 0.0:
+        memset(Rm, 0, 9 * sizeof(double))
+        Rm[0] = 1.0
+        Rm[4] = 1.0
+        Rm[8] = 1.0
+        return
+    th = wm * tau
+    c = cos(th)
+    s = sin(th)
+    C = 1.0 - c
+    k0 = w[0] / wm
+    k1 = w[1] / wm
+    k2 = w[2] / wm
+    Rm[0] = c + k0 * k0 * C
+    Rm[1] = k0 * k1 * C - k2 * s
+    Rm[2] = k0 * k2 * C + k1 * s
+    Rm[3] = k1 * k0 * C + k2 * s
+    Rm[4] = c + k1 * k1 * C
+    Rm[5] = k1 * k2 * C - k0 * s
+    Rm[6] = k2 * k0 * C - k1 * s
+    Rm[7] = k2 * k1 * C + k0 * s
+    Rm[8] = c + k2 * k2 * C
+
+
+# --- per-row work of the parallel loops (C arrays cannot be private in prange) -------------
+cdef inline void zero_hist(double* h, int hs) noexcept nogil:
+    cdef int k
+    for k in range(hs):
+        if h[k] != 0.0:
+            memset(h, 0, hs * sizeof(double))
+            return
+
+
+cdef inline int cell_index(const Ctx* c, const double* p, int* cc) noexcept nogil:
+    cdef int d
+    for d in range(3):
+        cc[d] = <int>floor((p[d] - c.lo[d]) / c.cs[d])
+        if cc[d] < 0:
+            cc[d] = 0
+        elif cc[d] >= c.nc[d]:
+            cc[d] = c.nc[d] - 1
+    return (cc[2] * c.nc[1] + cc[1]) * c.nc[0] + cc[0]
+
+
+cdef uint8_t carry_pair(const Ctx* c, int a, int b, double* h) noexcept nogil:
+    """History of new pair (a, b) from the previous list (old indices through ``perm``).
+
+    Returns the previous touching flag (``TOUCH`` or 0).
+    """
+    cdef int oa = c.perm[a], ob = c.perm[b], lo = oa, hi = ob, k, q
+    cdef double sign = 1.0
+    if ob < oa:
+        lo = ob
+        hi = oa
+        sign = -1.0
+    for k in range(c.ob_start[lo], c.ob_start[lo + 1]):
+        if c.ob_j[k] == hi:
+            for q in range(3):
+                h[q] = sign * c.ob_h[k * c.hs + q]
+            for q in range(3, c.hs):
+                h[q] = c.ob_h[k * c.hs + q]
+            return c.ob_s[k] & TOUCH
+    memset(h, 0, c.hs * sizeof(double))
+    return 0
+
+
+cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
+    """Partners j > i within r_i + r_j + skin: counted, or written from ``nb_start[i]``."""
+    cdef int cc[3], nb[3], s[3], d0, d1, d2, j, code, cid, cnt = 0, pos
+    cdef double dx, dy, dz, rc
+    cdef const double* xi = &c.x[3 * i]
+    cdef const double* sv
+    cell_index(c, xi, cc)
+    pos = c.nb_start[i] if fill else 0
+    for d2 in range(-1, 2):
+        nb[2] = cc[2] + d2
+        s[2] = 0
+        if nb[2] < 0 or nb[2] >= c.nc[2]:
+            if not c.per[2]:
+                continue
+            s[2] = 1 if nb[2] < 0 else -1
+            nb[2] += s[2] * c.nc[2]
+        for d1 in range(-1, 2):
+            nb[1] = cc[1] + d1
+            s[1] = 0
+            if nb[1] < 0 or nb[1] >= c.nc[1]:
+                if not c.per[1]:
+                    continue
+                s[1] = 1 if nb[1] < 0 else -1
+                nb[1] += s[1] * c.nc[1]
+            for d0 in range(-1, 2):
+                nb[0] = cc[0] + d0
+                s[0] = 0
+                if nb[0] < 0 or nb[0] >= c.nc[0]:
+                    if not c.per[0]:
+                        continue
+                    s[0] = 1 if nb[0] < 0 else -1
+                    nb[0] += s[0] * c.nc[0]
+                cid = (nb[2] * c.nc[1] + nb[1]) * c.nc[0] + nb[0]
+                code = 9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1
+                sv = &c.shiftv[3 * code]
+                j = c.cell_start[cid]
+                if j <= i:
+                    j = i + 1
+                while j < c.cell_start[cid + 1]:
+                    dx = xi[0] - c.x[3 * j] + sv[0]
+                    dy = xi[1] - c.x[3 * j + 1] + sv[1]
+                    dz = xi[2] - c.x[3 * j + 2] + sv[2]
+                    rc = c.r[i] + c.r[j] + c.skin
+                    if dx * dx + dy * dy + dz * dz < rc * rc:
+                        if fill:
+                            c.nb_j[pos + cnt] = j
+                            c.nb_s[pos + cnt] = <uint8_t>code | carry_pair(c, i, j, &c.nb_h[(pos + cnt) * c.hs])
+                        cnt += 1
+                    j += 1
+    return cnt
+
+
+cdef int scan_walls(const Ctx* c, int i, bint fill) noexcept nogil:
+    """Wall elements within r_i + skin of particle i: counted, or written from ``wl_start[i]``."""
+    cdef int e, k, q, cc[3], cid, feat, cnt = 0, pos, oi
+    cdef double nrm[3], p[3], gap, reach = c.r[i] + c.skin, d2
+    cdef const double* xi = &c.x[3 * i]
+    cdef const double* g
+    pos = c.wl_start[i] if fill else 0
+    oi = c.perm[i]
+    for e in range(c.ne):
+        if c.ekind[e] == TRIANGLE:
+            continue
+        gap = primitive_gap(c.ekind[e], &c.egeo[9 * e], xi, nrm)
+        if gap < reach:
+            if fill:
+                c.wl_e[pos + cnt] = e
+            cnt += 1
+    cid = cell_index(c, xi, cc)
+    for k in range(c.ctri_start[cid], c.ctri_start[cid + 1]):
+        e = c.ctri[k]
+        g = &c.egeo[9 * e]
+        closest_on_triangle(xi, g, g + 3, g + 6, p, &feat)
+        d2 = (xi[0] - p[0]) ** 2 + (xi[1] - p[1]) ** 2 + (xi[2] - p[2]) ** 2
+        if d2 < reach * reach:
+            if fill:
+                c.wl_e[pos + cnt] = e
+            cnt += 1
+    if fill:
+        for k in range(cnt):
+            e = c.wl_e[pos + k]
+            memset(&c.wl_h[(pos + k) * c.hs], 0, c.hs * sizeof(double))
+            for q in range(c.ow_start[oi], c.ow_start[oi + 1]):
+                if c.ow_e[q] == e:
+                    memcpy(&c.wl_h[(pos + k) * c.hs], &c.ow_h[q * c.hs], c.hs * sizeof(double))
+                    break
+    return cnt
+
+
+cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
+    """Forces of particle i's half-list contacts into thread ``tid``'s buffer."""
+    cdef int k, j, q, ti = c.type[i]
+    cdef double d[3], n[3], vr[3], rw[3], wrel[3], F[3], Ft[3], Mr[3], cx[3], fi[6]
+    cdef double dist2, dist, inv, rs, Rs, ms, ri = c.r[i], mi = c.m[i]
+    cdef double* h
+    cdef double* bj
+    cdef double* bi = &c.buf[(<long long>tid * c.cap + i) * 6]
+    cdef const double* sv
+    cdef const double* xi = &c.x[3 * i]
+    for q in range(6):
+        fi[q] = 0.0
+    for k in range(c.nb_start[i], c.nb_start[i + 1]):
+        j = c.nb_j[k]
+        sv = &c.shiftv[3 * (c.nb_s[k] & ~TOUCH)]
+        for q in range(3):
+            d[q] = xi[q] - c.x[3 * j + q] + sv[q]
+        dist2 = dot3(d, d)
+        rs = ri + c.r[j]
+        h = &c.nb_h[<long long>k * c.hs]
+        if dist2 >= rs * rs and not (c.hs > 4 and h[4] > 0.0):
+            if c.nb_s[k] & TOUCH:
+                memset(h, 0, c.hs * sizeof(double))
+                c.nb_s[k] &= ~TOUCH
+            continue
+        dist = sqrt(dist2)
+        inv = 1.0 / dist
+        for q in range(3):
+            n[q] = d[q] * inv
+            vr[q] = c.v[3 * i + q] - c.v[3 * j + q]
+            rw[q] = ri * c.w[3 * i + q] + c.r[j] * c.w[3 * j + q]
+            wrel[q] = c.w[3 * i + q] - c.w[3 * j + q]
+        Rs = ri * c.r[j] / rs
+        ms = mi * c.m[j] / (mi + c.m[j])
+        if not contact_force(c.model, &c.coef[ti * c.nt + c.type[j]], rs - dist, Rs, ms, n, vr, rw, wrel,
+                             h, c.dt, c.update, F, Ft, Mr):
+            memset(h, 0, c.hs * sizeof(double))
+            c.nb_s[k] &= ~TOUCH
+            continue
+        c.nb_s[k] |= TOUCH
+        cross3(n, Ft, cx)
+        bj = &c.buf[(<long long>tid * c.cap + j) * 6]
+        for q in range(3):
+            fi[q] += F[q]
+            fi[3 + q] += Mr[q] - ri * cx[q]
+            bj[q] -= F[q]
+            bj[3 + q] -= Mr[q] + c.r[j] * cx[q]
+    for q in range(6):
+        bi[q] += fi[q]
+
+
+cdef bint wall_contact(const Ctx* c, int i, int e, double* h, double delta, const double* n,
+                       const double* q, double* F, double* T) noexcept nogil:
+    """Force of wall element e on particle i (contact point q, NULL for a fixed primitive)."""
+    cdef double vr[3], rw[3], vw[3], Fc[3], Ft[3], Mr[3], cx[3], rel[3], o[3], tau
+    cdef const double* mot
+    cdef int k
+    cdef double ri = c.r[i]
+    for k in range(3):
+        vw[k] = 0.0
+    if q != NULL and c.emoving[e]:
+        mot = &c.emot[10 * e]
+        tau = c.time - mot[9]
+        for k in range(3):
+            rel[k] = q[k] - (mot[6 + k] + mot[k] * tau)
+        cross3(&mot[3], rel, vw)
+        for k in range(3):
+            vw[k] += mot[k]
+    for k in range(3):
+        vr[k] = c.v[3 * i + k] - vw[k]
+        rw[k] = ri * c.w[3 * i + k]
+    if not contact_force(c.model, &c.coef[c.type[i] * c.nt + c.etype[e]], delta, ri, c.m[i], n, vr, rw,
+                         &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr):
+        return False
+    cross3(n, Ft, cx)
+    for k in range(3):
+        F[k] += Fc[k]
+        T[k] += Mr[k] - ri * cx[k]
+    return True
+
+
+cdef inline bint has_vertex(const int* vid, int u) noexcept nogil:
+    return vid[0] == u or vid[1] == u or vid[2] == u
+
+
+cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
+    """Wall forces on particle i; mesh contacts without double counting.
+
+    Candidates are the triangles whose closest point is within reach, classified as
+    face, edge or vertex contacts. Faces are taken first; an edge contact is dropped when
+    an accepted contact's triangle has that edge, a vertex contact when it has that
+    vertex (a shared edge or vertex of a flat or convex surface counts once; concave
+    corners give one contact per face).
+    """
+    cdef int k, e, a, b, nc = 0, nacc = 0, reg, u, w2, ok
+    cdef int ck[MAXCAND]
+    cdef int creg[MAXCAND]
+    cdef int cfeat[MAXCAND]
+    cdef int acc[MAXCAND]
+    cdef double cq[3 * MAXCAND]
+    cdef double cd2[MAXCAND]
+    cdef double nrm[3], gap, d2, dist
+    cdef double* h
+    cdef const double* g
+    cdef const double* xi = &c.x[3 * i]
+    cdef double ri = c.r[i]
+    for k in range(c.wl_start[i], c.wl_start[i + 1]):
+        e = c.wl_e[k]
+        h = &c.wl_h[<long long>k * c.hs]
+        g = &c.egeo[9 * e]
+        if c.ekind[e] != TRIANGLE:
+            gap = primitive_gap(c.ekind[e], g, xi, nrm)
+            if gap < -ri or not wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T):
+                zero_hist(h, c.hs)
+            continue
+        creg[nc] = closest_on_triangle(xi, g, g + 3, g + 6, &cq[3 * nc], &cfeat[nc])
+        d2 = (xi[0] - cq[3 * nc]) ** 2 + (xi[1] - cq[3 * nc + 1]) ** 2 + (xi[2] - cq[3 * nc + 2]) ** 2
+        if (d2 >= ri * ri and not (c.hs > 4 and h[4] > 0.0)) or d2 == 0.0 or nc == MAXCAND:
+            zero_hist(h, c.hs)
+            continue
+        cd2[nc] = d2
+        ck[nc] = k
+        nc += 1
+    for reg in range(3):
+        for a in range(nc):
+            if creg[a] != reg:
+                continue
+            k = ck[a]
+            e = c.wl_e[k]
+            h = &c.wl_h[<long long>k * c.hs]
+            ok = 1
+            if reg != FACE:
+                u = c.evid[3 * e + cfeat[a]]
+                w2 = c.evid[3 * e + (cfeat[a] + 1) % 3]
+                for b in range(nacc):
+                    if has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], u) and (
+                            reg == VERTEX or has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], w2)):
+                        ok = 0
+                        break
+            if ok:
+                dist = sqrt(cd2[a])
+                for b in range(3):
+                    nrm[b] = (xi[b] - cq[3 * a + b]) / dist
+                ok = wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T)
+            if ok:
+                acc[nacc] = a
+                nacc += 1
+            else:
+                zero_hist(h, c.hs)
+
+
+cdef void particle_row(const Ctx* c, int i) noexcept nogil:
+    """Sum the thread buffers, add gravity, viscous and wall forces; second half kick."""
+    cdef double F[3], T[3], mi = c.m[i], g = c.visc[c.type[i]], s
+    cdef double* b
+    cdef int k, q
+    for q in range(3):
+        F[q] = mi * c.grav[q] - g * c.v[3 * i + q]
+        T[q] = 0.0
+    for k in range(c.nthreads):
+        b = &c.buf[(<long long>k * c.cap + i) * 6]
+        for q in range(3):
+            F[q] += b[q]
+            T[q] += b[3 + q]
+        memset(b, 0, 6 * sizeof(double))
+    wall_row(c, i, F, T)
+    for q in range(3):
+        c.f[3 * i + q] = F[q]
+        c.t[3 * i + q] = T[q]
+    if c.kick:
+        s = 0.5 * c.dt / mi
+        for q in range(3):
+            c.v[3 * i + q] += s * F[q]
+        s = 0.5 * c.dt / (0.4 * mi * c.r[i] * c.r[i])
+        for q in range(3):
+            c.w[3 * i + q] += s * T[q]
+
+
+cdef class Core:
+    """Particles, neighbour and wall lists, wall elements and the time-step loop.
+
+    Used through :class:`pygran_native.solver.Solver`, which validates arguments, orders
+    outputs by id and builds the contact tables.
+    """
+
+    cdef public int n, cap, nthreads, hs, model, ntypes, dirty
+    cdef public double time, skin
+    cdef public long long step, lost, rebuilds
+    cdef double lo[3]
+    cdef double hi[3]
+    cdef double L[3]
+    cdef int per[3]
+    cdef double grav[3]
+    cdef double shiftv[81]
+    # particles
+    cdef double *x
+    cdef double *v
+    cdef double *w
+    cdef double *f
+    cdef double *t
+    cdef double *x0
+    cdef double *r
+    cdef double *m
+    cdef int *type
+    cdef int64_t *pid
+    cdef double *sp3
+    cdef double *sp1
+    cdef int *spi
+    cdef int64_t *spl
+    cdef double *buf        # per-thread force/torque buffers, nthreads * cap * 6
+    cdef int *perm
+    cdef int *cell
+    # neighbour list (current and previous)
+    cdef int *nb_start
+    cdef int *nb_j
+    cdef uint8_t *nb_s
+    cdef double *nb_h
+    cdef long long nb_cap
+    cdef int *ob_start
+    cdef int *ob_j
+    cdef uint8_t *ob_s
+    cdef double *ob_h
+    cdef long long ob_cap
+    # wall list (current and previous)
+    cdef int *wl_start
+    cdef int *wl_e
+    cdef double *wl_h
+    cdef long long wl_cap
+    cdef int *ow_start
+    cdef int *ow_e
+    cdef double *ow_h
+    cdef long long ow_cap
+    # cells
+    cdef int nc[3]
+    cdef double cs[3]
+    cdef int ncells
+    cdef int *cell_start
+    cdef int cell_cap
+    cdef int *ctri_start
+    cdef int *ctri
+    cdef long long ctri_cap
+    # wall elements
+    cdef public int ne
+    cdef int ecap
+    cdef int *ekind
+    cdef int *etype
+    cdef int *ewall
+    cdef int *evid
+    cdef int *emoving
+    cdef double *egeo       # 9 per element: plane p,n; cylinder axis,c0,c1,R,inside; triangle vertices
+    cdef double *eref       # triangle vertices at the motion's start
+    cdef double *ebuilt     # triangle vertices at the last rebuild
+    cdef double *emot       # v(3), w(3), origin(3), t0
+    # contact tables
+    cdef Coef *coef
+    cdef double *visc
+    cdef double *tmax
+
+    def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads):
+        cdef int d, a, b, c
+        self.nthreads = threads
+        self.skin = skin
+        for d in range(3):
+            self.lo[d] = lo[d]
+            self.hi[d] = hi[d]
+            self.L[d] = hi[d] - lo[d]
+            self.per[d] = 1 if periodic[d] else 0
+            self.grav[d] = gravity[d]
+        for a in range(3):
+            for b in range(3):
+                for c in range(3):
+                    d = 9 * a + 3 * b + c
+                    self.shiftv[3 * d] = (a - 1) * self.L[0]
+                    self.shiftv[3 * d + 1] = (b - 1) * self.L[1]
+                    self.shiftv[3 * d + 2] = (c - 1) * self.L[2]
+        self.hs = 4
+        self.model = HERTZ
+        self.dirty = 1
+        self.nb_start = <int*>calloc(1, sizeof(int))
+        self.ob_start = <int*>calloc(1, sizeof(int))
+        self.wl_start = <int*>calloc(1, sizeof(int))
+        self.ow_start = <int*>calloc(1, sizeof(int))
+        self.tmax = <double*>calloc(threads, sizeof(double))
+        self.coef = <Coef*>calloc(1, sizeof(Coef))
+        self.visc = <double*>calloc(1, sizeof(double))
+        self.ntypes = 1
+        if not (self.nb_start and self.ob_start and self.wl_start and self.ow_start and self.tmax):
+            raise MemoryError()
+
+    def __dealloc__(self):
+        for p in (<size_t>self.x, <size_t>self.v, <size_t>self.w, <size_t>self.f, <size_t>self.t,
+                  <size_t>self.x0, <size_t>self.r, <size_t>self.m, <size_t>self.type, <size_t>self.pid,
+                  <size_t>self.sp3, <size_t>self.sp1, <size_t>self.spi, <size_t>self.spl, <size_t>self.buf,
+                  <size_t>self.perm, <size_t>self.cell, <size_t>self.nb_start, <size_t>self.nb_j,
+                  <size_t>self.nb_s, <size_t>self.nb_h, <size_t>self.ob_start, <size_t>self.ob_j,
+                  <size_t>self.ob_s, <size_t>self.ob_h, <size_t>self.wl_start, <size_t>self.wl_e,
+                  <size_t>self.wl_h, <size_t>self.ow_start, <size_t>self.ow_e, <size_t>self.ow_h,
+                  <size_t>self.cell_start, <size_t>self.ctri_start, <size_t>self.ctri, <size_t>self.ekind,
+                  <size_t>self.etype, <size_t>self.ewall, <size_t>self.evid, <size_t>self.emoving,
+                  <size_t>self.egeo, <size_t>self.eref, <size_t>self.ebuilt, <size_t>self.emot,
+                  <size_t>self.coef, <size_t>self.visc, <size_t>self.tmax):
+            free(<void*>p)
+
+    # ------------------------------------------------------------------ memory ----------
+    cdef int reserve(self, int need) except -1:
+        """Grow every per-particle array to hold ``need`` particles."""
+        cdef int cap = self.cap
+        cdef size_t c
+        if need <= cap:
+            return 0
+        cap = max(need, 2 * cap, 64)
+        c = cap
+        self.x = <double*>self._grow(self.x, 3 * c * sizeof(double))
+        self.v = <double*>self._grow(self.v, 3 * c * sizeof(double))
+        self.w = <double*>self._grow(self.w, 3 * c * sizeof(double))
+        self.f = <double*>self._grow(self.f, 3 * c * sizeof(double))
+        self.t = <double*>self._grow(self.t, 3 * c * sizeof(double))
+        self.x0 = <double*>self._grow(self.x0, 3 * c * sizeof(double))
+        self.sp3 = <double*>self._grow(self.sp3, 3 * c * sizeof(double))
+        self.r = <double*>self._grow(self.r, c * sizeof(double))
+        self.m = <double*>self._grow(self.m, c * sizeof(double))
+        self.sp1 = <double*>self._grow(self.sp1, c * sizeof(double))
+        self.type = <int*>self._grow(self.type, c * sizeof(int))
+        self.perm = <int*>self._grow(self.perm, c * sizeof(int))
+        self.cell = <int*>self._grow(self.cell, c * sizeof(int))
+        self.spi = <int*>self._grow(self.spi, (c + 1) * sizeof(int))
+        self.pid = <int64_t*>self._grow(self.pid, c * sizeof(int64_t))
+        self.spl = <int64_t*>self._grow(self.spl, c * sizeof(int64_t))
+        self.nb_start = <int*>self._grow(self.nb_start, (c + 1) * sizeof(int))
+        self.ob_start = <int*>self._grow(self.ob_start, (c + 1) * sizeof(int))
+        self.wl_start = <int*>self._grow(self.wl_start, (c + 1) * sizeof(int))
+        self.ow_start = <int*>self._grow(self.ow_start, (c + 1) * sizeof(int))
+        free(self.buf)
+        self.buf = <double*>calloc(self.nthreads * c * 6, sizeof(double))
+        if self.buf == NULL:
+            raise MemoryError()
+        self.cap = cap
+        return 0
+
+    cdef void* _grow(self, void* p, size_t nbytes) except NULL:
+        cdef void* q = grow(p, nbytes)
+        if q == NULL:
+            raise MemoryError()
+        return q
+
+    cdef int reserve_pairs(self, long long need) noexcept nogil:
+        """Grow the current neighbour list to ``need`` pairs; -1 when out of memory."""
+        cdef long long cap
+        cdef void *a
+        cdef void *b
+        cdef void *c
+        if need <= self.nb_cap:
+            return 0
+        cap = need + need // 4 + 64
+        a = grow(self.nb_j, cap * sizeof(int))
+        if a == NULL:
+            return -1
+        self.nb_j = <int*>a
+        b = grow(self.nb_s, cap * sizeof(uint8_t))
+        if b == NULL:
+            return -1
+        self.nb_s = <uint8_t*>b
+        c = grow(self.nb_h, cap * self.hs * sizeof(double))
+        if c == NULL:
+            return -1
+        self.nb_h = <double*>c
+        self.nb_cap = cap
+        return 0
+
+    cdef int reserve_walls(self, long long need) noexcept nogil:
+        cdef long long cap
+        cdef void *a
+        cdef void *b
+        if need <= self.wl_cap:
+            return 0
+        cap = need + need // 4 + 64
+        a = grow(self.wl_e, cap * sizeof(int))
+        if a == NULL:
+            return -1
+        self.wl_e = <int*>a
+        b = grow(self.wl_h, cap * self.hs * sizeof(double))
+        if b == NULL:
+            return -1
+        self.wl_h = <double*>b
+        self.wl_cap = cap
+        return 0
+
+    # ------------------------------------------------------------------ set-up ----------
+    def set_model(self, int model, int hs, double[:, ::1] E, double[:, ::1] G, double[:, ::1] mu,
+                  double[:, ::1] mur, double[:, ::1] damp, double[:, ::1] coh, double[:, ::1] py,
+                  double vchar):
+        """Install the pair tables (ntypes x ntypes) of a contact model; resets histories."""
+        cdef int nt = E.shape[0], a, b
+        cdef Coef* c = <Coef*>calloc(nt * nt, sizeof(Coef))
+        cdef double* vis = <double*>calloc(nt, sizeof(double))
+        if c == NULL or vis == NULL:
+            free(c)
+            free(vis)
+            raise MemoryError()
+        for a in range(nt):
+            for b in range(nt):
+                c[a * nt + b].E = E[a, b]
+                c[a * nt + b].G = G[a, b]
+                c[a * nt + b].mu = mu[a, b]
+                c[a * nt + b].mur = mur[a, b]
+                c[a * nt + b].damp = damp[a, b]
+                c[a * nt + b].tdamp = sqrt(4.0 * G[a, b] / E[a, b])
+                c[a * nt + b].coh = coh[a, b]
+                c[a * nt + b].py = py[a, b]
+                c[a * nt + b].vchar = vchar
+        for a in range(min(nt, self.ntypes)):
+            vis[a] = self.visc[a]
+        free(self.coef)
+        free(self.visc)
+        self.coef = c
+        self.visc = vis
+        self.ntypes = nt
+        if hs != self.hs:
+            free(self.nb_h)
+            free(self.ob_h)
+            free(self.wl_h)
+            free(self.ow_h)
+            self.nb_h = self.ob_h = self.wl_h = self.ow_h = NULL
+            self.nb_cap = self.ob_cap = self.wl_cap = self.ow_cap = 0
+            memset(self.nb_start, 0, (self.n + 1) * sizeof(int))
+            memset(self.wl_start, 0, (self.n + 1) * sizeof(int))
+            self.hs = hs
+        self.model = model
+        self.dirty = 1
+
+    def set_viscous(self, double[::1] gamma):
+        cdef int a
+        for a in range(min(gamma.shape[0], self.ntypes)):
+            self.visc[a] = gamma[a]
+
+    def add_particles(self, double[:, ::1] x, double[::1] r, double[::1] m, int[::1] typ,
+                      double[:, ::1] v, double[:, ::1] w, int64_t[::1] ids):
+        cdef int k = x.shape[0], i, d, base = self.n
+        self.reserve(base + k)
+        for i in range(k):
+            for d in range(3):
+                self.x[3 * (base + i) + d] = x[i, d]
+                self.x0[3 * (base + i) + d] = x[i, d]
+                self.v[3 * (base + i) + d] = v[i, d]
+                self.w[3 * (base + i) + d] = w[i, d]
+                self.f[3 * (base + i) + d] = 0.0
+                self.t[3 * (base + i) + d] = 0.0
+            self.r[base + i] = r[i]
+            self.m[base + i] = m[i]
+            self.type[base + i] = typ[i]
+            self.pid[base + i] = ids[i]
+            self.nb_start[base + i + 1] = self.nb_start[base]
+            self.wl_start[base + i + 1] = self.wl_start[base]
+        self.n = base + k
+        self.dirty = 1
+
+    def mark_removed(self, cnp.uint8_t[::1] mask):
+        """Mark particles (storage order) for removal at the next rebuild."""
+        cdef int i
+        for i in range(self.n):
+            if mask[i]:
+                self.type[i] = -1
+        self.dirty = 1
+
+    def set_vectors(self, str name, int[::1] index, double[:, ::1] values):
+        cdef double* a = self.v if name == "v" else self.w
+        cdef int i, d
+        for i in range(index.shape[0]):
+            for d in range(3):
+                a[3 * index[i] + d] = values[i, d]
+
+    def add_elements(self, int[::1] kind, int[::1] etype, int[::1] wall, double[:, ::1] geo, int[:, ::1] vid):
+        cdef int k = kind.shape[0], i, d, base = self.ne, cap = max(base + k, 2 * self.ecap, 8)
+        if base + k > self.ecap:
+            self.ekind = <int*>self._grow(self.ekind, cap * sizeof(int))
+            self.etype = <int*>self._grow(self.etype, cap * sizeof(int))
+            self.ewall = <int*>self._grow(self.ewall, cap * sizeof(int))
+            self.emoving = <int*>self._grow(self.emoving, cap * sizeof(int))
+            self.evid = <int*>self._grow(self.evid, 3 * cap * sizeof(int))
+            self.egeo = <double*>self._grow(self.egeo, 9 * cap * sizeof(double))
+            self.eref = <double*>self._grow(self.eref, 9 * cap * sizeof(double))
+            self.ebuilt = <double*>self._grow(self.ebuilt, 9 * cap * sizeof(double))
+            self.emot = <double*>self._grow(self.emot, 10 * cap * sizeof(double))
+            self.ecap = cap
+        for i in range(k):
+            self.ekind[base + i] = kind[i]
+            self.etype[base + i] = etype[i]
+            self.ewall[base + i] = wall[i]
+            self.emoving[base + i] = 0
+            for d in range(3):
+                self.evid[3 * (base + i) + d] = vid[i, d]
+            for d in range(9):
+                self.egeo[9 * (base + i) + d] = geo[i, d]
+                self.eref[9 * (base + i) + d] = geo[i, d]
+                self.ebuilt[9 * (base + i) + d] = geo[i, d]
+            for d in range(10):
+                self.emot[10 * (base + i) + d] = 0.0
+        self.ne = base + k
+        self.dirty = 1
+
+    def remove_elements(self, int wall):
+        """Drop the elements of one wall; wall-list entries are renumbered, their histories kept."""
+        cdef int e, k = 0, i, d
+        cdef int* newidx = <int*>malloc((self.ne + 1) * sizeof(int))
+        if newidx == NULL:
+            raise MemoryError()
+        for e in range(self.ne):
+            if self.ewall[e] == wall:
+                newidx[e] = -1
+                continue
+            newidx[e] = k
+            self.ekind[k] = self.ekind[e]
+            self.etype[k] = self.etype[e]
+            self.ewall[k] = self.ewall[e]
+            self.emoving[k] = self.emoving[e]
+            for d in range(3):
+                self.evid[3 * k + d] = self.evid[3 * e + d]
+            for d in range(9):
+                self.egeo[9 * k + d] = self.egeo[9 * e + d]
+                self.eref[9 * k + d] = self.eref[9 * e + d]
+                self.ebuilt[9 * k + d] = self.ebuilt[9 * e + d]
+            for d in range(10):
+                self.emot[10 * k + d] = self.emot[10 * e + d]
+            k += 1
+        self.ne = k
+        k = 0
+        for i in range(self.n):
+            e = self.wl_start[i]
+            self.wl_start[i] = k
+            while e < self.wl_start[i + 1]:
+                if newidx[self.wl_e[e]] >= 0:
+                    self.wl_e[k] = newidx[self.wl_e[e]]
+                    for d in range(self.hs):
+                        self.wl_h[k * self.hs + d] = self.wl_h[e * self.hs + d]
+                    k += 1
+                e += 1
+        self.wl_start[self.n] = k
+        free(newidx)
+        self.dirty = 1
+
+    def set_motion(self, int wall, double[::1] vel, double[::1] omega, double[::1] origin):
+        """Rigid motion of a wall's triangles from now on: ``x(t) = o + V tau + R(W tau)(X - o)``."""
+        cdef int e, d
+        cdef bint moving = vel[0] != 0 or vel[1] != 0 or vel[2] != 0 or omega[0] != 0 or omega[1] != 0 \
+            or omega[2] != 0
+        for e in range(self.ne):
+            if self.ewall[e] != wall or self.ekind[e] != TRIANGLE:
+                continue
+            for d in range(9):
+                self.eref[9 * e + d] = self.egeo[9 * e + d]
+            for d in range(3):
+                self.emot[10 * e + d] = vel[d]
+                self.emot[10 * e + 3 + d] = omega[d]
+                self.emot[10 * e + 6 + d] = origin[d]
+            self.emot[10 * e + 9] = self.time
+            self.emoving[e] = moving
+
+    # ------------------------------------------------------------------ rebuild ---------
+    cdef int setup_cells(self) noexcept nogil:
+        """Cell grid of side >= 2 r_max + skin over the box; -1 when out of memory."""
+        cdef double rmax = 0.0, cut, size
+        cdef int i, d
+        cdef long long total
+        cdef void* p
+        for i in range(self.n):
+            if self.r[i] > rmax:
+                rmax = self.r[i]
+        cut = 2.0 * rmax + self.skin
+        size = cut
+        while True:
+            total = 1
+            for d in range(3):
+                self.nc[d] = <int>floor(self.L[d] / size)
+                if self.nc[d] < 1:
+                    self.nc[d] = 1
+                self.cs[d] = self.L[d] / self.nc[d]
+                total *= self.nc[d]
+            if total <= 4 * <long long>self.n + 4096:
+                break
+            size *= 1.26
+        self.ncells = <int>total
+        if self.ncells + 2 > self.cell_cap:
+            p = grow(self.cell_start, (self.ncells + 2) * sizeof(int))
+            if p == NULL:
+                return -1
+            self.cell_start = <int*>p
+            p = grow(self.ctri_start, (self.ncells + 2) * sizeof(int))
+            if p == NULL:
+                return -1
+            self.ctri_start = <int*>p
+            self.cell_cap = self.ncells + 2
+        return 0
+
+    cdef inline int cell_of(self, const double* p) noexcept nogil:
+        cdef int c[3]
+        cdef int d
+        for d in range(3):
+            c[d] = <int>floor((p[d] - self.lo[d]) / self.cs[d])
+            if c[d] < 0:
+                c[d] = 0
+            elif c[d] >= self.nc[d]:
+                c[d] = self.nc[d] - 1
+        return (c[2] * self.nc[1] + c[1]) * self.nc[0] + c[0]
+
+    cdef void tri_cells(self, int e, double reach, int* lo3, int* hi3) noexcept nogil:
+        """Range of cells within ``reach`` of triangle e's bounding box."""
+        cdef double mn, mx, val
+        cdef int a, d
+        for d in range(3):
+            mn = self.egeo[9 * e + d]
+            mx = mn
+            for a in range(1, 3):
+                val = self.egeo[9 * e + 3 * a + d]
+                if val < mn:
+                    mn = val
+                if val > mx:
+                    mx = val
+            lo3[d] = <int>floor((mn - reach - self.lo[d]) / self.cs[d])
+            hi3[d] = <int>floor((mx + reach - self.lo[d]) / self.cs[d])
+            if lo3[d] < 0:
+                lo3[d] = 0
+            if hi3[d] >= self.nc[d]:
+                hi3[d] = self.nc[d] - 1
+
+    cdef int bin_triangles(self, double reach) noexcept nogil:
+        """CSR (``ctri_start``, ``ctri``) of the triangles within ``reach`` of each cell.
+
+        Uses ``cell_start`` as fill cursor: call before the particles are binned.
+        """
+        cdef int e, a, b, c, cc, lo3[3], hi3[3]
+        cdef long long total
+        cdef void* p
+        memset(self.ctri_start, 0, (self.ncells + 1) * sizeof(int))
+        for e in range(self.ne):
+            if self.ekind[e] == TRIANGLE:
+                self.tri_cells(e, reach, lo3, hi3)
+                for c in range(lo3[2], hi3[2] + 1):
+                    for b in range(lo3[1], hi3[1] + 1):
+                        for a in range(lo3[0], hi3[0] + 1):
+                            self.ctri_start[(c * self.nc[1] + b) * self.nc[0] + a + 1] += 1
+        for c in range(self.ncells):
+            self.ctri_start[c + 1] += self.ctri_start[c]
+        total = self.ctri_start[self.ncells]
+        if total + 1 > self.ctri_cap:
+            p = grow(self.ctri, (total + 1) * sizeof(int))
+            if p == NULL:
+                return -1
+            self.ctri = <int*>p
+            self.ctri_cap = total + 1
+        memcpy(self.cell_start, self.ctri_start, (self.ncells + 1) * sizeof(int))
+        for e in range(self.ne):
+            if self.ekind[e] == TRIANGLE:
+                self.tri_cells(e, reach, lo3, hi3)
+                for c in range(lo3[2], hi3[2] + 1):
+                    for b in range(lo3[1], hi3[1] + 1):
+                        for a in range(lo3[0], hi3[0] + 1):
+                            cc = (c * self.nc[1] + b) * self.nc[0] + a
+                            self.ctri[self.cell_start[cc]] = e
+                            self.cell_start[cc] += 1
+        return 0
+
+    cdef void make_ctx(self, Ctx* c) noexcept nogil:
+        cdef int d
+        c.n = self.n
+        c.cap = self.cap
+        c.hs = self.hs
+        c.model = self.model
+        c.nt = self.ntypes
+        c.nthreads = self.nthreads
+        c.ncells = self.ncells
+        for d in range(3):
+            c.nc[d] = self.nc[d]
+            c.cs[d] = self.cs[d]
+            c.lo[d] = self.lo[d]
+            c.grav[d] = self.grav[d]
+        c.skin = self.skin
+        c.time = self.time
+        c.x = self.x
+        c.v = self.v
+        c.w = self.w
+        c.f = self.f
+        c.t = self.t
+        c.r = self.r
+        c.m = self.m
+        c.type = self.type
+        c.buf = self.buf
+        c.perm = self.perm
+        c.cell = self.cell
+        c.nb_start = self.nb_start
+        c.nb_j = self.nb_j
+        c.nb_s = self.nb_s
+        c.nb_h = self.nb_h
+        c.ob_start = self.ob_start
+        c.ob_j = self.ob_j
+        c.ob_s = self.ob_s
+        c.ob_h = self.ob_h
+        c.wl_start = self.wl_start
+        c.wl_e = self.wl_e
+        c.wl_h = self.wl_h
+        c.ow_start = self.ow_start
+        c.ow_e = self.ow_e
+        c.ow_h = self.ow_h
+        c.cell_start = self.cell_start
+        c.ctri_start = self.ctri_start
+        c.ctri = self.ctri
+        c.per = self.per
+        c.shiftv = self.shiftv
+        c.ne = self.ne
+        c.ekind = self.ekind
+        c.etype = self.etype
+        c.evid = self.evid
+        c.emoving = self.emoving
+        c.egeo = self.egeo
+        c.emot = self.emot
+        c.coef = self.coef
+        c.visc = self.visc
+
+    cdef void permute3(self, double** a, int n) noexcept nogil:
+        cdef int i, d
+        cdef double* tmp = self.sp3
+        cdef double* src = a[0]
+        cdef int* perm = self.perm
+        for i in prange(n, schedule='static', num_threads=self.nthreads):
+            for d in range(3):
+                tmp[3 * i + d] = src[3 * perm[i] + d]
+        self.sp3 = src
+        a[0] = tmp
+
+    cdef void permute1(self, double** a, int n) noexcept nogil:
+        cdef int i
+        cdef double* tmp = self.sp1
+        cdef double* src = a[0]
+        cdef int* perm = self.perm
+        for i in prange(n, schedule='static', num_threads=self.nthreads):
+            tmp[i] = src[perm[i]]
+        self.sp1 = src
+        a[0] = tmp
+
+    cdef int rebuild(self) noexcept nogil:
+        """Wrap, drop lost particles, sort into cells, rebuild both lists carrying histories."""
+        cdef Ctx c
+        cdef int i, d, n = self.n, nnew, T = self.nthreads
+        cdef long long lost = 0, total
+        cdef double rmax = 0.0, p, L
+        cdef int *ip
+        cdef int64_t *lp
+        cdef uint8_t *bp
+        cdef double *dp
+        cdef long long cap
+        if self.setup_cells() < 0:
+            return -1
+        for i in range(n):
+            if self.r[i] > rmax:
+                rmax = self.r[i]
+        self.make_ctx(&c)
+        if self.bin_triangles(rmax + self.skin) < 0:
+            return -1
+        # wrap periodic coordinates, mark particles outside a fixed boundary (or removed) lost
+        for i in prange(n, schedule='static', num_threads=T, nogil=True):
+            self.cell[i] = self._place(i)
+        for i in range(n):
+            if self.cell[i] < 0:
+                lost += self.cell[i] == -1
+                self.cell[i] = self.ncells
+        self.lost += lost
+        # counting sort by cell (lost ones in the sentinel cell ncells)
+        memset(self.cell_start, 0, (self.ncells + 2) * sizeof(int))
+        for i in range(n):
+            self.cell_start[self.cell[i] + 1] += 1
+        for i in range(self.ncells + 1):
+            self.cell_start[i + 1] += self.cell_start[i]
+        for i in range(n):
+            self.perm[self.cell_start[self.cell[i]]] = i
+            self.cell_start[self.cell[i]] += 1
+        for i in range(self.ncells + 1, 0, -1):
+            self.cell_start[i] = self.cell_start[i - 1]
+        self.cell_start[0] = 0
+        nnew = self.cell_start[self.ncells]
+        self.permute3(&self.x, nnew)
+        self.permute3(&self.v, nnew)
+        self.permute3(&self.w, nnew)
+        self.permute3(&self.f, nnew)
+        self.permute3(&self.t, nnew)
+        self.permute1(&self.r, nnew)
+        self.permute1(&self.m, nnew)
+        for i in range(nnew):
+            self.spi[i] = self.type[self.perm[i]]
+            self.spl[i] = self.pid[self.perm[i]]
+        ip = self.type
+        self.type = self.spi
+        self.spi = ip
+        lp = self.pid
+        self.pid = self.spl
+        self.spl = lp
+        memcpy(self.x0, self.x, 3 * nnew * sizeof(double))
+        # the current lists become the previous ones
+        ip = self.ob_start; self.ob_start = self.nb_start; self.nb_start = ip
+        ip = self.ob_j; self.ob_j = self.nb_j; self.nb_j = ip
+        bp = self.ob_s; self.ob_s = self.nb_s; self.nb_s = bp
+        dp = self.ob_h; self.ob_h = self.nb_h; self.nb_h = dp
+        cap = self.ob_cap; self.ob_cap = self.nb_cap; self.nb_cap = cap
+        ip = self.ow_start; self.ow_start = self.wl_start; self.wl_start = ip
+        ip = self.ow_e; self.ow_e = self.wl_e; self.wl_e = ip
+        dp = self.ow_h; self.ow_h = self.wl_h; self.wl_h = dp
+        cap = self.ow_cap; self.ow_cap = self.wl_cap; self.wl_cap = cap
+        self.n = nnew
+        self.make_ctx(&c)
+        for i in prange(nnew, schedule='static', chunksize=64, num_threads=T, nogil=True):
+            self.nb_start[i + 1] = scan_pairs(&c, i, False)
+            self.wl_start[i + 1] = scan_walls(&c, i, False)
+        self.nb_start[0] = 0
+        self.wl_start[0] = 0
+        for i in range(nnew):
+            self.nb_start[i + 1] += self.nb_start[i]
+            self.wl_start[i + 1] += self.wl_start[i]
+        if self.reserve_pairs(self.nb_start[nnew]) < 0 or self.reserve_walls(self.wl_start[nnew]) < 0:
+            return -1
+        self.make_ctx(&c)
+        for i in prange(nnew, schedule='static', chunksize=64, num_threads=T, nogil=True):
+            scan_pairs(&c, i, True)
+            scan_walls(&c, i, True)
+        for i in range(9 * self.ne):
+            self.ebuilt[i] = self.egeo[i]
+        self.rebuilds += 1
+        return 0
+
+    cdef inline int _place(self, int i) noexcept nogil:
+        """Wrap particle i into the periodic box; its cell, -1 if lost, -2 if removed."""
+        cdef int d
+        cdef double p
+        if self.type[i] < 0:
+            return -2
+        for d in range(3):
+            p = self.x[3 * i + d]
+            if not isfinite(p):
+                return -1
+            if self.per[d]:
+                if p < self.lo[d] or p >= self.hi[d]:
+                    p -= self.L[d] * floor((p - self.lo[d]) / self.L[d])
+                    if p >= self.hi[d]:
+                        p = self.lo[d]
+                    self.x[3 * i + d] = p
+            elif p < self.lo[d] or p > self.hi[d]:
+                return -1
+        return self.cell_of(&self.x[3 * i])
+
+    cdef double move_walls(self) noexcept nogil:
+        """Place moving triangles at the current time; largest vertex move since the rebuild."""
+        cdef int e, k, d, last = -1
+        cdef double Rm[9], rel[3], tau = 0.0, dmax = 0.0, dd, s
+        cdef double* mot
+        cdef double* ref
+        cdef double* cur
+        for e in range(self.ne):
+            if not self.emoving[e]:
+                continue
+            mot = &self.emot[10 * e]
+            if self.ewall[e] != last:
+                tau = self.time - mot[9]
+                rotation(&mot[3], tau, Rm)
+                last = self.ewall[e]
+            for k in range(3):
+                ref = &self.eref[9 * e + 3 * k]
+                cur = &self.egeo[9 * e + 3 * k]
+                for d in range(3):
+                    rel[d] = ref[d] - mot[6 + d]
+                dd = 0.0
+                for d in range(3):
+                    cur[d] = mot[6 + d] + mot[d] * tau + Rm[3 * d] * rel[0] + Rm[3 * d + 1] * rel[1] \
+                        + Rm[3 * d + 2] * rel[2]
+                    s = cur[d] - self.ebuilt[9 * e + 3 * k + d]
+                    dd += s * s
+                if dd > dmax:
+                    dmax = dd
+        return sqrt(dmax)
+
+    cdef void forces(self, double dt, bint update, bint kick) noexcept nogil:
+        cdef Ctx c
+        cdef int i, n = self.n, T = self.nthreads
+        self.make_ctx(&c)
+        c.dt = dt
+        c.update = update
+        c.kick = kick
+        for i in prange(n, schedule='static', chunksize=64, num_threads=T, nogil=True):
+            pair_row(&c, i, threadid())
+        for i in prange(n, schedule='static', chunksize=64, num_threads=T, nogil=True):
+            particle_row(&c, i)
+
+    cdef double drift(self, double dt) noexcept nogil:
+        """First half kick and drift; the largest displacement since the last rebuild."""
+        cdef int i, d, n = self.n, T = self.nthreads
+        cdef double s, dd, q, dmax = 0.0
+        for i in range(T):
+            self.tmax[i] = 0.0
+        for i in prange(n, schedule='static', chunksize=256, num_threads=T, nogil=True):
+            self._drift_row(i, dt, threadid())
+        for i in range(T):
+            if self.tmax[i] > dmax:
+                dmax = self.tmax[i]
+        return sqrt(dmax)
+
+    cdef inline void _drift_row(self, int i, double dt, int tid) noexcept nogil:
+        cdef int d
+        cdef double s = 0.5 * dt / self.m[i], u = 0.5 * dt / (0.4 * self.m[i] * self.r[i] * self.r[i])
+        cdef double dd = 0.0, q
+        for d in range(3):
+            self.v[3 * i + d] += s * self.f[3 * i + d]
+            self.w[3 * i + d] += u * self.t[3 * i + d]
+            self.x[3 * i + d] += dt * self.v[3 * i + d]
+            q = self.x[3 * i + d] - self.x0[3 * i + d]
+            dd += q * q
+        if dd > self.tmax[tid]:
+            self.tmax[tid] = dd
+
+    cdef int _run(self, long long nsteps, double dt) noexcept nogil:
+        cdef long long s
+        cdef double dp, dw
+        if self.dirty:
+            if self.rebuild() < 0:
+                return -1
+            self.forces(dt, False, False)
+            self.dirty = 0
+        for s in range(nsteps):
+            dp = self.drift(dt)
+            self.time += dt
+            self.step += 1
+            dw = self.move_walls()
+            if dp + dw > 0.5 * self.skin:
+                if self.rebuild() < 0:
+                    return -1
+            self.forces(dt, True, True)
+        return 0
+
+    def run(self, long long nsteps, double dt):
+        """Advance ``nsteps`` velocity-Verlet steps of ``dt`` without the GIL."""
+        cdef int rc
+        with nogil:
+            rc = self._run(nsteps, dt)
+        if rc < 0:
+            raise MemoryError("native solver: out of memory while rebuilding the neighbour lists")
+
+    # ------------------------------------------------------------------ outputs ---------
+    def array(self, str name):
+        """Copy of a per-particle array in storage order."""
+        cdef int n = self.n
+        if name in ("x", "v", "w", "f", "t"):
+            ptr = {"x": <size_t>self.x, "v": <size_t>self.v, "w": <size_t>self.w,
+                   "f": <size_t>self.f, "t": <size_t>self.t}[name]
+            return _copy_d(<double*><size_t>ptr, 3 * n).reshape(n, 3)
+        if name == "r":
+            return _copy_d(self.r, n)
+        if name == "m":
+            return _copy_d(self.m, n)
+        if name == "type":
+            return _copy_i(self.type, n)
+        if name == "id":
+            return _copy_l(self.pid, n)
+        raise KeyError(name)
+
+    def contacts(self):
+        """Particle-particle contacts now: storage indices i, j, overlap, normal force."""
+        cdef int i, k, j, q, cnt = 0
+        cdef double d2, d, dist
+        cdef double* sv
+        out_i, out_j, out_d, out_f = [], [], [], []
+        for i in range(self.n):
+            for k in range(self.nb_start[i], self.nb_start[i + 1]):
+                j = self.nb_j[k]
+                sv = &self.shiftv[3 * (self.nb_s[k] & ~TOUCH)]
+                d2 = 0.0
+                for q in range(3):
+                    d = self.x[3 * i + q] - self.x[3 * j + q] + sv[q]
+                    d2 += d * d
+                dist = self.r[i] + self.r[j] - sqrt(d2)
+                if self.nb_s[k] & TOUCH:
+                    out_i.append(i)
+                    out_j.append(j)
+                    out_d.append(dist)
+                    out_f.append(self.nb_h[k * self.hs + 3])
+        return (np.array(out_i, dtype=np.intp), np.array(out_j, dtype=np.intp),
+                np.array(out_d, dtype=float), np.array(out_f, dtype=float))
+
+    def pair_count(self):
+        """Entries of the neighbour and wall lists."""
+        return self.nb_start[self.n], self.wl_start[self.n]
+
+    def memory_bytes(self):
+        """Bytes held by the per-particle arrays and lists (allocated capacity)."""
+        return (self.cap * (18 * 8 + 2 * 8 + 4 * 4 + 2 * 8 + 3 * 8 + 4 * 4 + 6 * 8 * self.nthreads)
+                + self.nb_cap * (5 + 8 * self.hs) + self.ob_cap * (5 + 8 * self.hs)
+                + self.wl_cap * (4 + 8 * self.hs) + self.ow_cap * (4 + 8 * self.hs)
+                + self.cell_cap * 8 + self.ctri_cap * 4)
+
+    def elements(self):
+        """Current wall elements: kind, type, wall, geometry (9), vertex ids (3), moving."""
+        cdef int ne = self.ne
+        return (_copy_i(self.ekind, ne), _copy_i(self.etype, ne), _copy_i(self.ewall, ne),
+                _copy_d(self.egeo, 9 * ne).reshape(ne, 9), _copy_i(self.evid, 3 * ne).reshape(ne, 3))
+
+    # ------------------------------------------------------------------ state -----------
+    def get_state(self):
+        """Everything the time-step loop depends on, as numpy arrays (storage order)."""
+        cdef int n = self.n, ne = self.ne
+        cdef long long npair = self.nb_start[n], nwall = self.wl_start[n]
+        state = {
+            "x": _copy_d(self.x, 3 * n), "v": _copy_d(self.v, 3 * n), "w": _copy_d(self.w, 3 * n),
+            "f": _copy_d(self.f, 3 * n), "t": _copy_d(self.t, 3 * n), "x0": _copy_d(self.x0, 3 * n),
+            "r": _copy_d(self.r, n), "m": _copy_d(self.m, n), "type": _copy_i(self.type, n),
+            "id": _copy_l(self.pid, n),
+            "nb_start": _copy_i(self.nb_start, n + 1), "nb_j": _copy_i(self.nb_j, npair),
+            "nb_s": _copy_b(self.nb_s, npair), "nb_h": _copy_d(self.nb_h, npair * self.hs),
+            "wl_start": _copy_i(self.wl_start, n + 1), "wl_e": _copy_i(self.wl_e, nwall),
+            "wl_h": _copy_d(self.wl_h, nwall * self.hs),
+            "ekind": _copy_i(self.ekind, ne), "etype": _copy_i(self.etype, ne),
+            "ewall": _copy_i(self.ewall, ne), "evid": _copy_i(self.evid, 3 * ne),
+            "emoving": _copy_i(self.emoving, ne), "egeo": _copy_d(self.egeo, 9 * ne),
+            "eref": _copy_d(self.eref, 9 * ne), "ebuilt": _copy_d(self.ebuilt, 9 * ne),
+            "emot": _copy_d(self.emot, 10 * ne), "visc": _copy_d(self.visc, self.ntypes),
+            "scalars": np.array([self.time], dtype=float),
+            "counters": np.array([self.step, self.lost, self.rebuilds, self.dirty], dtype=np.int64),
+        }
+        return state
+
+    def set_state(self, state):
+        """Restore :meth:`get_state` output (the contact model must be set already)."""
+        cdef int n = state["r"].shape[0], ne = state["ekind"].shape[0]
+        cdef long long npair = state["nb_j"].shape[0], nwall = state["wl_e"].shape[0]
+        self.reserve(n)
+        if self.reserve_pairs(npair) < 0 or self.reserve_walls(nwall) < 0:
+            raise MemoryError()
+        self.n = 0
+        self.ne = 0
+        kinds = np.ascontiguousarray(state["ekind"], dtype=np.int32)
+        self.add_elements(kinds, np.ascontiguousarray(state["etype"], dtype=np.int32),
+                          np.ascontiguousarray(state["ewall"], dtype=np.int32),
+                          np.ascontiguousarray(state["egeo"], dtype=float).reshape(ne, 9),
+                          np.ascontiguousarray(state["evid"], dtype=np.int32).reshape(ne, 3))
+        _put_d(self.eref, state["eref"])
+        _put_d(self.ebuilt, state["ebuilt"])
+        _put_d(self.emot, state["emot"])
+        _put_i(self.emoving, state["emoving"])
+        for name, ptr in (("x", <size_t>self.x), ("v", <size_t>self.v), ("w", <size_t>self.w),
+                          ("f", <size_t>self.f), ("t", <size_t>self.t), ("x0", <size_t>self.x0),
+                          ("r", <size_t>self.r), ("m", <size_t>self.m), ("nb_h", <size_t>self.nb_h),
+                          ("wl_h", <size_t>self.wl_h)):
+            _put_d(<double*><size_t>ptr, state[name])
+        for name, ptr in (("type", <size_t>self.type), ("nb_start", <size_t>self.nb_start),
+                          ("nb_j", <size_t>self.nb_j), ("wl_start", <size_t>self.wl_start),
+                          ("wl_e", <size_t>self.wl_e)):
+            _put_i(<int*><size_t>ptr, state[name])
+        ids = np.ascontiguousarray(state["id"], dtype=np.int64)
+        if n:
+            memcpy(self.pid, cnp.PyArray_DATA(ids), n * sizeof(int64_t))
+        nbs = np.ascontiguousarray(state["nb_s"], dtype=np.uint8)
+        if npair:
+            memcpy(self.nb_s, cnp.PyArray_DATA(nbs), npair)
+        self.set_viscous(np.ascontiguousarray(state["visc"], dtype=float))
+        self.n = n
+        self.time = float(state["scalars"][0])
+        self.step, self.lost, self.rebuilds, self.dirty = (int(k) for k in state["counters"])
+
+
+cdef object _copy_d(const double* p, long long k):
+    a = np.empty(k, dtype=float)
+    if k:
+        memcpy(cnp.PyArray_DATA(a), p, k * sizeof(double))
+    return a
+
+
+cdef object _copy_i(const int* p, long long k):
+    a = np.empty(k, dtype=np.int32)
+    if k:
+        memcpy(cnp.PyArray_DATA(a), p, k * sizeof(int))
+    return a
+
+
+cdef object _copy_l(const int64_t* p, long long k):
+    a = np.empty(k, dtype=np.int64)
+    if k:
+        memcpy(cnp.PyArray_DATA(a), p, k * sizeof(int64_t))
+    return a
+
+
+cdef object _copy_b(const uint8_t* p, long long k):
+    a = np.empty(k, dtype=np.uint8)
+    if k:
+        memcpy(cnp.PyArray_DATA(a), p, k)
+    return a
+
+
+cdef void _put_d(double* p, a) except *:
+    a = np.ascontiguousarray(a, dtype=float).reshape(-1)
+    if a.shape[0]:
+        memcpy(p, cnp.PyArray_DATA(a), a.shape[0] * sizeof(double))
+
+
+cdef void _put_i(int* p, a) except *:
+    a = np.ascontiguousarray(a, dtype=np.int32).reshape(-1)
+    if a.shape[0]:
+        memcpy(p, cnp.PyArray_DATA(a), a.shape[0] * sizeof(int))

@@ -1,0 +1,426 @@
+"""The native DEM solver: argument checking and numpy I/O around the compiled core.
+
+All quantities are SI. Per-particle outputs are copies ordered by particle id. The time
+step loop (:meth:`Solver.run`) runs entirely in compiled code without the GIL, with
+OpenMP over particles and contacts; results are bitwise reproducible for a given thread
+count, also across :meth:`Solver.get_state` / :meth:`Solver.set_state`.
+
+Conventions (LIGGGHTS):
+
+- velocity Verlet for translation and rotation of spheres (moment of inertia
+  ``2/5 m r^2``), gravity, viscous force ``F = -gamma v`` per particle type;
+- neighbour search: cell list of side ``>= 2 r_max + skin``, half neighbour list rebuilt
+  when a particle plus a moving wall have moved more than half the skin since the last
+  rebuild; at each rebuild particles are wrapped into periodic directions, sorted by
+  cell, and those outside a fixed boundary are deleted and counted in :attr:`Solver.lost`
+  (LIGGGHTS ``boundary f``);
+- contact models: ``hooke``, ``hertz`` and ``thornton-ning`` with the formulas of
+  :mod:`pygran_core.simulation.models` (``SpringDashpot``, ``HertzMindlin``,
+  ``ThorntonNing``), tangential history with the Coulomb limit, SJKR cohesion for
+  hooke/hertz and JKR adhesion for Thornton-Ning when ``cohesion_energy > 0``, rolling
+  friction ``cdt`` when ``rolling_friction > 0``; pair values from
+  :mod:`pygran_core.simulation.models.mixing`, a wall being a body of infinite radius and
+  mass of its own type;
+- walls: one-sided planes, cylinders (inside or outside), and triangle meshes (two-sided;
+  face, edge and vertex contacts, a shared edge or vertex counted once) with rigid motion.
+  Meshes are not repeated across periodic boundaries.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pygran_core.errors import ConfigError
+from pygran_core.simulation.models import mixing
+from pygran_native import _kernels
+from pygran_native._solver import Core
+
+__all__ = ["Solver"]
+
+_MODELS = {"hooke": 0, "hertz": 1, "thornton-ning": 2}
+_HISTORY = {"hooke": 4, "hertz": 4, "thornton-ning": 7}
+_WALL_KINDS = ("plane", "cylinder", "mesh")
+
+
+def _array(value, name: str, shape: tuple, dtype=float) -> np.ndarray:
+    """``value`` as a C-contiguous array of ``shape`` (-1 = any length), or a ConfigError naming it."""
+    try:
+        arr = np.array(value, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{name}: expected numbers, got {value!r}.") from exc
+    if arr.ndim != len(shape) or any(s not in (-1, a) for s, a in zip(shape, arr.shape)):
+        want = "x".join("n" if s == -1 else str(s) for s in shape) or "a scalar"
+        raise ConfigError(f"{name}: expected shape ({want}), got {arr.shape}.")
+    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+        raise ConfigError(f"{name}: values must be finite.")
+    return np.ascontiguousarray(arr)
+
+
+def _per_particle(value, name: str, n: int, dtype=float) -> np.ndarray:
+    arr = np.array(value, dtype=dtype)
+    if arr.ndim == 0:
+        arr = np.full(n, arr, dtype=dtype)
+    return _array(arr, name, (n,), dtype)
+
+
+class Solver:
+    """A DEM simulation of spheres in a box; see the module docstring for conventions.
+
+    ``box`` is ``[[xlo, ylo, zlo], [xhi, yhi, zhi]]``; ``periodic`` per axis; ``gravity``
+    the acceleration vector; ``skin`` the neighbour-list skin; ``threads`` the OpenMP
+    threads (default: ``OMP_NUM_THREADS`` or all cores); ``seed`` seeds :attr:`rng`, the
+    solver's random stream (its state is part of :meth:`get_state`).
+    """
+
+    def __init__(self, box, periodic=(False, False, False), gravity=(0.0, 0.0, 0.0), skin: float = 0.0,
+                 threads: int | None = None, seed: int = 0) -> None:
+        box = _array(box, "box", (2, 3))
+        if not np.all(box[1] > box[0]):
+            raise ConfigError(f"box: every upper bound must exceed the lower one, got {box.tolist()}.")
+        periodic = tuple(bool(p) for p in _array(periodic, "periodic", (3,), bool))
+        gravity = _array(gravity, "gravity", (3,))
+        if not (math.isfinite(skin) and skin > 0):
+            raise ConfigError(f"skin: must be > 0, got {skin!r}.")
+        threads = _kernels.openmp_threads() if threads is None else threads
+        if not (isinstance(threads, (int, np.integer)) and threads >= 1):
+            raise ConfigError(f"threads: must be a positive integer, got {threads!r}.")
+        self.box, self.periodic, self.threads = box, periodic, int(threads)
+        self._core = Core(box[0], box[1], periodic, gravity, float(skin), self.threads)
+        self.rng = np.random.default_rng(seed)
+        self._model: dict | None = None
+        self._next_id = 0
+        self._next_wall = 0
+        self._next_vertex = 0
+        self._walls: dict[int, str] = {}
+        self._viscous = np.zeros(0)
+
+    # --- set-up ------------------------------------------------------------------------
+    def set_contact_model(self, kind: str, *, youngs, poisson, restitution=None, friction=0.0,
+                          rolling_friction=0.0, cohesion_energy=0.0, yield_pressure=None,
+                          characteristic_velocity: float | None = None) -> None:
+        """Choose the contact model and give per-type material arrays (one entry per type).
+
+        ``kind``: ``"hooke"`` (needs ``restitution`` and ``characteristic_velocity``),
+        ``"hertz"`` (needs ``restitution``) or ``"thornton-ning"`` (needs
+        ``yield_pressure``; ``cohesion_energy`` is the JKR surface energy in J/m^2, for the
+        others the SJKR energy density in J/m^3). Particle and wall types index these
+        arrays. Changing the model to one with another history layout clears histories.
+        """
+        if kind not in _MODELS:
+            raise ConfigError(f"kind: unknown contact model {kind!r}; choose one of {', '.join(_MODELS)}.")
+        E = _array(np.atleast_1d(youngs), "youngs", (-1,))
+        nt = E.shape[0]
+        if nt == 0:
+            raise ConfigError("youngs: give at least one type.")
+
+        def per_type(value, name, check, rule):
+            arr = _array(np.broadcast_to(np.asarray(value, float), (nt,)) if np.ndim(value) == 0 else value,
+                         name, (nt,))
+            if not np.all(check(arr)):
+                raise ConfigError(f"{name}: out of range: {arr.tolist()}.")
+            return arr
+
+        E = per_type(E, "youngs", lambda a: a > 0, None)
+        nu = per_type(poisson, "poisson", lambda a: (a > -1) & (a < 0.5), None)
+        mu = per_type(friction, "friction", lambda a: a >= 0, None)
+        mur = per_type(rolling_friction, "rolling_friction", lambda a: a >= 0, None)
+        coh = per_type(cohesion_energy, "cohesion_energy", lambda a: a >= 0, None)
+        vchar = 0.0
+        if kind == "thornton-ning":
+            if yield_pressure is None:
+                raise ConfigError("yield_pressure: required by the thornton-ning model.")
+            py = per_type(yield_pressure, "yield_pressure", lambda a: a > 0, None)
+            damp = np.zeros((nt, nt))
+        else:
+            if restitution is None:
+                raise ConfigError(f"restitution: required by the {kind} model.")
+            e = per_type(restitution, "restitution", lambda a: (a > 0) & (a <= 1), None)
+            py = np.zeros(nt)
+            log_e = np.log(mixing.pair_table(mixing.pair_restitution, e))
+            beta = log_e / np.hypot(log_e, np.pi)
+            damp = (-2 * math.sqrt(5 / 6) if kind == "hertz" else -2.0) * beta
+            if kind == "hooke":
+                if characteristic_velocity is None or not characteristic_velocity > 0:
+                    raise ConfigError("characteristic_velocity: the hooke model needs a value > 0.")
+                vchar = float(characteristic_velocity)
+        tables = [mixing.pair_table(mixing.effective_modulus, E, nu),
+                  mixing.pair_table(mixing.effective_shear_modulus, E, nu),
+                  mixing.pair_table(mixing.pair_friction, mu), mixing.pair_table(mixing.pair_friction, mur),
+                  np.asarray(damp, float) + np.zeros((nt, nt)), mixing.pair_table(mixing.pair_cohesion, coh),
+                  mixing.pair_table(mixing.pair_yield_pressure, py) if kind == "thornton-ning" else np.zeros((nt, nt))]
+        self._core.set_model(_MODELS[kind], _HISTORY[kind], *(np.ascontiguousarray(t) for t in tables), vchar)
+        self._model = {"kind": kind, "youngs": E, "poisson": nu, "restitution": restitution, "friction": mu,
+                       "rolling_friction": mur, "cohesion_energy": coh, "yield_pressure": yield_pressure,
+                       "characteristic_velocity": characteristic_velocity}
+        if self._viscous.shape[0] != nt:
+            self._viscous = np.resize(self._viscous, nt) * (np.arange(nt) < self._viscous.shape[0])
+        self._core.set_viscous(self._viscous)
+
+    @property
+    def ntypes(self) -> int:
+        """Number of material types of the contact model (0 before :meth:`set_contact_model`)."""
+        return 0 if self._model is None else self._model["youngs"].shape[0]
+
+    def _check_types(self, types: np.ndarray, name: str) -> None:
+        if self._model is None:
+            raise ConfigError(f"{name}: call set_contact_model before adding particles or walls.")
+        if types.size and (types.min() < 0 or types.max() >= self.ntypes):
+            raise ConfigError(f"{name}: types must lie in [0, {self.ntypes - 1}], got {types.min()}..{types.max()}.")
+
+    def set_viscous(self, gamma) -> None:
+        """Viscous damping ``F = -gamma v`` with ``gamma`` (kg/s) per type."""
+        if self._model is None:
+            raise ConfigError("gamma: call set_contact_model first.")
+        gamma = _array(np.broadcast_to(np.asarray(gamma, float), (self.ntypes,)) if np.ndim(gamma) == 0
+                       else gamma, "gamma", (self.ntypes,))
+        if np.any(gamma < 0):
+            raise ConfigError(f"gamma: must be >= 0, got {gamma.tolist()}.")
+        self._viscous = gamma.copy()
+        self._core.set_viscous(self._viscous)
+
+    # --- particles ---------------------------------------------------------------------
+    def add_particles(self, positions, radii, densities=None, types=0, velocities=None, omegas=None,
+                      masses=None) -> np.ndarray:
+        """Add spheres; returns their ids. Give ``densities`` or ``masses`` (scalars broadcast)."""
+        x = _array(positions, "positions", (-1, 3))
+        n = x.shape[0]
+        r = _per_particle(radii, "radii", n)
+        if np.any(r <= 0):
+            raise ConfigError("radii: must be > 0.")
+        if (densities is None) == (masses is None):
+            raise ConfigError("densities/masses: give exactly one of them.")
+        if masses is None:
+            rho = _per_particle(densities, "densities", n)
+            if np.any(rho <= 0):
+                raise ConfigError("densities: must be > 0.")
+            m = 4.0 / 3.0 * np.pi * r**3 * rho
+        else:
+            m = _per_particle(masses, "masses", n)
+            if np.any(m <= 0):
+                raise ConfigError("masses: must be > 0.")
+        t = _per_particle(types, "types", n, np.int32)
+        self._check_types(t, "types")
+        v = np.zeros((n, 3)) if velocities is None else _array(velocities, "velocities", (n, 3))
+        w = np.zeros((n, 3)) if omegas is None else _array(omegas, "omegas", (n, 3))
+        for d in range(3):
+            if not self.periodic[d] and np.any((x[:, d] < self.box[0, d]) | (x[:, d] > self.box[1, d])):
+                raise ConfigError(f"positions: outside the fixed boundary of axis {'xyz'[d]}.")
+        ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
+        self._core.add_particles(x, r, np.ascontiguousarray(m), t, v, w, ids)
+        self._next_id += n
+        return ids.copy()
+
+    def _index(self, ids, name: str) -> np.ndarray:
+        """Storage indices of the particles with these ids (ConfigError for unknown ids)."""
+        ids = _array(np.atleast_1d(ids), name, (-1,), np.int64)
+        stored = self._core.array("id")
+        order = np.argsort(stored)
+        pos = np.searchsorted(stored[order], ids)
+        pos = np.minimum(pos, max(len(stored) - 1, 0))
+        if len(stored) == 0 or np.any(stored[order][pos] != ids):
+            raise ConfigError(f"{name}: unknown particle id(s) {np.setdiff1d(ids, stored).tolist()}.")
+        return np.ascontiguousarray(order[pos], dtype=np.int32)
+
+    def remove_particles(self, ids) -> None:
+        """Delete particles by id (with their contacts)."""
+        index = self._index(ids, "ids")
+        mask = np.zeros(self.n, np.uint8)
+        mask[index] = 1
+        self._core.mark_removed(mask)
+        self._core.run(0, 1.0)   # rebuild now so n and the arrays reflect the removal
+
+    def set_velocities(self, ids, velocities) -> None:
+        """Assign translational velocities to the particles with these ids."""
+        index = self._index(ids, "ids")
+        self._core.set_vectors("v", index, _array(velocities, "velocities", (len(index), 3)))
+
+    def set_omegas(self, ids, omegas) -> None:
+        """Assign angular velocities to the particles with these ids."""
+        index = self._index(ids, "ids")
+        self._core.set_vectors("w", index, _array(omegas, "omegas", (len(index), 3)))
+
+    # --- walls -------------------------------------------------------------------------
+    def _add_wall(self, kind: str, kinds, wtype, geo, vid) -> int:
+        wtype = int(wtype) if np.ndim(wtype) == 0 and float(wtype).is_integer() else None
+        if wtype is None:
+            raise ConfigError("type: a wall's type must be an integer.")
+        self._check_types(np.array([wtype]), "type")
+        handle = self._next_wall
+        k = len(kinds)
+        self._core.add_elements(np.asarray(kinds, np.int32), np.full(k, wtype, np.int32),
+                                np.full(k, handle, np.int32), np.ascontiguousarray(geo, float),
+                                np.ascontiguousarray(vid, np.int32))
+        self._next_wall += 1
+        self._walls[handle] = kind
+        return handle
+
+    def add_plane(self, point, normal, type: int = 0) -> int:
+        """One-sided plane through ``point``; particles live on the side ``normal`` points to."""
+        p = _array(point, "point", (3,))
+        nrm = _array(normal, "normal", (3,))
+        length = np.linalg.norm(nrm)
+        if length == 0:
+            raise ConfigError("normal: must not be zero.")
+        geo = np.concatenate([p, nrm / length, np.zeros(3)])[None]
+        return self._add_wall("plane", [0], type, geo, np.full((1, 3), -1))
+
+    def add_cylinder(self, axis: str, centre, radius: float, type: int = 0, inside: bool = True) -> int:
+        """Infinite cylinder along ``axis`` through ``centre`` (the two other coordinates)."""
+        if axis not in ("x", "y", "z"):
+            raise ConfigError(f"axis: must be 'x', 'y' or 'z', got {axis!r}.")
+        c = _array(centre, "centre", (2,))
+        if not (math.isfinite(radius) and radius > 0):
+            raise ConfigError(f"radius: must be > 0, got {radius!r}.")
+        geo = np.array([[float("xyz".index(axis)), c[0], c[1], radius, 1.0 if inside else 0.0, 0, 0, 0, 0]])
+        return self._add_wall("cylinder", [1], type, geo, np.full((1, 3), -1))
+
+    def add_mesh(self, vertices, triangles, type: int = 0) -> int:
+        """Triangle-mesh wall; duplicate vertices are merged and zero-area triangles dropped."""
+        verts = _array(vertices, "vertices", (-1, 3))
+        tris = _array(triangles, "triangles", (-1, 3), np.int64)
+        if tris.size and (tris.min() < 0 or tris.max() >= len(verts)):
+            raise ConfigError(f"triangles: vertex indices must lie in [0, {len(verts) - 1}].")
+        unique, inverse = np.unique(verts, axis=0, return_inverse=True)
+        vid = inverse.reshape(-1)[tris]
+        corners = unique[vid]
+        area = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+        keep = area > 0
+        if not np.any(keep):
+            raise ConfigError("triangles: the mesh has no triangle of non-zero area.")
+        vid, corners = vid[keep], corners[keep]
+        handle = self._add_wall("mesh", np.full(len(vid), 2), type, corners.reshape(-1, 9),
+                                vid + self._next_vertex)
+        self._next_vertex += len(unique)
+        return handle
+
+    def set_mesh_motion(self, mesh: int, velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0),
+                        origin=(0.0, 0.0, 0.0)) -> None:
+        """Rigid motion of a mesh from now on: translation at ``velocity`` and rotation at
+        ``angular_velocity`` (rad/s, a vector) about the moving point ``origin``."""
+        if self._walls.get(mesh) != "mesh":
+            raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
+        self._core.set_motion(mesh, _array(velocity, "velocity", (3,)),
+                              _array(angular_velocity, "angular_velocity", (3,)), _array(origin, "origin", (3,)))
+
+    def remove_wall(self, wall: int) -> None:
+        """Delete a plane, cylinder or mesh (its contact histories go with it)."""
+        if wall not in self._walls:
+            raise ConfigError(f"wall: {wall!r} is not a wall of this solver.")
+        self._core.remove_elements(wall)
+        del self._walls[wall]
+
+    remove_mesh = remove_wall
+
+    def walls(self) -> dict[int, str]:
+        """Current walls: handle -> ``'plane'``, ``'cylinder'`` or ``'mesh'``."""
+        return dict(self._walls)
+
+    def mesh_triangles(self, mesh: int) -> np.ndarray:
+        """Current corner coordinates (nt, 3, 3) of a mesh's triangles."""
+        if self._walls.get(mesh) != "mesh":
+            raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
+        kind, _, wall, geo, _ = self._core.elements()
+        return geo[wall == mesh].reshape(-1, 3, 3)
+
+    # --- running -----------------------------------------------------------------------
+    def run(self, nsteps: int, dt: float) -> None:
+        """Advance ``nsteps`` steps of ``dt`` seconds (compiled, no Python in the loop)."""
+        if not (isinstance(nsteps, (int, np.integer)) and nsteps >= 0):
+            raise ConfigError(f"nsteps: must be a non-negative integer, got {nsteps!r}.")
+        if not (math.isfinite(dt) and dt > 0):
+            raise ConfigError(f"dt: must be > 0, got {dt!r}.")
+        if self._model is None:
+            raise ConfigError("set_contact_model must be called before run.")
+        if self.n:
+            reach = 2 * float(self._core.array("r").max()) + self._core.skin
+            for d in range(3):
+                if self.periodic[d] and self.box[1, d] - self.box[0, d] < 2 * reach:
+                    raise ConfigError(f"box: the periodic axis {'xyz'[d]} must be at least 2 (2 r_max + skin) "
+                                      f"= {2 * reach:g} long.")
+        self._core.run(int(nsteps), float(dt))
+
+    # --- outputs -----------------------------------------------------------------------
+    def _sorted(self, name: str) -> np.ndarray:
+        return self._core.array(name)[np.argsort(self._core.array("id"), kind="stable")]
+
+    n = property(lambda self: self._core.n, doc="Number of particles.")
+    time = property(lambda self: self._core.time, doc="Simulated time (s).")
+    step = property(lambda self: self._core.step, doc="Steps run so far.")
+    lost = property(lambda self: self._core.lost, doc="Particles deleted for leaving a fixed boundary.")
+    positions = property(lambda self: self._sorted("x"), doc="(n, 3) positions, by id.")
+    velocities = property(lambda self: self._sorted("v"), doc="(n, 3) velocities, by id.")
+    omegas = property(lambda self: self._sorted("w"), doc="(n, 3) angular velocities, by id.")
+    forces = property(lambda self: self._sorted("f"), doc="(n, 3) forces at the last step, by id.")
+    torques = property(lambda self: self._sorted("t"), doc="(n, 3) torques at the last step, by id.")
+    radii = property(lambda self: self._sorted("r"), doc="(n,) radii, by id.")
+    masses = property(lambda self: self._sorted("m"), doc="(n,) masses, by id.")
+    types = property(lambda self: self._sorted("type"), doc="(n,) types, by id.")
+    ids = property(lambda self: np.sort(self._core.array("id")), doc="(n,) ids, ascending.")
+
+    def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Particle-particle contacts at the last step: ``(i_ids, j_ids, overlap, normal_force)``."""
+        i, j, overlap, force = self._core.contacts()
+        ids = self._core.array("id")
+        return ids[i], ids[j], overlap, force
+
+    def kinetic_energy(self) -> tuple[float, float]:
+        """Translational and rotational kinetic energy (J)."""
+        m, r = self._core.array("m"), self._core.array("r")
+        v, w = self._core.array("v"), self._core.array("w")
+        return float(0.5 * np.sum(m * np.sum(v * v, axis=1))), float(0.2 * np.sum(m * r * r * np.sum(w * w, axis=1)))
+
+    @property
+    def memory_bytes(self) -> int:
+        """Bytes allocated for particles, thread buffers and neighbour/wall lists."""
+        return int(self._core.memory_bytes())
+
+    @property
+    def rebuilds(self) -> int:
+        """Neighbour-list rebuilds so far."""
+        return int(self._core.rebuilds)
+
+    # --- checkpoints -------------------------------------------------------------------
+    def get_state(self) -> dict[str, np.ndarray]:
+        """Everything needed to continue bitwise identically, as a dict of numpy arrays."""
+        if self._model is None:
+            raise ConfigError("get_state: no contact model set yet.")
+        state = {f"core_{k}": v for k, v in self._core.get_state().items()}
+        model = self._model
+        state["model_kind"] = np.array(model["kind"])
+        for key in ("youngs", "poisson", "restitution", "friction", "rolling_friction", "cohesion_energy",
+                    "yield_pressure", "characteristic_velocity"):
+            state[f"model_{key}"] = np.array(np.nan if model[key] is None else model[key], float)
+        state["viscous"] = self._viscous.copy()
+        state["counters"] = np.array([self._next_id, self._next_wall, self._next_vertex], np.int64)
+        state["wall_handles"] = np.array(list(self._walls), np.int64)
+        state["wall_kinds"] = np.array([_WALL_KINDS.index(k) for k in self._walls.values()], np.int64)
+        bitgen = self.rng.bit_generator.state
+        state["rng"] = np.array(repr(bitgen))
+        return state
+
+    def set_state(self, state: dict[str, np.ndarray]) -> None:
+        """Restore a :meth:`get_state` result (box, periodicity and threads are this solver's)."""
+        try:
+            kind = str(state["model_kind"])
+            model = {}
+            for key in ("youngs", "poisson", "restitution", "friction", "rolling_friction", "cohesion_energy",
+                        "yield_pressure", "characteristic_velocity"):
+                value = np.asarray(state[f"model_{key}"], float)
+                model[key] = None if value.ndim == 0 and np.isnan(value) else (
+                    float(value) if value.ndim == 0 else value)
+            self.set_contact_model(kind, **model)
+            self.set_viscous(state["viscous"])
+            self._core.set_state({k[5:]: v for k, v in state.items() if k.startswith("core_")})
+            self._next_id, self._next_wall, self._next_vertex = (int(k) for k in state["counters"])
+            self._walls = {int(h): _WALL_KINDS[int(k)] for h, k in zip(state["wall_handles"], state["wall_kinds"])}
+            self.rng.bit_generator.state = _literal(str(state["rng"]))
+        except KeyError as exc:
+            raise ConfigError(f"state: missing entry {exc.args[0]!r}.") from None
+
+
+def _literal(text: str):
+    import ast
+
+    return ast.literal_eval(text)
