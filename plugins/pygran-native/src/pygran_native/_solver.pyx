@@ -39,6 +39,11 @@ cdef enum:
     THORNTON_NING = 2
 
 cdef enum:
+    NO_CONTACT = 0     # the history is cleared
+    IN_CONTACT = 1
+    MEMORY = 2         # Thornton-Ning: apart, plastic history kept while the bodies still overlap
+
+cdef enum:
     PLANE = 0
     CYLINDER = 1
     TRIANGLE = 2
@@ -177,25 +182,39 @@ cdef void tn_unloading(double dm, double R, const Coef* c, double* Rp, double* d
     dp[0] = am * am * (1.0 / R - 1.0 / Rp[0])
 
 
-cdef inline bint contact_force(int model, const Coef* c, double delta, double Rs, double ms,
-                               const double* n, const double* vr, const double* rw, const double* wrel,
-                               double* hist, double dt, bint update,
-                               double* F, double* Ft, double* Mr) noexcept nogil:
-    """Force on body i of a contact; False (and nothing set) when it is not in contact.
+cdef inline int contact_force(int model, const Coef* c, double delta, double Rs, double ms,
+                              const double* n, const double* vr, const double* rw, const double* wrel,
+                              double* hist, double dt, bint update,
+                              double* F, double* Ft, double* Mr) noexcept nogil:
+    """Force on body i of a contact: IN_CONTACT, or NO_CONTACT / MEMORY with nothing set.
+
+    Thornton-Ning history: ``hist[4]`` the largest overlap (negated while the contact is
+    broken but the bodies still overlap: the plastic offset ``hist[6]`` is remembered and
+    the contact forms again when the overlap reaches it), ``hist[5]`` the unloading
+    curvature radius, ``hist[6]`` the plastic offset.
 
     ``n`` points from j to i, ``delta`` is the overlap, ``vr = v_i - v_j`` at the centres,
     ``rw = r_i w_i + r_j w_j``, ``wrel = w_i - w_j``. Sets ``F`` (total force on i), ``Ft``
     (its tangential part, for torques) and ``Mr`` (rolling torque on i); updates ``hist``.
     """
-    cdef double vn, vt[3], cw[3], a, kn, gn, kt, gt, fn, ftm, lim, ratio, s, wm, Rp, dp
+    cdef double vn, vt[3], cw[3], a, kn, gn, kt, gt, fn, ftm, lim, ratio, s, wm, Rp, dp, dm
     cdef int k
     vn = -dot3(vr, n)   # overlap rate, positive approaching
     if model == THORNTON_NING:
-        if hist[4] == 0.0 and delta <= 0.0:
-            return False
+        dm = hist[4]
+        if dm < 0.0:
+            if delta <= 0.0:
+                return NO_CONTACT
+            if delta < hist[6]:
+                return MEMORY
+            dm = -dm
+            if update:
+                hist[4] = dm
+        elif dm == 0.0 and delta <= 0.0:
+            return NO_CONTACT
         Rp = hist[5]
         dp = hist[6]
-        if delta > hist[4]:
+        if delta > dm:
             tn_unloading(delta, Rs, c, &Rp, &dp)
             if update:
                 hist[4] = delta
@@ -203,13 +222,18 @@ cdef inline bint contact_force(int model, const Coef* c, double delta, double Rs
                 hist[6] = dp
         a = tn_contact_radius(delta - dp, Rp, c.E, c.coh)
         if a < 0.0:
-            return False
+            if delta <= 0.0:
+                return NO_CONTACT
+            if update:
+                hist[4] = -(delta if delta > dm else dm)
+                hist[0] = hist[1] = hist[2] = hist[3] = 0.0
+            return MEMORY
         fn = tn_force(a, Rp, c.E, c.coh)
         kt = 8.0 * c.G * a
         gt = 0.0
     else:
         if delta <= 0.0:
-            return False
+            return NO_CONTACT
         if model == HERTZ:
             a = sqrt(Rs * delta)
             kn = 4.0 / 3.0 * c.E * a
@@ -256,7 +280,7 @@ cdef inline bint contact_force(int model, const Coef* c, double delta, double Rs
             s = -c.mur * Rs * fabs(fn) / wm
             for k in range(3):
                 Mr[k] = s * wrel[k]
-    return True
+    return IN_CONTACT
 
 
 # --- geometry of wall elements ----------------------------------------------------------
@@ -514,7 +538,7 @@ cdef int scan_walls(const Ctx* c, int i, bint fill) noexcept nogil:
 
 cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
     """Forces of particle i's half-list contacts into thread ``tid``'s buffer."""
-    cdef int k, j, q, ti = c.type[i]
+    cdef int k, j, q, res, ti = c.type[i]
     cdef double d[3], n[3], vr[3], rw[3], wrel[3], F[3], Ft[3], Mr[3], cx[3], fi[6]
     cdef double dist2, dist, inv, rs, Rs, ms, ri = c.r[i], mi = c.m[i]
     cdef double* h
@@ -532,7 +556,7 @@ cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
         dist2 = dot3(d, d)
         rs = ri + c.r[j]
         h = &c.nb_h[<long long>k * c.hs]
-        if dist2 >= rs * rs and not (c.hs > 4 and h[4] > 0.0):
+        if dist2 >= rs * rs and not (c.hs > 4 and h[4] > 0.0):   # apart (adhesive contacts may stretch)
             if c.nb_s[k] & TOUCH:
                 memset(h, 0, c.hs * sizeof(double))
                 c.nb_s[k] &= ~TOUCH
@@ -546,10 +570,12 @@ cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
             wrel[q] = c.w[3 * i + q] - c.w[3 * j + q]
         Rs = ri * c.r[j] / rs
         ms = mi * c.m[j] / (mi + c.m[j])
-        if not contact_force(c.model, &c.coef[ti * c.nt + c.type[j]], rs - dist, Rs, ms, n, vr, rw, wrel,
-                             h, c.dt, c.update, F, Ft, Mr):
-            memset(h, 0, c.hs * sizeof(double))
-            c.nb_s[k] &= ~TOUCH
+        res = contact_force(c.model, &c.coef[ti * c.nt + c.type[j]], rs - dist, Rs, ms, n, vr, rw, wrel,
+                            h, c.dt, c.update, F, Ft, Mr)
+        if res != IN_CONTACT:
+            if res == NO_CONTACT:
+                memset(h, 0, c.hs * sizeof(double))
+                c.nb_s[k] &= ~TOUCH
             continue
         c.nb_s[k] |= TOUCH
         cross3(n, Ft, cx)
@@ -563,12 +589,15 @@ cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
         bi[q] += fi[q]
 
 
-cdef bint wall_contact(const Ctx* c, int i, int e, double* h, double delta, const double* n,
-                       const double* q, double* F, double* T) noexcept nogil:
-    """Force of wall element e on particle i (contact point q, NULL for a fixed primitive)."""
+cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const double* n,
+                      const double* q, double* F, double* T) noexcept nogil:
+    """Force of wall element e on particle i (contact point q, NULL for a fixed primitive).
+
+    Returns the :func:`contact_force` result; clears the history on NO_CONTACT.
+    """
     cdef double vr[3], rw[3], vw[3], Fc[3], Ft[3], Mr[3], cx[3], rel[3], o[3], tau
     cdef const double* mot
-    cdef int k
+    cdef int k, res
     cdef double ri = c.r[i]
     for k in range(3):
         vw[k] = 0.0
@@ -583,14 +612,17 @@ cdef bint wall_contact(const Ctx* c, int i, int e, double* h, double delta, cons
     for k in range(3):
         vr[k] = c.v[3 * i + k] - vw[k]
         rw[k] = ri * c.w[3 * i + k]
-    if not contact_force(c.model, &c.coef[c.type[i] * c.nt + c.etype[e]], delta, ri, c.m[i], n, vr, rw,
-                         &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr):
-        return False
+    res = contact_force(c.model, &c.coef[c.type[i] * c.nt + c.etype[e]], delta, ri, c.m[i], n, vr, rw,
+                        &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
+    if res == NO_CONTACT:
+        zero_hist(h, c.hs)
+    if res != IN_CONTACT:
+        return res
     cross3(n, Ft, cx)
     for k in range(3):
         F[k] += Fc[k]
         T[k] += Mr[k] - ri * cx[k]
-    return True
+    return IN_CONTACT
 
 
 cdef inline bint has_vertex(const int* vid, int u) noexcept nogil:
@@ -624,8 +656,10 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
         g = &c.egeo[9 * e]
         if c.ekind[e] != TRIANGLE:
             gap = primitive_gap(c.ekind[e], g, xi, nrm)
-            if gap < -ri or not wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T):
+            if gap < -ri:   # behind the wall: passed through it
                 zero_hist(h, c.hs)
+            else:
+                wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T)
             continue
         creg[nc] = closest_on_triangle(xi, g, g + 3, g + 6, &cq[3 * nc], &cfeat[nc])
         d2 = (xi[0] - cq[3 * nc]) ** 2 + (xi[1] - cq[3 * nc + 1]) ** 2 + (xi[2] - cq[3 * nc + 2]) ** 2
@@ -651,16 +685,15 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
                             reg == VERTEX or has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], w2)):
                         ok = 0
                         break
-            if ok:
-                dist = sqrt(cd2[a])
-                for b in range(3):
-                    nrm[b] = (xi[b] - cq[3 * a + b]) / dist
-                ok = wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T)
-            if ok:
+            if not ok:
+                zero_hist(h, c.hs)
+                continue
+            dist = sqrt(cd2[a])
+            for b in range(3):
+                nrm[b] = (xi[b] - cq[3 * a + b]) / dist
+            if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T) == IN_CONTACT:
                 acc[nacc] = a
                 nacc += 1
-            else:
-                zero_hist(h, c.hs)
 
 
 cdef void particle_row(const Ctx* c, int i) noexcept nogil:
@@ -1486,7 +1519,7 @@ cdef class Core:
                     d = self.x[3 * i + q] - self.x[3 * j + q] + sv[q]
                     d2 += d * d
                 dist = self.r[i] + self.r[j] - sqrt(d2)
-                if self.nb_s[k] & TOUCH:
+                if self.nb_s[k] & TOUCH and (self.hs == 4 or self.nb_h[k * self.hs + 4] > 0.0):
                     out_i.append(i)
                     out_j.append(j)
                     out_d.append(dist)
