@@ -1,6 +1,5 @@
 """Registers the native engine with PyGran."""
 
-from pygran_core.errors import UnsupportedFeature
 from pygran_core.hookspecs import EngineSpec, hookimpl
 
 
@@ -11,17 +10,14 @@ def locate_solver() -> str:
     return f"compiled kernels {_kernels.__file__} ({_kernels.openmp_threads()} OpenMP threads)"
 
 
-def _create(spec: object) -> None:
-    raise UnsupportedFeature(
-        "The native engine's time-step loop is not part of this pygran-native release yet"
-    )
-
-
 @hookimpl
 def pygran_engines():
+    from pygran_native.engine import NativeEngine
+
     yield EngineSpec(
         name="native",
-        factory=_create,
+        factory=NativeEngine,
+        capabilities=NativeEngine.capabilities,
         description="PyGran's own Cython/OpenMP DEM engine",
         locate_solver=locate_solver,
     )
