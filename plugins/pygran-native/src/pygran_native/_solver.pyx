@@ -182,73 +182,92 @@ cdef void tn_unloading(double dm, double R, const Coef* c, double* Rp, double* d
     dp[0] = am * am * (1.0 / R - 1.0 / Rp[0])
 
 
+cdef double hooke_stiffness(const Coef* c, double Rs, double ms) noexcept nogil:
+    """LIGGGHTS hooke: ``16/15 sqrt(R*) E* (15 m* V^2 / (16 sqrt(R*) E*))^(1/5)``."""
+    cdef double a = sqrt(Rs)
+    return 16.0 / 15.0 * a * c.E * (15.0 * ms * c.vchar * c.vchar / (16.0 * a * c.E)) ** 0.2
+
+
+cdef int tn_normal(const Coef* c, double delta, double Rs, double* hist, bint update,
+                   double* fn, double* kt) noexcept nogil:
+    """Thornton-Ning normal force and tangential stiffness, updating the normal history.
+
+    ``hist[4]`` is the largest overlap (negated while the contact is broken but the bodies
+    still overlap: the plastic offset ``hist[6]`` is remembered and the contact forms again
+    when the overlap reaches it), ``hist[5]`` the unloading curvature radius, ``hist[6]``
+    the plastic offset.
+    """
+    cdef double dm = hist[4], Rp, dp, a
+    if dm < 0.0:
+        if delta <= 0.0:
+            return NO_CONTACT
+        if delta < hist[6]:
+            return MEMORY
+        dm = -dm
+        if update:
+            hist[4] = dm
+    elif dm == 0.0 and delta <= 0.0:
+        return NO_CONTACT
+    Rp = hist[5]
+    dp = hist[6]
+    if delta > dm:
+        tn_unloading(delta, Rs, c, &Rp, &dp)
+        if update:
+            hist[4] = delta
+            hist[5] = Rp
+            hist[6] = dp
+    a = tn_contact_radius(delta - dp, Rp, c.E, c.coh)
+    if a < 0.0:
+        if delta <= 0.0:
+            return NO_CONTACT
+        if update:
+            hist[4] = -(delta if delta > dm else dm)
+            hist[0] = hist[1] = hist[2] = hist[3] = 0.0
+        return MEMORY
+    fn[0] = tn_force(a, Rp, c.E, c.coh)
+    kt[0] = 8.0 * c.G * a
+    return IN_CONTACT
+
+
 cdef inline int contact_force(int model, const Coef* c, double delta, double Rs, double ms,
                               const double* n, const double* vr, const double* rw, const double* wrel,
                               double* hist, double dt, bint update,
                               double* F, double* Ft, double* Mr) noexcept nogil:
     """Force on body i of a contact: IN_CONTACT, or NO_CONTACT / MEMORY with nothing set.
 
-    Thornton-Ning history: ``hist[4]`` the largest overlap (negated while the contact is
-    broken but the bodies still overlap: the plastic offset ``hist[6]`` is remembered and
-    the contact forms again when the overlap reaches it), ``hist[5]`` the unloading
-    curvature radius, ``hist[6]`` the plastic offset.
-
     ``n`` points from j to i, ``delta`` is the overlap, ``vr = v_i - v_j`` at the centres,
     ``rw = r_i w_i + r_j w_j``, ``wrel = w_i - w_j``. Sets ``F`` (total force on i), ``Ft``
     (its tangential part, for torques) and ``Mr`` (rolling torque on i); updates ``hist``.
     """
-    cdef double vn, vt[3], cw[3], a, kn, gn, kt, gt, fn, ftm, lim, ratio, s, wm, Rp, dp, dm
-    cdef int k
+    cdef double vn, vt[3], cw[3], a, kn, gn, kt, gt, fn, ftm, lim, ratio, s, wm
+    cdef int k, res
     vn = -dot3(vr, n)   # overlap rate, positive approaching
-    if model == THORNTON_NING:
-        dm = hist[4]
-        if dm < 0.0:
-            if delta <= 0.0:
-                return NO_CONTACT
-            if delta < hist[6]:
-                return MEMORY
-            dm = -dm
-            if update:
-                hist[4] = dm
-        elif dm == 0.0 and delta <= 0.0:
-            return NO_CONTACT
-        Rp = hist[5]
-        dp = hist[6]
-        if delta > dm:
-            tn_unloading(delta, Rs, c, &Rp, &dp)
-            if update:
-                hist[4] = delta
-                hist[5] = Rp
-                hist[6] = dp
-        a = tn_contact_radius(delta - dp, Rp, c.E, c.coh)
-        if a < 0.0:
-            if delta <= 0.0:
-                return NO_CONTACT
-            if update:
-                hist[4] = -(delta if delta > dm else dm)
-                hist[0] = hist[1] = hist[2] = hist[3] = 0.0
-            return MEMORY
-        fn = tn_force(a, Rp, c.E, c.coh)
-        kt = 8.0 * c.G * a
-        gt = 0.0
-    else:
+    if model == HERTZ:
         if delta <= 0.0:
             return NO_CONTACT
-        if model == HERTZ:
-            a = sqrt(Rs * delta)
-            kn = 4.0 / 3.0 * c.E * a
-            gn = c.damp * sqrt(2.0 * c.E * a * ms)
-            kt = 8.0 * c.G * a
-            gt = c.tdamp * gn
-        else:
-            a = sqrt(Rs)
-            kn = 16.0 / 15.0 * a * c.E * (15.0 * ms * c.vchar * c.vchar / (16.0 * a * c.E)) ** 0.2
-            gn = c.damp * sqrt(kn * ms)
-            kt = kn
-            gt = gn
+        a = sqrt(Rs * delta)
+        kn = 4.0 / 3.0 * c.E * a
+        gn = c.damp * sqrt(2.0 * c.E * a * ms)
+        kt = 8.0 * c.G * a
+        gt = c.tdamp * gn
         fn = kn * delta + gn * vn
         if c.coh > 0.0:
             fn -= c.coh * M_PI * delta * (2.0 * Rs - delta)
+    elif model == HOOKE:
+        if delta <= 0.0:
+            return NO_CONTACT
+        kn = hooke_stiffness(c, Rs, ms)
+        gn = c.damp * sqrt(kn * ms)
+        kt = kn
+        gt = gn
+        fn = kn * delta + gn * vn
+        if c.coh > 0.0:
+            fn -= c.coh * M_PI * delta * (2.0 * Rs - delta)
+    else:
+        res = tn_normal(c, delta, Rs, hist, update, &fn, &kt)
+        if res != IN_CONTACT:
+            return res
+        gt = 0.0
     hist[3] = fn
     for k in range(3):
         F[k] = fn * n[k]
@@ -538,55 +557,73 @@ cdef int scan_walls(const Ctx* c, int i, bint fill) noexcept nogil:
 
 cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
     """Forces of particle i's half-list contacts into thread ``tid``'s buffer."""
-    cdef int k, j, q, res, ti = c.type[i]
-    cdef double d[3], n[3], vr[3], rw[3], wrel[3], F[3], Ft[3], Mr[3], cx[3], fi[6]
-    cdef double dist2, dist, inv, rs, Rs, ms, ri = c.r[i], mi = c.m[i]
+    # locals: the flag store through uint8_t* may alias anything, including *c
+    cdef const double* x = c.x
+    cdef const double* v = c.v
+    cdef const double* w = c.w
+    cdef const double* r = c.r
+    cdef const double* m = c.m
+    cdef const int* typ = c.type
+    cdef const int* nb_j = c.nb_j
+    cdef uint8_t* nb_s = c.nb_s
+    cdef double* nb_h = c.nb_h
+    cdef const double* shiftv = c.shiftv
+    cdef const Coef* coef = c.coef + c.type[i] * c.nt
+    cdef double* buf = c.buf + <long long>tid * c.cap * 6
+    cdef int hs = c.hs, model = c.model, update = c.update, k, j, q, res, kend = c.nb_start[i + 1]
+    cdef double dt = c.dt
+    cdef double d[3], n[3], vr[3], rw[3], wrel[3], F[3], Ft[3], Mr[3], cx[3], fi[6], xi[3], vi[3], wi[3]
+    cdef double dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den
     cdef double* h
     cdef double* bj
-    cdef double* bi = &c.buf[(<long long>tid * c.cap + i) * 6]
     cdef const double* sv
-    cdef const double* xi = &c.x[3 * i]
+    for q in range(3):
+        xi[q] = x[3 * i + q]
+        vi[q] = v[3 * i + q]
+        wi[q] = w[3 * i + q]
     for q in range(6):
         fi[q] = 0.0
-    for k in range(c.nb_start[i], c.nb_start[i + 1]):
-        j = c.nb_j[k]
-        sv = &c.shiftv[3 * (c.nb_s[k] & ~TOUCH)]
+    for k in range(c.nb_start[i], kend):
+        j = nb_j[k]
+        sv = &shiftv[3 * (nb_s[k] & ~TOUCH)]
         for q in range(3):
-            d[q] = xi[q] - c.x[3 * j + q] + sv[q]
+            d[q] = xi[q] - x[3 * j + q] + sv[q]
         dist2 = dot3(d, d)
-        rs = ri + c.r[j]
-        h = &c.nb_h[<long long>k * c.hs]
-        if dist2 >= rs * rs and not (c.hs > 4 and h[4] > 0.0):   # apart (adhesive contacts may stretch)
-            if c.nb_s[k] & TOUCH:
-                memset(h, 0, c.hs * sizeof(double))
-                c.nb_s[k] &= ~TOUCH
+        rj = r[j]
+        rs = ri + rj
+        h = &nb_h[<long long>k * hs]
+        if dist2 >= rs * rs and not (hs > 4 and h[4] > 0.0):   # apart (adhesive contacts may stretch)
+            if nb_s[k] & TOUCH:
+                memset(h, 0, hs * sizeof(double))
+                nb_s[k] &= ~TOUCH
             continue
-        dist = sqrt(dist2)
-        inv = 1.0 / dist
+        inv = 1.0 / sqrt(dist2)
+        mj = m[j]
         for q in range(3):
             n[q] = d[q] * inv
-            vr[q] = c.v[3 * i + q] - c.v[3 * j + q]
-            rw[q] = ri * c.w[3 * i + q] + c.r[j] * c.w[3 * j + q]
-            wrel[q] = c.w[3 * i + q] - c.w[3 * j + q]
-        Rs = ri * c.r[j] / rs
-        ms = mi * c.m[j] / (mi + c.m[j])
-        res = contact_force(c.model, &c.coef[ti * c.nt + c.type[j]], rs - dist, Rs, ms, n, vr, rw, wrel,
-                            h, c.dt, c.update, F, Ft, Mr)
+            vr[q] = vi[q] - v[3 * j + q]
+            rw[q] = ri * wi[q] + rj * w[3 * j + q]
+            wrel[q] = wi[q] - w[3 * j + q]
+        den = 1.0 / (rs * (mi + mj))
+        Rs = ri * rj * (mi + mj) * den
+        ms = mi * mj * rs * den
+        res = contact_force(model, &coef[typ[j]], rs - dist2 * inv, Rs, ms, n, vr, rw, wrel, h, dt, update,
+                            F, Ft, Mr)
         if res != IN_CONTACT:
             if res == NO_CONTACT:
-                memset(h, 0, c.hs * sizeof(double))
-                c.nb_s[k] &= ~TOUCH
+                memset(h, 0, hs * sizeof(double))
+                nb_s[k] &= ~TOUCH
             continue
-        c.nb_s[k] |= TOUCH
+        nb_s[k] |= TOUCH
         cross3(n, Ft, cx)
-        bj = &c.buf[(<long long>tid * c.cap + j) * 6]
+        bj = &buf[j * 6]
         for q in range(3):
             fi[q] += F[q]
             fi[3 + q] += Mr[q] - ri * cx[q]
             bj[q] -= F[q]
-            bj[3 + q] -= Mr[q] + c.r[j] * cx[q]
+            bj[3 + q] -= Mr[q] + rj * cx[q]
     for q in range(6):
-        bi[q] += fi[q]
+        buf[i * 6 + q] += fi[q]
 
 
 cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const double* n,
