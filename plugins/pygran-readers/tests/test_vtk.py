@@ -15,9 +15,9 @@ from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkUnstruct
 from vtkmodules.vtkIOLegacy import vtkPolyDataWriter, vtkUnstructuredGridWriter
 from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 
-from pygran_core.errors import ReadError
-from pygran_core.io import Frame, open_trajectory
-from pygran_core.testing import FormatConformance
+from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.io import Frame, open_trajectory, open_writer
+from pygran_core.testing import FormatConformance, particle_frames
 
 TRIANGLE, QUAD, VERTEX = 5, 9, 1
 
@@ -78,7 +78,7 @@ def vtk_dataset(points, cells, point_data, cell_data, unstructured):
 
 class _VTKCase(FormatConformance):
     reader = "vtk"
-    empty_frames = False
+    test_empty_frame = None  # a VTK/STL file cannot hold an empty mesh
     exact = False  # vtk's ASCII writer prints fewer digits than a float64 needs
     unstructured = False
     binary = False
@@ -156,6 +156,64 @@ class TestXMLUnstructured(_VTKCase):
                 cell_data={k: [v[:-1], v[-1:]] for k, v in cell_data.items()},
             ),
         )
+
+
+class TestWriterParticles(FormatConformance):
+    """Our own legacy writer: particles as vertices; x y z come first and vectors stay together."""
+
+    reader = writer = "vtk"
+    suffix = ".vtk"
+    metadata = ("timestep",)  # box and boundary flags have no place in a VTK file
+
+    def sample_frames(self):
+        frames = particle_frames()
+        for frame in frames:
+            order = ["x", "y", "z"] + [k for k in frame.arrays if k not in "xyz"]
+            frame.arrays = {k: frame.arrays[k] for k in order}
+        return frames
+
+    def make_sample(self, tmp_path):
+        frames = self.sample_frames()
+        with open_writer(tmp_path / "p*.vtk", **self.options) as out:
+            for frame in frames:
+                out.write_frame(frame)
+        return str(tmp_path / "p*.vtk"), frames
+
+    options = {"binary": False}
+
+
+class TestWriterParticlesBinary(TestWriterParticles):
+    options = {"binary": True}
+
+
+class TestWriterMeshes(TestWriterParticles):
+    """Our own writer on meshes: triangles and quads, cell and point data, time."""
+
+    metadata = ("timestep", "time")
+    test_empty_frame = None  # the sample meshes are never empty
+
+    def sample_frames(self):
+        frames = []
+        for k, mesh in enumerate(sample_meshes()):
+            frame = expected_frame(*mesh)
+            frame.arrays["meshid"] = frame.arrays["meshid"].astype(np.int64)
+            frame.attrs = {"kind": "mesh", "point_data": ["temperature"], "cell_data": ["meshid", "v"]}
+            frame.timestep, frame.time = 1000 * k, 0.5 * k
+            frames.append(frame)
+        return frames
+
+
+class TestWriterMeshesBinary(TestWriterMeshes):
+    options = {"binary": True}
+
+
+def test_writer_replaces_files_atomically_and_names_them_by_timestep(tmp_path):
+    frame = Frame({"x": np.zeros(2), "y": np.zeros(2), "z": np.ones(2)}, timestep=42)
+    with open_writer(tmp_path / "plain.vtk") as out:
+        out.write_frame(frame)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain42.vtk"]
+    with pytest.raises(UnsupportedFeature, match="lacks \\['z'\\]"):
+        open_writer(tmp_path / "p*.vtk").write_frame(Frame({"x": np.zeros(1), "y": np.zeros(1)}))
 
 
 def test_hopper_mesh_sequence(fixtures, tmp_path):

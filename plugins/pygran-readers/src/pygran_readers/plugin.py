@@ -58,3 +58,11 @@ def pygran_writers():
         description="HDF5 in the H5MD layout, flushed frame by frame",
         options={"group": "all", "units": None, "compression": 4},
     )
+    yield WriterSpec(
+        name="vtk",
+        extensions=(".vtk",),
+        open=vtk.VTKWriter,
+        kinds=frozenset({"mesh", "particles"}),
+        description="legacy VTK, a file per frame ('*' in the name is the timestep)",
+        options={"binary": False},
+    )

@@ -14,15 +14,16 @@ parsed a whole section at a time with numpy.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import os
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from pygran_core.errors import ReadError
-from pygran_core.io import Frame, PathLike, Trajectory
+from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.io import Frame, PathLike, Trajectory, TrajectoryWriter
 
 #: legacy type name -> big-endian binary dtype
 DTYPES = {
@@ -78,6 +79,17 @@ class Mesh:
     cell_types: list[int] = field(default_factory=list)
     point_data: dict[str, np.ndarray] = field(default_factory=dict)
     cell_data: dict[str, np.ndarray] = field(default_factory=dict)
+    field_data: dict[str, np.ndarray] = field(default_factory=dict)  # dataset-level, e.g. TIME, CYCLE
+
+    @property
+    def timing(self) -> dict[str, Any]:
+        """``timestep``/``time`` for a Frame, from the CYCLE and TIME field data when present."""
+        found: dict[str, Any] = {}
+        if "CYCLE" in self.field_data and np.size(self.field_data["CYCLE"]) == 1:
+            found["timestep"] = int(np.ravel(self.field_data["CYCLE"])[0])
+        if "TIME" in self.field_data and np.size(self.field_data["TIME"]) == 1:
+            found["time"] = float(np.ravel(self.field_data["TIME"])[0])
+        return found
 
 
 class _Legacy:
@@ -235,7 +247,9 @@ def read_legacy(path: Path) -> Mesh:
             raise cur.fail(f"unknown or misplaced section {text[:60]!r}", cur.last)
     if points is None:
         raise cur.fail("the file has no POINTS section")
-    return _assemble(cur, points, sections, cell_types, point_data, cell_data)
+    mesh = _assemble(cur, points, sections, cell_types, point_data, cell_data)
+    mesh.field_data = field_data
+    return mesh
 
 
 def _read_cells(cur: _Legacy, n: int, size: int) -> list[np.ndarray]:
@@ -450,7 +464,7 @@ def mesh_frame(mesh: Mesh, kind: str | None) -> Frame:
             else:
                 flat = values.reshape(len(values), -1)
                 arrays.update({f"{name}[{j + 1}]": flat[:, j].copy() for j in range(flat.shape[1])})
-        return Frame(arrays, attrs={"kind": "particles"})
+        return Frame(arrays, attrs={"kind": "particles"}, **mesh.timing)
     width = max((len(c) for c in mesh.cells), default=0)
     cells = np.full((len(mesh.cells), width), -1, dtype=np.int64)
     for row, cell in enumerate(mesh.cells):
@@ -474,6 +488,7 @@ def mesh_frame(mesh: Mesh, kind: str | None) -> Frame:
             "point_data": list(point_keys.values()),
             "cell_data": list(cell_keys.values()),
         },
+        **mesh.timing,
     )
 
 
@@ -499,3 +514,150 @@ class VTKTrajectory(Trajectory):
         except Exception as exc:  # noqa: BLE001 - meshio/vtk raise many kinds on bad files
             raise ReadError(f"{path}: frame {index}: cannot read it: {type(exc).__name__}: {exc}") from exc
         return mesh_frame(mesh, self.kind)
+
+
+# -- writing -------------------------------------------------------------------------------
+
+_POLYGON_CELLS = frozenset({5, 7, 9})  # triangle, polygon, quad
+_TRIPLES = {
+    ("vx", "vy", "vz"): "v",
+    ("fx", "fy", "fz"): "f",
+    ("omegax", "omegay", "omegaz"): "omega",
+    ("tqx", "tqy", "tqz"): "tq",
+}
+
+
+class VTKWriter(TrajectoryWriter):
+    """Legacy VTK files, one per frame (ASCII by default, or big-endian ``binary=True``).
+
+    A ``*`` in the file name is replaced by the frame's timestep, as LIGGGHTS names its
+    mesh dumps; without one the timestep goes before the extension. Meshes are written as
+    POLYDATA polygons (UNSTRUCTURED_GRID when some cells are not polygons), particles as
+    POLYDATA vertices with their columns as point data (``vx vy vz`` as the vector ``v``).
+    The frame's timestep and time go in the CYCLE and TIME field data. Each file is written
+    to a temporary name and renamed, so a crash never leaves a half-written frame.
+    """
+
+    def __init__(self, path: PathLike, binary: bool = False) -> None:
+        self.path = Path(path)
+        self.binary = bool(binary)
+        self.count = 0
+
+    def write_frame(self, frame: Frame) -> None:
+        step = frame.timestep if frame.timestep is not None else self.count
+        name = self.path.name
+        name = name.replace("*", str(step)) if "*" in name else f"{self.path.stem}{step}{self.path.suffix}"
+        target = self.path.with_name(name)
+        partial = target.with_name(target.name + ".part")
+        partial.write_bytes(b"".join(_legacy_chunks(frame, self.binary)))
+        os.replace(partial, target)
+        self.count += 1
+
+
+def _legacy_chunks(frame: Frame, binary: bool) -> Iterator[bytes]:
+    yield b"# vtk DataFile Version 3.0\nPyGran frame\n" + (b"BINARY\n" if binary else b"ASCII\n")
+    if "points" in frame.arrays:
+        yield from _mesh_chunks(frame, binary)
+    else:
+        yield from _particle_chunks(frame, binary)
+
+
+def _numbers(values: np.ndarray, binary: bool, per_line: int, integer: str = ">i8") -> bytes:
+    """Numbers as ASCII lines of ``per_line`` values, or big-endian binary (``integer`` for ints)."""
+    values = np.asarray(values)
+    if binary:
+        dtype = integer if values.dtype.kind in "iub" else ">f8"
+        return values.astype(dtype).tobytes() + b"\n"
+    if values.size == 0:
+        return b""
+    flat = values.reshape(-1, per_line) if values.size % per_line == 0 else values.reshape(-1, 1)
+    form = "%d" if values.dtype.kind in "iub" else "%r"
+    row = " ".join([form] * flat.shape[1]) + "\n"
+    cast = flat.astype(np.int64 if values.dtype.kind in "iub" else np.float64).tolist()
+    return ((row * len(flat)) % tuple(v for record in cast for v in record)).encode("ascii")
+
+
+def _array_chunks(name: str, values: np.ndarray, binary: bool) -> Iterator[bytes]:
+    values = np.asarray(values)
+    components = 1 if values.ndim == 1 else int(np.prod(values.shape[1:]))
+    kind = "long" if values.dtype.kind in "iub" else "double"
+    if " " in name:
+        raise UnsupportedFeature(f"VTK array names cannot contain spaces: {name!r}")
+    yield f"{name} {components} {len(values)} {kind}\n".encode("ascii")
+    yield _numbers(values.reshape(len(values), components), binary, components)
+
+
+def _field(arrays: dict[str, np.ndarray], binary: bool) -> Iterator[bytes]:
+    yield f"FIELD FieldData {len(arrays)}\n".encode("ascii")
+    for name, values in arrays.items():
+        yield from _array_chunks(name, values, binary)
+
+
+def _timing(frame: Frame) -> dict[str, np.ndarray]:
+    found = {}
+    if frame.timestep is not None:
+        found["CYCLE"] = np.array([int(frame.timestep)], np.int64)
+    if frame.time is not None:
+        found["TIME"] = np.array([float(frame.time)])
+    return found
+
+
+def _points_chunks(points: np.ndarray, binary: bool) -> Iterator[bytes]:
+    yield f"POINTS {len(points)} double\n".encode("ascii")
+    yield _numbers(np.asarray(points, np.float64), binary, 3)
+
+
+def _mesh_chunks(frame: Frame, binary: bool) -> Iterator[bytes]:
+    arrays = frame.arrays
+    cells = np.asarray(arrays["cells"], np.int64).reshape(len(arrays["cells"]), -1)
+    sizes = (cells >= 0).sum(axis=1)
+    types = np.asarray(arrays.get("cell_types", np.where(sizes == 3, 5, np.where(sizes == 4, 9, 7))))
+    keep = np.column_stack([np.ones(len(cells), bool), cells >= 0])
+    connectivity = np.column_stack([sizes, cells])[keep]  # row by row: size, then the cell's points
+    polydata = set(types.tolist()) <= _POLYGON_CELLS
+    yield b"DATASET POLYDATA\n" if polydata else b"DATASET UNSTRUCTURED_GRID\n"
+    timing = _timing(frame)
+    if timing:
+        yield from _field(timing, binary)
+    yield from _points_chunks(arrays["points"], binary)
+    section = "POLYGONS" if polydata else "CELLS"
+    yield f"{section} {len(cells)} {len(connectivity)}\n".encode("ascii")
+    yield _numbers(connectivity, binary, len(connectivity) or 1, integer=">i4")
+    if not polydata:
+        yield f"CELL_TYPES {len(cells)}\n".encode("ascii")
+        yield _numbers(types.astype(np.int64), binary, 1, integer=">i4")
+    for section, names, size in (
+        ("CELL_DATA", frame.attrs.get("cell_data", ()), len(cells)),
+        ("POINT_DATA", frame.attrs.get("point_data", ()), len(arrays["points"])),
+    ):
+        data = {name.split(":", 1)[-1]: arrays[name] for name in names}
+        if data:
+            yield f"{section} {size}\n".encode("ascii")
+            yield from _field(data, binary)
+
+
+def _particle_chunks(frame: Frame, binary: bool) -> Iterator[bytes]:
+    arrays = dict(frame.arrays)
+    missing = [axis for axis in "xyz" if axis not in arrays]
+    if missing:
+        raise UnsupportedFeature(f"A VTK particle file needs x, y and z; the frame lacks {missing}")
+    points = np.column_stack([arrays.pop(axis) for axis in "xyz"]).astype(np.float64).reshape(-1, 3)
+    data: dict[str, np.ndarray] = {}
+    for name, values in arrays.items():
+        triple = next((t for t in _TRIPLES if name in t), None)
+        if triple is not None and all(k in arrays for k in triple):
+            if name == triple[0]:
+                data[_TRIPLES[triple]] = np.column_stack([arrays[k] for k in triple])
+        else:
+            data[name] = values
+    n = len(points)
+    yield b"DATASET POLYDATA\n"
+    timing = _timing(frame)
+    if timing:
+        yield from _field(timing, binary)
+    yield from _points_chunks(points, binary)
+    yield f"VERTICES {n} {2 * n}\n".encode("ascii")
+    yield _numbers(np.column_stack([np.ones(n, np.int64), np.arange(n)]), binary, 2, integer=">i4")
+    if data:
+        yield f"POINT_DATA {n}\n".encode("ascii")
+        yield from _field(data, binary)
