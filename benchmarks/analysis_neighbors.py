@@ -1,7 +1,7 @@
 """Benchmark: RDF and coordination number for 1e5 and 1e6 particles (not part of the tests).
 
 A periodic box of random spheres at packing fraction 0.3 (about 2 neighbours each within
-contact). PyGran's ``Particles.computeRDF`` and ``equilibrium.Neighbors(...).coon()`` are
+contact). PyGran's ``Particles.computeRDF`` and ``equilibrium.Neighbors(...).coon`` are
 timed against a straightforward scipy cKDTree implementation (``query_pairs`` then
 ``np.histogram`` / ``np.bincount``) and, when importable, freud. Run as
 ``python benchmarks/analysis_neighbors.py [N ...]``; install freud only in a throwaway venv
@@ -86,7 +86,7 @@ def bench(n: int) -> None:
     repeat = 3 if n <= 200_000 else 1
     ours = {
         "rdf": lambda: particles.computeRDF(dr=r_max / NBINS, rMax=r_max).g,
-        "coon": lambda: equilibrium.Neighbors(particles).coon(),
+        "coon": lambda: equilibrium.Neighbors(particles).coon,
     }
     base = {
         "rdf": lambda: baseline_rdf(positions, length, r_max),

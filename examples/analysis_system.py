@@ -45,7 +45,7 @@ def main(argv: list[str]) -> dict:
     # every element is a length-1 Particles whose attributes can be read but not changed
     radii = [float(particle.radius[0]) for particle in Particles[:5]]
 
-    coon = analysis.equilibrium.Neighbors(Particles).coon()
+    coon = analysis.equilibrium.Neighbors(Particles).coon
     rdf = Particles.computeRDF()
     print(
         f"mean coordination number {coon.mean():.3f}; RDF maximum {rdf.g.max():.2f} "

@@ -37,12 +37,12 @@ def fcc(cells, periodic):
 
 def test_fcc_in_contact_has_coordination_twelve():
     periodic = equilibrium.Neighbors(fcc(4, periodic=True))
-    np.testing.assert_array_equal(periodic.coon(), 12)
+    np.testing.assert_array_equal(periodic.coon, 12)
     assert len(periodic.pairs) == 6 * 256
     np.testing.assert_allclose(periodic.distances, 2 * R)
     assert periodic.overlaps.shape == (0, 3)  # touching, not overlapping
     open_lattice = fcc(4, periodic=False)
-    coon = equilibrium.Neighbors(open_lattice).coon()
+    coon = equilibrium.Neighbors(open_lattice).coon
     lower, upper = open_lattice.positions.min(axis=0), open_lattice.positions.max(axis=0)
     interior = ((open_lattice.positions > lower + 0.1) & (open_lattice.positions < upper - 0.1)).all(axis=1)
     np.testing.assert_array_equal(coon[interior], 12)
@@ -54,12 +54,12 @@ def test_coordination_per_type_pair_on_a_rock_salt_lattice():
     types = 1 + grid.sum(axis=1) % 2
     particles = make(grid * 2 * R, box=[[-R, 8 * R - R]] * 3, boundary=("pp", "pp", "pp"), type=types)
     neighbors = equilibrium.Neighbors(particles)
-    np.testing.assert_array_equal(neighbors.coon(), 6)
-    np.testing.assert_array_equal(neighbors.coon(1, 2), 6)
-    np.testing.assert_array_equal(neighbors.coon(2, 2), 0)
-    assert len(neighbors.coon(1, 2)) == (types == 1).sum()
-    with pytest.raises(ValueError, match="give both type1 and type2"):
-        neighbors.coon(1)
+    np.testing.assert_array_equal(neighbors.coon, 6)
+    np.testing.assert_array_equal(neighbors.coordination(1, 2), 6)
+    np.testing.assert_array_equal(neighbors.coordination(2, 2), 0)
+    assert len(neighbors.coordination(1, 2)) == (types == 1).sum()
+    with pytest.raises(TypeError):
+        neighbors.coordination(1)
 
 
 def test_pairs_overlaps_and_cutoff():
@@ -67,7 +67,7 @@ def test_pairs_overlaps_and_cutoff():
     neighbors = equilibrium.Neighbors(particles)
     np.testing.assert_array_equal(neighbors.pairs, [[0, 1]])
     np.testing.assert_allclose(neighbors.overlaps, [[0.1, 0, 1]])
-    np.testing.assert_array_equal(neighbors.coon(), [1, 1, 0])
+    np.testing.assert_array_equal(neighbors.coon, [1, 1, 0])
     wide = equilibrium.Neighbors(particles, cutoff=2.2)
     np.testing.assert_array_equal(wide.pairs, [[0, 1], [1, 2]])
     np.testing.assert_allclose(wide.distances, [0.9, 2.1])
@@ -123,7 +123,7 @@ def test_empty_and_single_particle_sets():
     for particles in (make(np.zeros((0, 3))), make([[0, 0, 0]])):
         neighbors = equilibrium.Neighbors(particles)
         assert neighbors.pairs.shape == (0, 2) and neighbors.overlaps.shape == (0, 3)
-        assert len(neighbors.coon()) == len(particles)
+        assert len(neighbors.coon) == len(particles)
         assert len(neighbors.filter(10)) == len(particles)
         assert neighbors.forceChain().chains == []
 

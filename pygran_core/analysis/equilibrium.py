@@ -81,15 +81,15 @@ class Neighbors:
         hit = self._overlapping
         return np.column_stack((self._overlap[hit], self._all_pairs[hit])).astype(float).reshape(-1, 3)
 
-    def coon(self, type1: int | None = None, type2: int | None = None) -> np.ndarray:
-        """Coordination number of every particle; with ``type1`` and ``type2``, the number of
-        ``type2`` neighbours of each ``type1`` particle (in the order of those particles)."""
+    @property
+    def coon(self) -> np.ndarray:
+        """Coordination number of every particle."""
+        return np.bincount(self._pairs.ravel(), minlength=len(self.particles))
+
+    def coordination(self, type1: int, type2: int) -> np.ndarray:
+        """The number of ``type2`` neighbours of each ``type1`` particle (in their order)."""
         n = len(self.particles)
         i, j = self._pairs.T
-        if type1 is None and type2 is None:
-            return np.bincount(self._pairs.ravel(), minlength=n)
-        if type1 is None or type2 is None:
-            raise ValueError("coon: give both type1 and type2, or neither")
         types = self.particles.type
         counts = np.bincount(i[types[j] == type2], minlength=n) + np.bincount(
             j[types[i] == type2], minlength=n
