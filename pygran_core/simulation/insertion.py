@@ -18,8 +18,8 @@ from pygran_core.simulation.calls import Region
 
 @dataclass(frozen=True)
 class Obstacles:
-    """What new spheres must not overlap besides other spheres: one-sided planes
-    (``points``/``normals``; the free side is where the normal points) and triangles
+    """What new spheres must not overlap besides other spheres: planes through ``points``
+    with unit ``normals`` (acting on both sides, as primitive walls do) and triangles
     (``(T, 3, 3)`` corner coordinates)."""
 
     plane_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -30,7 +30,7 @@ class Obstacles:
         """Which spheres overlap no plane and no triangle."""
         ok = np.ones(len(centres), bool)
         for point, normal in zip(self.plane_points, self.plane_normals):
-            ok &= (centres - point) @ normal >= radii
+            ok &= np.abs((centres - point) @ normal) >= radii
         if len(self.triangles) and len(centres):
             ok &= triangle_distance(centres, self.triangles) >= radii
         return ok
