@@ -31,6 +31,8 @@ cimport numpy as cnp
 cnp.import_array()
 
 DEF MAXCAND = 64
+DEF CHUNK = 64     # particles per chunk of the static OpenMP schedule (the same in every loop)
+DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
 DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
 
 cdef enum:
@@ -787,10 +789,6 @@ cdef class Core:
     cdef double *m
     cdef int *type
     cdef int64_t *pid
-    cdef double *sp3
-    cdef double *sp1
-    cdef int *spi
-    cdef int64_t *spl
     cdef double *buf        # per-thread force/torque buffers, nthreads * cap * 6
     cdef int *perm
     cdef int *cell
@@ -864,7 +862,7 @@ cdef class Core:
         self.ob_start = <int*>calloc(1, sizeof(int))
         self.wl_start = <int*>calloc(1, sizeof(int))
         self.ow_start = <int*>calloc(1, sizeof(int))
-        self.tmax = <double*>calloc(threads, sizeof(double))
+        self.tmax = <double*>calloc(threads * PAD, sizeof(double))
         self.coef = <Coef*>calloc(1, sizeof(Coef))
         self.visc = <double*>calloc(1, sizeof(double))
         self.ntypes = 1
@@ -874,7 +872,7 @@ cdef class Core:
     def __dealloc__(self):
         for p in (<size_t>self.x, <size_t>self.v, <size_t>self.w, <size_t>self.f, <size_t>self.t,
                   <size_t>self.x0, <size_t>self.r, <size_t>self.m, <size_t>self.type, <size_t>self.pid,
-                  <size_t>self.sp3, <size_t>self.sp1, <size_t>self.spi, <size_t>self.spl, <size_t>self.buf,
+                  <size_t>self.buf,
                   <size_t>self.perm, <size_t>self.cell, <size_t>self.nb_start, <size_t>self.nb_j,
                   <size_t>self.nb_s, <size_t>self.nb_h, <size_t>self.ob_start, <size_t>self.ob_j,
                   <size_t>self.ob_s, <size_t>self.ob_h, <size_t>self.wl_start, <size_t>self.wl_e,
@@ -900,16 +898,12 @@ cdef class Core:
         self.f = <double*>self._grow(self.f, 3 * c * sizeof(double))
         self.t = <double*>self._grow(self.t, 3 * c * sizeof(double))
         self.x0 = <double*>self._grow(self.x0, 3 * c * sizeof(double))
-        self.sp3 = <double*>self._grow(self.sp3, 3 * c * sizeof(double))
         self.r = <double*>self._grow(self.r, c * sizeof(double))
         self.m = <double*>self._grow(self.m, c * sizeof(double))
-        self.sp1 = <double*>self._grow(self.sp1, c * sizeof(double))
         self.type = <int*>self._grow(self.type, c * sizeof(int))
         self.perm = <int*>self._grow(self.perm, c * sizeof(int))
         self.cell = <int*>self._grow(self.cell, c * sizeof(int))
-        self.spi = <int*>self._grow(self.spi, (c + 1) * sizeof(int))
         self.pid = <int64_t*>self._grow(self.pid, c * sizeof(int64_t))
-        self.spl = <int64_t*>self._grow(self.spl, c * sizeof(int64_t))
         self.nb_start = <int*>self._grow(self.nb_start, (c + 1) * sizeof(int))
         self.ob_start = <int*>self._grow(self.ob_start, (c + 1) * sizeof(int))
         self.wl_start = <int*>self._grow(self.wl_start, (c + 1) * sizeof(int))
@@ -935,7 +929,7 @@ cdef class Core:
         cdef void *c
         if need <= self.nb_cap:
             return 0
-        cap = need + need // 4 + 64
+        cap = need + need // 10 + 64
         a = grow(self.nb_j, cap * sizeof(int))
         if a == NULL:
             return -1
@@ -957,7 +951,7 @@ cdef class Core:
         cdef void *b
         if need <= self.wl_cap:
             return 0
-        cap = need + need // 4 + 64
+        cap = need + need // 10 + 64
         a = grow(self.wl_e, cap * sizeof(int))
         if a == NULL:
             return -1
@@ -1300,25 +1294,36 @@ cdef class Core:
         c.visc = self.visc
 
     cdef void permute3(self, double** a, int n) noexcept nogil:
+        """Reorder a 3-vector array by ``perm``, swapping it with ``f`` (scratch during a rebuild)."""
         cdef int i, d
-        cdef double* tmp = self.sp3
+        cdef double* tmp = self.f
         cdef double* src = a[0]
         cdef int* perm = self.perm
-        for i in prange(n, schedule='static', num_threads=self.nthreads):
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
             for d in range(3):
                 tmp[3 * i + d] = src[3 * perm[i] + d]
-        self.sp3 = src
+        self.f = src
         a[0] = tmp
 
-    cdef void permute1(self, double** a, int n) noexcept nogil:
+    cdef void permute_scalars(self, int n) noexcept nogil:
+        """Reorder r, m, type and pid by ``perm`` through ``t`` (scratch during a rebuild)."""
         cdef int i
-        cdef double* tmp = self.sp1
-        cdef double* src = a[0]
         cdef int* perm = self.perm
-        for i in prange(n, schedule='static', num_threads=self.nthreads):
-            tmp[i] = src[perm[i]]
-        self.sp1 = src
-        a[0] = tmp
+        cdef double* tmp = self.t
+        cdef int* itmp = <int*>self.t
+        cdef int64_t* ltmp = <int64_t*>self.t
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
+            tmp[i] = self.r[perm[i]]
+        memcpy(self.r, tmp, n * sizeof(double))
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
+            tmp[i] = self.m[perm[i]]
+        memcpy(self.m, tmp, n * sizeof(double))
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
+            itmp[i] = self.type[perm[i]]
+        memcpy(self.type, itmp, n * sizeof(int))
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
+            ltmp[i] = self.pid[perm[i]]
+        memcpy(self.pid, ltmp, n * sizeof(int64_t))
 
     cdef int rebuild(self) noexcept nogil:
         """Wrap, drop lost particles, sort into cells, rebuild both lists carrying histories."""
@@ -1327,7 +1332,6 @@ cdef class Core:
         cdef long long lost = 0, total
         cdef double rmax = 0.0, p, L
         cdef int *ip
-        cdef int64_t *lp
         cdef uint8_t *bp
         cdef double *dp
         cdef long long cap
@@ -1360,22 +1364,11 @@ cdef class Core:
             self.cell_start[i] = self.cell_start[i - 1]
         self.cell_start[0] = 0
         nnew = self.cell_start[self.ncells]
+        # f and t are recomputed after every rebuild: they serve as scratch space here
         self.permute3(&self.x, nnew)
         self.permute3(&self.v, nnew)
         self.permute3(&self.w, nnew)
-        self.permute3(&self.f, nnew)
-        self.permute3(&self.t, nnew)
-        self.permute1(&self.r, nnew)
-        self.permute1(&self.m, nnew)
-        for i in range(nnew):
-            self.spi[i] = self.type[self.perm[i]]
-            self.spl[i] = self.pid[self.perm[i]]
-        ip = self.type
-        self.type = self.spi
-        self.spi = ip
-        lp = self.pid
-        self.pid = self.spl
-        self.spl = lp
+        self.permute_scalars(nnew)
         memcpy(self.x0, self.x, 3 * nnew * sizeof(double))
         # the current lists become the previous ones
         ip = self.ob_start; self.ob_start = self.nb_start; self.nb_start = ip
@@ -1389,7 +1382,7 @@ cdef class Core:
         cap = self.ow_cap; self.ow_cap = self.wl_cap; self.wl_cap = cap
         self.n = nnew
         self.make_ctx(&c)
-        for i in prange(nnew, schedule='static', chunksize=64, num_threads=T, nogil=True):
+        for i in prange(nnew, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
             self.nb_start[i + 1] = scan_pairs(&c, i, False)
             self.wl_start[i + 1] = scan_walls(&c, i, False)
         self.nb_start[0] = 0
@@ -1400,7 +1393,7 @@ cdef class Core:
         if self.reserve_pairs(self.nb_start[nnew]) < 0 or self.reserve_walls(self.wl_start[nnew]) < 0:
             return -1
         self.make_ctx(&c)
-        for i in prange(nnew, schedule='static', chunksize=64, num_threads=T, nogil=True):
+        for i in prange(nnew, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
             scan_pairs(&c, i, True)
             scan_walls(&c, i, True)
         for i in range(9 * self.ne):
@@ -1465,36 +1458,40 @@ cdef class Core:
         c.dt = dt
         c.update = update
         c.kick = kick
-        for i in prange(n, schedule='static', chunksize=64, num_threads=T, nogil=True):
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
             pair_row(&c, i, threadid())
-        for i in prange(n, schedule='static', chunksize=64, num_threads=T, nogil=True):
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
             particle_row(&c, i)
 
     cdef double drift(self, double dt) noexcept nogil:
-        """First half kick and drift; the largest displacement since the last rebuild."""
-        cdef int i, d, n = self.n, T = self.nthreads
-        cdef double s, dd, q, dmax = 0.0
+        """First half kick and drift; the largest displacement since the last rebuild.
+
+        Same static schedule as the force loops, so each thread keeps its particles in
+        its cache; per-thread maxima are a cache line apart.
+        """
+        cdef int i, T = self.nthreads
+        cdef double dmax = 0.0
         for i in range(T):
-            self.tmax[i] = 0.0
-        for i in prange(n, schedule='static', chunksize=256, num_threads=T, nogil=True):
+            self.tmax[PAD * i] = 0.0
+        for i in prange(self.n, schedule='static', chunksize=CHUNK, num_threads=T):
             self._drift_row(i, dt, threadid())
         for i in range(T):
-            if self.tmax[i] > dmax:
-                dmax = self.tmax[i]
+            if self.tmax[PAD * i] > dmax:
+                dmax = self.tmax[PAD * i]
         return sqrt(dmax)
 
     cdef inline void _drift_row(self, int i, double dt, int tid) noexcept nogil:
         cdef int d
         cdef double s = 0.5 * dt / self.m[i], u = 0.5 * dt / (0.4 * self.m[i] * self.r[i] * self.r[i])
-        cdef double dd = 0.0, q
+        cdef double q, dd = 0.0
         for d in range(3):
             self.v[3 * i + d] += s * self.f[3 * i + d]
             self.w[3 * i + d] += u * self.t[3 * i + d]
             self.x[3 * i + d] += dt * self.v[3 * i + d]
             q = self.x[3 * i + d] - self.x0[3 * i + d]
             dd += q * q
-        if dd > self.tmax[tid]:
-            self.tmax[tid] = dd
+        if dd > self.tmax[PAD * tid]:
+            self.tmax[PAD * tid] = dd
 
     cdef int _run(self, long long nsteps, double dt) noexcept nogil:
         cdef long long s
@@ -1543,26 +1540,36 @@ cdef class Core:
 
     def contacts(self):
         """Particle-particle contacts now: storage indices i, j, overlap, normal force."""
-        cdef int i, k, j, q, cnt = 0
-        cdef double d2, d, dist
+        cdef int i, k, q, cnt = 0, npair = self.nb_start[self.n]
+        cdef double d2, d
         cdef double* sv
-        out_i, out_j, out_d, out_f = [], [], [], []
+        for k in range(npair):
+            cnt += self._in_contact(k)
+        out_i = np.empty(cnt, dtype=np.intp)
+        out_j = np.empty(cnt, dtype=np.intp)
+        out_d = np.empty(cnt, dtype=float)
+        out_f = np.empty(cnt, dtype=float)
+        cdef Py_ssize_t[::1] oi = out_i, oj = out_j
+        cdef double[::1] od = out_d, of = out_f
+        cnt = 0
         for i in range(self.n):
             for k in range(self.nb_start[i], self.nb_start[i + 1]):
-                j = self.nb_j[k]
+                if not self._in_contact(k):
+                    continue
                 sv = &self.shiftv[3 * (self.nb_s[k] & ~TOUCH)]
                 d2 = 0.0
                 for q in range(3):
-                    d = self.x[3 * i + q] - self.x[3 * j + q] + sv[q]
+                    d = self.x[3 * i + q] - self.x[3 * self.nb_j[k] + q] + sv[q]
                     d2 += d * d
-                dist = self.r[i] + self.r[j] - sqrt(d2)
-                if self.nb_s[k] & TOUCH and (self.hs == 4 or self.nb_h[k * self.hs + 4] > 0.0):
-                    out_i.append(i)
-                    out_j.append(j)
-                    out_d.append(dist)
-                    out_f.append(self.nb_h[k * self.hs + 3])
-        return (np.array(out_i, dtype=np.intp), np.array(out_j, dtype=np.intp),
-                np.array(out_d, dtype=float), np.array(out_f, dtype=float))
+                oi[cnt] = i
+                oj[cnt] = self.nb_j[k]
+                od[cnt] = self.r[i] + self.r[self.nb_j[k]] - sqrt(d2)
+                of[cnt] = self.nb_h[k * self.hs + 3]
+                cnt += 1
+        return out_i, out_j, out_d, out_f
+
+    cdef inline bint _in_contact(self, int k) noexcept nogil:
+        return self.nb_s[k] & TOUCH and (self.hs == 4 or self.nb_h[k * self.hs + 4] > 0.0)
 
     def pair_count(self):
         """Entries of the neighbour and wall lists."""
@@ -1570,7 +1577,7 @@ cdef class Core:
 
     def memory_bytes(self):
         """Bytes held by the per-particle arrays and lists (allocated capacity)."""
-        return (self.cap * (18 * 8 + 2 * 8 + 4 * 4 + 2 * 8 + 3 * 8 + 4 * 4 + 6 * 8 * self.nthreads)
+        return (self.cap * (18 * 8 + 2 * 8 + 3 * 4 + 8 + 4 * 4 + 6 * 8 * self.nthreads)
                 + self.nb_cap * (5 + 8 * self.hs) + self.ob_cap * (5 + 8 * self.hs)
                 + self.wl_cap * (4 + 8 * self.hs) + self.ow_cap * (4 + 8 * self.hs)
                 + self.cell_cap * 8 + self.ctri_cap * 4)
