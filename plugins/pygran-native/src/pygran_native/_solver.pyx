@@ -821,6 +821,9 @@ cdef class Core:
     cdef int *ctri_start
     cdef int *ctri
     cdef long long ctri_cap
+    cdef int binned_dirty     # triangles added, removed or set in motion since the last binning
+    cdef double binned_reach
+    cdef int binned_nc[3]
     # wall elements
     cdef public int ne
     cdef int ecap
@@ -1075,6 +1078,7 @@ cdef class Core:
                 self.emot[10 * (base + i) + d] = 0.0
         self.ne = base + k
         self.dirty = 1
+        self.binned_dirty = 1
 
     def remove_elements(self, int wall):
         """Drop the elements of one wall; wall-list entries are renumbered, their histories kept."""
@@ -1115,6 +1119,7 @@ cdef class Core:
         self.wl_start[self.n] = k
         free(newidx)
         self.dirty = 1
+        self.binned_dirty = 1
 
     def set_motion(self, int wall, double[::1] vel, double[::1] omega, double[::1] origin):
         """Rigid motion of a wall's triangles from now on: ``x(t) = o + V tau + R(W tau)(X - o)``."""
@@ -1132,6 +1137,8 @@ cdef class Core:
                 self.emot[10 * e + 6 + d] = origin[d]
             self.emot[10 * e + 9] = self.time
             self.emoving[e] = moving
+        self.dirty = 1
+        self.binned_dirty = 1
 
     # ------------------------------------------------------------------ rebuild ---------
     cdef int setup_cells(self) noexcept nogil:
@@ -1200,10 +1207,28 @@ cdef class Core:
             if hi3[d] >= self.nc[d]:
                 hi3[d] = self.nc[d] - 1
 
+    cdef inline bint tri_near_cell(self, int e, int a, int b, int c, double reach) noexcept nogil:
+        """Whether cell (a, b, c) comes within ``reach`` of triangle e's plane."""
+        cdef double u[3], v[3], nrm[3], ctr[3], half, ln
+        cdef const double* g = &self.egeo[9 * e]
+        cdef int d
+        for d in range(3):
+            u[d] = g[3 + d] - g[d]
+            v[d] = g[6 + d] - g[d]
+        cross3(u, v, nrm)
+        ln = sqrt(dot3(nrm, nrm))
+        ctr[0] = self.lo[0] + (a + 0.5) * self.cs[0] - g[0]
+        ctr[1] = self.lo[1] + (b + 0.5) * self.cs[1] - g[1]
+        ctr[2] = self.lo[2] + (c + 0.5) * self.cs[2] - g[2]
+        half = 0.5 * sqrt(self.cs[0] * self.cs[0] + self.cs[1] * self.cs[1] + self.cs[2] * self.cs[2])
+        return fabs(dot3(nrm, ctr)) <= (reach + half) * ln
+
     cdef int bin_triangles(self, double reach) noexcept nogil:
         """CSR (``ctri_start``, ``ctri``) of the triangles within ``reach`` of each cell.
 
-        Uses ``cell_start`` as fill cursor: call before the particles are binned.
+        A triangle goes to the cells of its bounding box (grown by ``reach``) that come
+        within ``reach`` of its plane. Uses ``cell_start`` as fill cursor: call before the
+        particles are binned.
         """
         cdef int e, a, b, c, cc, lo3[3], hi3[3]
         cdef long long total
@@ -1215,7 +1240,8 @@ cdef class Core:
                 for c in range(lo3[2], hi3[2] + 1):
                     for b in range(lo3[1], hi3[1] + 1):
                         for a in range(lo3[0], hi3[0] + 1):
-                            self.ctri_start[(c * self.nc[1] + b) * self.nc[0] + a + 1] += 1
+                            if self.tri_near_cell(e, a, b, c, reach):
+                                self.ctri_start[(c * self.nc[1] + b) * self.nc[0] + a + 1] += 1
         for c in range(self.ncells):
             self.ctri_start[c + 1] += self.ctri_start[c]
         total = self.ctri_start[self.ncells]
@@ -1232,9 +1258,10 @@ cdef class Core:
                 for c in range(lo3[2], hi3[2] + 1):
                     for b in range(lo3[1], hi3[1] + 1):
                         for a in range(lo3[0], hi3[0] + 1):
-                            cc = (c * self.nc[1] + b) * self.nc[0] + a
-                            self.ctri[self.cell_start[cc]] = e
-                            self.cell_start[cc] += 1
+                            if self.tri_near_cell(e, a, b, c, reach):
+                                cc = (c * self.nc[1] + b) * self.nc[0] + a
+                                self.ctri[self.cell_start[cc]] = e
+                                self.cell_start[cc] += 1
         return 0
 
     cdef void make_ctx(self, Ctx* c) noexcept nogil:
@@ -1341,8 +1368,14 @@ cdef class Core:
             if self.r[i] > rmax:
                 rmax = self.r[i]
         self.make_ctx(&c)
-        if self.bin_triangles(rmax + self.skin) < 0:
-            return -1
+        if self.binned_dirty or self.binned_reach != rmax + self.skin or self.any_moving() \
+                or self.binned_nc[0] != self.nc[0] or self.binned_nc[1] != self.nc[1] or self.binned_nc[2] != self.nc[2]:
+            if self.bin_triangles(rmax + self.skin) < 0:
+                return -1
+            self.binned_dirty = 0
+            self.binned_reach = rmax + self.skin
+            for d in range(3):
+                self.binned_nc[d] = self.nc[d]
         # wrap periodic coordinates, mark particles outside a fixed boundary (or removed) lost
         for i in prange(n, schedule='static', num_threads=T, nogil=True):
             self.cell[i] = self._place(i)
@@ -1420,6 +1453,13 @@ cdef class Core:
             elif p < self.lo[d] or p > self.hi[d]:
                 return -1
         return self.cell_of(&self.x[3 * i])
+
+    cdef bint any_moving(self) noexcept nogil:
+        cdef int e
+        for e in range(self.ne):
+            if self.emoving[e]:
+                return True
+        return False
 
     cdef double move_walls(self) noexcept nogil:
         """Place moving triangles at the current time; largest vertex move since the rebuild."""
