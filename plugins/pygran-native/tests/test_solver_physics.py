@@ -230,3 +230,11 @@ def test_settled_packing_fraction_of_frictional_spheres():
     area = (8 * 2.2e-3) ** 2
     phi = volume.sum() / (area * (hi - lo))
     assert 0.55 <= phi <= 0.62
+
+
+def test_viscous_damping_decays_exponentially():
+    s = solver()
+    s.set_viscous([2e-4])
+    s.add_particles([[0, 0, 0]], R, densities=RHO, velocities=[[0.1, 0, 0]])
+    s.run(10000, 1e-6)
+    assert s.velocities[0, 0] == pytest.approx(0.1 * math.exp(-2e-4 * s.time / MASS), rel=1e-5)

@@ -45,6 +45,7 @@ def test_state_round_trip_is_bitwise(threads):
     s.run(1500, 1e-5)
     s.rng.random(3)
     state = s.get_state()
+    assert all(isinstance(v, np.ndarray) and v.dtype.kind in "biuf" for v in state.values())
     s.run(1500, 1e-5)
     straight = snapshot(s) + [s.contacts()[3]]
     restored = Solver(box=s.box, periodic=s.periodic, gravity=(0, 0, -9.81), skin=4e-4, threads=threads, seed=99)

@@ -241,7 +241,9 @@ cdef inline int contact_force(int model, const Coef* c, double delta, double Rs,
     ``rw = r_i w_i + r_j w_j``, ``wrel = w_i - w_j``. Sets ``F`` (total force on i), ``Ft``
     (its tangential part, for torques) and ``Mr`` (rolling torque on i); updates ``hist``.
     """
-    cdef double vn, vt[3], cw[3], a, kn, gn, kt, gt, fn, ftm, lim, ratio, s, wm
+    cdef double vn, a, kn, gn, kt, gt, fn, ftm, lim, ratio, s, wm
+    cdef double vt[3]
+    cdef double cw[3]
     cdef int k, res
     vn = -dot3(vr, n)   # overlap rate, positive approaching
     if model == HERTZ:
@@ -311,7 +313,12 @@ cdef inline int closest_on_triangle(const double* p, const double* A, const doub
 
     Feature: for VERTEX 0/1/2 = A/B/C; for EDGE 0/1/2 = AB/BC/CA (Voronoi regions).
     """
-    cdef double ab[3], ac[3], ap[3], bp[3], cp[3], d1, d2, d3, d4, d5, d6, va, vb, vc, den, vv, ww
+    cdef double d1, d2, d3, d4, d5, d6, va, vb, vc, den, vv, ww
+    cdef double ab[3]
+    cdef double ac[3]
+    cdef double ap[3]
+    cdef double bp[3]
+    cdef double cp[3]
     cdef int k
     for k in range(3):
         ab[k] = B[k] - A[k]
@@ -470,7 +477,10 @@ cdef uint8_t carry_pair(const Ctx* c, int a, int b, double* h) noexcept nogil:
 
 cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
     """Partners j > i within r_i + r_j + skin: counted, or written from ``nb_start[i]``."""
-    cdef int cc[3], nb[3], s[3], d0, d1, d2, j, code, cid, cnt = 0, pos
+    cdef int d0, d1, d2, j, code, cid, cnt = 0, pos
+    cdef int cc[3]
+    cdef int nb[3]
+    cdef int s[3]
     cdef double dx, dy, dz, rc
     cdef const double* xi = &c.x[3 * i]
     cdef const double* sv
@@ -522,8 +532,11 @@ cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
 
 cdef int scan_walls(const Ctx* c, int i, bint fill) noexcept nogil:
     """Wall elements within r_i + skin of particle i: counted, or written from ``wl_start[i]``."""
-    cdef int e, k, q, cc[3], cid, feat, cnt = 0, pos, oi
-    cdef double nrm[3], p[3], gap, reach = c.r[i] + c.skin, d2
+    cdef int e, k, q, cid, feat, cnt = 0, pos, oi
+    cdef int cc[3]
+    cdef double gap, reach = c.r[i] + c.skin, d2
+    cdef double nrm[3]
+    cdef double p[3]
     cdef const double* xi = &c.x[3 * i]
     cdef const double* g
     pos = c.wl_start[i] if fill else 0
@@ -574,7 +587,19 @@ cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
     cdef double* buf = c.buf + <long long>tid * c.cap * 6
     cdef int hs = c.hs, model = c.model, update = c.update, k, j, q, res, kend = c.nb_start[i + 1]
     cdef double dt = c.dt
-    cdef double d[3], n[3], vr[3], rw[3], wrel[3], F[3], Ft[3], Mr[3], cx[3], fi[6], xi[3], vi[3], wi[3]
+    cdef double d[3]
+    cdef double n[3]
+    cdef double vr[3]
+    cdef double rw[3]
+    cdef double wrel[3]
+    cdef double F[3]
+    cdef double Ft[3]
+    cdef double Mr[3]
+    cdef double cx[3]
+    cdef double fi[6]
+    cdef double xi[3]
+    cdef double vi[3]
+    cdef double wi[3]
     cdef double dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den
     cdef double* h
     cdef double* bj
@@ -634,7 +659,15 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
 
     Returns the :func:`contact_force` result; clears the history on NO_CONTACT.
     """
-    cdef double vr[3], rw[3], vw[3], Fc[3], Ft[3], Mr[3], cx[3], rel[3], o[3], tau
+    cdef double tau
+    cdef double vr[3]
+    cdef double rw[3]
+    cdef double vw[3]
+    cdef double Fc[3]
+    cdef double Ft[3]
+    cdef double Mr[3]
+    cdef double cx[3]
+    cdef double rel[3]
     cdef const double* mot
     cdef int k, res
     cdef double ri = c.r[i]
@@ -684,7 +717,8 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
     cdef int acc[MAXCAND]
     cdef double cq[3 * MAXCAND]
     cdef double cd2[MAXCAND]
-    cdef double nrm[3], gap, d2, dist
+    cdef double gap, d2, dist
+    cdef double nrm[3]
     cdef double* h
     cdef const double* g
     cdef const double* xi = &c.x[3 * i]
@@ -737,7 +771,9 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
 
 cdef void particle_row(const Ctx* c, int i) noexcept nogil:
     """Sum the thread buffers, add gravity, viscous and wall forces; second half kick."""
-    cdef double F[3], T[3], mi = c.m[i], g = c.visc[c.type[i]], s
+    cdef double mi = c.m[i], g = c.visc[c.type[i]], s
+    cdef double F[3]
+    cdef double T[3]
     cdef double* b
     cdef int k, q
     for q in range(3):
@@ -1209,7 +1245,11 @@ cdef class Core:
 
     cdef inline bint tri_near_cell(self, int e, int a, int b, int c, double reach) noexcept nogil:
         """Whether cell (a, b, c) comes within ``reach`` of triangle e's plane."""
-        cdef double u[3], v[3], nrm[3], ctr[3], half, ln
+        cdef double half, ln
+        cdef double u[3]
+        cdef double v[3]
+        cdef double nrm[3]
+        cdef double ctr[3]
         cdef const double* g = &self.egeo[9 * e]
         cdef int d
         for d in range(3):
@@ -1230,7 +1270,9 @@ cdef class Core:
         within ``reach`` of its plane. Uses ``cell_start`` as fill cursor: call before the
         particles are binned.
         """
-        cdef int e, a, b, c, cc, lo3[3], hi3[3]
+        cdef int e, a, b, c, cc
+        cdef int lo3[3]
+        cdef int hi3[3]
         cdef long long total
         cdef void* p
         memset(self.ctri_start, 0, (self.ncells + 1) * sizeof(int))
@@ -1464,7 +1506,9 @@ cdef class Core:
     cdef double move_walls(self) noexcept nogil:
         """Place moving triangles at the current time; largest vertex move since the rebuild."""
         cdef int e, k, d, last = -1
-        cdef double Rm[9], rel[3], tau = 0.0, dmax = 0.0, dd, s
+        cdef double tau = 0.0, dmax = 0.0, dd, s
+        cdef double Rm[9]
+        cdef double rel[3]
         cdef double* mot
         cdef double* ref
         cdef double* cur

@@ -28,6 +28,7 @@ Conventions (LIGGGHTS):
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -383,12 +384,15 @@ class Solver:
 
     # --- checkpoints -------------------------------------------------------------------
     def get_state(self) -> dict[str, np.ndarray]:
-        """Everything needed to continue bitwise identically, as a dict of numpy arrays."""
+        """Everything needed to continue bitwise identically, as a dict of numpy arrays.
+
+        Numeric arrays only (strings are UTF-8 bytes), so it can be stored in HDF5 as is.
+        """
         if self._model is None:
             raise ConfigError("get_state: no contact model set yet.")
         state = {f"core_{k}": v for k, v in self._core.get_state().items()}
         model = self._model
-        state["model_kind"] = np.array(model["kind"])
+        state["model_kind"] = _encode(model["kind"])
         for key in ("youngs", "poisson", "restitution", "friction", "rolling_friction", "cohesion_energy",
                     "yield_pressure", "characteristic_velocity"):
             state[f"model_{key}"] = np.array(np.nan if model[key] is None else model[key], float)
@@ -396,14 +400,13 @@ class Solver:
         state["counters"] = np.array([self._next_id, self._next_wall, self._next_vertex], np.int64)
         state["wall_handles"] = np.array(list(self._walls), np.int64)
         state["wall_kinds"] = np.array([_WALL_KINDS.index(k) for k in self._walls.values()], np.int64)
-        bitgen = self.rng.bit_generator.state
-        state["rng"] = np.array(repr(bitgen))
+        state["rng"] = _encode(json.dumps(self.rng.bit_generator.state))
         return state
 
     def set_state(self, state: dict[str, np.ndarray]) -> None:
         """Restore a :meth:`get_state` result (box, periodicity and threads are this solver's)."""
         try:
-            kind = str(state["model_kind"])
+            kind = _decode(state["model_kind"])
             model = {}
             for key in ("youngs", "poisson", "restitution", "friction", "rolling_friction", "cohesion_energy",
                         "yield_pressure", "characteristic_velocity"):
@@ -415,12 +418,14 @@ class Solver:
             self._core.set_state({k[5:]: v for k, v in state.items() if k.startswith("core_")})
             self._next_id, self._next_wall, self._next_vertex = (int(k) for k in state["counters"])
             self._walls = {int(h): _WALL_KINDS[int(k)] for h, k in zip(state["wall_handles"], state["wall_kinds"])}
-            self.rng.bit_generator.state = _literal(str(state["rng"]))
+            self.rng.bit_generator.state = json.loads(_decode(state["rng"]))
         except KeyError as exc:
             raise ConfigError(f"state: missing entry {exc.args[0]!r}.") from None
 
 
-def _literal(text: str):
-    import ast
+def _encode(text: str) -> np.ndarray:
+    return np.frombuffer(text.encode(), dtype=np.uint8).copy()
 
-    return ast.literal_eval(text)
+
+def _decode(array: np.ndarray) -> str:
+    return np.asarray(array, dtype=np.uint8).tobytes().decode()
