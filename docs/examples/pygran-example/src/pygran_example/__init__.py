@@ -1,0 +1,1 @@
+"""An example third-party PyGran plugin (see the user guide, "Writing a plugin")."""

@@ -1,0 +1,42 @@
+import numpy as np
+
+from pygran_core import Engine, hookimpl
+from pygran_core.hookspecs import EngineSpec
+
+
+class BallisticEngine(Engine):
+    """Spheres in free flight under gravity; contacts are ignored."""
+
+    name = "ballistic"
+    capabilities = frozenset({"spring-dashpot"})  # accepts the default model (and ignores it)
+
+    def __init__(self, spec):  # spec: pygran_core.simulation.specs.SimulationSpec
+        super().__init__(spec)
+        self.g = spec.gravity.vector if spec.gravity else np.zeros(3)
+        self.x, self.v, self.r, self.m = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0)
+
+    def _create(self, request):  # sim.createParticles(1, "single", x, y, z, vel=...)
+        if request.style != "single":
+            raise self._unsupported(f"createParticles style {request.style!r}")
+        self.x = np.vstack([self.x, request.position])
+        self.v = np.vstack([self.v, request.velocity])
+        species = self.spec.species[request.species - 1]
+        radius = request.radius or species.radius.mean
+        self.r = np.append(self.r, radius)
+        self.m = np.append(self.m, species.density * 4 / 3 * np.pi * radius**3)
+        return 1
+
+    def _advance(self, nsteps):  # exact for constant acceleration
+        t = nsteps * self.dt
+        self.x, self.v = self.x + self.v * t + 0.5 * self.g * t**2, self.v + self.g * t
+
+    def _extract(self, quantity):  # per-particle arrays, ordered by id
+        n, zeros = len(self.x), np.zeros((len(self.x), 3))
+        vectors = {"x": self.x, "v": self.v, "f": self.m[:, None] * self.g, "omega": zeros, "torque": zeros}
+        scalars = {"radius": self.r, "mass": self.m, "id": np.arange(1, n + 1), "type": np.ones(n, int)}
+        return {**vectors, **scalars}[quantity].copy()
+
+
+@hookimpl
+def pygran_engines():
+    yield EngineSpec(name="ballistic", factory=BallisticEngine, capabilities=BallisticEngine.capabilities)
