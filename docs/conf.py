@@ -24,7 +24,7 @@ extensions = [
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
-exclude_patterns = ["_build", "examples/**/build", "examples/**/*.egg-info"]
+exclude_patterns = ["_build", "examples/data", "examples/**/build", "examples/**/*.egg-info"]
 
 myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 3
