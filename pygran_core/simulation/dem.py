@@ -154,8 +154,8 @@ class DEM:
 
     @property
     def output(self) -> Any:
-        """The output directory (absolute)."""
-        return self.spec.output
+        """The output directory (absolute): this run's with ``nSim > 1``."""
+        return self.engine.output
 
     @property
     def step(self) -> int:

@@ -14,7 +14,7 @@ import math
 import os
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from numbers import Integral, Real
 from pathlib import Path
 from typing import Any
@@ -455,6 +455,8 @@ class SimulationSpec:
     threads: int | None = None
     nprocs: int | None = None
     progress: bool | None = None
+    #: With ``nSim=k > 1``: the k runs, each with its own parameters and output directory.
+    runs: tuple[SimulationSpec, ...] = ()
 
     @property
     def max_radius(self) -> float:
@@ -496,9 +498,49 @@ def default_output(model: type) -> str:
     return f"{model.__name__}-{time.strftime('%d%m%Y-%H%M%S')}"
 
 
+def _per_run(value: Any, index: int, nsim: int, where: str) -> Any:
+    if not isinstance(value, list):
+        return value
+    if len(value) != nsim:
+        raise ConfigError(f"{where} gives {len(value)} values (a list), but nSim={nsim} needs one per run")
+    return value[index]
+
+
+def run_params(params: Mapping[str, Any], index: int, nsim: int) -> dict[str, Any]:
+    """The keywords of run ``index`` of ``nSim`` runs: each list-valued species entry (or
+    material entry of a species) gives one value per run; the run writes to ``<output>/run<index>``
+    (``params`` must give ``output``)."""
+    species_in = params.get("species", ())
+    species_in = (species_in,) if isinstance(species_in, Mapping) else species_in
+    species = []
+    for k, entry in enumerate(species_in, start=1):
+        if isinstance(entry, Mapping):
+            entry = {key: _per_run(v, index, nsim, f"species {k} {key!r}") for key, v in entry.items()}
+            if isinstance(entry.get("material"), Mapping):
+                entry["material"] = {
+                    key: _per_run(v, index, nsim, f"species {k} material {key!r}")
+                    for key, v in entry["material"].items()
+                }
+        species.append(entry)
+    return {**params, "species": tuple(species), "output": str(Path(params["output"]) / f"run{index}")}
+
+
 def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> SimulationSpec:
-    """Validate ``simulation.DEM`` keywords; ``engine`` and ``model`` are already resolved."""
+    """Validate ``simulation.DEM`` keywords; ``engine`` and ``model`` are already resolved.
+
+    With ``nSim=k > 1`` the spec holds the k runs in :attr:`SimulationSpec.runs` (see
+    :func:`run_params`); its own fields are those of run 0 but for ``output`` and ``nsim``.
+    """
     check_keys("simulation keyword", params, SIMULATION_KEYS)
+    nsim = positive_int(params.get("nSim", 1), "nSim")
+    if nsim > 1:
+        output = params.get("output", default_output(model))
+        runs = tuple(
+            parse_simulation(run_params({**params, "output": output}, i, nsim) | {"nSim": 1}, engine, model)
+            for i in range(nsim)
+        )
+        first = run_params({**params, "output": output}, 0, nsim) | {"nSim": 1, "output": output}
+        return replace(parse_simulation(first, engine, model), nsim=nsim, runs=runs)
     if "box" not in params:
         raise ConfigError("box is required: (xmin, xmax, ymin, ymax, zmin, zmax) in metres")
     dim = params.get("dim", 3)

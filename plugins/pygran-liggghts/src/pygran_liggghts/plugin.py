@@ -1,21 +1,24 @@
 """Registers the LIGGGHTS engine with PyGran."""
 
-from pygran_core.errors import UnsupportedFeature
 from pygran_core.hookspecs import EngineSpec, hookimpl
 from pygran_liggghts.library import find_library
 
 
-def _create(spec: object) -> None:
-    raise UnsupportedFeature(
-        "The LIGGGHTS engine's front end is not part of this pygran-liggghts release yet"
-    )
+def _create(spec: object) -> object:
+    """The engine for ``spec`` (imported here: the plugin module stays cheap to import)."""
+    from pygran_liggghts.engine import LiggghtsEngine
+
+    return LiggghtsEngine(spec)
 
 
 @hookimpl
 def pygran_engines():
+    from pygran_liggghts.engine import LiggghtsEngine
+
     yield EngineSpec(
         name="liggghts",
         factory=_create,
-        description="LIGGGHTS 3.x shared library through its C API",
+        capabilities=LiggghtsEngine.capabilities,
+        description="LIGGGHTS 3.x shared library through its C API, in a worker or under mpirun",
         locate_solver=find_library,
     )

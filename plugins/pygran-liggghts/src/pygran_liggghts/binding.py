@@ -1,0 +1,157 @@
+"""Typed ctypes binding of the LIGGGHTS C library interface (``/usr/include/liggghts/library.h``).
+
+Every C signature is declared once, in :func:`_declare`. :class:`Liggghts` is one LIGGGHTS
+instance on an mpi4py communicator: commands in, per-atom arrays out as numpy arrays
+gathered over the ranks and ordered by atom id (no per-atom Python loops).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Sequence
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from pygran_liggghts.library import find_library
+
+#: PyGran quantity -> (LIGGGHTS per-atom array, columns, ctypes element type).
+ATOM_ARRAYS: dict[str, tuple[str, int, Any]] = {
+    "x": ("x", 3, ctypes.c_double),
+    "v": ("v", 3, ctypes.c_double),
+    "f": ("f", 3, ctypes.c_double),
+    "omega": ("omega", 3, ctypes.c_double),
+    "torque": ("torque", 3, ctypes.c_double),
+    "radius": ("radius", 1, ctypes.c_double),
+    "mass": ("rmass", 1, ctypes.c_double),
+    "id": ("id", 1, ctypes.c_int),
+    "type": ("type", 1, ctypes.c_int),
+}
+
+
+def _declare(lib: ctypes.CDLL, comm_type: type) -> ctypes.CDLL:
+    """Declare argument and result types of the ``library.h`` functions PyGran calls."""
+    handle, text, pointer = ctypes.c_void_p, ctypes.c_char_p, ctypes.c_void_p
+    signatures: dict[str, tuple[list[Any], Any]] = {
+        "lammps_open": (
+            [ctypes.c_int, ctypes.POINTER(ctypes.c_char_p), comm_type, ctypes.POINTER(handle)],
+            None,
+        ),
+        "lammps_close": ([handle], None),
+        "lammps_command": ([handle, text], pointer),
+        "lammps_extract_global": ([handle, text], pointer),
+        "lammps_extract_atom": ([handle, text], pointer),
+        "lammps_extract_compute": ([handle, text, ctypes.c_int, ctypes.c_int], pointer),
+        "lammps_get_natoms": ([handle], ctypes.c_int),
+    }
+    for name, (argtypes, restype) in signatures.items():
+        function = getattr(lib, name)
+        function.argtypes, function.restype = argtypes, restype
+    return lib
+
+
+def _comm_type() -> type:
+    """The C type of ``MPI_Comm`` in the MPI library mpi4py runs on (int or pointer)."""
+    from mpi4py import MPI
+
+    return ctypes.c_int if MPI._sizeof(MPI.Comm) == ctypes.sizeof(ctypes.c_int) else ctypes.c_void_p
+
+
+@cache
+def load() -> ctypes.CDLL:
+    """libliggghts with its signatures declared (loaded once per process)."""
+    return _declare(ctypes.CDLL(find_library(), mode=ctypes.RTLD_GLOBAL), _comm_type())
+
+
+class Liggghts:
+    """One LIGGGHTS instance on the mpi4py communicator ``comm``; every rank of ``comm``
+    makes the same calls in the same order (SPMD), as LIGGGHTS requires.
+
+    ``args`` are command-line arguments (``-screen``, ``-log``, ...). Any LIGGGHTS error ends
+    the process (LIGGGHTS calls ``exit``); run it in a worker to survive that.
+    """
+
+    def __init__(self, args: Sequence[str], comm: Any) -> None:
+        from mpi4py import MPI
+
+        self.comm = comm
+        self._lib = load()
+        argv = [b"liggghts", *(a.encode() for a in args)]
+        c_argv = (ctypes.c_char_p * len(argv))(*argv)
+        comm_type = _comm_type()
+        c_comm = comm_type.from_address(MPI._addressof(comm))
+        self._handle = ctypes.c_void_p()
+        self._lib.lammps_open(len(argv), c_argv, c_comm, ctypes.byref(self._handle))
+
+    def command(self, line: str) -> None:
+        """Execute one input line."""
+        self._lib.lammps_command(self._handle, line.encode())
+
+    def natoms(self) -> int:
+        """Number of atoms over all ranks."""
+        return int(self._lib.lammps_get_natoms(self._handle))
+
+    def timestep(self) -> int:
+        """The current step number."""
+        pointer = self._lib.lammps_extract_global(self._handle, b"ntimestep")
+        return int(ctypes.cast(pointer, ctypes.POINTER(ctypes.c_int64))[0])
+
+    def _nlocal(self) -> int:
+        pointer = self._lib.lammps_extract_global(self._handle, b"nlocal")
+        return ctypes.cast(pointer, ctypes.POINTER(ctypes.c_int))[0]
+
+    def local(self, quantity: str) -> np.ndarray:
+        """A copy of this rank's per-atom array ``quantity`` (see :data:`ATOM_ARRAYS`)."""
+        name, columns, ctype = ATOM_ARRAYS[quantity]
+        count = self._nlocal()
+        pointer = self._lib.lammps_extract_atom(self._handle, name.encode())
+        if not pointer or count == 0:
+            return np.empty((0, columns) if columns > 1 else 0, np.dtype(ctype))
+        if columns > 1:  # double **: row pointers into one contiguous block
+            pointer = ctypes.cast(pointer, ctypes.POINTER(ctypes.POINTER(ctype)))[0]
+            return np.ctypeslib.as_array(pointer, shape=(count, columns)).copy()
+        return np.ctypeslib.as_array(ctypes.cast(pointer, ctypes.POINTER(ctype)), shape=(count,)).copy()
+
+    def gather(self, quantities: Sequence[str], root: int | None = 0) -> dict[str, np.ndarray] | None:
+        """Per-atom arrays of all ranks ordered by atom id, on rank ``root`` (``None``: on all).
+
+        Other ranks get ``None`` when ``root`` is a rank.
+        """
+        mine = [self.local(q) for q in ("id", *quantities)]
+        parts = self.comm.allgather(mine) if root is None else self.comm.gather(mine, root=root)
+        if parts is None:
+            return None
+        arrays = [np.concatenate([p[i] for p in parts]) for i in range(len(mine))]
+        order = np.argsort(arrays[0], kind="stable")
+        return {q: a[order] for q, a in zip(quantities, arrays[1:])}
+
+    def max_id(self) -> int:
+        """The largest atom id over all ranks (0 without atoms)."""
+        tags = self.local("id")
+        return int(self.comm.allreduce(int(tags.max()) if tags.size else 0, op=_max()))
+
+    def compute_scalar(self, compute: str) -> float:
+        """The global scalar of compute ``compute`` (evaluated now)."""
+        pointer = self._lib.lammps_extract_compute(self._handle, compute.encode(), 0, 0)
+        if not pointer:
+            raise KeyError(f"LIGGGHTS has no compute {compute!r} with a global scalar")
+        return float(ctypes.cast(pointer, ctypes.POINTER(ctypes.c_double))[0])
+
+    def close(self) -> None:
+        """Delete the instance (MPI stays initialised; mpi4py finalises it at exit)."""
+        if self._handle:
+            self._lib.lammps_close(self._handle)
+            self._handle = ctypes.c_void_p()
+
+    def __enter__(self) -> Liggghts:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _max() -> Any:
+    from mpi4py import MPI
+
+    return MPI.MAX

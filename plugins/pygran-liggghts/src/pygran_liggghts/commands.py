@@ -1,0 +1,355 @@
+"""LIGGGHTS input lines generated from PyGran's engine-neutral specs.
+
+:class:`Commands` turns a :class:`~pygran_core.simulation.specs.SimulationSpec` and the
+per-call specs into LIGGGHTS 3.x commands. Ids of fixes, regions, groups and dumps are
+``pg_<kind><n>`` with one counter per simulation, so the same calls always give the same
+input. Materials become ``fix property/global`` tables built with PyGran's shared mixing
+rules; paths are absolute, so the saved input reruns anywhere with the ``liggghts`` binary.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from pygran_core.errors import ConfigError, UnsupportedFeature
+from pygran_core.simulation.calls import (
+    InsertSpec,
+    MotionSpec,
+    Region,
+    ViscousSpec,
+    WallSpec,
+)
+from pygran_core.simulation.models import mixing
+from pygran_core.simulation.specs import RadiusDistribution, SimulationSpec
+
+#: PyGran contact model -> LIGGGHTS ``gran model``.
+MODELS = {"SpringDashpot": "hooke", "HertzMindlin": "hertz"}
+#: Size classes a normal or lognormal radius distribution is discretised into (LIGGGHTS
+#: 3.x particle templates have one radius each).
+SIZE_CLASSES = 9
+#: Particle columns LIGGGHTS ``dump custom`` writes.
+DUMP_COLUMNS = frozenset(
+    "id type x y z vx vy vz fx fy fz omegax omegay omegaz tqx tqy tqz radius mass".split()
+)
+
+
+def fmt(value: float) -> str:
+    """A number as LIGGGHTS reads it back exactly."""
+    return repr(float(value)) if not float(value).is_integer() else str(int(value))
+
+
+def prime(seed: int, offset: int = 0) -> int:
+    """A prime above 10000 derived from ``seed`` (LIGGGHTS' random seeds must be such primes)."""
+    candidate = 10007 + (seed + 7919 * offset) % 1_000_000
+    while any(candidate % d == 0 for d in range(2, math.isqrt(candidate) + 1)):
+        candidate += 1
+    return candidate
+
+
+def size_classes(radius: RadiusDistribution) -> list[tuple[float, float]]:
+    """``(radius, number fraction)`` classes of a distribution.
+
+    Constant and ``poly`` distributions are exact; ``normal`` and ``lognormal`` ones (cut
+    at 3 sigma) become :data:`SIZE_CLASSES` classes of equal width (in r, resp. ln r),
+    each at its centre with the probability of its interval.
+    """
+    if radius.kind == "constant":
+        return [(radius.values[0], 1.0)]
+    if radius.kind == "poly":
+        return list(zip(radius.values, radius.weights))
+    centre, spread = radius.values
+    if spread == 0:
+        return [(centre, 1.0)]
+    edges = np.linspace(-3.0, 3.0, SIZE_CLASSES + 1)
+    cdf = np.array([0.5 * (1 + math.erf(e / math.sqrt(2))) for e in edges])
+    weights = np.diff(cdf) / (cdf[-1] - cdf[0])
+    mids = 0.5 * (edges[1:] + edges[:-1])
+    radii = centre + spread * mids if radius.kind == "normal" else centre * np.exp(spread * mids)
+    return [(float(r), float(w)) for r, w in zip(radii, weights)]
+
+
+class Commands:
+    """LIGGGHTS commands for one simulation; each method returns ``(id, lines)`` or lines."""
+
+    def __init__(self, spec: SimulationSpec) -> None:
+        self.spec = spec
+        self._counter = itertools.count(1)
+        model = spec.model.__name__
+        if model not in MODELS:
+            raise UnsupportedFeature(f"LIGGGHTS has no kernel for the {model} model")
+        self.model = MODELS[model]
+        #: Materials by atom type (1-based): the species, then meshes with their own material.
+        self.materials: list[Mapping[str, float]] = [s.material for s in spec.species]
+        self.mesh_ids: dict[str, str] = {}
+        self.mesh_types: dict[str, int] = {}
+        self.bare_meshes = {mesh.name for mesh in spec.meshes if not mesh.material}
+        for mesh in spec.meshes:
+            self.mesh_ids[mesh.name] = self.new_id("mesh")
+            if mesh.material:
+                self.materials.append(mesh.material)
+                self.mesh_types[mesh.name] = len(self.materials)
+            else:
+                self.mesh_types[mesh.name] = 1
+        if not self.materials:
+            raise ConfigError("LIGGGHTS needs at least one species: pass species=({'material': ...},)")
+        self.cohesion = any(m.get("cohesionEnergyDensity", 0) > 0 for m in self.materials)
+        self.rolling = any(m.get("coefficientRollingFriction", 0) > 0 for m in self.materials)
+
+    def new_id(self, kind: str) -> str:
+        return f"pg_{kind}{next(self._counter)}"
+
+    @property
+    def granular(self) -> str:
+        """The ``model ...`` arguments shared by ``pair_style gran`` and ``fix wall/gran``."""
+        words = f"model {self.model} tangential history"
+        if self.cohesion:
+            words += " cohesion sjkr"
+        if self.rolling:
+            words += " rolling_friction cdt"
+        return words
+
+    # -- the simulation ------------------------------------------------------------------
+
+    def setup(self, resume: Path | None = None) -> list[str]:
+        """Box, materials, contact model, gravity, integrator, meshes and dumps."""
+        spec = self.spec
+        lines = ["units si", "atom_style granular", "atom_modify map array"]
+        if resume is None:
+            bounds = " ".join(fmt(v) for lo_hi in spec.domain.box for v in lo_hi)
+            lines += [
+                f"boundary {' '.join(spec.domain.boundary)}",
+                "newton off",
+                f"region pg_domain block {bounds} units box",
+                f"create_box {len(self.materials)} pg_domain",
+            ]
+        else:
+            lines.append(f"read_restart {resume}")
+        lines += [
+            "communicate single vel yes",
+            f"neighbor {fmt(spec.skin)} {spec.nns_type}",
+            "neigh_modify delay 0",
+            "thermo_style custom step atoms ke",
+            "thermo_modify lost ignore norm no",
+            "compute_modify thermo_temp dynamic yes",
+            *self._material_tables(),
+            f"pair_style gran {self.granular}",
+            "pair_coeff * *",
+        ]
+        if spec.dt is not None:
+            lines.append(f"timestep {fmt(spec.dt)}")
+        if spec.gravity is not None and spec.gravity.magnitude > 0:
+            direction = " ".join(fmt(d) for d in spec.gravity.direction)
+            lines.append(f"fix pg_gravity all gravity {fmt(spec.gravity.magnitude)} vector {direction}")
+        lines.append("fix pg_integrate all nve/sphere")
+        for mesh in spec.meshes:
+            placement = f" scale {fmt(mesh.scale)}" if mesh.scale != 1 else ""
+            if mesh.rotate is not None:
+                axis, angle = mesh.rotate
+                placement += f" rotate axis {' '.join(fmt(a) for a in axis)} angle {fmt(angle)}"
+            if any(mesh.translate):
+                placement += f" move {' '.join(fmt(t) for t in mesh.translate)}"
+            lines.append(
+                f"fix {self.mesh_ids[mesh.name]} all {mesh.mtype} file {mesh.file} "
+                f"type {self.mesh_types[mesh.name]}{placement}"
+            )
+        return lines + self._dumps()
+
+    def _material_tables(self) -> list[str]:
+        required = ["youngsModulus", "poissonsRatio", "coefficientRestitution", "coefficientFriction"]
+        if self.model == "hooke":
+            required.append("characteristicVelocity")
+        for index, material in enumerate(self.materials, start=1):
+            missing = [key for key in required if key not in material]
+            if missing:
+                raise ConfigError(f"LIGGGHTS needs {', '.join(missing)} in the material of atom type {index}")
+
+        def column(key: str, default: float | None = None) -> np.ndarray:
+            return np.array([m.get(key, default) for m in self.materials], float)
+
+        n = len(self.materials)
+
+        def table(name: str, values: np.ndarray) -> str:
+            return f"fix pg_{name} all property/global {name} peratomtypepair {n} " + " ".join(
+                fmt(v) for v in values.ravel()
+            )
+
+        E, nu = column("youngsModulus"), column("poissonsRatio")
+        lines = [
+            "fix pg_youngsModulus all property/global youngsModulus peratomtype "
+            + " ".join(fmt(v) for v in E),
+            "fix pg_poissonsRatio all property/global poissonsRatio peratomtype "
+            + " ".join(fmt(v) for v in nu),
+            table(
+                "coefficientRestitution",
+                mixing.pair_table(mixing.pair_restitution, column("coefficientRestitution")),
+            ),
+            table(
+                "coefficientFriction", mixing.pair_table(mixing.pair_friction, column("coefficientFriction"))
+            ),
+        ]
+        if self.cohesion:
+            lines.append(
+                table(
+                    "cohesionEnergyDensity",
+                    mixing.pair_table(mixing.pair_cohesion, column("cohesionEnergyDensity", 0.0)),
+                )
+            )
+        if self.rolling:
+            lines.append(
+                table(
+                    "coefficientRollingFriction",
+                    mixing.pair_table(mixing.pair_friction, column("coefficientRollingFriction", 0.0)),
+                )
+            )
+        if self.model == "hooke":
+            velocities = set(column("characteristicVelocity"))
+            if len(velocities) > 1:
+                raise ConfigError(
+                    "LIGGGHTS' hooke model takes one characteristicVelocity; "
+                    f"the materials give {sorted(velocities)}"
+                )
+            lines.append(
+                f"fix pg_characteristicVelocity all property/global characteristicVelocity scalar "
+                f"{fmt(velocities.pop())}"
+            )
+        return lines
+
+    def _dumps(self) -> list[str]:
+        traj, lines = self.spec.traj, []
+        if native_particles(self.spec):
+            group = "all"
+            if traj.sel != "all":
+                group = "pg_selection"
+                lines.append(f"group {group} type {traj.sel}")
+            unknown = [a for a in traj.args if a not in DUMP_COLUMNS]
+            if unknown:
+                raise ConfigError(
+                    f"traj args {unknown} are not LIGGGHTS dump custom columns: {sorted(DUMP_COLUMNS)}"
+                )
+            traj.pfile.parent.mkdir(parents=True, exist_ok=True)
+            lines.append(f"dump pg_dump {group} custom {traj.freq} {traj.pfile} {' '.join(traj.args)}")
+            lines += [f"dump_modify pg_dump {arg}" for arg in traj.dump_modify]
+        if native_meshes(self.spec):
+            traj.mfile.parent.mkdir(parents=True, exist_ok=True)
+            lines.append(f"dump pg_mesh_dump all mesh/vtk {traj.freq} {traj.mfile} {' '.join(traj.margs)}")
+        return lines
+
+    # -- calls -----------------------------------------------------------------------------
+
+    def region(self, region: Region) -> tuple[str, str]:
+        rid = self.new_id("region")
+        args = " ".join(a if isinstance(a, str) else fmt(a) for a in region.args)
+        return rid, f"region {rid} {region.kind} {args} units box"
+
+    def _templates(
+        self, species: Sequence[int], weights: Sequence[float], seed: int
+    ) -> tuple[str, list[str]]:
+        """Particle templates of ``species`` (number fractions ``weights``) and their distribution."""
+        lines, parts = [], []
+        for k, (index, weight) in enumerate(zip(species, weights)):
+            sp = self.spec.species[index - 1]
+            for j, (radius, fraction) in enumerate(size_classes(sp.radius)):
+                tid = self.new_id("template")
+                volume = 4 / 3 * math.pi * radius**3
+                lines.append(
+                    f"fix {tid} all particletemplate/sphere {prime(seed, 10 * k + j + 1)} atom_type {index} "
+                    f"density constant {fmt(sp.density)} radius constant {fmt(radius)} "
+                    f"volume_limit {fmt(volume / 10)}"
+                )
+                # LIGGGHTS weighs templates by mass
+                parts.append((tid, weight * fraction * sp.density * radius**3))
+        total = sum(w for _, w in parts)
+        did = self.new_id("distribution")
+        entries = " ".join(f"{tid} {fmt(w / total)}" for tid, w in parts if w > 0)
+        count = sum(1 for _, w in parts if w > 0)
+        lines.append(f"fix {did} all particledistribution/discrete {prime(seed)} {count} {entries}")
+        return did, lines
+
+    def insert(self, spec: InsertSpec, dt: float | None) -> tuple[str, list[str]]:
+        distribution, lines = self._templates(spec.species, spec.weights, spec.seed)
+        rid, region = self.region(spec.region)
+        lines.append(region)
+        iid = self.new_id("insert")
+        vel = spec.velocity
+        velocity = " ".join(fmt(v) for v in (*vel.mean, *(vel.spread if vel.kind != "constant" else ())))
+        common = (
+            f"seed {prime(spec.seed, 99)} distributiontemplate {distribution} "
+            f"vel {vel.kind} {velocity} omega constant {' '.join(fmt(w) for w in spec.omega)} "
+            f"overlapcheck yes all_in {'yes' if spec.all_in else 'no'}"
+        )
+        if spec.mechanism == "by_pack":
+            every = "once" if spec.freq is None else spec.freq
+            amount = int(spec.value) if spec.target == "particles_in_region" else fmt(spec.value)
+            lines.append(
+                f"fix {iid} all insert/pack {common} insert_every {every} {spec.target} {amount} region {rid}"
+            )
+            return iid, lines
+        every = spec.freq or 1000
+        if spec.target == "particlerate":
+            total = "INF" if spec.duration is None else str(max(1, round(spec.value * spec.duration)))
+            amount = f"nparticles {total} particlerate {fmt(spec.value)}"
+        else:
+            total = "INF" if spec.duration is None else fmt(spec.value * spec.duration)
+            amount = (
+                f"{'nparticles INF' if spec.duration is None else f'mass {total}'} massrate {fmt(spec.value)}"
+            )
+        lines.append(f"fix {iid} all insert/rate/region {common} insert_every {every} {amount} region {rid}")
+        return iid, lines
+
+    def wall(self, spec: WallSpec) -> tuple[str, list[str]]:
+        wid = self.new_id("wall")
+        if spec.kind == "mesh":
+            if spec.mesh in self.bare_meshes and spec.species != 1:
+                raise ConfigError(
+                    f"mesh {spec.mesh!r} has no material of its own, so it is made of species 1; "
+                    "give it 'material' in mesh={...} to use another one"
+                )
+            return wid, [
+                f"fix {wid} all wall/gran {self.granular} mesh n_meshes 1 meshes {self.mesh_ids[spec.mesh]}"
+            ]
+        if spec.kind == "plane":
+            geometry = f"{spec.plane} {fmt(spec.peq)}"
+        else:
+            geometry = f"{spec.axis}cylinder {fmt(spec.radius)} {fmt(spec.centre[0])} {fmt(spec.centre[1])}"
+        return wid, [f"fix {wid} all wall/gran {self.granular} primitive type {spec.species} {geometry}"]
+
+    def motion(self, spec: MotionSpec) -> tuple[str, list[str]]:
+        mid = self.new_id("move")
+        mesh = self.mesh_ids[spec.mesh]
+        if spec.kind == "linear":
+            how = "linear " + " ".join(fmt(v) for v in spec.velocity)
+        elif spec.kind == "wiggle":
+            how = f"wiggle amplitude {' '.join(fmt(a) for a in spec.amplitude)} period {fmt(spec.period)}"
+        else:
+            if spec.omega == 0:
+                raise ConfigError("moveMesh(rotate=True) with omega=0 does not move the mesh")
+            axis = np.sign(spec.omega) * np.asarray(spec.axis)
+            how = (
+                f"rotate origin {' '.join(fmt(o) for o in spec.origin)} "
+                f"axis {' '.join(fmt(a) for a in axis)} period {fmt(2 * math.pi / abs(spec.omega))}"
+            )
+        return mid, [f"fix {mid} all move/mesh mesh {mesh} {how}"]
+
+    def viscous(self, spec: ViscousSpec) -> tuple[str, list[str]]:
+        vid, lines = self.new_id("viscous"), []
+        group = "all"
+        if set(spec.species) != {s.type for s in self.spec.species}:
+            group = self.new_id("group")
+            lines.append(f"group {group} type {' '.join(str(s) for s in spec.species)}")
+        lines.append(f"fix {vid} {group} viscous {fmt(spec.gamma * spec.scale)}")
+        return vid, lines
+
+
+def native_particles(spec: SimulationSpec) -> bool:
+    """Whether LIGGGHTS writes the particle trajectory itself (a ``.dump`` file)."""
+    return spec.traj.pfile is not None and spec.traj.pfile.suffix == ".dump"
+
+
+def native_meshes(spec: SimulationSpec) -> bool:
+    """Whether LIGGGHTS writes mesh frames itself (``.vtk``; the only mesh format it has here)."""
+    return bool(spec.meshes) and spec.traj.mfile is not None

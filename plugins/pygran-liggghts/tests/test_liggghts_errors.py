@@ -1,0 +1,68 @@
+"""LIGGGHTS errors and crashes become EngineError with LIGGGHTS' message; the session goes on."""
+
+import os
+import signal
+
+import pytest
+from pygran_liggghts.library import find_library
+
+from pygran_core import simulation
+from pygran_core.errors import EngineError
+from pygran_core.testing.solvers import require_solver
+
+MATERIAL = {
+    "youngsModulus": 5e6,
+    "poissonsRatio": 0.45,
+    "coefficientRestitution": 0.3,
+    "coefficientFriction": 0.5,
+    "density": 2500.0,
+}
+
+
+def make(path, **extra):
+    require_solver(find_library)
+    return simulation.DEM(
+        engine="liggghts",
+        model="HertzMindlin",
+        box=(0, 0.01, 0, 0.01, 0, 0.01),
+        dt=1e-6,
+        output=str(path),
+        species=({"material": MATERIAL, "radius": 1e-3},),
+        progress=False,
+        **extra,
+    )
+
+
+def works(path):
+    """A new simulation in the same process still runs."""
+    with make(path) as sim:
+        assert sim.createParticles(1, "single", 0.005, 0.005, 0.005) == 1
+        sim.run(10)
+        assert sim.extractCoords().shape == (1, 3)
+
+
+def test_bad_raw_command(tmp_path):
+    sim = make(tmp_path / "bad")
+    with pytest.raises(EngineError, match=r"ERROR: Unknown command: fix_this_typo 1 \(.*input\.cpp:\d+\)"):
+        sim.command("fix_this_typo 1")
+    with pytest.raises(EngineError, match="stopped after an error"):
+        sim.run(10)
+    sim.close()
+    assert "Unknown command" in (tmp_path / "bad" / "liggghts.log").read_text(errors="replace")
+    works(tmp_path / "after")
+
+
+def test_impossible_setup(tmp_path):
+    with make(tmp_path / "impossible") as sim:
+        sim.insert(species=1, value=10, region=("block", 0.005, 0.02, 0, 0.01, 0, 0.01))
+        with pytest.raises(EngineError, match="Insertion region extends outside simulation box"):
+            sim.run(10)
+    works(tmp_path / "after")
+
+
+def test_worker_crash(tmp_path):
+    with make(tmp_path / "crash") as sim:
+        os.kill(sim.engine._session.process.pid, signal.SIGKILL)
+        with pytest.raises(EngineError, match="signal 9"):
+            sim.run(10)
+    works(tmp_path / "after")
