@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable, Iterable, Sequence
 from importlib.metadata import version
 from pathlib import Path
@@ -136,6 +137,24 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_demo(args: argparse.Namespace) -> int:
+    """The hopper discharge study: simulation, analysis, plots and summary in the output folder."""
+    from pygran_core import demo
+
+    summary = demo.run(
+        args.output,
+        engine=args.engine,
+        particles=args.particles,
+        progress=False if args.no_progress else None,
+        report=lambda text: print(f"pygran demo: {text}"),
+    )
+    print(summary.text(), end="")
+    print(
+        f"plots in {Path(args.output).resolve() / 'hopper.png'}; trajectory in traj.h5, walls in walls*.vtk"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="pygran", description="PyGran: DEM simulation and analysis.")
     parser.add_argument("--version", action="version", version=f"pygran {version('pygran-core')}")
@@ -153,6 +172,12 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--to", dest="output_format", help="writer name (default: from the extension)")
     convert.add_argument("--units", help="unit system written into the output (H5MD: si)")
     convert.set_defaults(func=cmd_convert)
+    demo = commands.add_parser("demo", help="run the hopper discharge study and analyse it")
+    demo.add_argument("--engine", default="native", help="engine to run on (default: native)")
+    demo.add_argument("--particles", type=int, help="number of particles (default: 3000)")
+    demo.add_argument("--output", default="pygran-demo", help="output folder (default: ./pygran-demo)")
+    demo.add_argument("--no-progress", action="store_true", help="no progress bars")
+    demo.set_defaults(func=cmd_demo)
     return parser
 
 
@@ -163,7 +188,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return func(args)
     except PyGranError as exc:
-        print(f"pygran: error: {exc}")
+        print(f"pygran: error: {exc}", file=sys.stderr)
         return 1
 
 

@@ -13,12 +13,12 @@ coefficientFriction                 Coulomb sliding friction mu                 
 coefficientRollingFriction          rolling friction mu_r (LIGGGHTS ``cdt``)         --
 cohesionEnergyDensity               Thornton-Ning JKR: surface energy Gamma of       J/m^2
                                     each surface (work of adhesion is 2 Gamma);
-                                    SJKR (SpringDashpot, HertzMindlin): the           J/m^3
+                                    SJKR (SpringDashpot, HertzMindlin): the          J/m^3
                                     LIGGGHTS ``cohesion sjkr`` energy density k
 coefficientRestitution              normal restitution e, in (0, 1]                  --
 coefficientRollingViscousDamping    rolling viscous damping (LIGGGHTS ``epsd``)      --
 yieldPress                          limiting contact pressure p_y (Thornton-Ning)    Pa
-characteristicVelocity              impact velocity scale (hooke stiffness, impacts)  m/s
+characteristicVelocity              impact velocity (hooke stiffness, impacts)       m/s
 density                             true (particle) density                          kg/m^3
 ==================================  ===============================================  ========
 """

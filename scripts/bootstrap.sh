@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set PyGran up on Debian 12 (as root) and run the main job or the whole test suite.
-#   bash scripts/bootstrap.sh main   # apt packages, venv, core + every plugin; then the main job
+#   bash scripts/bootstrap.sh main   # apt packages, venv, core + every plugin; then the main job:
+#                                    # the hopper discharge study (pygran demo) into ./demo-output
 #   bash scripts/bootstrap.sh test   # the same set-up; then the complete test suite
 # Idempotent: packages already present are not reinstalled; pip reinstalls only when a
 # package definition (pyproject.toml, setup.py, .pyx) changed since the last run.
@@ -39,7 +40,7 @@ install_python_packages() {
     fi
     log "installing pygran-core and plugins (${PLUGINS[*]}) into $VENV"
     "$VENV/bin/python" -m pip install -q --upgrade pip "setuptools>=77" wheel
-    local args=(-e "$ROOT[test]")
+    local args=(-e "$ROOT[test,plot,docs]")
     for plugin in "${PLUGINS[@]}"; do args+=(-e "$ROOT/plugins/$plugin[test]"); done
     "$VENV/bin/python" -m pip install -q "${args[@]}"
     echo "$digest" >"$stamp"
@@ -47,6 +48,7 @@ install_python_packages() {
 
 run_main() {
     "$VENV/bin/pygran" plugins
+    "$VENV/bin/pygran" demo --output "${PYGRAN_DEMO_OUTPUT:-$ROOT/demo-output}"
 }
 
 run_tests() {

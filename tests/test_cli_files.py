@@ -82,12 +82,12 @@ def test_convert_dump_glob_to_h5md_and_back(hopper, tmp_path):
 
 def test_errors_are_one_line_and_exit_1(hopper, tmp_path):
     missing = run("info", "nope.dump", cwd=tmp_path)
-    assert missing.returncode == 1 and "pygran: error: File not found:" in missing.stdout
+    assert missing.returncode == 1 and "pygran: error: File not found:" in missing.stderr
     (tmp_path / "bad.dump").write_text(
         (hopper / "particles1000.dump").read_text().replace(" 5e-05 ", " 5x-05 ", 1)
     )
     bad = run("convert", "bad.dump", "out.h5md", cwd=tmp_path)
     assert bad.returncode == 1
-    assert "bad.dump: frame 0, line 10: column 'radius' holds '5x-05', not a number" in bad.stdout
+    assert "bad.dump: frame 0, line 10: column 'radius' holds '5x-05', not a number" in bad.stderr
     unknown = run("convert", "bad.dump", "out.xyz", cwd=tmp_path)
-    assert unknown.returncode == 1 and "No installed writer for 'out.xyz'" in unknown.stdout
+    assert unknown.returncode == 1 and "No installed writer for 'out.xyz'" in unknown.stderr

@@ -152,3 +152,9 @@ def test_unsupported_and_wrong_calls_are_clear(tmp_path):
         simulation.DEM(engine="native", box=(0, 1, 0, 1, 0, 1), output=str(tmp_path / "x"))
     with pytest.raises(UnsupportedFeature, match="native engine does not support restart"):
         dem(tmp_path, restart=100)
+
+    class StiffSpring(simulation.models.SpringDashpot):
+        """A model from a plugin, without a native kernel."""
+
+    with pytest.raises(UnsupportedFeature, match="does not implement the contact model StiffSpring"):
+        dem(tmp_path, model=StiffSpring)

@@ -79,6 +79,10 @@ class NativeEngine(Engine):
 
     def __init__(self, spec: SimulationSpec) -> None:
         super().__init__(spec)
+        if spec.model.__name__ not in MODEL_KIND:
+            raise self._unsupported(
+                f"the contact model {spec.model.__name__} (it has kernels for {', '.join(MODEL_KIND)})"
+            )
         if not spec.species:
             raise ConfigError(
                 "The native engine needs at least one species: species=({'material': ..., 'radius': ...},)"
