@@ -191,15 +191,23 @@ class LiggghtsEngine(Engine):
                 "(LIGGGHTS' create_atoms random lets particles overlap); use insert()"
             )
         species = self.spec.species[spec.species - 1]
+        first = self._max_id + 1
         if spec.style == "single":
             lines = [
                 f"create_atoms {spec.species} single {' '.join(fmt(v) for v in spec.position)} units box"
             ]
+            box = np.array(self.spec.domain.box)
+            if np.all((box[:, 0] < spec.position) & (spec.position < box[:, 1])):
+                # inside the box LIGGGHTS gives it the next id: no round trip needed
+                self._pending += lines
+                self._max_id = first
+            else:
+                self._execute(lines)
         else:
             rid, region = self.commands.region(spec.region)
-            lines = [f"lattice sc {fmt(spec.spacing)}", region, f"create_atoms {spec.species} region {rid}"]
-        first = self._max_id + 1
-        self._execute(lines)
+            self._execute(
+                [f"lattice sc {fmt(spec.spacing)}", region, f"create_atoms {spec.species} region {rid}"]
+            )
         last = self._max_id
         count = max(0, last - first + 1)
         if count == 0:
@@ -215,7 +223,7 @@ class LiggghtsEngine(Engine):
         if any(spec.velocity):
             vx, vy, vz = (fmt(v) for v in spec.velocity)
             lines.append(f"set atom {atoms} vx {vx} vy {vy} vz {vz}")
-        self._pending += lines  # sent with the next request: a creation costs one round trip
+        self._pending += lines  # sent with the next request
         return count
 
     def _wall(self, spec: WallSpec) -> str:
