@@ -1398,8 +1398,8 @@ cdef class Core:
         """Wrap, drop lost particles, sort into cells, rebuild both lists carrying histories."""
         cdef Ctx c
         cdef int i, d, n = self.n, nnew, T = self.nthreads
-        cdef long long lost = 0, total
-        cdef double rmax = 0.0, p, L
+        cdef long long lost = 0
+        cdef double rmax = 0.0
         cdef int *ip
         cdef uint8_t *bp
         cdef double *dp
@@ -1419,7 +1419,7 @@ cdef class Core:
             for d in range(3):
                 self.binned_nc[d] = self.nc[d]
         # wrap periodic coordinates, mark particles outside a fixed boundary (or removed) lost
-        for i in prange(n, schedule='static', num_threads=T, nogil=True):
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
             self.cell[i] = self._place(i)
         for i in range(n):
             if self.cell[i] < 0:
