@@ -2,30 +2,38 @@
 
 import math
 
-import numpy as np
 import pytest
+from pygran_native.solver import Solver
 
 from pygran_core.simulation.models import HertzMindlin, ThorntonNing
-from pygran_native.solver import Solver
 
 R, RHO, E, NU, PY = 1e-3, 1000.0, 4e7, 0.25, 2e5
 
 
 def tn_solver(gamma, **extra):
     s = Solver(box=[[-0.01] * 3, [0.01] * 3], skin=2e-4, threads=1, **extra)
-    s.set_contact_model("thornton-ning", youngs=E, poisson=NU, friction=0.5, yield_pressure=PY, cohesion_energy=gamma)
+    s.set_contact_model(
+        "thornton-ning", youngs=E, poisson=NU, friction=0.5, yield_pressure=PY, cohesion_energy=gamma
+    )
     return s
 
 
 def material(gamma):
-    return dict(youngsModulus=E, poissonsRatio=NU, coefficientFriction=0.5, yieldPress=PY,
-                cohesionEnergyDensity=gamma, density=RHO, radius=R)
+    return dict(
+        youngsModulus=E,
+        poissonsRatio=NU,
+        coefficientFriction=0.5,
+        yieldPress=PY,
+        cohesionEnergyDensity=gamma,
+        density=RHO,
+        radius=R,
+    )
 
 
 @pytest.mark.parametrize("gamma,v0", [(0.0, 1.0), (0.05, 1.0)], ids=["plastic", "plastic-adhesive"])
 def test_thornton_ning_impact_matches_reference(gamma, v0):
     ref = ThorntonNing(material=material(gamma)).displacement(velocity=v0)
-    assert ref.max_overlap > ThorntonNing(material=material(gamma)).yield_overlap   # plastic
+    assert ref.max_overlap > ThorntonNing(material=material(gamma)).yield_overlap  # plastic
     s = tn_solver(gamma)
     s.add_plane((0, 0, 0), (0, 0, 1))
     s.add_particles([[0, 0, R]], R, densities=RHO, velocities=[[0, 0, -v0]])
@@ -48,7 +56,7 @@ def test_slow_adhesive_impact_is_captured():
     s.add_plane((0, 0, 0), (0, 0, 1))
     s.add_particles([[0, 0, R]], R, densities=RHO, velocities=[[0, 0, -0.2]])
     s.run(40000, ref.time[-1] / 2000)
-    assert R - s.positions[0, 2] > -1e-5 and s.walls()   # still stuck to the wall
+    assert R - s.positions[0, 2] > -1e-5 and s.walls()  # still stuck to the wall
 
 
 @pytest.mark.parametrize("gamma", [0.0, 0.05])
@@ -69,23 +77,35 @@ def test_sjkr_cohesion_holds_a_particle_against_gravity():
     s.add_plane((0, 0, 0), (0, 0, -1))
     s.add_particles([[0, 0, -R + 1e-6]], R, densities=2500.0)
     s.run(30000, 1e-6)
-    model = HertzMindlin(material=dict(youngsModulus=5e6, poissonsRatio=0.45, coefficientRestitution=0.3,
-                                       coefficientFriction=0.5, cohesionEnergyDensity=3e5, density=2500.0,
-                                       radius=R))
+    model = HertzMindlin(
+        material=dict(
+            youngsModulus=5e6,
+            poissonsRatio=0.45,
+            coefficientRestitution=0.3,
+            coefficientFriction=0.5,
+            cohesionEnergyDensity=3e5,
+            density=2500.0,
+            radius=R,
+        )
+    )
     mg = 4 / 3 * math.pi * R**3 * 2500.0 * 9.81
     overlap = R + s.positions[0, 2]
     assert overlap > 0 and abs(s.velocities[0, 2]) < 1e-4
-    assert float(model.normal_force(overlap, 0.0)) == pytest.approx(-mg, rel=1e-3)   # static balance
+    assert float(model.normal_force(overlap, 0.0)) == pytest.approx(-mg, rel=1e-3)  # static balance
 
 
 def test_rolling_friction_decelerates_at_five_sevenths_mu_r_g():
     mu_r, g = 0.02, 9.81
     s = Solver(box=[[-0.05] * 3, [0.05] * 3], gravity=(0, 0, -g), skin=2e-4, threads=1)
-    s.set_contact_model("hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5, rolling_friction=mu_r)
+    s.set_contact_model(
+        "hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5, rolling_friction=mu_r
+    )
     s.add_plane((0, 0, 0), (0, 0, 1))
     m = 4 / 3 * math.pi * R**3 * 2500.0
     rest = R - (3 * m * g / (4 * 5e6 / (1 - 0.45**2) * math.sqrt(R))) ** (2 / 3)
-    s.add_particles([[-0.04, 0, rest]], R, densities=2500.0, velocities=[[0.1, 0, 0]], omegas=[[0, 0.1 / R, 0]])
+    s.add_particles(
+        [[-0.04, 0, rest]], R, densities=2500.0, velocities=[[0.1, 0, 0]], omegas=[[0, 0.1 / R, 0]]
+    )
     s.run(5000, 2e-6)
     v1, t1 = s.velocities[0, 0], s.time
     s.run(20000, 2e-6)

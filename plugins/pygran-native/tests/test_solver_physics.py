@@ -4,21 +4,34 @@ import math
 
 import numpy as np
 import pytest
+from pygran_native.solver import Solver
 
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot
-from pygran_native.solver import Solver
 
 R, RHO, E, NU = 1e-3, 2500.0, 5e6, 0.45
 MASS = 4 / 3 * math.pi * R**3 * RHO
 
 
 def material(**extra):
-    return dict(youngsModulus=E, poissonsRatio=NU, coefficientRestitution=0.3, coefficientFriction=0.5,
-                density=RHO, radius=R, **extra)
+    return dict(
+        youngsModulus=E,
+        poissonsRatio=NU,
+        coefficientRestitution=0.3,
+        coefficientFriction=0.5,
+        density=RHO,
+        radius=R,
+        **extra,
+    )
 
 
-def solver(kind="hertz", gravity=(0, 0, 0), periodic=(False, False, False), box=((-0.01,) * 3, (0.01,) * 3),
-           threads=1, **model):
+def solver(
+    kind="hertz",
+    gravity=(0, 0, 0),
+    periodic=(False, False, False),
+    box=((-0.01,) * 3, (0.01,) * 3),
+    threads=1,
+    **model,
+):
     s = Solver(box=np.array(box), periodic=periodic, gravity=gravity, skin=2e-4, threads=threads)
     coefficients = dict(youngs=E, poisson=NU, restitution=0.3, friction=0.5) | model
     s.set_contact_model(kind, **coefficients)
@@ -70,10 +83,11 @@ def test_sphere_plane_impact_matches_reference_model(kind, model):
 
 
 def test_head_on_hertz_collision_matches_closed_form():
-    v = 0.4   # relative approach speed
+    v = 0.4  # relative approach speed
     s = solver(restitution=1.0, friction=0.0)
-    s.add_particles([[-R - 1e-7, 0, 0], [R + 1e-7, 0, 0]], R, densities=RHO,
-                    velocities=[[v / 2, 0, 0], [-v / 2, 0, 0]])
+    s.add_particles(
+        [[-R - 1e-7, 0, 0], [R + 1e-7, 0, 0]], R, densities=RHO, velocities=[[v / 2, 0, 0], [-v / 2, 0, 0]]
+    )
     Rs, ms = R / 2, MASS / 2
     Es = 1 / (2 * (1 - NU**2) / E)
     tc = 2.868 * (ms**2 / (Rs * Es**2 * v)) ** 0.2
@@ -103,13 +117,13 @@ def test_sliding_sphere_ends_rolling_at_five_sevenths():
     s = solver(gravity=(0, 0, -9.81), restitution=0.5, friction=0.3)
     s.add_plane((0, 0, 0), (0, 0, 1))
     mg = MASS * 9.81
-    rest = R - (3 * mg / (4 * E / (1 - NU**2) * math.sqrt(R))) ** (2 / 3)   # Hertz static overlap
+    rest = R - (3 * mg / (4 * E / (1 - NU**2) * math.sqrt(R))) ** (2 / 3)  # Hertz static overlap
     s.add_particles([[-0.008, 0, rest]], R, densities=RHO, velocities=[[v0, 0, 0]])
     dt = 2e-6
-    s.run(20000, dt)   # sliding lasts 2 v0 / (7 mu g) = 19 ms
+    s.run(20000, dt)  # sliding lasts 2 v0 / (7 mu g) = 19 ms
     v, w = s.velocities[0], s.omegas[0]
     assert v[0] == pytest.approx(5 / 7 * v0, rel=0.01)
-    assert w[1] * R == pytest.approx(v[0], rel=0.01)   # rolling without slip: omega_y = v_x / R
+    assert w[1] * R == pytest.approx(v[0], rel=0.01)  # rolling without slip: omega_y = v_x / R
 
 
 def hertz_energy(s):
@@ -128,8 +142,13 @@ def hertz_energy(s):
 
 
 def test_energy_conserved_without_dissipation():
-    s = solver(gravity=(0, 0, -9.81), periodic=(True, True, False), box=((0, 0, 0), (0.012, 0.012, 0.02)),
-               restitution=1.0, friction=0.0)
+    s = solver(
+        gravity=(0, 0, -9.81),
+        periodic=(True, True, False),
+        box=((0, 0, 0), (0.012, 0.012, 0.02)),
+        restitution=1.0,
+        friction=0.0,
+    )
     s.add_plane((0, 0, 0), (0, 0, 1))
     rng = np.random.default_rng(1)
     grid = np.stack(np.meshgrid(*[np.arange(3)] * 3, indexing="ij"), -1).reshape(-1, 3)
@@ -146,35 +165,43 @@ def test_momentum_conserved_in_particle_collisions():
     rng = np.random.default_rng(2)
     grid = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), -1).reshape(-1, 3)
     x = grid * 2.5e-3 + rng.uniform(-5e-5, 5e-5, (27, 3))
-    s.add_particles(x, R * rng.uniform(0.8, 1.2, 27), densities=RHO, velocities=-x * 40,
-                    omegas=rng.normal(0, 50, (27, 3)))
+    s.add_particles(
+        x, R * rng.uniform(0.8, 1.2, 27), densities=RHO, velocities=-x * 40, omegas=rng.normal(0, 50, (27, 3))
+    )
     p0 = (s.masses[:, None] * s.velocities).sum(axis=0)
     scale = np.abs(s.masses[:, None] * s.velocities).sum()
     s.run(20000, 1e-6)
-    assert s.kinetic_energy()[0] < 0.8 * 0.5 * np.sum(s.masses * np.sum((40 * x) ** 2, axis=1))   # collided
+    assert s.kinetic_energy()[0] < 0.8 * 0.5 * np.sum(s.masses * np.sum((40 * x) ** 2, axis=1))  # collided
     p1 = (s.masses[:, None] * s.velocities).sum(axis=0)
     np.testing.assert_allclose(p1, p0, atol=1e-13 * scale)
 
 
 def test_periodic_wrap_and_collision_across_the_boundary():
-    s = solver(periodic=(True, False, False), box=((0, -0.01, -0.01), (0.01, 0.01, 0.01)), restitution=1.0,
-               friction=0.0)
+    s = solver(
+        periodic=(True, False, False),
+        box=((0, -0.01, -0.01), (0.01, 0.01, 0.01)),
+        restitution=1.0,
+        friction=0.0,
+    )
     # b sits just inside the upper x boundary, a just above the lower one: they collide across it
-    s.add_particles([[0.0015, 0, 0], [0.0085, 0, 0]], R, densities=RHO, velocities=[[-0.1, 0, 0], [0.1, 0, 0]])
+    s.add_particles(
+        [[0.0015, 0, 0], [0.0085, 0, 0]], R, densities=RHO, velocities=[[-0.1, 0, 0], [0.1, 0, 0]]
+    )
     s.run(4000, 2e-6)
     v = s.velocities[:, 0]
-    np.testing.assert_allclose(v, [0.1, -0.1], rtol=1e-6)   # elastic exchange through the boundary
+    np.testing.assert_allclose(v, [0.1, -0.1], rtol=1e-6)  # elastic exchange through the boundary
     x = s.positions[:, 0]
     assert np.all((x >= 0) & (x < 0.01))
-    s.run(60000, 2e-6)   # travel several box lengths
+    s.run(60000, 2e-6)  # travel several box lengths
     assert s.n == 2 and s.lost == 0
     assert np.all((s.positions[:, 0] >= -1e-3) & (s.positions[:, 0] < 0.011))
 
 
 def test_particles_leaving_a_fixed_boundary_are_deleted_and_counted():
     s = solver(box=((0, 0, 0), (0.01, 0.01, 0.01)))
-    ids = s.add_particles([[0.005, 0.005, 0.005], [0.005, 0.005, 0.009]], R, densities=RHO,
-                          velocities=[[0, 0, 0], [0, 0, 1.0]])
+    ids = s.add_particles(
+        [[0.005, 0.005, 0.005], [0.005, 0.005, 0.009]], R, densities=RHO, velocities=[[0, 0, 0], [0, 0, 1.0]]
+    )
     s.run(500, 1e-5)
     assert s.n == 1 and s.lost == 1
     np.testing.assert_array_equal(s.ids, ids[:1])
@@ -185,12 +212,21 @@ def test_kernel_forces_match_reference_at_sampled_overlaps(kind, model):
     extra = dict(characteristicVelocity=0.3, cohesionEnergyDensity=2e4, coefficientRollingFriction=0.05)
     partner = dict(radius=0.7 * R, density=RHO)
     ref = model(material=material(**extra), partner=partner)
-    for overlap, rate, vt, spin in [(1e-6, 0.01, 0.002, 3.0), (2e-5, -0.05, 0.03, -10.0), (8e-5, 0.2, 0.0, 1.0)]:
+    for overlap, rate, vt, spin in [
+        (1e-6, 0.01, 0.002, 3.0),
+        (2e-5, -0.05, 0.03, -10.0),
+        (8e-5, 0.2, 0.0, 1.0),
+    ]:
         s = solver(kind, characteristic_velocity=0.3, cohesion_energy=2e4, rolling_friction=0.05)
         d = 1.7 * R - overlap
-        s.add_particles([[0, 0, 0], [d, 0, 0]], [R, 0.7 * R], densities=RHO,
-                        velocities=[[rate, vt, 0], [0, 0, 0]], omegas=[[0, 0, spin], [0, 0, 0]])
-        s.run(0, 1e-6)   # forces of the initial state (no history yet)
+        s.add_particles(
+            [[0, 0, 0], [d, 0, 0]],
+            [R, 0.7 * R],
+            densities=RHO,
+            velocities=[[rate, vt, 0], [0, 0, 0]],
+            omegas=[[0, 0, spin], [0, 0, 0]],
+        )
+        s.run(0, 1e-6)  # forces of the initial state (no history yet)
         fn = ref.normal_force(overlap, rate)
         # relative tangential velocity at the contact: v_t - (R w x n) with n = -x
         vt_rel = vt + spin * R
@@ -207,8 +243,13 @@ def test_kernel_forces_match_reference_at_sampled_overlaps(kind, model):
 
 def settle(threads, n_side=6, steps=3000):
     a = 2.2e-3
-    s = Solver(box=[[0, 0, 0], [n_side * a, n_side * a, (n_side + 3) * a]], periodic=(True, True, False),
-               gravity=(0, 0, -9.81), skin=4e-4, threads=threads)
+    s = Solver(
+        box=[[0, 0, 0], [n_side * a, n_side * a, (n_side + 3) * a]],
+        periodic=(True, True, False),
+        gravity=(0, 0, -9.81),
+        skin=4e-4,
+        threads=threads,
+    )
     s.set_contact_model("hertz", youngs=E, poisson=NU, restitution=0.3, friction=0.5)
     s.add_plane((0, 0, 0), (0, 0, 1))
     grid = np.stack(np.meshgrid(*[np.arange(n_side)] * 3, indexing="ij"), -1).reshape(-1, 3)
@@ -222,7 +263,7 @@ def test_settled_packing_fraction_of_frictional_spheres():
     s = settle(threads=1, n_side=8, steps=15000)
     z = s.positions[:, 2]
     assert np.abs(s.velocities).max() < 0.05
-    lo, hi = 3 * R, np.sort(z)[-64] - 3 * R   # bulk slab: away from the floor and the free surface
+    lo, hi = 3 * R, np.sort(z)[-64] - 3 * R  # bulk slab: away from the floor and the free surface
     assert hi - lo > 4 * R
     # exact volume of each sphere inside the slab
     a, b = np.clip(lo - z, -R, R), np.clip(hi - z, -R, R)

@@ -2,18 +2,25 @@
 
 import numpy as np
 import pytest
+from pygran_native.solver import Solver
 
 from pygran_core.errors import ConfigError
-from pygran_native.solver import Solver
 
 R, RHO = 1e-3, 2500.0
 
 
 def bed(threads, n_side=5, seed=3):
     a = 2.2e-3
-    s = Solver(box=[[0, 0, 0], [n_side * a, n_side * a, (n_side + 3) * a]], periodic=(True, True, False),
-               gravity=(0, 0, -9.81), skin=4e-4, threads=threads)
-    s.set_contact_model("hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5, rolling_friction=0.02)
+    s = Solver(
+        box=[[0, 0, 0], [n_side * a, n_side * a, (n_side + 3) * a]],
+        periodic=(True, True, False),
+        gravity=(0, 0, -9.81),
+        skin=4e-4,
+        threads=threads,
+    )
+    s.set_contact_model(
+        "hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5, rolling_friction=0.02
+    )
     s.add_plane((0, 0, 0), (0, 0, 1))
     grid = np.stack(np.meshgrid(*[np.arange(n_side)] * 3, indexing="ij"), -1).reshape(-1, 3)
     x = (grid + 0.5) * a + np.random.default_rng(seed).uniform(-1, 1, grid.shape) * 0.45 * (a - 2 * R)
@@ -39,6 +46,15 @@ def test_results_are_deterministic_for_a_thread_count():
     assert np.abs(one.positions - runs[0][0]).max() < 0.5 * R
 
 
+def test_split_runs_equal_one_run_bitwise():
+    straight, split = bed(2), bed(2)
+    straight.run(2000, 1e-5)
+    for steps in (1, 699, 1300):
+        split.run(steps, 1e-5)
+    for a, b in zip(snapshot(straight), snapshot(split)):
+        np.testing.assert_array_equal(a, b)
+
+
 @pytest.mark.parametrize("threads", [1, 2])
 def test_state_round_trip_is_bitwise(threads):
     s = bed(threads)
@@ -48,7 +64,9 @@ def test_state_round_trip_is_bitwise(threads):
     assert all(isinstance(v, np.ndarray) and v.dtype.kind in "biuf" for v in state.values())
     s.run(1500, 1e-5)
     straight = snapshot(s) + [s.contacts()[3]]
-    restored = Solver(box=s.box, periodic=s.periodic, gravity=(0, 0, -9.81), skin=4e-4, threads=threads, seed=99)
+    restored = Solver(
+        box=s.box, periodic=s.periodic, gravity=(0, 0, -9.81), skin=4e-4, threads=threads, seed=99
+    )
     restored.set_state(state)
     assert restored.step == 1500 and restored.n == s.n
     np.testing.assert_array_equal(restored.rng.random(2), s.rng.random(2))
@@ -60,15 +78,21 @@ def test_state_round_trip_is_bitwise(threads):
 
 def test_tangential_history_survives_rebuilds_and_resorting():
     # a sphere resting on a tilted frictional floor sticks (history holds it) while others move
-    s = Solver(box=[[-0.02, -0.02, -0.01], [0.02, 0.02, 0.02]], gravity=(9.81 * np.sin(0.2), 0, -9.81 * np.cos(0.2)),
-               skin=2e-4, threads=1)
-    s.set_contact_model("hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5, rolling_friction=0.5)
+    s = Solver(
+        box=[[-0.02, -0.02, -0.01], [0.02, 0.02, 0.02]],
+        gravity=(9.81 * np.sin(0.2), 0, -9.81 * np.cos(0.2)),
+        skin=2e-4,
+        threads=1,
+    )
+    s.set_contact_model(
+        "hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5, rolling_friction=0.5
+    )
     s.add_plane((0, 0, 0), (0, 0, 1))
     s.add_particles([[0, 0, R - 2e-6]], R, densities=RHO)
-    s.add_particles([[-0.015, 0.01, 0.01]], R, densities=RHO, velocities=[[3.0, 0, 0]])   # forces rebuilds
+    s.add_particles([[-0.015, 0.01, 0.01]], R, densities=RHO, velocities=[[3.0, 0, 0]])  # forces rebuilds
     s.run(20000, 1e-6)
     assert s.rebuilds > 5
-    assert abs(s.positions[0, 0]) < 1e-5   # held by static friction + rolling resistance
+    assert abs(s.positions[0, 0]) < 1e-5  # held by static friction + rolling resistance
 
 
 def test_remove_particles_by_id():
@@ -81,12 +105,15 @@ def test_remove_particles_by_id():
         s.remove_particles([3])
 
 
-@pytest.mark.parametrize("call,match", [
-    (lambda: Solver(box=[[0, 0, 0], [1, 1]], skin=1e-3), "box"),
-    (lambda: Solver(box=[[0, 0, 0], [1, 1, -1]], skin=1e-3), "box"),
-    (lambda: Solver(box=[[0, 0, 0], [1, 1, 1]], skin=0), "skin"),
-    (lambda: Solver(box=[[0, 0, 0], [1, 1, 1]], skin=1e-3, threads=0), "threads"),
-])
+@pytest.mark.parametrize(
+    "call,match",
+    [
+        (lambda: Solver(box=[[0, 0, 0], [1, 1]], skin=1e-3), "box"),
+        (lambda: Solver(box=[[0, 0, 0], [1, 1, -1]], skin=1e-3), "box"),
+        (lambda: Solver(box=[[0, 0, 0], [1, 1, 1]], skin=0), "skin"),
+        (lambda: Solver(box=[[0, 0, 0], [1, 1, 1]], skin=1e-3, threads=0), "threads"),
+    ],
+)
 def test_bad_constructor_arguments(call, match):
     with pytest.raises(ConfigError, match=match):
         call()

@@ -4,7 +4,6 @@ import math
 
 import numpy as np
 import pytest
-
 from pygran_native.solver import Solver
 
 R, RHO, E, NU = 1e-3, 2500.0, 5e6, 0.45
@@ -31,7 +30,10 @@ def grid_mesh(n=4, size=4e-3, z=0.0):
     u = np.linspace(-size, size, n + 1)
     X, Y = np.meshgrid(u, u, indexing="ij")
     vertices = np.stack([X.ravel(), Y.ravel(), np.full(X.size, z)], 1)
-    k = lambda i, j: i * (n + 1) + j
+
+    def k(i, j):
+        return i * (n + 1) + j
+
     triangles = []
     for i in range(n):
         for j in range(n):
@@ -47,8 +49,11 @@ def cube_mesh(half=2e-3):
     return c[np.array(tris)].reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3)
 
 
-@pytest.mark.parametrize("where", [(3e-4, 7e-4), (1e-3, 3e-4), (0.0, 0.0), (1e-3, 1e-3), (2e-3, 2e-3)],
-                         ids=["face", "edge", "vertex-of-six", "diagonal-edge", "vertex"])
+@pytest.mark.parametrize(
+    "where",
+    [(3e-4, 7e-4), (1e-3, 3e-4), (0.0, 0.0), (1e-3, 1e-3), (2e-3, 2e-3)],
+    ids=["face", "edge", "vertex-of-six", "diagonal-edge", "vertex"],
+)
 def test_flat_mesh_counts_shared_edges_and_vertices_once(where):
     s = solver()
     s.add_mesh(*grid_mesh())
@@ -62,7 +67,7 @@ def test_convex_edges_and_corners_of_a_cube_give_one_contact(direction):
     s = solver()
     s.add_mesh(*cube_mesh())
     n = np.array(direction, float) / np.linalg.norm(direction)
-    feature = 2e-3 * np.array(direction, float)   # the edge point or corner nearest to the sphere
+    feature = 2e-3 * np.array(direction, float)  # the edge point or corner nearest to the sphere
     s.add_particles([feature + (R - OVERLAP) * n], R, densities=RHO)
     s.run(0, 1e-6)
     np.testing.assert_allclose(s.forces[0], wall_force() * n, rtol=1e-9, atol=1e-12)
@@ -71,7 +76,7 @@ def test_convex_edges_and_corners_of_a_cube_give_one_contact(direction):
 def test_concave_corner_gives_one_contact_per_face():
     s = solver()
     floor = grid_mesh()
-    wall = floor[0][:, [2, 1, 0]] + [-4e-3, 0, 4e-3]   # the plane x = -4e-3, z from 0 to 8e-3
+    wall = floor[0][:, [2, 1, 0]] + [-4e-3, 0, 4e-3]  # the plane x = -4e-3, z from 0 to 8e-3
     s.add_mesh(*floor)
     s.add_mesh(wall, floor[1])
     s.add_particles([[-4e-3 + R - OVERLAP, 0, R - OVERLAP]], R, densities=RHO)
@@ -99,7 +104,7 @@ def test_cylinder_inside_holds_particles():
     s.add_particles([[5e-3 - R + OVERLAP / 10, 0, 0]], R, densities=RHO)
     s.run(20000, 2e-6)
     mg = 4 / 3 * math.pi * R**3 * RHO * 9.81
-    assert s.forces[0, 0] == pytest.approx(0, abs=1e-3 * mg)   # equilibrium against the wall
+    assert s.forces[0, 0] == pytest.approx(0, abs=1e-3 * mg)  # equilibrium against the wall
     assert 5e-3 - R < s.positions[0, 0] < 5e-3
 
 
@@ -108,7 +113,7 @@ def test_moving_mesh_translation_rotation_and_lift():
     plate = s.add_mesh(*grid_mesh())
     s.add_particles([[1e-3, 0, R]], R, densities=RHO)
     s.set_mesh_motion(plate, velocity=(0, 0, 0.05))
-    s.run(20000, 1e-6)   # 0.02 s at 5 cm/s: lifted by 1 mm
+    s.run(20000, 1e-6)  # 0.02 s at 5 cm/s: lifted by 1 mm
     np.testing.assert_allclose(s.mesh_triangles(plate)[..., 2], 1e-3, rtol=1e-9)
     assert s.positions[0, 2] == pytest.approx(1e-3 + R, abs=2e-5)
     assert s.velocities[0, 2] == pytest.approx(0.05, rel=0.05)
@@ -133,6 +138,6 @@ def test_walls_can_be_removed():
     s.remove_wall(floor)
     assert s.walls() == {mesh: "mesh"}
     s.run(10, 1e-6)
-    assert s.forces[0, 2] < 0   # falls now
+    assert s.forces[0, 2] < 0  # falls now
     s.remove_mesh(mesh)
     assert s.walls() == {}

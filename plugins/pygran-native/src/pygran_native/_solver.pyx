@@ -68,7 +68,7 @@ cdef struct Coef:
 
 
 cdef struct Ctx:
-    int n, cap, hs, model, nt, nthreads, ncells, update, kick
+    int n, cap, hs, model, nt, nthreads, ncells, update, kick, fuse
     int nc[3]
     double cs[3]
     double lo[3]
@@ -79,6 +79,8 @@ cdef struct Ctx:
     double *w
     double *f
     double *t
+    double *x0
+    double *tmax
     double *r
     double *m
     int *type
@@ -769,8 +771,25 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
                 nacc += 1
 
 
-cdef void particle_row(const Ctx* c, int i) noexcept nogil:
-    """Sum the thread buffers, add gravity, viscous and wall forces; second half kick."""
+cdef inline void drift_row(const Ctx* c, int i, int tid) noexcept nogil:
+    """First half kick and drift of particle i; its squared displacement since the rebuild
+    raises thread ``tid``'s maximum (per-thread maxima are a cache line apart)."""
+    cdef int d
+    cdef double s = 0.5 * c.dt / c.m[i], u = 0.5 * c.dt / (0.4 * c.m[i] * c.r[i] * c.r[i]), q, dd = 0.0
+    for d in range(3):
+        c.v[3 * i + d] += s * c.f[3 * i + d]
+        c.w[3 * i + d] += u * c.t[3 * i + d]
+        c.x[3 * i + d] += c.dt * c.v[3 * i + d]
+        q = c.x[3 * i + d] - c.x0[3 * i + d]
+        dd += q * q
+    if dd > c.tmax[PAD * tid]:
+        c.tmax[PAD * tid] = dd
+
+
+cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
+    """Sum the thread buffers, add gravity, viscous and wall forces; second half kick, and
+    with ``fuse`` the first half kick and drift of the next step (one pass instead of two,
+    the same arithmetic)."""
     cdef double mi = c.m[i], g = c.visc[c.type[i]], s
     cdef double F[3]
     cdef double T[3]
@@ -796,6 +815,8 @@ cdef void particle_row(const Ctx* c, int i) noexcept nogil:
         s = 0.5 * c.dt / (0.4 * mi * c.r[i] * c.r[i])
         for q in range(3):
             c.w[3 * i + q] += s * T[q]
+    if c.fuse:
+        drift_row(c, i, tid)
 
 
 cdef class Core:
@@ -1327,6 +1348,8 @@ cdef class Core:
         c.w = self.w
         c.f = self.f
         c.t = self.t
+        c.x0 = self.x0
+        c.tmax = self.tmax
         c.r = self.r
         c.m = self.m
         c.type = self.type
@@ -1535,65 +1558,65 @@ cdef class Core:
                     dmax = dd
         return sqrt(dmax)
 
-    cdef void forces(self, double dt, bint update, bint kick) noexcept nogil:
+    cdef void forces(self, double dt, bint update, bint kick, bint fuse) noexcept nogil:
+        """Forces (pair loop, then per particle), second half kick; ``fuse``: see particle_row."""
         cdef Ctx c
         cdef int i, n = self.n, T = self.nthreads
         self.make_ctx(&c)
         c.dt = dt
         c.update = update
         c.kick = kick
+        c.fuse = fuse
+        for i in range(T):
+            self.tmax[PAD * i] = 0.0
         for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
             pair_row(&c, i, threadid())
         for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
-            particle_row(&c, i)
+            particle_row(&c, i, threadid())
 
     cdef double drift(self, double dt) noexcept nogil:
         """First half kick and drift; the largest displacement since the last rebuild.
 
         Same static schedule as the force loops, so each thread keeps its particles in
-        its cache; per-thread maxima are a cache line apart.
+        its cache.
         """
+        cdef Ctx c
         cdef int i, T = self.nthreads
-        cdef double dmax = 0.0
+        self.make_ctx(&c)
+        c.dt = dt
         for i in range(T):
             self.tmax[PAD * i] = 0.0
         for i in prange(self.n, schedule='static', chunksize=CHUNK, num_threads=T):
-            self._drift_row(i, dt, threadid())
-        for i in range(T):
+            drift_row(&c, i, threadid())
+        return self.max_displacement()
+
+    cdef double max_displacement(self) noexcept nogil:
+        cdef int i
+        cdef double dmax = 0.0
+        for i in range(self.nthreads):
             if self.tmax[PAD * i] > dmax:
                 dmax = self.tmax[PAD * i]
         return sqrt(dmax)
 
-    cdef inline void _drift_row(self, int i, double dt, int tid) noexcept nogil:
-        cdef int d
-        cdef double s = 0.5 * dt / self.m[i], u = 0.5 * dt / (0.4 * self.m[i] * self.r[i] * self.r[i])
-        cdef double q, dd = 0.0
-        for d in range(3):
-            self.v[3 * i + d] += s * self.f[3 * i + d]
-            self.w[3 * i + d] += u * self.t[3 * i + d]
-            self.x[3 * i + d] += dt * self.v[3 * i + d]
-            q = self.x[3 * i + d] - self.x0[3 * i + d]
-            dd += q * q
-        if dd > self.tmax[PAD * tid]:
-            self.tmax[PAD * tid] = dd
-
     cdef int _run(self, long long nsteps, double dt) noexcept nogil:
         cdef long long s
         cdef double dp, dw
+        cdef bint fused = False
         if self.dirty:
             if self.rebuild() < 0:
                 return -1
-            self.forces(dt, False, False)
+            self.forces(dt, False, False, False)
             self.dirty = 0
         for s in range(nsteps):
-            dp = self.drift(dt)
+            dp = self.max_displacement() if fused else self.drift(dt)
             self.time += dt
             self.step += 1
             dw = self.move_walls()
             if dp + dw > 0.5 * self.skin:
                 if self.rebuild() < 0:
                     return -1
-            self.forces(dt, True, True)
+            fused = s + 1 < nsteps   # the last step ends after its second half kick
+            self.forces(dt, True, True, fused)
         return 0
 
     def run(self, long long nsteps, double dt):

@@ -75,8 +75,15 @@ class Solver:
     solver's random stream (its state is part of :meth:`get_state`).
     """
 
-    def __init__(self, box, periodic=(False, False, False), gravity=(0.0, 0.0, 0.0), skin: float = 0.0,
-                 threads: int | None = None, seed: int = 0) -> None:
+    def __init__(
+        self,
+        box,
+        periodic=(False, False, False),
+        gravity=(0.0, 0.0, 0.0),
+        skin: float = 0.0,
+        threads: int | None = None,
+        seed: int = 0,
+    ) -> None:
         box = _array(box, "box", (2, 3))
         if not np.all(box[1] > box[0]):
             raise ConfigError(f"box: every upper bound must exceed the lower one, got {box.tolist()}.")
@@ -98,9 +105,19 @@ class Solver:
         self._viscous = np.zeros(0)
 
     # --- set-up ------------------------------------------------------------------------
-    def set_contact_model(self, kind: str, *, youngs, poisson, restitution=None, friction=0.0,
-                          rolling_friction=0.0, cohesion_energy=0.0, yield_pressure=None,
-                          characteristic_velocity: float | None = None) -> None:
+    def set_contact_model(
+        self,
+        kind: str,
+        *,
+        youngs,
+        poisson,
+        restitution=None,
+        friction=0.0,
+        rolling_friction=0.0,
+        cohesion_energy=0.0,
+        yield_pressure=None,
+        characteristic_velocity: float | None = None,
+    ) -> None:
         """Choose the contact model and give per-type material arrays (one entry per type).
 
         ``kind``: ``"hooke"`` (needs ``restitution`` and ``characteristic_velocity``),
@@ -116,28 +133,31 @@ class Solver:
         if nt == 0:
             raise ConfigError("youngs: give at least one type.")
 
-        def per_type(value, name, check, rule):
-            arr = _array(np.broadcast_to(np.asarray(value, float), (nt,)) if np.ndim(value) == 0 else value,
-                         name, (nt,))
+        def per_type(value, name, check):
+            arr = _array(
+                np.broadcast_to(np.asarray(value, float), (nt,)) if np.ndim(value) == 0 else value,
+                name,
+                (nt,),
+            )
             if not np.all(check(arr)):
                 raise ConfigError(f"{name}: out of range: {arr.tolist()}.")
             return arr
 
-        E = per_type(E, "youngs", lambda a: a > 0, None)
-        nu = per_type(poisson, "poisson", lambda a: (a > -1) & (a < 0.5), None)
-        mu = per_type(friction, "friction", lambda a: a >= 0, None)
-        mur = per_type(rolling_friction, "rolling_friction", lambda a: a >= 0, None)
-        coh = per_type(cohesion_energy, "cohesion_energy", lambda a: a >= 0, None)
+        E = per_type(E, "youngs", lambda a: a > 0)
+        nu = per_type(poisson, "poisson", lambda a: (a > -1) & (a < 0.5))
+        mu = per_type(friction, "friction", lambda a: a >= 0)
+        mur = per_type(rolling_friction, "rolling_friction", lambda a: a >= 0)
+        coh = per_type(cohesion_energy, "cohesion_energy", lambda a: a >= 0)
         vchar = 0.0
         if kind == "thornton-ning":
             if yield_pressure is None:
                 raise ConfigError("yield_pressure: required by the thornton-ning model.")
-            py = per_type(yield_pressure, "yield_pressure", lambda a: a > 0, None)
+            py = per_type(yield_pressure, "yield_pressure", lambda a: a > 0)
             damp = np.zeros((nt, nt))
         else:
             if restitution is None:
                 raise ConfigError(f"restitution: required by the {kind} model.")
-            e = per_type(restitution, "restitution", lambda a: (a > 0) & (a <= 1), None)
+            e = per_type(restitution, "restitution", lambda a: (a > 0) & (a <= 1))
             py = np.zeros(nt)
             log_e = np.log(mixing.pair_table(mixing.pair_restitution, e))
             beta = log_e / np.hypot(log_e, np.pi)
@@ -146,15 +166,29 @@ class Solver:
                 if characteristic_velocity is None or not characteristic_velocity > 0:
                     raise ConfigError("characteristic_velocity: the hooke model needs a value > 0.")
                 vchar = float(characteristic_velocity)
-        tables = [mixing.pair_table(mixing.effective_modulus, E, nu),
-                  mixing.pair_table(mixing.effective_shear_modulus, E, nu),
-                  mixing.pair_table(mixing.pair_friction, mu), mixing.pair_table(mixing.pair_friction, mur),
-                  np.asarray(damp, float) + np.zeros((nt, nt)), mixing.pair_table(mixing.pair_cohesion, coh),
-                  mixing.pair_table(mixing.pair_yield_pressure, py) if kind == "thornton-ning" else np.zeros((nt, nt))]
+        tables = [
+            mixing.pair_table(mixing.effective_modulus, E, nu),
+            mixing.pair_table(mixing.effective_shear_modulus, E, nu),
+            mixing.pair_table(mixing.pair_friction, mu),
+            mixing.pair_table(mixing.pair_friction, mur),
+            np.asarray(damp, float) + np.zeros((nt, nt)),
+            mixing.pair_table(mixing.pair_cohesion, coh),
+            mixing.pair_table(mixing.pair_yield_pressure, py)
+            if kind == "thornton-ning"
+            else np.zeros((nt, nt)),
+        ]
         self._core.set_model(_MODELS[kind], _HISTORY[kind], *(np.ascontiguousarray(t) for t in tables), vchar)
-        self._model = {"kind": kind, "youngs": E, "poisson": nu, "restitution": restitution, "friction": mu,
-                       "rolling_friction": mur, "cohesion_energy": coh, "yield_pressure": yield_pressure,
-                       "characteristic_velocity": characteristic_velocity}
+        self._model = {
+            "kind": kind,
+            "youngs": E,
+            "poisson": nu,
+            "restitution": restitution,
+            "friction": mu,
+            "rolling_friction": mur,
+            "cohesion_energy": coh,
+            "yield_pressure": yield_pressure,
+            "characteristic_velocity": characteristic_velocity,
+        }
         if self._viscous.shape[0] != nt:
             self._viscous = np.resize(self._viscous, nt) * (np.arange(nt) < self._viscous.shape[0])
         self._core.set_viscous(self._viscous)
@@ -168,22 +202,28 @@ class Solver:
         if self._model is None:
             raise ConfigError(f"{name}: call set_contact_model before adding particles or walls.")
         if types.size and (types.min() < 0 or types.max() >= self.ntypes):
-            raise ConfigError(f"{name}: types must lie in [0, {self.ntypes - 1}], got {types.min()}..{types.max()}.")
+            raise ConfigError(
+                f"{name}: types must lie in [0, {self.ntypes - 1}], got {types.min()}..{types.max()}."
+            )
 
     def set_viscous(self, gamma) -> None:
         """Viscous damping ``F = -gamma v`` with ``gamma`` (kg/s) per type."""
         if self._model is None:
             raise ConfigError("gamma: call set_contact_model first.")
-        gamma = _array(np.broadcast_to(np.asarray(gamma, float), (self.ntypes,)) if np.ndim(gamma) == 0
-                       else gamma, "gamma", (self.ntypes,))
+        gamma = _array(
+            np.broadcast_to(np.asarray(gamma, float), (self.ntypes,)) if np.ndim(gamma) == 0 else gamma,
+            "gamma",
+            (self.ntypes,),
+        )
         if np.any(gamma < 0):
             raise ConfigError(f"gamma: must be >= 0, got {gamma.tolist()}.")
         self._viscous = gamma.copy()
         self._core.set_viscous(self._viscous)
 
     # --- particles ---------------------------------------------------------------------
-    def add_particles(self, positions, radii, densities=None, types=0, velocities=None, omegas=None,
-                      masses=None) -> np.ndarray:
+    def add_particles(
+        self, positions, radii, densities=None, types=0, velocities=None, omegas=None, masses=None
+    ) -> np.ndarray:
         """Add spheres; returns their ids. Give ``densities`` or ``masses`` (scalars broadcast)."""
         x = _array(positions, "positions", (-1, 3))
         n = x.shape[0]
@@ -230,7 +270,7 @@ class Solver:
         mask = np.zeros(self.n, np.uint8)
         mask[index] = 1
         self._core.mark_removed(mask)
-        self._core.run(0, 1.0)   # rebuild now so n and the arrays reflect the removal
+        self._core.run(0, 1.0)  # rebuild now so n and the arrays reflect the removal
 
     def set_velocities(self, ids, velocities) -> None:
         """Assign translational velocities to the particles with these ids."""
@@ -250,9 +290,13 @@ class Solver:
         self._check_types(np.array([wtype]), "type")
         handle = self._next_wall
         k = len(kinds)
-        self._core.add_elements(np.asarray(kinds, np.int32), np.full(k, wtype, np.int32),
-                                np.full(k, handle, np.int32), np.ascontiguousarray(geo, float),
-                                np.ascontiguousarray(vid, np.int32))
+        self._core.add_elements(
+            np.asarray(kinds, np.int32),
+            np.full(k, wtype, np.int32),
+            np.full(k, handle, np.int32),
+            np.ascontiguousarray(geo, float),
+            np.ascontiguousarray(vid, np.int32),
+        )
         self._next_wall += 1
         self._walls[handle] = kind
         return handle
@@ -291,19 +335,25 @@ class Solver:
         if not np.any(keep):
             raise ConfigError("triangles: the mesh has no triangle of non-zero area.")
         vid, corners = vid[keep], corners[keep]
-        handle = self._add_wall("mesh", np.full(len(vid), 2), type, corners.reshape(-1, 9),
-                                vid + self._next_vertex)
+        handle = self._add_wall(
+            "mesh", np.full(len(vid), 2), type, corners.reshape(-1, 9), vid + self._next_vertex
+        )
         self._next_vertex += len(unique)
         return handle
 
-    def set_mesh_motion(self, mesh: int, velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0),
-                        origin=(0.0, 0.0, 0.0)) -> None:
+    def set_mesh_motion(
+        self, mesh: int, velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), origin=(0.0, 0.0, 0.0)
+    ) -> None:
         """Rigid motion of a mesh from now on: translation at ``velocity`` and rotation at
         ``angular_velocity`` (rad/s, a vector) about the moving point ``origin``."""
         if self._walls.get(mesh) != "mesh":
             raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
-        self._core.set_motion(mesh, _array(velocity, "velocity", (3,)),
-                              _array(angular_velocity, "angular_velocity", (3,)), _array(origin, "origin", (3,)))
+        self._core.set_motion(
+            mesh,
+            _array(velocity, "velocity", (3,)),
+            _array(angular_velocity, "angular_velocity", (3,)),
+            _array(origin, "origin", (3,)),
+        )
 
     def remove_wall(self, wall: int) -> None:
         """Delete a plane, cylinder or mesh (its contact histories go with it)."""
@@ -338,8 +388,10 @@ class Solver:
             reach = 2 * float(self._core.array("r").max()) + self._core.skin
             for d in range(3):
                 if self.periodic[d] and self.box[1, d] - self.box[0, d] < 2 * reach:
-                    raise ConfigError(f"box: the periodic axis {'xyz'[d]} must be at least 2 (2 r_max + skin) "
-                                      f"= {2 * reach:g} long.")
+                    raise ConfigError(
+                        f"box: the periodic axis {'xyz'[d]} must be at least 2 (2 r_max + skin) "
+                        f"= {2 * reach:g} long."
+                    )
         self._core.run(int(nsteps), float(dt))
 
     # --- outputs -----------------------------------------------------------------------
@@ -370,7 +422,9 @@ class Solver:
         """Translational and rotational kinetic energy (J)."""
         m, r = self._core.array("m"), self._core.array("r")
         v, w = self._core.array("v"), self._core.array("w")
-        return float(0.5 * np.sum(m * np.sum(v * v, axis=1))), float(0.2 * np.sum(m * r * r * np.sum(w * w, axis=1)))
+        return float(0.5 * np.sum(m * np.sum(v * v, axis=1))), float(
+            0.2 * np.sum(m * r * r * np.sum(w * w, axis=1))
+        )
 
     @property
     def memory_bytes(self) -> int:
@@ -393,8 +447,16 @@ class Solver:
         state = {f"core_{k}": v for k, v in self._core.get_state().items()}
         model = self._model
         state["model_kind"] = _encode(model["kind"])
-        for key in ("youngs", "poisson", "restitution", "friction", "rolling_friction", "cohesion_energy",
-                    "yield_pressure", "characteristic_velocity"):
+        for key in (
+            "youngs",
+            "poisson",
+            "restitution",
+            "friction",
+            "rolling_friction",
+            "cohesion_energy",
+            "yield_pressure",
+            "characteristic_velocity",
+        ):
             state[f"model_{key}"] = np.array(np.nan if model[key] is None else model[key], float)
         state["viscous"] = self._viscous.copy()
         state["counters"] = np.array([self._next_id, self._next_wall, self._next_vertex], np.int64)
@@ -408,16 +470,29 @@ class Solver:
         try:
             kind = _decode(state["model_kind"])
             model = {}
-            for key in ("youngs", "poisson", "restitution", "friction", "rolling_friction", "cohesion_energy",
-                        "yield_pressure", "characteristic_velocity"):
+            for key in (
+                "youngs",
+                "poisson",
+                "restitution",
+                "friction",
+                "rolling_friction",
+                "cohesion_energy",
+                "yield_pressure",
+                "characteristic_velocity",
+            ):
                 value = np.asarray(state[f"model_{key}"], float)
-                model[key] = None if value.ndim == 0 and np.isnan(value) else (
-                    float(value) if value.ndim == 0 else value)
+                model[key] = (
+                    None
+                    if value.ndim == 0 and np.isnan(value)
+                    else (float(value) if value.ndim == 0 else value)
+                )
             self.set_contact_model(kind, **model)
             self.set_viscous(state["viscous"])
             self._core.set_state({k[5:]: v for k, v in state.items() if k.startswith("core_")})
             self._next_id, self._next_wall, self._next_vertex = (int(k) for k in state["counters"])
-            self._walls = {int(h): _WALL_KINDS[int(k)] for h, k in zip(state["wall_handles"], state["wall_kinds"])}
+            self._walls = {
+                int(h): _WALL_KINDS[int(k)] for h, k in zip(state["wall_handles"], state["wall_kinds"])
+            }
             self.rng.bit_generator.state = json.loads(_decode(state["rng"]))
         except KeyError as exc:
             raise ConfigError(f"state: missing entry {exc.args[0]!r}.") from None
