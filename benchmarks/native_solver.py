@@ -88,7 +88,8 @@ def main() -> None:
         res = json.loads(out.stdout.strip().splitlines()[-1])
         results.append(res)
         print(
-            f"N={res['N']} threads={res['threads']}: settle {res['settle_pss'] / 1e6:.2f} M particle-steps/s, "
+            f"N={res['N']} threads={res['threads']}: "
+            f"settle {res['settle_pss'] / 1e6:.2f} M particle-steps/s, "
             f"dense bed {res['bed_pss'] / 1e6:.2f} M, coordination {res['coordination']:.2f}, "
             f"{res['rebuilds']} rebuilds, "
             f"peak RSS growth {res['rss_bytes_per_particle']:.0f} B/particle "
