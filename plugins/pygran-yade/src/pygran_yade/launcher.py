@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 
 from pygran_core.errors import EngineError
@@ -28,3 +30,31 @@ def find_launcher() -> str:
             f"or set {LAUNCHER_ENV} to the launcher's path."
         )
     return found
+
+
+@dataclass(frozen=True)
+class Interpreter:
+    """The Python that runs YADE, and the directory its ``yade`` package lives in."""
+
+    python: str
+    pythonpath: str
+
+
+def interpreter(launcher: str) -> Interpreter:
+    """Read the interpreter (``#!`` line) and YADE's ``py`` directory (the launcher's
+    ``sys.path.insert(1, '...')``) from the launcher script itself."""
+    try:
+        text = Path(launcher).read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise EngineError(f"Cannot read the YADE launcher {launcher}: {exc}") from exc
+    shebang = text.splitlines()[0] if text else ""
+    found = re.search(r"sys\.path\.insert\(\s*1\s*,\s*['\"]([^'\"]+)['\"]\s*\)", text)
+    if not shebang.startswith("#!") or found is None:
+        raise EngineError(
+            f"{launcher} is not a YADE launcher script (expected a '#!' Python line and "
+            "sys.path.insert(1, '<yade>/py')); point PYGRAN_YADE at YADE's `yade` launcher"
+        )
+    python = shebang[2:].split()
+    if Path(python[0]).name == "env":
+        python = python[1:]
+    return Interpreter(python=python[0], pythonpath=found.group(1))

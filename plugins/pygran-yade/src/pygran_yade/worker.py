@@ -1,0 +1,326 @@
+"""The YADE side of the adapter: a loop that runs inside the Python that imports YADE.
+
+Run as ``python3 worker.py IN_FD OUT_FD`` with YADE's ``py`` directory on ``PYTHONPATH``.
+It reads one request at a time from ``IN_FD`` and answers on ``OUT_FD``; each message is
+a 4-byte length and a pickle of plain Python values, arrays travelling as ``.npy`` bytes
+so that the two sides need not share a numpy version. An answer is ``("ok", value)`` or
+``("error", message)``; YADE's own output goes to stdout/stderr, which the adapter sends
+to a log file. This module imports only the standard library, numpy and YADE: it never
+sees PyGran.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import pickle
+import struct
+import sys
+
+import numpy as np
+
+#: Runs up to this many steps call ``O.step()`` in a loop: ``O.run(n, True)`` polls for the
+#: end of the run every 40 ms, which dominates short runs.
+STEP_LOOP = 64
+
+
+def to_bytes(array) -> bytes:
+    buffer = io.BytesIO()
+    np.save(buffer, np.asarray(array), allow_pickle=False)
+    return buffer.getvalue()
+
+
+def from_bytes(data: bytes) -> np.ndarray:
+    return np.load(io.BytesIO(data), allow_pickle=False)
+
+
+def vector(values):
+    """A YADE ``Vector3`` from three numbers (Boost.Python does not convert numpy scalars)."""
+    from yade import Vector3
+
+    return Vector3(*(float(v) for v in values))
+
+
+def read_message(stream):
+    header = stream.read(4)
+    if len(header) < 4:
+        return None
+    (size,) = struct.unpack("<I", header)
+    return pickle.loads(stream.read(size))
+
+
+def write_message(stream, message) -> None:
+    data = pickle.dumps(message, protocol=4)
+    stream.write(struct.pack("<I", len(data)) + data)
+    stream.flush()
+
+
+class Simulation:
+    """One YADE scene built from the adapter's requests (see each method)."""
+
+    def __init__(self) -> None:
+        import yade
+        from yade import utils
+
+        self.yade = yade
+        self.utils = utils
+        self.O = yade.Omega()
+        self.materials: list[int] = []
+        self.species: dict[int, int] = {}  # sphere id -> species
+        self.bounds: np.ndarray | None = None  # fixed-boundary box; spheres leaving it are deleted
+        self.drags: dict[str, dict] = {}  # label -> gamma, species, {radius: LinearDragEngine}
+        self.engines: dict[str, list] = {}  # label -> the YADE engines it added
+        self.lost = 0
+
+    # -- setup ----------------------------------------------------------------------------
+
+    def setup(self, model, materials, pairs, gravity, box, periodic, dt):
+        """Materials, contact law, gravity and the (periodic) cell; returns material ids.
+
+        ``model`` is ``"hertz"`` (``pairs``: restitution per material pair) or ``"linear"``
+        (``pairs``: normal stiffness per material pair, every material carrying ``betan``).
+        """
+        y, O = self.yade, self.O  # noqa: E741 - YADE's own name for the scene
+        O.reset()
+        for props in materials:
+            cls = y.FrictViscoMat if model == "linear" else y.FrictMat
+            O.materials.append(cls(**props))
+        self.materials = [m.id for m in O.materials]
+        matches = [(self.materials[i], self.materials[j], value) for i, j, value in pairs]
+        if model == "hertz":
+            ip2 = y.Ip2_FrictMat_FrictMat_MindlinPhys(en=y.MatchMaker(matches=matches))
+            law2 = y.Law2_ScGeom_MindlinPhys_Mindlin()
+        else:
+            ip2 = y.Ip2_FrictViscoMat_FrictViscoMat_FrictViscoPhys(
+                kn=y.MatchMaker(matches=matches), kRatio=1.0
+            )
+            law2 = y.Law2_ScGeom_FrictViscoPhys_CundallStrackVisco()
+        box = np.asarray(box, float)
+        if any(periodic):
+            # YADE's cell is periodic along all three axes: make the others long enough
+            # that no particle meets its own image across them.
+            lengths = box[:, 1] - box[:, 0]
+            O.periodic = True
+            O.cell.setBox(tuple(lengths[i] if periodic[i] else 4 * lengths[i] for i in range(3)))
+        self.periodic = tuple(bool(p) for p in periodic)
+        self.bounds = box
+        O.engines = [
+            y.ForceResetter(),
+            y.InsertionSortCollider(
+                [y.Bo1_Sphere_Aabb(), y.Bo1_Facet_Aabb(), y.Bo1_Box_Aabb()], allowBiggerThanPeriod=True
+            ),
+            y.InteractionLoop(
+                [y.Ig2_Sphere_Sphere_ScGeom(), y.Ig2_Facet_Sphere_ScGeom(), y.Ig2_Box_Sphere_ScGeom()],
+                [ip2],
+                [law2],
+            ),
+            y.NewtonIntegrator(damping=0.0, gravity=vector(gravity)),
+        ]
+        O.dt = dt
+        return self.materials
+
+    # -- bodies ---------------------------------------------------------------------------
+
+    def spheres(self, centres, radii, velocities, omegas, material, species):
+        """Add spheres of one material and species; returns their ids."""
+        centres, radii = from_bytes(centres), from_bytes(radii)
+        velocities, omegas = from_bytes(velocities), from_bytes(omegas)
+        bodies = [
+            self.utils.sphere(vector(c), float(r), material=self.materials[material])
+            for c, r in zip(centres, radii)
+        ]
+        for body, v, w in zip(bodies, velocities, omegas):
+            body.state.vel, body.state.angVel = vector(v), vector(w)
+        ids = self.O.bodies.append(bodies)
+        for i in ids:
+            self.species[i] = species
+        for label in self.drags:
+            for i in ids:
+                self._drag_one(label, i, species)
+        return ids
+
+    def facets(self, triangles, material):
+        """Add fixed facets, one per triangle ``(T, 3, 3)``; returns their ids."""
+        triangles = from_bytes(triangles)
+        bodies = [
+            self.utils.facet([vector(p) for p in tri], material=self.materials[material], wire=False)
+            for tri in triangles
+        ]
+        return self.O.bodies.append(bodies)
+
+    def slab(self, centre, half_extents, material):
+        """Add a fixed box (a plane wall's solid side); returns its id in a list."""
+        body = self.utils.box(
+            vector(centre), vector(half_extents), material=self.materials[material], fixed=True
+        )
+        return [self.O.bodies.append(body)]
+
+    def facet_vertices(self, ids):
+        """Current corners ``(T, 3, 3)`` of the facets ``ids`` (moving meshes move them)."""
+        out = np.empty((len(ids), 3, 3))
+        for k, i in enumerate(ids):
+            body = self.O.bodies[i]
+            out[k] = [body.state.pos + body.state.ori * v for v in body.shape.vertices]
+        return to_bytes(out)
+
+    def erase(self, ids):
+        for i in ids:
+            if self.O.bodies[i] is not None:
+                self.O.bodies.erase(i)
+            self.species.pop(i, None)
+
+    # -- engines --------------------------------------------------------------------------
+
+    def motion(self, label, kind, ids, params):
+        """Rigid motion of the facets ``ids``: ``rotate``, ``translate`` or ``wiggle``."""
+        y = self.yade
+        if kind == "rotate":
+            engine = y.RotationEngine(
+                ids=ids,
+                rotationAxis=vector(params["axis"]),
+                angularVelocity=params["omega"],
+                rotateAroundZero=True,
+                zeroPoint=vector(params["origin"]),
+            )
+        elif kind == "translate":
+            v = np.asarray(params["velocity"], float)
+            speed = float(np.linalg.norm(v))
+            engine = y.TranslationEngine(
+                ids=ids, velocity=speed, translationAxis=vector(v / speed if speed else (1, 0, 0))
+            )
+        else:  # displacement A sin(2 pi (t - t0) / T), starting now
+            f = 1.0 / params["period"]
+            phase = math.pi / 2 - 2 * math.pi * f * self.O.time
+            engine = y.HarmonicMotionEngine(
+                ids=ids, A=vector(params["amplitude"]), f=vector((f, f, f)), fi=vector((phase,) * 3)
+            )
+        self._insert_engine(label, engine)
+
+    def drag_force(self, label, gamma, species):
+        """Viscous force ``-gamma v`` on the spheres of ``species``, now and later inserted:
+        YADE's ``LinearDragEngine`` (``b = 6 pi nu r``), one engine per particle radius."""
+        self.drags[label] = {"gamma": gamma, "species": set(species), "engines": {}}
+        self.engines[label] = []
+        for i, s in self.species.items():
+            self._drag_one(label, i, s)
+
+    def _drag_one(self, label, i, species):
+        drag = self.drags[label]
+        if species not in drag["species"]:
+            return
+        radius = self.O.bodies[i].shape.radius
+        engine = drag["engines"].get(radius)
+        if engine is None:
+            engine = self.yade.LinearDragEngine(nu=drag["gamma"] / (6 * math.pi * radius))
+            drag["engines"][radius] = engine
+            self._insert_engine(label, engine)
+        engine.ids = list(engine.ids) + [i]
+
+    def _insert_engine(self, label, engine):
+        """Put ``engine`` just before the integrator and file it under ``label``."""
+        self.engines.setdefault(label, []).append(engine)
+        listed = list(self.O.engines)
+        self.O.engines = listed[:-1] + [engine, listed[-1]]
+
+    def remove_engine(self, label):
+        engines = self.engines.pop(label)
+        self.drags.pop(label, None)
+        self.O.engines = [e for e in self.O.engines if all(e is not x for x in engines)]
+
+    # -- running and results ----------------------------------------------------------
+
+    def run(self, nsteps, dt):
+        """Advance ``nsteps`` steps of ``dt``; deletes spheres that left a fixed boundary
+        (as LIGGGHTS does) and returns how many were lost so far."""
+        self.O.dt = dt
+        if nsteps <= STEP_LOOP:
+            for _ in range(nsteps):
+                self.O.step()
+        else:
+            self.O.run(int(nsteps), True)
+        self._drop_escaped()
+        return self.lost
+
+    def _drop_escaped(self):
+        fixed = [axis for axis in range(3) if not self.periodic[axis]]
+        gone = []
+        for i in self.species:
+            pos = self.O.bodies[i].state.pos
+            if any(pos[a] < self.bounds[a, 0] or pos[a] > self.bounds[a, 1] for a in fixed):
+                gone.append(i)
+        self.erase(gone)
+        self.lost += len(gone)
+
+    def extract(self, quantity):
+        """Per-sphere ``quantity`` ordered by id (forces include gravity, as in LIGGGHTS)."""
+        ids = sorted(self.species)
+        bodies = [self.O.bodies[i] for i in ids]
+        if quantity == "x":
+            values = [b.state.pos for b in bodies]
+            values = np.array(values, float).reshape(-1, 3)
+            if self.O.periodic:
+                lo, length = self.bounds[:, 0], self.bounds[:, 1] - self.bounds[:, 0]
+                wrap = np.array(self.periodic)
+                values[:, wrap] = lo[wrap] + np.mod(values[:, wrap] - lo[wrap], length[wrap])
+        elif quantity == "v":
+            values = [b.state.vel for b in bodies]
+        elif quantity == "omega":
+            values = [b.state.angVel for b in bodies]
+        elif quantity == "f":
+            g = np.asarray(self.O.engines[-1].gravity)
+            values = [np.asarray(self.O.forces.f(i)) + b.state.mass * g for i, b in zip(ids, bodies)]
+        elif quantity == "torque":
+            values = [self.O.forces.t(i) for i in ids]
+        elif quantity == "radius":
+            values = [b.shape.radius for b in bodies]
+        elif quantity == "mass":
+            values = [b.state.mass for b in bodies]
+        elif quantity == "id":
+            values = np.array(ids, np.int64) + 1
+        elif quantity == "type":
+            values = np.array([self.species[i] for i in ids], np.int64)
+        else:
+            raise ValueError(f"unknown quantity {quantity!r}")
+        values = np.asarray(values)
+        if quantity in ("x", "v", "omega", "f", "torque"):
+            values = values.astype(float).reshape(-1, 3)
+        return to_bytes(values)
+
+    def scalar(self, name):
+        if name == "contacts":
+            return sum(1 for i in self.O.interactions if i.isReal)
+        if name == "pwave_dt":
+            return self.utils.PWaveTimeStep()
+        raise ValueError(f"unknown scalar {name!r}")
+
+    def command(self, text):
+        """Execute YADE Python ``text`` with ``from yade import *`` in scope."""
+        scope = {"__name__": "__yade_command__"}
+        exec("from yade import *\nfrom yade import utils, ymport, pack\n", scope)
+        exec(text, scope)
+
+
+def main() -> None:
+    requests = os.fdopen(int(sys.argv[1]), "rb")
+    answers = os.fdopen(int(sys.argv[2]), "wb")
+    try:
+        simulation = Simulation()
+    except BaseException as exc:  # noqa: BLE001 - reported to the adapter, then exit
+        write_message(answers, ("error", f"cannot start YADE: {type(exc).__name__}: {exc}"))
+        return
+    write_message(answers, ("ok", simulation.yade.config.revision))
+    while True:
+        message = read_message(requests)
+        if message is None or message[0] == "close":
+            return
+        name, kwargs = message
+        try:
+            result = getattr(simulation, name)(**kwargs)
+            write_message(answers, ("ok", result))
+        except Exception as exc:  # noqa: BLE001 - every YADE error goes back to the adapter
+            write_message(answers, ("error", f"{type(exc).__name__}: {exc}"))
+
+
+if __name__ == "__main__":
+    main()
