@@ -1,0 +1,469 @@
+"""``DEM(engine='yade')``: maps the engine-neutral specs onto YADE, run in a worker process.
+
+Contact models (pair values from the reference models of
+:mod:`pygran_core.simulation.models`, so YADE integrates the same forces):
+
+- ``HertzMindlin``: ``FrictMat`` (friction angle ``atan(mu)``),
+  ``Ip2_FrictMat_FrictMat_MindlinPhys`` with the pair restitution ``en`` (YADE's damping
+  is then the reference's ``2 sqrt(5/6) beta sqrt(S_n m*)``) and
+  ``Law2_ScGeom_MindlinPhys_Mindlin``. YADE's tangential stiffness uses the mean shear
+  modulus and Poisson ratio of the pair (equal to the reference's for like materials), and
+  its tangential damping is the normal one.
+- ``SpringDashpot``: ``FrictViscoMat`` with ``Law2_ScGeom_FrictViscoPhys_CundallStrackVisco``
+  (linear spring, unclamped normal dashpot): ``k_n`` per material pair from the
+  reference model and ``betan = -beta``, so ``gamma_n = 2 |beta| sqrt(m* k_n)`` with YADE's
+  pair mass; ``k_t = k_n``, no tangential dashpot. Stiffness depends on the radius, so each
+  species must have one radius, and ``betan`` is per material, so all materials must
+  share one restitution coefficient; otherwise :class:`UnsupportedFeature`.
+
+Walls (non-periodic domains only: YADE's ``Wall`` hangs its periodic collider, which also
+misses most contacts with a box or facets as wide as the period): a plane is a fixed YADE
+``Box``, a slab on the plane's far side; cylinders are polygonal prisms of
+:data:`CYLINDER_SEGMENTS` facets and meshes are facets from their STL file (scaled,
+rotated about the origin, translated). As everywhere in YADE, a sphere touching two facets
+across a shared edge has a contact with each. Mesh motion through ``RotationEngine``,
+``TranslationEngine`` or ``HarmonicMotionEngine``. Particle ids are YADE body ids plus
+one. Forces include gravity, as LIGGGHTS reports them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from pygran_core.errors import ConfigError, UnsupportedFeature
+from pygran_core.io import Frame, open_trajectory
+from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.engine import Engine, Handle
+from pygran_core.simulation.insertion import Obstacles, place_spheres
+from pygran_core.simulation.models import HertzMindlin, SpringDashpot, mixing
+from pygran_core.simulation.specs import MeshSpec, SimulationSpec
+from pygran_yade.client import Worker
+from pygran_yade.worker import from_bytes, to_bytes
+
+#: Sides of the polygonal prism that stands for a primitive cylinder wall.
+CYLINDER_SEGMENTS = 96
+#: The worker's log, in the output directory.
+WORKER_LOG = "yade.log"
+
+
+def rotation(axis: tuple[float, float, float], degrees: float) -> np.ndarray:
+    """Rotation matrix about ``axis`` by ``degrees`` (Rodrigues)."""
+    k = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    angle = math.radians(degrees)
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+
+
+def mesh_triangles(mesh: MeshSpec) -> np.ndarray:
+    """A mesh's triangles (T, 3, 3): scaled, then rotated about the origin, then translated."""
+    frame = open_trajectory(mesh.file, format="stl", scale=mesh.scale).read_frame(0)
+    points, cells = frame.arrays["points"], frame.arrays["cells"]
+    if mesh.rotate is not None:
+        points = points @ rotation(*mesh.rotate).T
+    return points[cells[:, :3]] + np.asarray(mesh.translate)
+
+
+def plane_slab(axis: int, peq: float, normal: float, box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and half extents of the box that stands for a plane wall: one box length
+    thick on the side away from ``normal``, and reaching one box length beyond the domain
+    on every side."""
+    lengths = box[:, 1] - box[:, 0]
+    centre = box.mean(axis=1)
+    half = 1.5 * lengths
+    centre[axis] = peq - normal * lengths[axis] / 2
+    half[axis] = lengths[axis] / 2
+    return centre, half
+
+
+def cylinder_triangles(
+    axis: str, centre: tuple[float, float], radius: float, span: tuple[float, float]
+) -> np.ndarray:
+    """The side of a polygonal prism of :data:`CYLINDER_SEGMENTS` sides along ``axis``."""
+    along = "xyz".index(axis)
+    across = [a for a in range(3) if a != along]
+    angles = np.linspace(0, 2 * math.pi, CYLINDER_SEGMENTS + 1)
+    ring = np.zeros((CYLINDER_SEGMENTS + 1, 3))
+    ring[:, across[0]] = centre[0] + radius * np.cos(angles)
+    ring[:, across[1]] = centre[1] + radius * np.sin(angles)
+    low, high = ring.copy(), ring.copy()
+    low[:, along], high[:, along] = span
+    a, b, c, d = low[:-1], low[1:], high[1:], high[:-1]
+    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
+class YadeEngine(Engine):
+    """YADE driven in a worker process (see the module docstring for the mapping)."""
+
+    name = "yade"
+    #: Each round trip to YADE costs up to 40 ms (its run loop's polling), so fewer pieces.
+    max_run_chunks = 20
+    capabilities = frozenset(
+        {
+            "spring-dashpot",
+            "hertz-mindlin",
+            "periodic",
+            "primitive-walls",
+            "mesh-walls",
+            "moving-mesh",
+            "polydisperse",
+            "threads",
+            "raw-commands",
+        }
+    )
+
+    def __init__(self, spec: SimulationSpec) -> None:
+        super().__init__(spec)
+        if not spec.species:
+            raise ConfigError(
+                "The yade engine needs at least one species: species=({'material': ..., 'radius': ...},)"
+            )
+        n = len(spec.species)
+        # materials: species k -> k - 1; walls of species k -> n + k - 1; meshes with their own after
+        self._mesh_material = {m.name: 2 * n + i for i, m in enumerate(m for m in spec.meshes if m.material)}
+        materials = [s.material for s in spec.species] * 2 + [m.material for m in spec.meshes if m.material]
+        densities = [s.density for s in spec.species] * 2 + [1.0] * len(self._mesh_material)
+        self._radius_of = {s.type: s.radius for s in spec.species}
+        self.worker = Worker(self.output / WORKER_LOG, spec.threads or 1)
+        self.log("YADE %s worker, pid %d", self.worker.version, self.worker.process.pid)
+        self.worker.call(
+            "setup",
+            model="hertz" if spec.model is HertzMindlin else "linear",
+            materials=[self._yade_material(m, rho) for m, rho in zip(materials, densities)],
+            pairs=self._pairs(materials, n),
+            gravity=spec.gravity.vector.tolist() if spec.gravity is not None else [0.0, 0.0, 0.0],
+            box=[[float(v) for v in b] for b in spec.domain.box],
+            periodic=[bool(p) for p in spec.domain.periodic],
+            dt=self.dt or 1.0,
+        )
+        self._labels = 0
+        self._walls: dict[str, list[int]] = {}  # label -> facet ids
+        self._obstacle: dict[
+            str, tuple[str, Any]
+        ] = {}  # label -> ("plane", (point, normal)) / ("mesh", name)
+        self._mesh_walls: dict[str, str] = {}  # mesh name -> wall label
+        self._motions: dict[str, str] = {}  # motion label -> mesh name
+        self._engines: set[str] = set()  # labels of YADE engines (motions, drags)
+
+    # -- materials and contact model ------------------------------------------------------
+
+    def _check_spec(self, spec: SimulationSpec) -> None:
+        super()._check_spec(spec)
+        if spec.model not in (HertzMindlin, SpringDashpot):
+            raise UnsupportedFeature(
+                "The yade engine maps only the HertzMindlin and SpringDashpot models, "
+                f"not {spec.model.__name__}"
+            )
+        if spec.model is SpringDashpot:
+            if any(s.radius.kind != "constant" for s in spec.species):
+                raise UnsupportedFeature(
+                    "The yade engine runs SpringDashpot only with one radius per species: YADE's linear "
+                    "law takes one stiffness per material pair, and the reference stiffness depends "
+                    "on the radius"
+                )
+            materials = [s.material for s in spec.species] + [m.material for m in spec.meshes if m.material]
+            if len({m.get("coefficientRestitution") for m in materials}) > 1:
+                raise UnsupportedFeature(
+                    "The yade engine runs SpringDashpot only when every material has the same "
+                    "coefficientRestitution (YADE's damping ratio is per material, not per pair)"
+                )
+
+    def _yade_material(self, material: Any, density: float) -> dict[str, float]:
+        props = {
+            "young": material["youngsModulus"],
+            "poisson": material["poissonsRatio"],
+            "density": density,
+            "frictionAngle": math.atan(material.get("coefficientFriction", 0.0)),
+        }
+        if self.spec.model is SpringDashpot:
+            e = material["coefficientRestitution"]
+            props["betan"] = -math.log(e) / math.hypot(math.log(e), math.pi)
+        return props
+
+    def _pairs(self, materials: list[Any], n: int) -> list[tuple[int, int, float]]:
+        """The per-pair value YADE's contact law takes: restitution (Hertz) or stiffness (linear)."""
+        species = self.spec.species
+        pairs = []
+        for i in range(len(materials)):
+            for j in range(min(i + 1, n)):  # j is always a species: walls never touch walls
+                mi, mj = materials[i], materials[j]
+                if self.spec.model is HertzMindlin:
+                    value = mixing.pair_restitution(
+                        mi["coefficientRestitution"], mj["coefficientRestitution"]
+                    )
+                else:
+                    mine = dict(mj, radius=species[j].radius.values[0], density=species[j].density)
+                    partner = (
+                        dict(mi, radius=species[i].radius.values[0], density=species[i].density)
+                        if i < n
+                        else mi
+                    )
+                    value = SpringDashpot(mine, partner=partner).kn
+                pairs.append((i, j, float(value)))
+        return pairs
+
+    def _label(self, kind: str) -> str:
+        self._labels += 1
+        return f"{kind}{self._labels}"
+
+    # -- particles ---------------------------------------------------------------------
+
+    def _add_spheres(self, species: int, centres: Any, radii: Any, velocities: Any, omega: Any) -> int:
+        centres = np.asarray(centres, float).reshape(-1, 3)
+        if len(centres) == 0:
+            return 0
+        self.worker.call(
+            "spheres",
+            centres=to_bytes(centres),
+            radii=to_bytes(np.asarray(radii, float).reshape(-1)),
+            velocities=to_bytes(np.broadcast_to(velocities, centres.shape)),
+            omegas=to_bytes(np.broadcast_to(omega, centres.shape)),
+            material=species - 1,
+            species=species,
+        )
+        return len(centres)
+
+    def _obstacles(self) -> Obstacles:
+        """Plane walls and mesh triangles new particles must clear."""
+        planes = [value for kind, value in self._obstacle.values() if kind == "plane"]
+        triangles = [
+            from_bytes(self.worker.call("facet_vertices", ids=self._walls[label]))
+            for label, (kind, _) in self._obstacle.items()
+            if kind == "mesh"
+        ]
+        return Obstacles(
+            np.reshape([p for p, _ in planes], (-1, 3)),
+            np.reshape([n for _, n in planes], (-1, 3)),
+            np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
+        )
+
+    def _place(
+        self,
+        region: Any,
+        species: np.ndarray,
+        radii: np.ndarray,
+        rng: np.random.Generator,
+        velocity: np.ndarray,
+        omega: Any,
+        all_in: bool = True,
+    ) -> int:
+        """Add spheres at free places in ``region`` (shared placement); returns how many fit."""
+        existing = (self._extract("x"), self._extract("radius"))
+        index, centres = place_spheres(region, radii, rng, existing, self._obstacles(), all_in)
+        made = 0
+        for s in np.unique(species[index]):
+            chosen = species[index] == s
+            made += self._add_spheres(
+                int(s), centres[chosen], radii[index][chosen], velocity[index][chosen], omega
+            )
+        return made
+
+    def _insert(self, spec: InsertSpec) -> str:
+        if spec.freq:
+            raise self._unsupported("repeated insertion by pack (freq=...)")
+        rng = np.random.default_rng(spec.seed)
+        inside = spec.region.contains(self._extract("x"))
+        radii_in = self._extract("radius")[inside]
+        if spec.target == "particles_in_region":
+            count = max(int(spec.value) - int(inside.sum()), 0)
+            species = rng.choice(np.array(spec.species), size=count, p=np.array(spec.weights))
+            radii = self._draw_radii(species, rng)
+        else:
+            species, radii = self._draw_amount(spec, rng, inside, radii_in)
+        velocity = spec.velocity.sample(len(radii), rng)
+        made = self._place(spec.region, species, radii, rng, velocity, spec.omega, spec.all_in)
+        self.log("insert: %d of %d particles placed", made, len(radii))
+        if made < len(radii):
+            self.log("region full: %d particles did not fit", len(radii) - made, level=30)
+        return self._label("insert")
+
+    def _draw_radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        radii = np.empty(len(species))
+        for s in np.unique(species):
+            chosen = species == s
+            radii[chosen] = self._radius_of[int(s)].sample(int(chosen.sum()), rng)
+        return radii
+
+    def _draw_amount(
+        self, spec: InsertSpec, rng: np.random.Generator, inside: np.ndarray, radii_in: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Species and radii making up what the region lacks of a volume fraction or mass."""
+        by_mass = spec.target == "mass_in_region"
+        density = {s.type: s.density for s in self.spec.species}
+        if by_mass:
+            wanted = spec.value - float(self._extract("mass")[inside].sum())
+        else:
+            wanted = spec.value * spec.region.volume() - float(np.sum(4 / 3 * math.pi * radii_in**3))
+        typical = sum(
+            w * 4 / 3 * math.pi * self._radius_of[s].mean ** 3 * (density[s] if by_mass else 1.0)
+            for s, w in zip(spec.species, spec.weights)
+        )
+        count = max(int(1.2 * wanted / typical) + 2, 0)
+        species = rng.choice(np.array(spec.species), size=count, p=np.array(spec.weights))
+        radii = self._draw_radii(species, rng)
+        share = (
+            4 / 3 * math.pi * radii**3 * (np.array([density[int(s)] for s in species]) if by_mass else 1.0)
+        )
+        keep = int(np.searchsorted(np.cumsum(share), max(wanted, 0.0), side="right"))
+        return species[:keep], radii[:keep]
+
+    def _create(self, spec: CreateSpec) -> int:
+        distribution = self._radius_of[spec.species]
+        rng = np.random.default_rng(spec.seed)
+        if spec.style == "single":
+            radius = spec.radius or distribution.sample(1, rng)[0]
+            return self._add_spheres(spec.species, [spec.position], [radius], spec.velocity, spec.omega)
+        if spec.style == "lattice":
+            bounds = spec.region.bounds()
+            axes = [np.arange(lo + spec.spacing / 2, hi, spec.spacing) for lo, hi in bounds]
+            centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+            radii = np.full(len(centres), spec.radius or distribution.mean)
+            inside = spec.region.contains(centres, radii)
+            return self._add_spheres(spec.species, centres[inside], radii[inside], spec.velocity, spec.omega)
+        radii = np.full(spec.count, spec.radius) if spec.radius else distribution.sample(spec.count, rng)
+        species = np.full(spec.count, spec.species)
+        velocity = np.tile(spec.velocity, (spec.count, 1))
+        return self._place(spec.region, species, radii, rng, velocity, spec.omega)
+
+    # -- walls and meshes ----------------------------------------------------------------
+
+    def _wall(self, spec: WallSpec) -> str:
+        if any(self.spec.domain.periodic):
+            raise self._unsupported(
+                "walls in a periodic domain: YADE's Wall hangs the periodic collider, and its periodic "
+                "collider misses most contacts with a box or facets as wide as the period (measured)"
+            )
+        label = self._label("wall")
+        box = np.array(self.spec.domain.box, float)
+        material = len(self.spec.species) + spec.species - 1
+        if spec.kind == "plane":
+            axis = "xyz".index(spec.plane[0])
+            lo, hi = box[axis]
+            normal = np.zeros(3)
+            normal[axis] = 1.0 if spec.peq - lo <= hi - spec.peq else -1.0
+            point = np.zeros(3)
+            point[axis] = spec.peq
+            centre, half = plane_slab(axis, spec.peq, normal[axis], box)
+            self._obstacle[label] = ("plane", (point, normal))
+            self._walls[label] = self.worker.call(
+                "slab", centre=centre.tolist(), half_extents=half.tolist(), material=material
+            )
+            return label
+        if spec.kind == "cylinder":
+            triangles = cylinder_triangles(
+                spec.axis, spec.centre, spec.radius, tuple(box["xyz".index(spec.axis)])
+            )
+        else:
+            mesh = next(m for m in self.spec.meshes if m.name == spec.mesh)
+            if mesh.name in self._mesh_walls:
+                raise ConfigError(f"mesh {mesh.name!r} is already a wall")
+            triangles = mesh_triangles(mesh)
+            material = self._mesh_material.get(mesh.name, material)
+            self._mesh_walls[mesh.name] = label
+            self._obstacle[label] = ("mesh", mesh.name)
+        self._walls[label] = self.worker.call("facets", triangles=to_bytes(triangles), material=material)
+        return label
+
+    def _move_mesh(self, spec: MotionSpec) -> str:
+        if spec.mesh not in self._mesh_walls:
+            raise ConfigError(
+                f"mesh {spec.mesh!r} is not a wall yet: "
+                f"call setupWall(wtype='mesh', mesh={spec.mesh!r}) first"
+            )
+        if spec.mesh in self._motions.values():
+            raise ConfigError(f"mesh {spec.mesh!r} already moves; remove() that motion first")
+        label = self._label("motion")
+        kind, params = {
+            "rotate": ("rotate", {"axis": spec.axis, "omega": spec.omega, "origin": spec.origin}),
+            "linear": ("translate", {"velocity": spec.velocity}),
+            "wiggle": ("wiggle", {"amplitude": spec.amplitude, "period": spec.period}),
+        }[spec.kind]
+        self.worker.call(
+            "motion", label=label, kind=kind, ids=self._walls[self._mesh_walls[spec.mesh]], params=params
+        )
+        self._motions[label] = spec.mesh
+        self._engines.add(label)
+        return label
+
+    def _viscous(self, spec: ViscousSpec) -> str:
+        if any(self._radius_of[s].kind in ("normal", "lognormal") for s in spec.species):
+            raise self._unsupported(
+                "addViscous on a continuous size distribution (YADE's LinearDragEngine scales with the "
+                "radius, so each radius needs its own engine)"
+            )
+        label = self._label("viscous")
+        self.worker.call("drag_force", label=label, gamma=spec.gamma * spec.scale, species=list(spec.species))
+        self._engines.add(label)
+        return label
+
+    def _remove(self, handle: Handle) -> None:
+        label = handle.label
+        if label in self._walls:
+            self.worker.call("erase", ids=self._walls.pop(label))
+            kind, value = self._obstacle.pop(label, (None, None))
+            if kind == "mesh":
+                del self._mesh_walls[value]
+                for motion in [k for k, name in self._motions.items() if name == value]:
+                    self._remove_engine(motion)
+        elif label in self._engines:
+            self._remove_engine(label)
+
+    def _remove_engine(self, label: str) -> None:
+        self.worker.call("remove_engine", label=label)
+        self._engines.discard(label)
+        self._motions.pop(label, None)
+
+    def _command(self, text: str) -> None:
+        self.worker.call("command", text=text)
+
+    # -- running and output ----------------------------------------------------------------
+
+    def run(self, nsteps: int, dt: float | None = None, *, progress: bool | None = None) -> None:
+        """As :meth:`Engine.run`; without any time step, a fifth of YADE's p-wave estimate
+        (``utils.PWaveTimeStep``) for the particles present, logged."""
+        if dt is None and self.dt is None:
+            self.dt = 0.2 * float(self.worker.call("scalar", name="pwave_dt"))
+            self.log("no time step given: using 0.2 x PWaveTimeStep = %g s", self.dt)
+        super().run(nsteps, dt, progress=progress)
+
+    def _advance(self, nsteps: int) -> None:
+        lost = self.worker.call("run", nsteps=nsteps, dt=self.dt)
+        if lost:
+            self.log("%d particles have left the fixed boundaries and were deleted", lost)
+
+    def _extract(self, quantity: str) -> np.ndarray:
+        return from_bytes(self.worker.call("extract", quantity=quantity))
+
+    def _scalar(self, quantity: str) -> float:
+        if quantity == "contacts":
+            return float(self.worker.call("scalar", name="contacts"))
+        if quantity == "ke_rot":
+            omega = self._extract("omega")
+            inertia = 0.4 * self._extract("mass") * self._extract("radius") ** 2
+            return float(0.5 * np.sum(inertia * np.einsum("ij,ij->i", omega, omega)))
+        return super()._scalar(quantity)
+
+    def _mesh_frame(self) -> Frame:
+        labels = list(self._mesh_walls.values())
+        triangles = [from_bytes(self.worker.call("facet_vertices", ids=self._walls[lb])) for lb in labels]
+        corners = np.concatenate(triangles) if triangles else np.zeros((0, 3, 3))
+        cells = np.arange(3 * len(corners)).reshape(-1, 3)
+        arrays = {
+            "points": corners.reshape(-1, 3),
+            "cells": cells,
+            "cell_types": np.full(len(cells), 5),
+            "meshid": np.concatenate([np.full(len(t), i) for i, t in enumerate(triangles)])
+            if triangles
+            else np.zeros(0),
+        }
+        return Frame(
+            arrays,
+            timestep=self.step,
+            time=self.time,
+            attrs={"kind": "mesh", "point_data": [], "cell_data": ["meshid"]},
+        )
+
+    def _close(self) -> None:
+        self.worker.close()
