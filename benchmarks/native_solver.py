@@ -18,6 +18,7 @@ import sys
 import time
 
 import numpy as np
+from pygran_native.solver import Solver
 
 SIZES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
 RADIUS, SPACING, DT = 1e-3, 2.2e-3, 1e-5
@@ -35,8 +36,6 @@ def lattice(n: int, seed: int = 12345) -> tuple[np.ndarray, np.ndarray]:
 
 def scenario(box: np.ndarray, x: np.ndarray, threads: int):
     """The solver of the scenario: Hertz-Mindlin with history, periodic x and y, a floor."""
-    from pygran_native.solver import Solver
-
     solver = Solver(box=box, periodic=(True, True, False), gravity=(0, 0, -9.81), skin=4e-4, threads=threads)
     solver.set_contact_model("hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5)
     solver.add_plane((0, 0, 0), (0, 0, 1), 0)
