@@ -105,6 +105,21 @@ def test_remove_particles_by_id():
         s.remove_particles([3])
 
 
+def test_set_velocities_omegas_and_radii_by_id():
+    s = bed(1)
+    ids = s.ids[[2, 5]]
+    s.set_velocities(ids, [[0.1, 0, 0], [0, 0.2, 0]])
+    s.set_omegas(ids[:1], [[0, 0, 30.0]])
+    s.set_radii(ids, 1.1 * R)
+    np.testing.assert_array_equal(s.velocities[ids], [[0.1, 0, 0], [0, 0.2, 0]])
+    np.testing.assert_array_equal(s.omegas[ids[0]], [0, 0, 30.0])
+    np.testing.assert_allclose(s.radii[ids], 1.1 * R)
+    np.testing.assert_allclose(s.masses[ids], 4 / 3 * np.pi * (1.1 * R) ** 3 * RHO, rtol=1e-12)
+    s.run(10, 1e-5)
+    with pytest.raises(ConfigError, match="radii"):
+        s.set_radii(ids, 0.0)
+
+
 @pytest.mark.parametrize(
     "call,match",
     [

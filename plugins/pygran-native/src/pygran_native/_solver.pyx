@@ -1107,6 +1107,14 @@ cdef class Core:
             for d in range(3):
                 a[3 * index[i] + d] = values[i, d]
 
+    def set_radii(self, int[::1] index, double[::1] r, double[::1] m):
+        """New radii and masses of particles (storage order); lists are rebuilt at the next run."""
+        cdef int i
+        for i in range(index.shape[0]):
+            self.r[index[i]] = r[i]
+            self.m[index[i]] = m[i]
+        self.dirty = 1
+
     def add_elements(self, int[::1] kind, int[::1] etype, int[::1] wall, double[:, ::1] geo, int[:, ::1] vid):
         cdef int k = kind.shape[0], i, d, base = self.ne, cap = max(base + k, 2 * self.ecap, 8)
         if base + k > self.ecap:

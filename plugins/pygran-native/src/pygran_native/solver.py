@@ -282,6 +282,15 @@ class Solver:
         index = self._index(ids, "ids")
         self._core.set_vectors("w", index, _array(omegas, "omegas", (len(index), 3)))
 
+    def set_radii(self, ids, radii) -> None:
+        """Assign radii to the particles with these ids; masses follow at constant density."""
+        index = self._index(ids, "ids")
+        r = _per_particle(radii, "radii", len(index))
+        if np.any(r <= 0):
+            raise ConfigError("radii: must be > 0.")
+        old_r, old_m = self._core.array("r")[index], self._core.array("m")[index]
+        self._core.set_radii(index, r, np.ascontiguousarray(old_m * (r / old_r) ** 3))
+
     # --- walls -------------------------------------------------------------------------
     def _add_wall(self, kind: str, kinds, wtype, geo, vid) -> int:
         wtype = int(wtype) if np.ndim(wtype) == 0 and float(wtype).is_integer() else None
