@@ -9,7 +9,12 @@ from setuptools import Extension, setup
 openmp = {"extra_compile_args": ["-O3", "-fno-math-errno", "-fopenmp"], "extra_link_args": ["-fopenmp"]}
 extensions = [
     Extension("pygran_native._kernels", ["src/pygran_native/_kernels.pyx"], **openmp),
-    Extension("pygran_native._solver", ["src/pygran_native/_solver.pyx"], include_dirs=[numpy.get_include()],
-              define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")], **openmp),
+    Extension(
+        "pygran_native._solver",
+        ["src/pygran_native/_solver.pyx"],
+        include_dirs=[numpy.get_include()],
+        define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
+        **openmp,
+    ),
 ]
 setup(ext_modules=cythonize(extensions, language_level=3))
