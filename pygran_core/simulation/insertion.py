@@ -1,19 +1,27 @@
 """Placing new spheres without overlaps: engine-neutral, reproducible from a seed.
 
-Engines that insert particles themselves (as LIGGGHTS does) need none of this; the others
-(native, YADE) call :func:`place_spheres` so that the same request gives the same packing
+Engines whose solver inserts particles (LIGGGHTS) need none of this; the others (native,
+YADE) derive from :class:`PlacingEngine`, so that the same request gives the same particles
 on every engine. Candidates are drawn in batches and checked with k-d trees, never one
 Python iteration per particle.
 """
 
 from __future__ import annotations
 
+import abc
+import logging
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pygran_core.simulation.calls import Region
+from pygran_core.errors import ConfigError
+from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
+from pygran_core.simulation.engine import Engine, Handle
+from pygran_core.simulation.specs import SimulationSpec
 
 
 @dataclass(frozen=True)
@@ -137,3 +145,214 @@ def _clear_of_earlier(centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
         gap = np.linalg.norm(centres[pairs[:, 0]] - centres[pairs[:, 1]], axis=1)
         dropped[pairs[:, 1][gap < radii[pairs[:, 0]] + radii[pairs[:, 1]]]] = True
     return np.flatnonzero(~dropped)
+
+
+class PlacingEngine(Engine):
+    """An engine that adds particles itself (no insertion of its own solver), so that every
+    such engine inserts and creates the same particles for the same request and seed.
+
+    It implements ``insert`` (by pack, once or every ``freq`` steps; by rate, every ``freq``
+    steps or every :attr:`rate_interval` seconds) and ``createParticles`` (single, lattice,
+    random). A subclass adds the spheres to its solver in :meth:`_add_spheres`, says what
+    they must not overlap in :meth:`_obstacles`, and handles its other handles in
+    ``_remove`` (calling ``super()._remove`` for insertions).
+    """
+
+    #: Simulated seconds between insertions by rate when ``freq`` is not given.
+    rate_interval: ClassVar[float] = 1e-2
+
+    def __init__(self, spec: SimulationSpec) -> None:
+        super().__init__(spec)
+        self._schedules: dict[str, _Schedule] = {}
+        self._insertions = 0
+
+    @abc.abstractmethod
+    def _add_spheres(
+        self,
+        species: np.ndarray,
+        centres: np.ndarray,
+        radii: np.ndarray,
+        velocities: np.ndarray,
+        omega: Sequence[float],
+    ) -> None:
+        """Add spheres of the given species (1-based) to the solver."""
+
+    @abc.abstractmethod
+    def _obstacles(self) -> Obstacles:
+        """Walls new spheres must not overlap."""
+
+    # -- drawing -----------------------------------------------------------------------
+
+    def _radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        radii = np.empty(len(species))
+        for s in np.unique(species):
+            chosen = species == s
+            radii[chosen] = self.spec.species[int(s) - 1].radius.sample(int(chosen.sum()), rng)
+        return radii
+
+    def _share(self, request: InsertSpec, species: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """Each sphere's share of the request's target: 1, its volume or its mass."""
+        if request.target in ("particles_in_region", "particlerate"):
+            return np.ones(len(radii))
+        volume = 4 / 3 * math.pi * radii**3
+        if request.target in ("volumefraction_region",):
+            return volume
+        return volume * np.array([self.spec.species[int(s) - 1].density for s in species])
+
+    def _draw(
+        self, request: InsertSpec, amount: float, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Species and radii of spheres making up at most ``amount`` of the request's target."""
+        if request.target in ("particles_in_region", "particlerate"):
+            count = int(amount)
+        else:
+            typical = self._share(
+                request,
+                np.array(request.species),
+                np.array([self.spec.species[s - 1].radius.mean for s in request.species]),
+            )
+            count = int(1.2 * amount / float(np.dot(request.weights, typical))) + 2
+        species = rng.choice(np.array(request.species), size=count, p=np.array(request.weights))
+        radii = self._radii(species, rng)
+        if request.target not in ("particles_in_region", "particlerate"):
+            keep = int(np.searchsorted(np.cumsum(self._share(request, species, radii)), amount, side="right"))
+            species, radii = species[:keep], radii[:keep]
+        return species, radii
+
+    def _lacking(self, request: InsertSpec) -> float:
+        """How much the region lacks of a by-pack target."""
+        inside = request.region.contains(self._extract("x"))
+        if request.target == "particles_in_region":
+            return max(request.value - np.count_nonzero(inside), 0)
+        if request.target == "volumefraction_region":
+            solid = (4 / 3 * math.pi * self._extract("radius")[inside] ** 3).sum()
+            return max(request.value * request.region.volume() - solid, 0.0)
+        return max(request.value - self._extract("mass")[inside].sum(), 0.0)
+
+    # -- placing -----------------------------------------------------------------------
+
+    def _place(
+        self,
+        region: Region,
+        species: np.ndarray,
+        radii: np.ndarray,
+        rng: np.random.Generator,
+        velocities: np.ndarray,
+        omega: Sequence[float],
+        all_in: bool = True,
+    ) -> int:
+        """Add the spheres that fit at free places in ``region``; returns how many did."""
+        existing = (self._extract("x"), self._extract("radius"))
+        index, centres = place_spheres(region, radii, rng, existing, self._obstacles(), all_in)
+        if len(index):
+            self._add_spheres(species[index], centres, radii[index], velocities[index], omega)
+        return len(index)
+
+    def _insert_now(self, schedule: _Schedule, amount: float) -> float:
+        """Insert up to ``amount`` of the target; returns the amount drawn, placed or not."""
+        request = schedule.request
+        species, radii = self._draw(request, amount, schedule.rng)
+        velocities = request.velocity.sample(len(radii), schedule.rng)
+        made = self._place(
+            request.region, species, radii, schedule.rng, velocities, request.omega, request.all_in
+        )
+        self.log("insert at step %d: %d of %d particles", self.step, made, len(radii))
+        if made < len(radii):
+            self.log("region full: %d particles did not fit", len(radii) - made, level=logging.WARNING)
+        return float(self._share(request, species, radii).sum())
+
+    def _insert(self, request: InsertSpec) -> str:
+        self._insertions += 1
+        label = f"insert{self._insertions}"
+        rng = np.random.default_rng(request.seed)
+        if request.mechanism == "by_pack":
+            schedule = _Schedule(request, request.freq or 0, self.step, None, rng)
+            self._insert_now(schedule, self._lacking(request))
+            if request.freq:
+                schedule.next_step = self.step + request.freq
+                self._schedules[label] = schedule
+            return label
+        if self.dt is None:
+            raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
+        freq = request.freq or max(1, round(self.rate_interval / self.dt))
+        end = None if request.duration is None else self.step + round(request.duration / self.dt)
+        self._schedules[label] = _Schedule(request, freq, self.step, end, rng)
+        self._run_schedules()
+        return label
+
+    def _run_schedules(self) -> None:
+        for label, schedule in list(self._schedules.items()):
+            if schedule.end_step is not None and self.step >= schedule.end_step:
+                del self._schedules[label]
+            elif self.step == schedule.next_step:
+                if schedule.request.mechanism == "by_pack":
+                    self._insert_now(schedule, self._lacking(schedule.request))
+                else:
+                    schedule.owed += schedule.request.value * schedule.freq * self.dt
+                    schedule.owed -= self._insert_now(schedule, schedule.owed)
+                schedule.next_step = self.step + schedule.freq
+
+    def _create(self, request: CreateSpec) -> int:
+        species = self.spec.species[request.species - 1]
+        rng = np.random.default_rng(request.seed)
+        if request.style == "single":
+            centres = np.array([request.position], float)
+            radii = np.array([request.radius or species.radius.sample(1, rng)[0]])
+        elif request.style == "lattice":
+            axes = [
+                np.arange(lo + request.spacing / 2, hi, request.spacing) for lo, hi in request.region.bounds()
+            ]
+            centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+            radii = np.full(len(centres), request.radius or species.radius.mean)
+            inside = request.region.contains(centres, radii)
+            centres, radii = centres[inside], radii[inside]
+        else:
+            radii = (
+                np.full(request.count, request.radius)
+                if request.radius
+                else species.radius.sample(request.count, rng)
+            )
+            types = np.full(request.count, request.species)
+            return self._place(
+                request.region,
+                types,
+                radii,
+                rng,
+                np.tile(request.velocity, (request.count, 1)),
+                request.omega,
+            )
+        if len(radii):
+            self._add_spheres(
+                np.full(len(radii), request.species),
+                centres,
+                radii,
+                np.tile(request.velocity, (len(radii), 1)),
+                request.omega,
+            )
+        return len(radii)
+
+    # -- the engine's schedule ------------------------------------------------------------
+
+    def _frequencies(self) -> list[int]:
+        return super()._frequencies() + [s.freq for s in self._schedules.values() if s.freq]
+
+    def _on_event(self) -> None:
+        self._run_schedules()
+        super()._on_event()
+
+    def _remove(self, handle: Handle) -> None:
+        if handle.kind != "insertion":
+            super()._remove(handle)
+        self._schedules.pop(handle.label, None)
+
+
+@dataclass
+class _Schedule:
+    """A repeated insertion: what, how often, until when, and how much is still owed."""
+
+    request: InsertSpec
+    freq: int
+    next_step: int
+    end_step: int | None
+    rng: np.random.Generator
+    owed: float = 0.0

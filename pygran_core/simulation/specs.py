@@ -284,6 +284,22 @@ class MeshSpec:
     rotate: tuple[Vector, float] | None = None  # (axis, angle in degrees)
     translate: Vector = (0.0, 0.0, 0.0)
 
+    def triangles(self) -> np.ndarray:
+        """The mesh's triangles ``(T, 3, 3)`` in place: scaled, rotated about the origin, then
+        translated (the order of LIGGGHTS' ``scale``, ``rotate``, ``move`` keywords)."""
+        from pygran_core.io import open_trajectory
+
+        frame = open_trajectory(self.file, format="stl", scale=self.scale).read_frame(0)
+        points, cells = frame.arrays["points"], frame.arrays["cells"]
+        if self.rotate is not None:
+            axis, degrees = self.rotate
+            k = np.asarray(axis, float) / np.linalg.norm(axis)
+            cross = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+            angle = math.radians(degrees)
+            rotation = np.eye(3) + math.sin(angle) * cross + (1 - math.cos(angle)) * cross @ cross
+            points = points @ rotation.T
+        return points[cells[:, :3]] + np.asarray(self.translate)
+
 
 MESH_KEYS = ("file", "material", "mtype", "args", "scale", "rotate", "translate", "move", "import")
 MESH_TYPES = ("mesh/surface", "mesh/surface/stress", "mesh/surface/stress/servo")

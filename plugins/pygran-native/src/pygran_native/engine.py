@@ -2,61 +2,28 @@
 
 Material types: species ``k`` (1-based) is solver type ``k - 1``; a mesh with a material
 of its own gets a type after the species. Particle ids are 1-based as in LIGGGHTS.
-Insertion (``insert``, ``createParticles``) places spheres with
-:func:`pygran_core.simulation.insertion.place_spheres`, seeded per call from ``seed``.
+Insertion (``insert``, ``createParticles``) is :class:`PlacingEngine`'s, seeded per call
+from ``seed``.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from pygran_core.errors import ConfigError
-from pygran_core.io import Frame, open_trajectory
-from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, Region, ViscousSpec, WallSpec
-from pygran_core.simulation.engine import Engine, Handle
-from pygran_core.simulation.insertion import Obstacles, place_spheres
-from pygran_core.simulation.specs import MeshSpec, SimulationSpec
+from pygran_core.io import Frame
+from pygran_core.simulation.calls import MotionSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.engine import Handle
+from pygran_core.simulation.insertion import Obstacles, PlacingEngine
+from pygran_core.simulation.specs import SimulationSpec
 from pygran_native.solver import Solver
 
 MODEL_KIND = {"SpringDashpot": "hooke", "HertzMindlin": "hertz", "ThorntonNing": "thornton-ning"}
-#: Default interval between insertions by rate, in simulated seconds.
-RATE_INTERVAL = 1e-2
 
 
-@dataclass
-class _Insertion:
-    """An active insertion: what to insert, when next, and how much is still owed."""
-
-    spec: InsertSpec
-    freq: int
-    next_step: int
-    end_step: int | None
-    owed: float = 0.0
-    rng: np.random.Generator = field(default_factory=np.random.default_rng)
-
-
-def _rotation(axis: tuple[float, float, float], degrees: float) -> np.ndarray:
-    """Rotation matrix about ``axis`` by ``degrees`` (Rodrigues)."""
-    k = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    angle = math.radians(degrees)
-    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
-
-
-def mesh_triangles(mesh: MeshSpec) -> np.ndarray:
-    """A mesh's triangles (T, 3, 3) in place: scaled, then rotated about the origin, then translated."""
-    frame = open_trajectory(mesh.file, format="stl", scale=mesh.scale).read_frame(0)
-    points, cells = frame.arrays["points"], frame.arrays["cells"]
-    if mesh.rotate is not None:
-        points = points @ _rotation(*mesh.rotate).T
-    return points[cells[:, :3]] + np.asarray(mesh.translate)
-
-
-class NativeEngine(Engine):
+class NativeEngine(PlacingEngine):
     """PyGran's own DEM engine (compiled Cython/OpenMP solver)."""
 
     name = "native"
@@ -96,7 +63,6 @@ class NativeEngine(Engine):
             m.material or spec.species[0].material for m in spec.meshes
         ]
         self.solver.set_contact_model(MODEL_KIND[spec.model.__name__], **self._material_arrays(materials))
-        self._insertions: dict[str, _Insertion] = {}
         self._walls: dict[str, int] = {}
         self._planes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._mesh_walls: dict[str, int] = {}
@@ -145,158 +111,17 @@ class NativeEngine(Engine):
             np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
         )
 
-    def _place(
-        self,
-        region: Region,
-        species: np.ndarray,
-        radii: np.ndarray,
-        rng: np.random.Generator,
-        velocity: np.ndarray,
-        omega: Any,
-        all_in: bool = True,
-    ) -> int:
-        """Add spheres of ``species``/``radii`` at free places in ``region``; returns how many fit."""
-        existing = (self.solver.positions, self.solver.radii)
-        index, centres = place_spheres(region, radii, rng, existing, self._obstacles(), all_in)
-        if len(index):
-            density = np.array([self.spec.species[s - 1].density for s in species[index]])
-            self.solver.add_particles(
-                centres,
-                radii[index],
-                densities=density,
-                types=species[index] - 1,
-                velocities=velocity[index],
-                omegas=np.tile(omega, (len(index), 1)),
-            )
-        return len(index)
-
-    def _draw(self, spec: InsertSpec, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        species = rng.choice(np.array(spec.species), size=count, p=np.array(spec.weights))
-        radii = np.empty(count)
-        for s in spec.species:
-            chosen = species == s
-            radii[chosen] = self.spec.species[s - 1].radius.sample(int(chosen.sum()), rng)
-        return species, radii
-
-    def _by_mass(self, spec: InsertSpec) -> bool:
-        return spec.target in ("mass_in_region", "massrate")
-
-    def _amount(self, spec: InsertSpec, species: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """Each particle's share of the target: 1, its volume or its mass."""
-        if spec.target in ("particles_in_region", "particlerate"):
-            return np.ones(len(radii))
-        volume = 4 / 3 * math.pi * radii**3
-        if not self._by_mass(spec):
-            return volume
-        return volume * np.array([self.spec.species[s - 1].density for s in species])
-
-    def _count_for(
-        self, spec: InsertSpec, amount: float, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Species and radii of particles that make up at most ``amount`` of the target."""
-        if spec.target in ("particles_in_region", "particlerate"):
-            return self._draw(spec, int(amount), rng)
-        typical = np.dot(
-            spec.weights,
-            [
-                4
-                / 3
-                * math.pi
-                * self.spec.species[s - 1].radius.mean ** 3
-                * (self.spec.species[s - 1].density if self._by_mass(spec) else 1.0)
-                for s in spec.species
-            ],
-        )
-        species, radii = self._draw(spec, int(1.2 * amount / typical) + 2, rng)
-        count = int(np.searchsorted(np.cumsum(self._amount(spec, species, radii)), amount, side="right"))
-        return species[:count], radii[:count]
-
-    def _pack_amount(self, spec: InsertSpec) -> float:
-        """How much the region still lacks of the by-pack target."""
-        inside = spec.region.contains(self.solver.positions)
-        if spec.target == "particles_in_region":
-            return max(spec.value - np.count_nonzero(inside), 0)
-        volume = 4 / 3 * math.pi * self.solver.radii[inside] ** 3
-        if spec.target == "volumefraction_region":
-            return max(spec.value * spec.region.volume() - volume.sum(), 0.0)
-        return max(spec.value - self.solver.masses[inside].sum(), 0.0)
-
-    def _insert_now(self, job: _Insertion, amount: float) -> float:
-        """Insert up to ``amount`` of the job's target; returns the amount drawn (placed or not)."""
-        spec = job.spec
-        species, radii = self._count_for(spec, amount, job.rng)
-        velocity = spec.velocity.sample(len(radii), job.rng)
-        made = self._place(spec.region, species, radii, job.rng, velocity, spec.omega, spec.all_in)
-        self.log("insert at step %d: %d of %d particles", self.step, made, len(radii))
-        if made < len(radii):
-            self.log("region full: %d particles did not fit", len(radii) - made, level=30)
-        return float(self._amount(spec, species, radii).sum())
-
-    def _insert(self, spec: InsertSpec) -> str:
-        label = self._label("insert")
-        rng = np.random.default_rng(spec.seed)
-        if spec.mechanism == "by_pack":
-            job = _Insertion(spec, spec.freq or 0, self.step, None, rng=rng)
-            self._insert_now(job, self._pack_amount(spec))
-            if spec.freq:
-                job.next_step = self.step + spec.freq
-                self._insertions[label] = job
-            return label
-        if self.dt is None:
-            raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
-        freq = spec.freq or max(1, round(RATE_INTERVAL / self.dt))
-        end = None if spec.duration is None else self.step + round(spec.duration / self.dt)
-        self._insertions[label] = _Insertion(spec, freq, self.step, end, rng=rng)
-        self._on_insertions()
-        return label
-
-    def _on_insertions(self) -> None:
-        for label, job in list(self._insertions.items()):
-            if job.end_step is not None and self.step >= job.end_step:
-                del self._insertions[label]
-                continue
-            if self.step != job.next_step:
-                continue
-            if job.spec.mechanism == "by_pack":
-                self._insert_now(job, self._pack_amount(job.spec))
-            else:
-                job.owed += job.spec.value * job.freq * self.dt
-                job.owed -= self._insert_now(job, job.owed)
-            job.next_step = self.step + job.freq
-
-    def _create(self, spec: CreateSpec) -> int:
-        species = self.spec.species[spec.species - 1]
-        rng = np.random.default_rng(spec.seed)
-        if spec.style == "single":
-            radius = spec.radius or species.radius.sample(1, rng)[0]
-            self.solver.add_particles(
-                [spec.position],
-                [radius],
-                densities=species.density,
-                types=spec.species - 1,
-                velocities=[spec.velocity],
-                omegas=[spec.omega],
-            )
-            return 1
-        if spec.style == "lattice":
-            bounds = spec.region.bounds()
-            axes = [np.arange(lo + spec.spacing / 2, hi, spec.spacing) for lo, hi in bounds]
-            centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-            radii = np.full(len(centres), spec.radius or species.radius.mean)
-            inside = spec.region.contains(centres, radii)
-            self.solver.add_particles(
-                centres[inside],
-                radii[inside],
-                densities=species.density,
-                types=spec.species - 1,
-                velocities=np.tile(spec.velocity, (inside.sum(), 1)),
-                omegas=np.tile(spec.omega, (inside.sum(), 1)),
-            )
-            return int(inside.sum())
-        radii = np.full(spec.count, spec.radius) if spec.radius else species.radius.sample(spec.count, rng)
-        types = np.full(spec.count, spec.species)
-        return self._place(
-            spec.region, types, radii, rng, np.tile(spec.velocity, (spec.count, 1)), spec.omega
+    def _add_spheres(
+        self, species: np.ndarray, centres: np.ndarray, radii: np.ndarray, velocities: np.ndarray, omega: Any
+    ) -> None:
+        density = np.array([self.spec.species[int(k) - 1].density for k in species])
+        self.solver.add_particles(
+            centres,
+            radii,
+            densities=density,
+            types=np.asarray(species) - 1,
+            velocities=velocities,
+            omegas=np.tile(omega, (len(radii), 1)),
         )
 
     # -- walls and meshes ----------------------------------------------------------------
@@ -321,7 +146,7 @@ class NativeEngine(Engine):
             mesh = next(m for m in self.spec.meshes if m.name == spec.mesh)
             if mesh.name in self._mesh_walls:
                 raise ConfigError(f"mesh {mesh.name!r} is already a wall")
-            triangles = mesh_triangles(mesh)
+            triangles = mesh.triangles()
             wall_type = self._mesh_types[mesh.name] if mesh.material else spec.species - 1
             self._mesh_walls[mesh.name] = self.solver.add_mesh(
                 triangles.reshape(-1, 3), np.arange(3 * len(triangles)).reshape(-1, 3), wall_type
@@ -365,8 +190,8 @@ class NativeEngine(Engine):
 
     def _remove(self, handle: Handle) -> None:
         label = handle.label
-        if label in self._insertions:
-            del self._insertions[label]
+        if handle.kind == "insertion":
+            super()._remove(handle)
         elif label in self._walls:
             wall = self._walls.pop(label)
             self.solver.remove_wall(wall)
@@ -382,13 +207,6 @@ class NativeEngine(Engine):
             self._apply_viscous()
 
     # -- running and output ----------------------------------------------------------------
-
-    def _frequencies(self) -> list[int]:
-        return super()._frequencies() + [job.freq for job in self._insertions.values() if job.freq]
-
-    def _on_event(self) -> None:
-        self._on_insertions()
-        super()._on_event()
 
     def _advance(self, nsteps: int) -> None:
         self.solver.run(nsteps, self.dt)

@@ -9,6 +9,7 @@ at interpreter exit if the user forgot.
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import weakref
@@ -22,6 +23,10 @@ from pygran_yade.worker import read_message, write_message
 
 #: How many lines of the worker's log an error message quotes.
 LOG_TAIL = 15
+#: Seconds to wait for one answer (a run is split into pieces, each one answer); a worker
+#: silent for longer is taken to be hung (YADE's periodic collider can hang) and stopped.
+TIMEOUT_ENV = "PYGRAN_YADE_TIMEOUT"
+DEFAULT_TIMEOUT = 600.0
 
 
 def _kill(process: subprocess.Popen, streams: tuple[Any, ...]) -> None:
@@ -77,6 +82,14 @@ class Worker:
         return self._receive(name)
 
     def _receive(self, what: str) -> Any:
+        timeout = float(os.environ.get(TIMEOUT_ENV, DEFAULT_TIMEOUT))
+        ready, _, _ = select.select([self._in], [], [], timeout)
+        if not ready:
+            self._finalizer()
+            raise EngineError(
+                f"YADE did not answer within {timeout:g} s during {what}, so the worker was stopped "
+                f"(set {TIMEOUT_ENV} to wait longer).{self._log_tail()}"
+            )
         answer = read_message(self._in)
         if answer is None:
             self.process.wait()

@@ -34,12 +34,12 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ConfigError, UnsupportedFeature
-from pygran_core.io import Frame, open_trajectory
-from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, ViscousSpec, WallSpec
-from pygran_core.simulation.engine import Engine, Handle
-from pygran_core.simulation.insertion import Obstacles, place_spheres
+from pygran_core.io import Frame
+from pygran_core.simulation.calls import MotionSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.engine import Handle
+from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot, mixing
-from pygran_core.simulation.specs import MeshSpec, SimulationSpec
+from pygran_core.simulation.specs import SimulationSpec
 from pygran_yade.client import Worker
 from pygran_yade.worker import from_bytes, to_bytes
 
@@ -47,23 +47,6 @@ from pygran_yade.worker import from_bytes, to_bytes
 CYLINDER_SEGMENTS = 96
 #: The worker's log, in the output directory.
 WORKER_LOG = "yade.log"
-
-
-def rotation(axis: tuple[float, float, float], degrees: float) -> np.ndarray:
-    """Rotation matrix about ``axis`` by ``degrees`` (Rodrigues)."""
-    k = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    angle = math.radians(degrees)
-    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
-
-
-def mesh_triangles(mesh: MeshSpec) -> np.ndarray:
-    """A mesh's triangles (T, 3, 3): scaled, then rotated about the origin, then translated."""
-    frame = open_trajectory(mesh.file, format="stl", scale=mesh.scale).read_frame(0)
-    points, cells = frame.arrays["points"], frame.arrays["cells"]
-    if mesh.rotate is not None:
-        points = points @ rotation(*mesh.rotate).T
-    return points[cells[:, :3]] + np.asarray(mesh.translate)
 
 
 def plane_slab(axis: int, peq: float, normal: float, box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -94,7 +77,7 @@ def cylinder_triangles(
     return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
 
 
-class YadeEngine(Engine):
+class YadeEngine(PlacingEngine):
     """YADE driven in a worker process (see the module docstring for the mapping)."""
 
     name = "yade"
@@ -109,6 +92,7 @@ class YadeEngine(Engine):
             "mesh-walls",
             "moving-mesh",
             "polydisperse",
+            "insert-by-rate",
             "threads",
             "raw-commands",
         }
@@ -210,20 +194,20 @@ class YadeEngine(Engine):
 
     # -- particles ---------------------------------------------------------------------
 
-    def _add_spheres(self, species: int, centres: Any, radii: Any, velocities: Any, omega: Any) -> int:
-        centres = np.asarray(centres, float).reshape(-1, 3)
-        if len(centres) == 0:
-            return 0
-        self.worker.call(
-            "spheres",
-            centres=to_bytes(centres),
-            radii=to_bytes(np.asarray(radii, float).reshape(-1)),
-            velocities=to_bytes(np.broadcast_to(velocities, centres.shape)),
-            omegas=to_bytes(np.broadcast_to(omega, centres.shape)),
-            material=species - 1,
-            species=species,
-        )
-        return len(centres)
+    def _add_spheres(
+        self, species: np.ndarray, centres: np.ndarray, radii: np.ndarray, velocities: np.ndarray, omega: Any
+    ) -> None:
+        for kind in np.unique(species):  # one YADE material per species
+            chosen = np.asarray(species) == kind
+            self.worker.call(
+                "spheres",
+                centres=to_bytes(np.asarray(centres, float)[chosen]),
+                radii=to_bytes(np.asarray(radii, float)[chosen]),
+                velocities=to_bytes(np.asarray(velocities, float)[chosen]),
+                omegas=to_bytes(np.tile(np.asarray(omega, float), (int(chosen.sum()), 1))),
+                material=int(kind) - 1,
+                species=int(kind),
+            )
 
     def _obstacles(self) -> Obstacles:
         """Plane walls and mesh triangles new particles must clear."""
@@ -238,94 +222,6 @@ class YadeEngine(Engine):
             np.reshape([n for _, n in planes], (-1, 3)),
             np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
         )
-
-    def _place(
-        self,
-        region: Any,
-        species: np.ndarray,
-        radii: np.ndarray,
-        rng: np.random.Generator,
-        velocity: np.ndarray,
-        omega: Any,
-        all_in: bool = True,
-    ) -> int:
-        """Add spheres at free places in ``region`` (shared placement); returns how many fit."""
-        existing = (self._extract("x"), self._extract("radius"))
-        index, centres = place_spheres(region, radii, rng, existing, self._obstacles(), all_in)
-        made = 0
-        for s in np.unique(species[index]):
-            chosen = species[index] == s
-            made += self._add_spheres(
-                int(s), centres[chosen], radii[index][chosen], velocity[index][chosen], omega
-            )
-        return made
-
-    def _insert(self, spec: InsertSpec) -> str:
-        if spec.freq:
-            raise self._unsupported("repeated insertion by pack (freq=...)")
-        rng = np.random.default_rng(spec.seed)
-        inside = spec.region.contains(self._extract("x"))
-        radii_in = self._extract("radius")[inside]
-        if spec.target == "particles_in_region":
-            count = max(int(spec.value) - int(inside.sum()), 0)
-            species = rng.choice(np.array(spec.species), size=count, p=np.array(spec.weights))
-            radii = self._draw_radii(species, rng)
-        else:
-            species, radii = self._draw_amount(spec, rng, inside, radii_in)
-        velocity = spec.velocity.sample(len(radii), rng)
-        made = self._place(spec.region, species, radii, rng, velocity, spec.omega, spec.all_in)
-        self.log("insert: %d of %d particles placed", made, len(radii))
-        if made < len(radii):
-            self.log("region full: %d particles did not fit", len(radii) - made, level=30)
-        return self._label("insert")
-
-    def _draw_radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        radii = np.empty(len(species))
-        for s in np.unique(species):
-            chosen = species == s
-            radii[chosen] = self._radius_of[int(s)].sample(int(chosen.sum()), rng)
-        return radii
-
-    def _draw_amount(
-        self, spec: InsertSpec, rng: np.random.Generator, inside: np.ndarray, radii_in: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Species and radii making up what the region lacks of a volume fraction or mass."""
-        by_mass = spec.target == "mass_in_region"
-        density = {s.type: s.density for s in self.spec.species}
-        if by_mass:
-            wanted = spec.value - float(self._extract("mass")[inside].sum())
-        else:
-            wanted = spec.value * spec.region.volume() - float(np.sum(4 / 3 * math.pi * radii_in**3))
-        typical = sum(
-            w * 4 / 3 * math.pi * self._radius_of[s].mean ** 3 * (density[s] if by_mass else 1.0)
-            for s, w in zip(spec.species, spec.weights)
-        )
-        count = max(int(1.2 * wanted / typical) + 2, 0)
-        species = rng.choice(np.array(spec.species), size=count, p=np.array(spec.weights))
-        radii = self._draw_radii(species, rng)
-        share = (
-            4 / 3 * math.pi * radii**3 * (np.array([density[int(s)] for s in species]) if by_mass else 1.0)
-        )
-        keep = int(np.searchsorted(np.cumsum(share), max(wanted, 0.0), side="right"))
-        return species[:keep], radii[:keep]
-
-    def _create(self, spec: CreateSpec) -> int:
-        distribution = self._radius_of[spec.species]
-        rng = np.random.default_rng(spec.seed)
-        if spec.style == "single":
-            radius = spec.radius or distribution.sample(1, rng)[0]
-            return self._add_spheres(spec.species, [spec.position], [radius], spec.velocity, spec.omega)
-        if spec.style == "lattice":
-            bounds = spec.region.bounds()
-            axes = [np.arange(lo + spec.spacing / 2, hi, spec.spacing) for lo, hi in bounds]
-            centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-            radii = np.full(len(centres), spec.radius or distribution.mean)
-            inside = spec.region.contains(centres, radii)
-            return self._add_spheres(spec.species, centres[inside], radii[inside], spec.velocity, spec.omega)
-        radii = np.full(spec.count, spec.radius) if spec.radius else distribution.sample(spec.count, rng)
-        species = np.full(spec.count, spec.species)
-        velocity = np.tile(spec.velocity, (spec.count, 1))
-        return self._place(spec.region, species, radii, rng, velocity, spec.omega)
 
     # -- walls and meshes ----------------------------------------------------------------
 
@@ -359,7 +255,7 @@ class YadeEngine(Engine):
             mesh = next(m for m in self.spec.meshes if m.name == spec.mesh)
             if mesh.name in self._mesh_walls:
                 raise ConfigError(f"mesh {mesh.name!r} is already a wall")
-            triangles = mesh_triangles(mesh)
+            triangles = mesh.triangles()
             material = self._mesh_material.get(mesh.name, material)
             self._mesh_walls[mesh.name] = label
             self._obstacle[label] = ("mesh", mesh.name)
@@ -400,7 +296,9 @@ class YadeEngine(Engine):
 
     def _remove(self, handle: Handle) -> None:
         label = handle.label
-        if label in self._walls:
+        if handle.kind == "insertion":
+            super()._remove(handle)
+        elif label in self._walls:
             self.worker.call("erase", ids=self._walls.pop(label))
             kind, value = self._obstacle.pop(label, (None, None))
             if kind == "mesh":
