@@ -195,15 +195,15 @@ def test_hopper_coordination_and_rdf(hopper):
     system.goto(1)  # the freshly inserted packing
     particles = system.Particles
     neighbors = equilibrium.Neighbors(particles)
-    coon = neighbors.coon()
+    coon = neighbors.coon
     assert coon.shape == (571,) and coon.sum() == 2 * len(neighbors.pairs)
     assert (neighbors.distances <= 2 * 5e-5 * (1 + 1e-9)).all()
     wide = equilibrium.Neighbors(particles, cutoff=3e-4)
-    assert wide.coon().mean() > coon.mean()
+    assert wide.coon.mean() > coon.mean()
     rdf = particles.computeRDF()
     assert np.isfinite(rdf.g).all() and rdf.g.max() > 0 and rdf.references.size > 0
     system.goto(-1)
-    assert equilibrium.Neighbors(system.Particles).coon().shape == (423,)
+    assert equilibrium.Neighbors(system.Particles).coon.shape == (423,)
     assert system.Particles.computeRDF().g.size == 100
 
 
