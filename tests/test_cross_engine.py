@@ -223,12 +223,31 @@ def pairs(scenario: str, model: str | None = None) -> list[tuple[str, str]]:
 
 MODELS = {model.__name__: model for model in IMPACT_MATERIALS}
 
+#: Known plugin bugs, reported to the plugin's owner: (engine, model) -> what is wrong. The
+#: wall-impact tests with them are strict xfails, which fail as soon as the bug is fixed.
+KNOWN_BUGS = {
+    ("yade", "HertzMindlin"): (
+        "pygran-yade: sphere-wall Hertz-Mindlin contact time and overlap are 2^(1/5) = 1.149 times "
+        "the reference without damping (1.16 times the contact time with e = 0.5), whatever R and "
+        "nu: the wall acts as a sphere of the same radius, R* = R/2"
+    )
+}
+
+
+def impact_cases(*engines: str, model: str) -> dict:
+    """``pytest.param`` keywords for a wall-impact test on ``engines`` with ``model``."""
+    bugs = [KNOWN_BUGS[e, model] for e in engines if (e, model) in KNOWN_BUGS]
+    marks = [pytest.mark.xfail(strict=True, reason=bug) for bug in bugs]
+    return {"id": "-".join((*engines, model)), "marks": marks}
+
 
 # -- one engine against the reference -------------------------------------------------------------
 
 
-@pytest.mark.parametrize("model", MODELS)
-@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize(
+    ("engine", "model"),
+    [pytest.param(e, m, **impact_cases(e, model=m)) for e in ENGINES for m in MODELS],
+)
 def test_wall_impact_matches_the_reference_model(runs, engine, model):
     measured = measure(runs, impact, engine, model)
     if measured is None:
@@ -278,7 +297,7 @@ def test_hopper_discharges(runs, engine):
 
 @pytest.mark.parametrize(
     ("a", "b", "model"),
-    [pytest.param(a, b, m, id=f"{a}-{b}-{m}") for m in MODELS for a, b in pairs("impact", m)],
+    [pytest.param(a, b, m, **impact_cases(a, b, model=m)) for m in MODELS for a, b in pairs("impact", m)],
 )
 def test_engines_agree_on_wall_impacts(runs, a, b, model):
     first, second = (runs.get(impact, e, model) for e in (a, b))
