@@ -13,8 +13,9 @@ rebuild):
 - wall elements: planes, cylinders and triangles (with mesh topology and rigid motion).
 
 A contact's tangential history is carried across rebuilds and re-sorts by looking the
-pair up in the previous list (its sign follows the pair's orientation). Pair forces go to
-per-thread buffers with a static schedule and are summed in thread order, so results are
+pair up in the previous list (its sign follows the pair's orientation). Each thread owns a
+contiguous block of the cell-sorted particles (a slab of the domain, balanced by work at
+every rebuild); pair forces go to per-thread buffers summed in thread order, so results are
 deterministic for a given thread count.
 """
 
@@ -22,7 +23,7 @@ from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite
 from libc.stdlib cimport malloc, calloc, realloc, free
 from libc.string cimport memcpy, memset
 from libc.stdint cimport int64_t, uint8_t
-from cython.parallel cimport prange, threadid
+from cython.parallel cimport prange
 cimport openmp
 
 import numpy as np
@@ -31,7 +32,7 @@ cimport numpy as cnp
 cnp.import_array()
 
 DEF MAXCAND = 64
-DEF CHUNK = 64     # particles per chunk of the static OpenMP schedule (the same in every loop)
+DEF CHUNK = 64     # particles per chunk of the static OpenMP schedule of the rebuild loops
 DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
 DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
 
@@ -819,6 +820,24 @@ cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
         drift_row(c, i, tid)
 
 
+cdef void pair_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
+    cdef int i
+    for i in range(lo, hi):
+        pair_row(c, i, t)
+
+
+cdef void particle_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
+    cdef int i
+    for i in range(lo, hi):
+        particle_row(c, i, t)
+
+
+cdef void drift_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
+    cdef int i
+    for i in range(lo, hi):
+        drift_row(c, i, t)
+
+
 cdef class Core:
     """Particles, neighbour and wall lists, wall elements and the time-step loop.
 
@@ -897,6 +916,7 @@ cdef class Core:
     cdef Coef *coef
     cdef double *visc
     cdef double *tmax
+    cdef int *bounds        # particles [bounds[t], bounds[t + 1]) belong to thread t
 
     def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads):
         cdef int d, a, b, c
@@ -923,10 +943,11 @@ cdef class Core:
         self.wl_start = <int*>calloc(1, sizeof(int))
         self.ow_start = <int*>calloc(1, sizeof(int))
         self.tmax = <double*>calloc(threads * PAD, sizeof(double))
+        self.bounds = <int*>calloc(threads + 1, sizeof(int))
         self.coef = <Coef*>calloc(1, sizeof(Coef))
         self.visc = <double*>calloc(1, sizeof(double))
         self.ntypes = 1
-        if not (self.nb_start and self.ob_start and self.wl_start and self.ow_start and self.tmax):
+        if not (self.nb_start and self.ob_start and self.wl_start and self.ow_start and self.tmax and self.bounds):
             raise MemoryError()
 
     def __dealloc__(self):
@@ -940,7 +961,8 @@ cdef class Core:
                   <size_t>self.cell_start, <size_t>self.ctri_start, <size_t>self.ctri, <size_t>self.ekind,
                   <size_t>self.etype, <size_t>self.ewall, <size_t>self.evid, <size_t>self.emoving,
                   <size_t>self.egeo, <size_t>self.eref, <size_t>self.ebuilt, <size_t>self.emot,
-                  <size_t>self.coef, <size_t>self.visc, <size_t>self.tmax):
+                  <size_t>self.coef, <size_t>self.visc, <size_t>self.tmax,
+                  <size_t>self.bounds):
             free(<void*>p)
 
     # ------------------------------------------------------------------ memory ----------
@@ -1504,6 +1526,7 @@ cdef class Core:
             scan_walls(&c, i, True)
         for i in range(9 * self.ne):
             self.ebuilt[i] = self.egeo[i]
+        self.balance()
         self.rebuilds += 1
         return 0
 
@@ -1566,36 +1589,55 @@ cdef class Core:
                     dmax = dd
         return sqrt(dmax)
 
+    cdef void balance(self) noexcept nogil:
+        """Split the (cell-sorted) particles into one contiguous block per thread, with
+        about equal work ``particles + 2 pairs`` in each: a spatial slab per thread, so few
+        neighbours belong to another thread, and a partition that depends only on the state."""
+        cdef int t, lo = 0, hi, mid, n = self.n, T = self.nthreads
+        cdef double total = n + 2.0 * self.nb_start[n], target
+        self.bounds[0] = 0
+        for t in range(1, T):
+            target = total * t / T
+            hi = n
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if mid + 2.0 * self.nb_start[mid] < target:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            self.bounds[t] = lo
+        self.bounds[T] = n
+
     cdef void forces(self, double dt, bint update, bint kick, bint fuse) noexcept nogil:
-        """Forces (pair loop, then per particle), second half kick; ``fuse``: see particle_row."""
+        """Forces (pair loop, then per particle), second half kick; ``fuse``: see particle_row.
+
+        Thread t works on its block of particles and writes pair forces on other particles
+        to buffer t: the result depends on the thread count only.
+        """
         cdef Ctx c
-        cdef int i, n = self.n, T = self.nthreads
+        cdef int t, T = self.nthreads
         self.make_ctx(&c)
         c.dt = dt
         c.update = update
         c.kick = kick
         c.fuse = fuse
-        for i in range(T):
-            self.tmax[PAD * i] = 0.0
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
-            pair_row(&c, i, threadid())
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
-            particle_row(&c, i, threadid())
+        for t in range(T):
+            self.tmax[PAD * t] = 0.0
+        for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
+            pair_block(&c, self.bounds[t], self.bounds[t + 1], t)
+        for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
+            particle_block(&c, self.bounds[t], self.bounds[t + 1], t)
 
     cdef double drift(self, double dt) noexcept nogil:
-        """First half kick and drift; the largest displacement since the last rebuild.
-
-        Same static schedule as the force loops, so each thread keeps its particles in
-        its cache.
-        """
+        """First half kick and drift; the largest displacement since the last rebuild."""
         cdef Ctx c
-        cdef int i, T = self.nthreads
+        cdef int t, T = self.nthreads
         self.make_ctx(&c)
         c.dt = dt
-        for i in range(T):
-            self.tmax[PAD * i] = 0.0
-        for i in prange(self.n, schedule='static', chunksize=CHUNK, num_threads=T):
-            drift_row(&c, i, threadid())
+        for t in range(T):
+            self.tmax[PAD * t] = 0.0
+        for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
+            drift_block(&c, self.bounds[t], self.bounds[t + 1], t)
         return self.max_displacement()
 
     cdef double max_displacement(self) noexcept nogil:
@@ -1764,6 +1806,7 @@ cdef class Core:
         self.n = n
         self.time = float(state["scalars"][0])
         self.step, self.lost, self.rebuilds, self.dirty = (int(k) for k in state["counters"])
+        self.balance()
 
 
 cdef object _copy_d(const double* p, long long k):
