@@ -155,6 +155,20 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_validate(args: argparse.Namespace) -> int:
+    """Physics checks of an engine against closed forms, as a table; non-zero exit on a failure."""
+    from pygran_core import validation
+
+    results = validation.run_validation(
+        args.engine,
+        checks=args.check,
+        output=args.output,
+        progress=lambda name: print(f"checking {name} ...", file=sys.stderr),
+    )
+    print(validation.format_table(results))
+    return validation.exit_status(results)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="pygran", description="PyGran: DEM simulation and analysis.")
     parser.add_argument("--version", action="version", version=f"pygran {version('pygran-core')}")
@@ -178,6 +192,15 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--output", default="pygran-demo", help="output folder (default: ./pygran-demo)")
     demo.add_argument("--no-progress", action="store_true", help="no progress bars")
     demo.set_defaults(func=cmd_demo)
+    from pygran_core.validation import CHECKS
+
+    validate = commands.add_parser("validate", help="check an engine's physics against closed forms")
+    validate.add_argument("--engine", help="engine to check (default: the one DEM picks, native)")
+    validate.add_argument(
+        "--check", action="append", choices=list(CHECKS), help="run only this check (repeatable)"
+    )
+    validate.add_argument("--output", help="keep the simulations in this folder (default: a temporary one)")
+    validate.set_defaults(func=cmd_validate)
     return parser
 
 

@@ -28,3 +28,19 @@ def test_plugins_lists_every_plugin_with_distribution():
 def test_no_command_is_a_usage_error():
     out = subprocess.run([PYGRAN], capture_output=True, text=True)
     assert out.returncode == 2 and "usage: pygran" in out.stderr
+
+
+def test_validate_prints_a_table_and_exits_zero_when_every_check_passes():
+    out = subprocess.run(
+        [PYGRAN, "validate", "--engine", "native", "--check", "hertz"], capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stdout + out.stderr
+    rows = out.stdout.splitlines()
+    assert rows[0].split()[:4] == ["check", "expected", "obtained", "tolerance"]
+    assert [r.split()[0:3] for r in rows[1:3]] == [["Hertz", "contact", "time"], ["Hertz", "max", "overlap"]]
+    assert all(" pass" in r for r in rows[1:3])
+
+
+def test_validate_rejects_unknown_checks():
+    out = subprocess.run([PYGRAN, "validate", "--check", "hertzz"], capture_output=True, text=True)
+    assert out.returncode == 2 and "invalid choice: 'hertzz'" in out.stderr

@@ -72,6 +72,9 @@ def size_classes(radius: RadiusDistribution) -> list[tuple[float, float]]:
     radii = centre + spread * mids if radius.kind == "normal" else centre * np.exp(spread * mids)
     return [(float(r), float(w)) for r, w in zip(radii, weights)]
 
+#: LIGGGHTS refuses Young's moduli below this (SI) unless told ``soft_particles yes``.
+SOFT_LIMIT = 5e6
+
 
 class Commands:
     """LIGGGHTS commands for one simulation; each method returns ``(id, lines)`` or lines."""
@@ -119,6 +122,8 @@ class Commands:
         """Box, materials, contact model, gravity, integrator, meshes and dumps."""
         spec = self.spec
         lines = ["units si", "atom_style granular", "atom_modify map array"]
+        if min(m["youngsModulus"] for m in self.materials) < SOFT_LIMIT:
+            lines.append("soft_particles yes")  # else LIGGGHTS refuses moduli below 5 MPa in SI units
         if resume is None:
             bounds = " ".join(fmt(v) for lo_hi in spec.domain.box for v in lo_hi)
             lines += [
