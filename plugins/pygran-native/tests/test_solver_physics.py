@@ -154,7 +154,7 @@ def test_energy_conserved_without_dissipation():
     grid = np.stack(np.meshgrid(*[np.arange(3)] * 3, indexing="ij"), -1).reshape(-1, 3)
     x = (grid + 0.5) * 0.004 + np.array([0, 0, 0.001]) + rng.uniform(-4e-4, 4e-4, (27, 3))
     s.add_particles(x, R, densities=RHO, velocities=rng.normal(0, 0.05, (27, 3)))
-    dt = 5e-6   # 10^4 steps: the particles fall onto the floor and collide
+    dt = 5e-6  # 10^4 steps: the particles fall onto the floor and collide
     s.run(0, dt)
     e0 = hertz_energy(s)
     touching = 0
