@@ -18,9 +18,15 @@ from matplotlib.figure import Figure  # renders with Agg; pyplot's global state 
 from pygran_core import simulation
 
 # Define powder properties with cohesion
-powder = {"radius": 2e-5, "yieldPress": 4e7, "density": 1500.0,
-          "youngsModulus": 6e9, "cohesionEnergyDensity": 0.04,
-          "poissonsRatio": 0.25, "characteristicVelocity": 0.04}
+powder = {
+    "radius": 2e-5,
+    "yieldPress": 4e7,
+    "density": 1500.0,
+    "youngsModulus": 6e9,
+    "cohesionEnergyDensity": 0.04,
+    "poissonsRatio": 0.25,
+    "characteristicVelocity": 0.04,
+}
 
 VELOCITIES = (None, 0.4)  # None: the characteristic velocity, as in the manual
 
@@ -28,8 +34,9 @@ VELOCITIES = (None, 0.4)  # None: the characteristic velocity, as in the manual
 def compute() -> dict:
     """Impacts by velocity (m/s); unpack each as ``time, delta, force``."""
     model = simulation.models.ThorntonNing(material=powder)
-    return {velocity or powder["characteristicVelocity"]: model.displacement(velocity)
-            for velocity in VELOCITIES}
+    return {
+        velocity or powder["characteristicVelocity"]: model.displacement(velocity) for velocity in VELOCITIES
+    }
 
 
 def main(argv: list[str]) -> Path:

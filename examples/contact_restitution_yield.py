@@ -30,8 +30,14 @@ powderX = {
 def thornton(model: simulation.models.ThorntonNing, velocity: float) -> float:
     """Thornton (1997) eq. (30), with the yield velocity of the model's particle-wall pair."""
     delta_y = model.yield_radius**2 / model.effective_radius
-    v_y = np.sqrt(16 / 15 * model.effective_modulus * np.sqrt(model.effective_radius) * delta_y**2.5
-                  / model.effective_mass)
+    v_y = np.sqrt(
+        16
+        / 15
+        * model.effective_modulus
+        * np.sqrt(model.effective_radius)
+        * delta_y**2.5
+        / model.effective_mass
+    )
     if velocity <= v_y:
         return 1.0
     r = v_y / velocity
@@ -58,8 +64,11 @@ def main(argv: list[str]) -> Path:
     ax = fig.add_subplot()
     ax.plot(pressure / 1e6, COR, "o", label="ThorntonNing.displacement()")
     ax.plot(pressure / 1e6, analytic, "-", label="Thornton (1997), analytic")
-    ax.set(xlabel="yield pressure (MPa)", ylabel="coefficient of restitution",
-           title="Particle-wall impact at 0.1 m/s, R* = 100 um")
+    ax.set(
+        xlabel="yield pressure (MPa)",
+        ylabel="coefficient of restitution",
+        title="Particle-wall impact at 0.1 m/s, R* = 100 um",
+    )
     ax.legend()
     fig.savefig(output, dpi=120)
     return output

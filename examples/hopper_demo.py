@@ -19,8 +19,14 @@ def main(argv=None):
     parser.add_argument("--settle-time", type=float, default=demo.HopperStudy.settle_time)
     parser.add_argument("--discharge-time", type=float, default=demo.HopperStudy.discharge_time)
     args = parser.parse_args(argv)
-    summary = demo.run(args.output, engine=args.engine, particles=args.particles, report=print,
-                       settle_time=args.settle_time, discharge_time=args.discharge_time)
+    summary = demo.run(
+        args.output,
+        engine=args.engine,
+        particles=args.particles,
+        report=print,
+        settle_time=args.settle_time,
+        discharge_time=args.discharge_time,
+    )
     print(summary.text(), end="")
     return summary
 

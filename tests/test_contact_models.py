@@ -16,8 +16,14 @@ from pygran_core.errors import ConfigError
 from pygran_core.simulation.models import ContactModel, HertzMindlin, SpringDashpot, ThorntonNing, plugin
 
 # The manual's Listing 3.2 powder.
-POWDER = {"youngsModulus": 1e8, "poissonsRatio": 0.25, "coefficientRestitution": 0.9,
-          "characteristicVelocity": 0.1, "density": 997.164, "radius": 1e-4}
+POWDER = {
+    "youngsModulus": 1e8,
+    "poissonsRatio": 0.25,
+    "coefficientRestitution": 0.9,
+    "characteristicVelocity": 0.1,
+    "density": 997.164,
+    "radius": 1e-4,
+}
 E_STAR = 1 / (2 * (1 - 0.25**2) / 1e8)  # particle against a wall of the same material
 MASS = 4 / 3 * math.pi * 1e-4**3 * 997.164
 
@@ -109,8 +115,11 @@ def test_sjkr_cohesion_deepens_the_undamped_impact_by_its_work(k):
     R = 1e-4
 
     def energy(d):  # kinetic energy left at overlap d: 1/2 m v^2 + W_sjkr - W_hertz
-        return (0.5 * MASS * 0.1**2 + k * math.pi * (R * d**2 - d**3 / 3)
-                - 8 / 15 * E_STAR * math.sqrt(R) * d**2.5)
+        return (
+            0.5 * MASS * 0.1**2
+            + k * math.pi * (R * d**2 - d**3 / 3)
+            - 8 / 15 * E_STAR * math.sqrt(R) * d**2.5
+        )
 
     d_max = brentq(energy, 1e-12, 0.5 * R)
     assert d_max > 1.05 * hertz_max_overlap(MASS, R, E_STAR, 0.1)
@@ -122,8 +131,11 @@ def test_sjkr_cohesion_deepens_the_undamped_impact_by_its_work(k):
 def thornton_restitution(v, v_y):
     """Thornton (1997) eq. (30): elastic-perfectly plastic restitution above yield."""
     r = v_y / v
-    return (math.sqrt(6 * math.sqrt(3) / 5) * math.sqrt(1 - r**2 / 6)
-            * (r / (r + 2 * math.sqrt(6 / 5 - r**2 / 5))) ** 0.25)
+    return (
+        math.sqrt(6 * math.sqrt(3) / 5)
+        * math.sqrt(1 - r**2 / 6)
+        * (r / (r + 2 * math.sqrt(6 / 5 - r**2 / 5))) ** 0.25
+    )
 
 
 def yield_velocity(p_y, E=E_STAR, R=1e-4, m=MASS):
@@ -157,8 +169,15 @@ def test_plastic_contact_leaves_a_permanent_overlap():
     assert abs(force[-1]) < 1e-9 * force.max() and force.min() >= 0
 
 
-ADHESIVE = {"youngsModulus": 6e9, "poissonsRatio": 0.25, "density": 1500.0, "radius": 2e-5,
-            "cohesionEnergyDensity": 0.04, "yieldPress": 1e11, "characteristicVelocity": 0.04}
+ADHESIVE = {
+    "youngsModulus": 6e9,
+    "poissonsRatio": 0.25,
+    "density": 1500.0,
+    "radius": 2e-5,
+    "cohesionEnergyDensity": 0.04,
+    "yieldPress": 1e11,
+    "characteristicVelocity": 0.04,
+}
 
 
 def jkr_separation_work(gamma, R, E):
@@ -209,8 +228,15 @@ def test_plastic_flattening_raises_the_pull_off_force():
 
 
 def test_manual_cohesive_example_gives_a_full_curve():
-    powder = {"radius": 2e-5, "yieldPress": 4e7, "density": 1500.0, "youngsModulus": 6e9,
-              "cohesionEnergyDensity": 0.04, "poissonsRatio": 0.25, "characteristicVelocity": 0.04}
+    powder = {
+        "radius": 2e-5,
+        "yieldPress": 4e7,
+        "density": 1500.0,
+        "youngsModulus": 6e9,
+        "cohesionEnergyDensity": 0.04,
+        "poissonsRatio": 0.25,
+        "characteristicVelocity": 0.04,
+    }
     time, delta, force = ThorntonNing(material=powder).displacement()
     assert len(time) == len(delta) == len(force) > 100
     assert np.all(np.diff(time) > 0)
@@ -277,13 +303,15 @@ def without(key):
 
 @pytest.mark.parametrize(
     ("model_class", "material", "message"),
-    [(HertzMindlin, without("radius"), "radius"),
-     (HertzMindlin, without("density"), "density"),
-     (SpringDashpot, without("characteristicVelocity"), "characteristicVelocity"),
-     (ThorntonNing, POWDER, "yieldPress"),
-     (HertzMindlin, dict(POWDER, youngModulus=1e8), "Did you mean 'youngsModulus'"),
-     (HertzMindlin, dict(POWDER, radius=-1.0), "radius"),
-     (HertzMindlin, dict(POWDER, coefficientRestitution=0), "coefficientRestitution")],
+    [
+        (HertzMindlin, without("radius"), "radius"),
+        (HertzMindlin, without("density"), "density"),
+        (SpringDashpot, without("characteristicVelocity"), "characteristicVelocity"),
+        (ThorntonNing, POWDER, "yieldPress"),
+        (HertzMindlin, dict(POWDER, youngModulus=1e8), "Did you mean 'youngsModulus'"),
+        (HertzMindlin, dict(POWDER, radius=-1.0), "radius"),
+        (HertzMindlin, dict(POWDER, coefficientRestitution=0), "coefficientRestitution"),
+    ],
 )
 def test_invalid_materials_raise_config_errors(model_class, material, message):
     with pytest.raises(ConfigError, match=message):
@@ -308,7 +336,10 @@ def test_contact_model_is_abstract():
 def test_plugin_registers_the_three_models():
     specs = list(plugin.pygran_models())
     assert [(s.name, s.model) for s in specs] == [
-        ("SpringDashpot", SpringDashpot), ("HertzMindlin", HertzMindlin), ("ThorntonNing", ThorntonNing)]
+        ("SpringDashpot", SpringDashpot),
+        ("HertzMindlin", HertzMindlin),
+        ("ThorntonNing", ThorntonNing),
+    ]
     assert registry.get_model("ThorntonNing").model is ThorntonNing
 
 
@@ -317,22 +348,25 @@ def log_uniform(low, high):
     return st.floats(math.log10(low), math.log10(high)).map(lambda x: 10.0**x)
 
 
-materials = st.fixed_dictionaries({
-    "youngsModulus": log_uniform(1e6, 1e11),
-    "poissonsRatio": st.floats(-0.9, 0.49),
-    "coefficientRestitution": st.floats(0.05, 1.0),
-    "coefficientFriction": st.one_of(st.just(0.0), st.floats(1e-6, 1.0)),  # no denormal squares in norms
-    "characteristicVelocity": log_uniform(0.01, 10),
-    "density": log_uniform(100, 2e4),
-    "radius": log_uniform(1e-6, 1e-2),
-    "yieldPress": log_uniform(1e5, 1e10),
-})
+materials = st.fixed_dictionaries(
+    {
+        "youngsModulus": log_uniform(1e6, 1e11),
+        "poissonsRatio": st.floats(-0.9, 0.49),
+        "coefficientRestitution": st.floats(0.05, 1.0),
+        "coefficientFriction": st.one_of(st.just(0.0), st.floats(1e-6, 1.0)),  # no denormal squares in norms
+        "characteristicVelocity": log_uniform(0.01, 10),
+        "density": log_uniform(100, 2e4),
+        "radius": log_uniform(1e-6, 1e-2),
+        "yieldPress": log_uniform(1e5, 1e10),
+    }
+)
 MODELS = (SpringDashpot, HertzMindlin, ThorntonNing)
 
 
 @settings(max_examples=60, deadline=None)
-@given(material=materials, fraction=st.floats(1e-6, 0.05), rate=st.floats(-10, 10),
-       history=st.floats(1.0, 3.0))
+@given(
+    material=materials, fraction=st.floats(1e-6, 0.05), rate=st.floats(-10, 10), history=st.floats(1.0, 3.0)
+)
 def test_forces_are_finite_repulsive_and_vanish_out_of_contact(material, fraction, rate, history):
     overlap = fraction * material["radius"]
     for model_class in MODELS:
@@ -349,8 +383,12 @@ def test_forces_are_finite_repulsive_and_vanish_out_of_contact(material, fractio
 
 
 @settings(max_examples=40, deadline=None)
-@given(material=materials, gamma=log_uniform(1e-3, 1.0), fraction=st.floats(-0.05, 0.05),
-       history=st.floats(0.0, 0.05))
+@given(
+    material=materials,
+    gamma=log_uniform(1e-3, 1.0),
+    fraction=st.floats(-0.05, 0.05),
+    history=st.floats(0.0, 0.05),
+)
 def test_adhesive_forces_are_finite_and_vanish_before_first_touch(material, gamma, fraction, history):
     material = dict(material, cohesionEnergyDensity=gamma)
     overlap = fraction * material["radius"]

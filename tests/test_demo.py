@@ -19,8 +19,21 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "hopper_demo.py"
 def study(tmp_path_factory):
     output = tmp_path_factory.mktemp("hopper")
     result = subprocess.run(
-        [sys.executable, str(EXAMPLE), "--particles", "700", "--output", str(output), "--settle-time", "0.2",
-         "--discharge-time", "0.5"], capture_output=True, text=True, env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin"},
+        [
+            sys.executable,
+            str(EXAMPLE),
+            "--particles",
+            "700",
+            "--output",
+            str(output),
+            "--settle-time",
+            "0.2",
+            "--discharge-time",
+            "0.5",
+        ],
+        capture_output=True,
+        text=True,
+        env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin"},
     )
     assert result.returncode == 0, result.stderr
     return output, result.stdout
@@ -67,7 +80,17 @@ def test_stl_round_trip(tmp_path):
 
 
 def test_unknown_engine_is_a_clear_error(tmp_path):
-    result = subprocess.run([str(Path(sys.executable).with_name("pygran")), "demo", "--engine", "nativ",
-                             "--output", str(tmp_path)], capture_output=True, text=True)
+    result = subprocess.run(
+        [
+            str(Path(sys.executable).with_name("pygran")),
+            "demo",
+            "--engine",
+            "nativ",
+            "--output",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert result.returncode == 1
     assert "No engine named 'nativ' is installed. Did you mean 'native'?" in result.stderr

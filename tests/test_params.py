@@ -65,9 +65,13 @@ def test_validate_returns_a_new_dict():
 
 @pytest.mark.parametrize(
     ("wrong", "right"),
-    [("youngModulus", "youngsModulus"), ("poissonRatio", "poissonsRatio"),
-     ("coefficientRestituion", "coefficientRestitution"), ("yieldPressure", "yieldPress"),
-     ("cohesionEnergydensity", "cohesionEnergyDensity")],
+    [
+        ("youngModulus", "youngsModulus"),
+        ("poissonRatio", "poissonsRatio"),
+        ("coefficientRestituion", "coefficientRestitution"),
+        ("yieldPressure", "yieldPress"),
+        ("cohesionEnergydensity", "cohesionEnergyDensity"),
+    ],
 )
 def test_misspelt_key_suggests_the_right_one(wrong, right):
     with pytest.raises(ConfigError, match=f"{wrong}.*Did you mean '{right}'"):
@@ -78,16 +82,31 @@ def test_radius_and_mass_only_where_allowed():
     with pytest.raises(ConfigError, match="radius"):
         params.validate({"radius": 1e-4})
     assert params.validate({"radius": 1e-4, "mass": 1e-9}, allow=("radius", "mass")) == {
-        "radius": 1e-4, "mass": 1e-9}
+        "radius": 1e-4,
+        "mass": 1e-9,
+    }
 
 
 @pytest.mark.parametrize(
     ("key", "value"),
-    [("youngsModulus", -1e8), ("youngsModulus", 0), ("poissonsRatio", 0.5), ("poissonsRatio", -1.0),
-     ("poissonsRatio", 0.7), ("coefficientRestitution", 0.0), ("coefficientRestitution", 1.2),
-     ("coefficientRestitution", -0.5), ("density", -1000.0), ("density", 0), ("coefficientFriction", -0.1),
-     ("cohesionEnergyDensity", -0.01), ("yieldPress", -1e6), ("characteristicVelocity", 0.0),
-     ("youngsModulus", math.inf), ("density", math.nan)],
+    [
+        ("youngsModulus", -1e8),
+        ("youngsModulus", 0),
+        ("poissonsRatio", 0.5),
+        ("poissonsRatio", -1.0),
+        ("poissonsRatio", 0.7),
+        ("coefficientRestitution", 0.0),
+        ("coefficientRestitution", 1.2),
+        ("coefficientRestitution", -0.5),
+        ("density", -1000.0),
+        ("density", 0),
+        ("coefficientFriction", -0.1),
+        ("cohesionEnergyDensity", -0.01),
+        ("yieldPress", -1e6),
+        ("characteristicVelocity", 0.0),
+        ("youngsModulus", math.inf),
+        ("density", math.nan),
+    ],
 )
 def test_out_of_range_value_names_key_and_value(key, value):
     with pytest.raises(ConfigError, match=f"{key}.*{value!r}".replace("(", r"\(")):

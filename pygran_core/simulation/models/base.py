@@ -97,8 +97,12 @@ class ContactModel(abc.ABC):
         other_mass = theirs.get("mass", _sphere_mass(theirs)) if "radius" in theirs else math.inf
         self.effective_radius = float(mixing.effective_radius(self.radius, theirs.get("radius", math.inf)))
         self.effective_mass = float(mixing.effective_mass(self.mass, other_mass))
-        moduli = (mine["youngsModulus"], mine["poissonsRatio"],
-                  theirs["youngsModulus"], theirs["poissonsRatio"])
+        moduli = (
+            mine["youngsModulus"],
+            mine["poissonsRatio"],
+            theirs["youngsModulus"],
+            theirs["poissonsRatio"],
+        )
         self.effective_modulus = float(mixing.effective_modulus(*moduli))
         self.effective_shear_modulus = float(mixing.effective_shear_modulus(*moduli))
 
@@ -114,8 +118,17 @@ class ContactModel(abc.ABC):
     @property
     def coefficients(self) -> Mapping[str, float]:
         """The pair coefficients of this contact (read-only)."""
-        names = ("effective_radius", "effective_mass", "effective_modulus", "effective_shear_modulus",
-                 "friction", "rolling_friction", "restitution_coefficient", "cohesion", "yield_pressure")
+        names = (
+            "effective_radius",
+            "effective_mass",
+            "effective_modulus",
+            "effective_shear_modulus",
+            "friction",
+            "rolling_friction",
+            "restitution_coefficient",
+            "cohesion",
+            "yield_pressure",
+        )
         values = {name: getattr(self, name) for name in names} | self._model_coefficients()
         return MappingProxyType({k: v for k, v in values.items() if v is not None})
 
@@ -125,8 +138,9 @@ class ContactModel(abc.ABC):
 
     # --- force laws -------------------------------------------------------------------
     @abc.abstractmethod
-    def normal_force(self, overlap: ArrayLike, overlap_rate: ArrayLike,
-                     max_overlap: ArrayLike | None = None) -> Array:
+    def normal_force(
+        self, overlap: ArrayLike, overlap_rate: ArrayLike, max_overlap: ArrayLike | None = None
+    ) -> Array:
         """Normal force (positive repulsive) at the given overlap and overlap rate."""
 
     @abc.abstractmethod
@@ -140,9 +154,14 @@ class ContactModel(abc.ABC):
         """Overlap at which an unloading contact with this history breaks."""
         return 0.0
 
-    def tangential_force(self, overlap: ArrayLike, tangential_overlap: ArrayLike,
-                         tangential_rate: ArrayLike, normal_force: ArrayLike,
-                         max_overlap: ArrayLike | None = None) -> tuple[Array, Array]:
+    def tangential_force(
+        self,
+        overlap: ArrayLike,
+        tangential_overlap: ArrayLike,
+        tangential_rate: ArrayLike,
+        normal_force: ArrayLike,
+        max_overlap: ArrayLike | None = None,
+    ) -> tuple[Array, Array]:
         """Tangential force with history and Coulomb limit; returns ``(force, tangential_overlap)``.
 
         ``F_t = -k_t xi - gamma_t v_t``, with ``xi`` the accumulated tangential
@@ -164,8 +183,9 @@ class ContactModel(abc.ABC):
         limit = self.friction * np.abs(np.asarray(normal_force, float))[..., None]
         slip = magnitude > limit
         ratio = np.where(slip, limit / np.where(slip, magnitude, 1.0), 1.0)
-        viscous = np.divide(gammat * rate, kt, out=np.zeros(np.broadcast_shapes(rate.shape, kt.shape)),
-                            where=kt > 0)
+        viscous = np.divide(
+            gammat * rate, kt, out=np.zeros(np.broadcast_shapes(rate.shape, kt.shape)), where=kt > 0
+        )
         history = np.where(slip, ratio * (xi + viscous) - viscous, xi)
         return np.where(contact, ratio * trial, 0.0), np.where(contact, history, 0.0)
 
@@ -177,7 +197,8 @@ class ContactModel(abc.ABC):
         """
         if self.rolling_friction is None:
             raise ConfigError(
-                f"{type(self).__name__}: the rolling torque needs 'coefficientRollingFriction'.")
+                f"{type(self).__name__}: the rolling torque needs 'coefficientRollingFriction'."
+            )
         w = np.asarray(angular_velocity, float)
         norm = np.linalg.norm(w, axis=-1, keepdims=True)
         direction = np.divide(w, norm, out=np.zeros_like(w), where=norm > 0)
@@ -193,7 +214,8 @@ class ContactModel(abc.ABC):
         if velocity is None:
             if "characteristicVelocity" not in self.material:
                 raise ConfigError(
-                    f"{type(self).__name__}: give an impact velocity or 'characteristicVelocity'.")
+                    f"{type(self).__name__}: give an impact velocity or 'characteristicVelocity'."
+                )
             return self.material["characteristicVelocity"]
         if not velocity > 0:
             raise ConfigError(f"The impact velocity must be > 0, got {velocity!r}.")
@@ -211,8 +233,12 @@ class ContactModel(abc.ABC):
         """
         v0 = self._velocity(velocity)
         span = 50 * self.contactTime(v0)
-        options = {"method": "DOP853", "rtol": 1e-10, "atol": 1e-13 * np.array([v0 * span, v0]),
-                   "dense_output": True}
+        options = {
+            "method": "DOP853",
+            "rtol": 1e-10,
+            "atol": 1e-13 * np.array([v0 * span, v0]),
+            "dense_output": True,
+        }
 
         def rhs(t: float, y: Array, history: float | None) -> tuple[float, float]:
             return y[1], -float(self.normal_force(y[0], y[1], history)) / self.effective_mass
@@ -236,8 +262,9 @@ class ContactModel(abc.ABC):
         t1, y1 = loading.t_events[0][0], loading.y_events[0][0]
         history = float(y1[0])
         separation = self._separation_overlap(history)
-        unloading = solve_ivp(rhs, (t1, t1 + span), y1, events=[separating, returning], args=(history,),
-                              **options)
+        unloading = solve_ivp(
+            rhs, (t1, t1 + span), y1, events=[separating, returning], args=(history,), **options
+        )
         if unloading.status != 1:
             raise RuntimeError(f"{type(self).__name__}: the contact neither broke nor captured the particle.")
         captured = unloading.t_events[1].size > 0
@@ -245,8 +272,10 @@ class ContactModel(abc.ABC):
 
         times = (np.linspace(0.0, t1, samples), np.linspace(t1, t2, samples)[1:])
         states = [loading.sol(times[0]).T, unloading.sol(times[1]).T]
-        forces = [self.normal_force(states[0][:, 0], states[0][:, 1]),
-                  self.normal_force(states[1][:, 0], states[1][:, 1], history)]
+        forces = [
+            self.normal_force(states[0][:, 0], states[0][:, 1]),
+            self.normal_force(states[1][:, 0], states[1][:, 1], history),
+        ]
         return Impact(np.concatenate(times), np.concatenate(states), np.concatenate(forces), captured)
 
     def restitution(self, velocity: float | None = None) -> float:

@@ -42,8 +42,10 @@ def shear_modulus(E: ArrayLike, nu: ArrayLike) -> Real:
 
 def effective_shear_modulus(E1: ArrayLike, nu1: ArrayLike, E2: ArrayLike, nu2: ArrayLike) -> Real:
     """Mindlin contact shear modulus: ``1/G* = (2 - nu1)/G1 + (2 - nu2)/G2`` (as LIGGGHTS)."""
-    return 1.0 / ((2 - np.asarray(nu1, float)) / shear_modulus(E1, nu1)
-                  + (2 - np.asarray(nu2, float)) / shear_modulus(E2, nu2))
+    return 1.0 / (
+        (2 - np.asarray(nu1, float)) / shear_modulus(E1, nu1)
+        + (2 - np.asarray(nu2, float)) / shear_modulus(E2, nu2)
+    )
 
 
 def effective_radius(R1: ArrayLike, R2: ArrayLike = np.inf) -> Real:

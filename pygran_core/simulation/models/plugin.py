@@ -11,6 +11,7 @@ from pygran_core.simulation.models import HertzMindlin, SpringDashpot, ThorntonN
 @hookimpl
 def pygran_models() -> Iterator[ModelSpec]:
     yield ModelSpec("SpringDashpot", SpringDashpot, "linear spring-dashpot (LIGGGHTS hooke), SJKR cohesion")
-    yield ModelSpec("HertzMindlin", HertzMindlin,
-                    "Hertz-Mindlin with viscous damping (LIGGGHTS hertz), SJKR cohesion")
+    yield ModelSpec(
+        "HertzMindlin", HertzMindlin, "Hertz-Mindlin with viscous damping (LIGGGHTS hertz), SJKR cohesion"
+    )
     yield ModelSpec("ThorntonNing", ThorntonNing, "elastic-plastic Thornton-Ning with JKR adhesion")

@@ -63,8 +63,12 @@ class ThorntonNing(ContactModel):
         self.pull_off_force = 3 * math.pi * self.cohesion * R
 
     def _model_coefficients(self) -> dict[str, float]:
-        return {"yield_radius": self.yield_radius, "yield_overlap": self.yield_overlap,
-                "yield_force": self.yield_force, "pull_off_force": self.pull_off_force}
+        return {
+            "yield_radius": self.yield_radius,
+            "yield_overlap": self.yield_overlap,
+            "yield_force": self.yield_force,
+            "pull_off_force": self.pull_off_force,
+        }
 
     # --- JKR geometry ------------------------------------------------------------------
     def _overlap(self, a: ArrayLike, R: ArrayLike) -> Array:
@@ -134,8 +138,9 @@ class ThorntonNing(ContactModel):
         return float(delta_p + self._overlap(self._separation_radius(R_p), R_p))
 
     # --- forces ------------------------------------------------------------------------
-    def normal_force(self, overlap: ArrayLike, overlap_rate: ArrayLike,
-                     max_overlap: ArrayLike | None = None) -> Array:
+    def normal_force(
+        self, overlap: ArrayLike, overlap_rate: ArrayLike, max_overlap: ArrayLike | None = None
+    ) -> Array:
         """Normal force; ``overlap_rate`` does not enter (no viscous damping)."""
         overlap, _ = np.broadcast_arrays(np.asarray(overlap, float), np.asarray(overlap_rate, float))
         a, R_p = self._state(overlap, max_overlap)

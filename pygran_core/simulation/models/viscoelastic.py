@@ -35,8 +35,13 @@ class _Viscoelastic(ContactModel):
 
     required = (*ContactModel.required, "coefficientRestitution")
 
-    def __init__(self, material: Mapping[str, float], *, partner: Mapping[str, float] | None = None,
-                 limitForce: bool = False) -> None:
+    def __init__(
+        self,
+        material: Mapping[str, float],
+        *,
+        partner: Mapping[str, float] | None = None,
+        limitForce: bool = False,
+    ) -> None:
         super().__init__(material, partner=partner)
         self.limit_force = bool(limitForce)
         e = self.restitution_coefficient
@@ -47,8 +52,9 @@ class _Viscoelastic(ContactModel):
     def _normal_coefficients(self, overlap: Array) -> tuple[Array, Array]:
         """Normal ``k_n`` and ``gamma_n`` at the given (positive) overlap."""
 
-    def normal_force(self, overlap: ArrayLike, overlap_rate: ArrayLike,
-                     max_overlap: ArrayLike | None = None) -> Array:
+    def normal_force(
+        self, overlap: ArrayLike, overlap_rate: ArrayLike, max_overlap: ArrayLike | None = None
+    ) -> Array:
         """Normal force; ``max_overlap`` is unused (no normal history)."""
         overlap = np.asarray(overlap, float)
         contact = overlap > 0
@@ -81,8 +87,13 @@ class SpringDashpot(_Viscoelastic):
 
     required = (*_Viscoelastic.required, "characteristicVelocity")
 
-    def __init__(self, material: Mapping[str, float], *, partner: Mapping[str, float] | None = None,
-                 limitForce: bool = False) -> None:
+    def __init__(
+        self,
+        material: Mapping[str, float],
+        *,
+        partner: Mapping[str, float] | None = None,
+        limitForce: bool = False,
+    ) -> None:
         super().__init__(material, partner=partner, limitForce=limitForce)
         R, E, m = self.effective_radius, self.effective_modulus, self.effective_mass
         V = self.material["characteristicVelocity"]

@@ -72,6 +72,7 @@ def size_classes(radius: RadiusDistribution) -> list[tuple[float, float]]:
     radii = centre + spread * mids if radius.kind == "normal" else centre * np.exp(spread * mids)
     return [(float(r), float(w)) for r, w in zip(radii, weights)]
 
+
 #: LIGGGHTS refuses Young's moduli below this (SI) unless told ``soft_particles yes``.
 SOFT_LIMIT = 5e6
 
