@@ -163,6 +163,11 @@ class PlacingEngine(Engine):
 
     def __init__(self, spec: SimulationSpec) -> None:
         super().__init__(spec)
+        if not spec.species:
+            raise ConfigError(
+                f"The {self.name} engine needs at least one species: "
+                "species=({'material': ..., 'radius': ...},)"
+            )
         self._schedules: dict[str, _Schedule] = {}
         self._insertions = 0
 

@@ -50,10 +50,6 @@ class NativeEngine(PlacingEngine):
             raise self._unsupported(
                 f"the contact model {spec.model.__name__} (it has kernels for {', '.join(MODEL_KIND)})"
             )
-        if not spec.species:
-            raise ConfigError(
-                "The native engine needs at least one species: species=({'material': ..., 'radius': ...},)"
-            )
         gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
         self.solver = Solver(
             np.array(spec.domain.box).T, spec.domain.periodic, gravity, spec.skin, spec.threads, spec.seed

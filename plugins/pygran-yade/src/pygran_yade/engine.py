@@ -100,10 +100,6 @@ class YadeEngine(PlacingEngine):
 
     def __init__(self, spec: SimulationSpec) -> None:
         super().__init__(spec)
-        if not spec.species:
-            raise ConfigError(
-                "The yade engine needs at least one species: species=({'material': ..., 'radius': ...},)"
-            )
         n = len(spec.species)
         # materials: species k -> k - 1; walls of species k -> n + k - 1; meshes with their own after
         self._mesh_material = {m.name: 2 * n + i for i, m in enumerate(m for m in spec.meshes if m.material)}
