@@ -199,7 +199,7 @@ def analyse(study: HopperStudy, output: Path, engine: str, opened: int) -> Summa
     rdf = settled.computeRDF(dr=0.05 * study.radius, rMax=6 * study.radius)
     # computeRDF normalises by the particles' bounding box, which around a cone is partly empty:
     # renormalise by the bulk number density measured on the axis, so that g tends to 1
-    box_density = (len(settled) - 1) / settled.computeVolume("box")
+    box_density = (len(settled) - 1) / np.prod(np.ptp(settled.positions, axis=0))  # computeRDF's reference
     rdf = rdf._replace(g=rdf.g * box_density / (packing / (4 / 3 * math.pi * study.radius**3)))
     peak = float(rdf.r[np.argmax(rdf.g)] / (2 * study.radius))
 
