@@ -12,9 +12,7 @@ from types import ModuleType
 
 import numpy as np
 import pytest
-
-pytest.importorskip("matplotlib")
-from matplotlib.image import imread  # noqa: E402
+from matplotlib.image import imread
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "examples"
