@@ -316,3 +316,21 @@ def test_dem_on_a_third_party_engine(with_plugins, tmp_path):
         assert [again._seed() for _ in range(3)] == first
     log = (tmp_path / "o" / "pygran.log").read_text()
     assert "create CreateSpec(species=1, style='single'" in log and "run 20 steps" in log
+
+
+def test_set_spec_selects_by_species_region_and_ids():
+    s = spec(species=({"material": MATERIAL, "radius": 5e-4}, {"material": MATERIAL, "radius": 5e-4}))
+    request = calls.parse_set(
+        {"species": 2, "region": ("block", 0, 5e-3, 0, 1e-2, 0, 2e-2), "vel": (0, 0, 1)}, s
+    )
+    ids, types = np.array([1, 2, 3, 4]), np.array([1, 2, 2, 2])
+    positions = np.array([[1e-3, 0, 0], [2e-3, 0, 0], [7e-3, 0, 0], [4e-3, 0, 0]])
+    assert request.select(ids, types, positions).tolist() == [2, 4]
+    assert calls.parse_set({"ids": 3, "radius": 1e-3}, s).select(ids, types, positions).tolist() == [3]
+    for bad, message in (
+        ({"species": 1}, "needs something to assign"),
+        ({"ids": [0], "vel": (0, 0, 0)}, "ids must be"),
+        ({"vel": (0, 0, 0), "spcies": 1}, "Did you mean 'species'"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            calls.parse_set(bad, s)

@@ -460,3 +460,54 @@ def parse_monitor(kwargs: Mapping[str, Any]) -> MonitorSpec:
         positive_int(kwargs.get("freq", 100), "monitor freq"),
         str(kwargs.get("file", kwargs.get("name", "monitor") + ".txt")),
     )
+
+
+# -- assigning properties ----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SetSpec:
+    """New ``velocity``, ``omega`` and/or ``radius`` for the particles of ``species``, inside
+    ``region`` and/or with the given ``ids`` (all conditions that are given must hold)."""
+
+    species: tuple[int, ...] | None = None
+    region: Region | None = None
+    ids: tuple[int, ...] | None = None
+    velocity: Vector | None = None
+    omega: Vector | None = None
+    radius: float | None = None
+
+    def select(self, ids: np.ndarray, types: np.ndarray, positions: np.ndarray) -> np.ndarray:
+        """The ids (of ``ids``, with ``types`` and ``positions`` alike) this request applies to."""
+        chosen = np.ones(len(ids), bool)
+        if self.species is not None:
+            chosen &= np.isin(types, self.species)
+        if self.region is not None:
+            chosen &= self.region.contains(positions)
+        if self.ids is not None:
+            chosen &= np.isin(ids, self.ids)
+        return ids[chosen]
+
+
+def parse_set(kwargs: Mapping[str, Any], spec: SimulationSpec) -> SetSpec:
+    check_keys("set keyword", kwargs, ("species", "region", "ids", "vel", "omega", "radius"))
+    values = {
+        "velocity": None if kwargs.get("vel") is None else number_tuple(kwargs["vel"], "vel"),
+        "omega": None if kwargs.get("omega") is None else _omega(kwargs["omega"]),
+        "radius": None if kwargs.get("radius") is None else positive_float(kwargs["radius"], "radius"),
+    }
+    if all(v is None for v in values.values()):
+        raise ConfigError(
+            "set/velocity needs something to assign: vel=(vx, vy, vz), omega=(...) or radius=..."
+        )
+    ids = kwargs.get("ids")
+    if ids is not None:
+        ids = (ids,) if isinstance(ids, Integral) else tuple(ids)
+        if not ids or any(isinstance(i, bool) or not isinstance(i, Integral) or i < 1 for i in ids):
+            raise ConfigError(f"ids must be particle ids (1, 2, ...), got {kwargs['ids']!r}")
+    return SetSpec(
+        species=None if kwargs.get("species") is None else parse_species_selection(kwargs["species"], spec),
+        region=None if kwargs.get("region") is None else parse_region(kwargs["region"], spec),
+        ids=None if ids is None else tuple(int(i) for i in ids),
+        **values,
+    )

@@ -88,6 +88,18 @@ class DEM:
             calls.parse_create(species, style, args, kwargs, self.spec, self._seed())
         )
 
+    def set(self, **kwargs: Any) -> int:
+        """Assign ``vel=(vx, vy, vz)``, ``omega=(wx, wy, wz)`` and/or ``radius=r`` to the particles
+        of ``species``, inside ``region`` and/or with ``ids`` (none of them: every particle).
+        Returns how many particles changed."""
+        return self.engine.set_properties(calls.parse_set(kwargs, self.spec))
+
+    def velocity(self, **kwargs: Any) -> int:
+        """:meth:`set` for velocities: ``vel=`` and/or ``omega=`` (no ``radius``)."""
+        if "radius" in kwargs:
+            raise ConfigError("velocity() assigns vel and omega; use set(radius=...) for radii")
+        return self.set(**kwargs)
+
     # -- walls and meshes ----------------------------------------------------------------
 
     def setupWall(

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
         InsertSpec,
         MonitorSpec,
         MotionSpec,
+        SetSpec,
         ViscousSpec,
         WallSpec,
     )
@@ -189,6 +190,15 @@ class Engine(abc.ABC):
         count = self._create(spec)
         self.log("create %s: %d particles", spec, count)
         return count
+
+    def set_properties(self, spec: SetSpec) -> int:
+        """Assign velocity, angular velocity and/or radius to the selected particles; returns how many."""
+        self._check_open()
+        ids = spec.select(self._extract("id"), self._extract("type"), self._extract("x"))
+        if len(ids):
+            self._assign(ids, spec)
+        self.log("set %s: %d particles", spec, len(ids))
+        return len(ids)
 
     def setup_wall(self, spec: WallSpec) -> Handle:
         self.require("mesh-walls" if spec.kind == "mesh" else "primitive-walls", f"{spec.kind} walls")
@@ -360,6 +370,10 @@ class Engine(abc.ABC):
 
     def _create(self, spec: CreateSpec) -> int:
         raise self._unsupported("createParticles")
+
+    def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
+        """Give the particles with these ids the spec's velocity, omega and/or radius."""
+        raise self._unsupported("set/velocity")
 
     def _wall(self, spec: WallSpec) -> str:
         raise self._unsupported("setupWall")

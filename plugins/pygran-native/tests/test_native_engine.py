@@ -158,3 +158,19 @@ def test_unsupported_and_wrong_calls_are_clear(tmp_path):
 
     with pytest.raises(UnsupportedFeature, match="does not implement the contact model StiffSpring"):
         dem(tmp_path, model=StiffSpring)
+
+
+def test_set_velocity_omega_and_radius(tmp_path):
+    species = ({"material": SOFT, "radius": 5e-5}, {"material": SOFT, "radius": 5e-5})
+    with dem(tmp_path, gravity=None, species=species) as sim:
+        for k, x in enumerate((-6e-4, -2e-4, 2e-4, 6e-4)):
+            sim.createParticles(1 + k % 2, "single", x, 0.0, 1e-3)
+        assert sim.velocity(species=2, vel=(0, 0, 0.1), omega=(1, 0, 0)) == 2
+        assert sim.set(region=("block", 0, 1e-3, -1e-3, 1e-3, 0, 2e-3), radius=8e-5) == 2
+        np.testing.assert_array_equal(sim.extractVelocities()[:, 2], [0, 0.1, 0, 0.1])
+        np.testing.assert_array_equal(sim.extractOmegas()[:, 0], [0, 1, 0, 1])
+        np.testing.assert_array_equal(sim.extractRadii(), [5e-5, 5e-5, 8e-5, 8e-5])
+        mass = sim.engine.extract("mass")
+        assert mass[2] / mass[0] == pytest.approx((8 / 5) ** 3)
+        with pytest.raises(ConfigError, match="use set\\(radius=...\\)"):
+            sim.velocity(radius=1e-4)

@@ -25,7 +25,14 @@ from pygran_liggghts.commands import Commands, fmt, native_meshes, native_partic
 from pygran_liggghts.session import LocalSession, WorkerSession, under_mpirun
 
 if TYPE_CHECKING:
-    from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, ViscousSpec, WallSpec
+    from pygran_core.simulation.calls import (
+        CreateSpec,
+        InsertSpec,
+        MotionSpec,
+        SetSpec,
+        ViscousSpec,
+        WallSpec,
+    )
     from pygran_core.simulation.engine import Handle
     from pygran_core.simulation.specs import SimulationSpec
 
@@ -225,6 +232,23 @@ class LiggghtsEngine(Engine):
             lines.append(f"set atom {atoms} vx {vx} vy {vy} vz {vz}")
         self._pending += lines  # sent with the next request
         return count
+
+    def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
+        if spec.omega is not None:
+            raise UnsupportedFeature("LIGGGHTS 3.8 rejects setting angular velocities (set ... omega)")
+        group = self.commands.new_id("set")
+        lines = [f"group {group} id {' '.join(str(int(i)) for i in ids)}"]
+        if spec.velocity is not None:
+            vx, vy, vz = (fmt(v) for v in spec.velocity)
+            lines.append(f"set group {group} vx {vx} vy {vy} vz {vz}")
+        if spec.radius is not None:
+            lines.append(f"set group {group} diameter {fmt(2 * spec.radius)}")
+            types = self._extract("type")[np.isin(self._extract("id"), ids)]
+            for species in np.unique(types):  # the mass follows the new size at the species' density
+                density = fmt(self.spec.species[int(species) - 1].density)
+                lines.append(f"set type {int(species)} density {density}")
+        lines.append(f"group {group} delete")
+        self._execute(lines)
 
     def _wall(self, spec: WallSpec) -> str:
         label, lines = self.commands.wall(spec)

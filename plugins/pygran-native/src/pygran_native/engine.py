@@ -14,7 +14,7 @@ import numpy as np
 
 from pygran_core.errors import ConfigError
 from pygran_core.io import Frame
-from pygran_core.simulation.calls import MotionSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.specs import SimulationSpec
@@ -119,6 +119,15 @@ class NativeEngine(PlacingEngine):
             velocities=velocities,
             omegas=np.tile(omega, (len(radii), 1)),
         )
+
+    def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
+        solver_ids = np.asarray(ids) - 1  # the solver counts from 0
+        if spec.velocity is not None:
+            self.solver.set_velocities(solver_ids, np.tile(spec.velocity, (len(solver_ids), 1)))
+        if spec.omega is not None:
+            self.solver.set_omegas(solver_ids, np.tile(spec.omega, (len(solver_ids), 1)))
+        if spec.radius is not None:
+            self.solver.set_radii(solver_ids, spec.radius)
 
     # -- walls and meshes ----------------------------------------------------------------
 
