@@ -19,46 +19,14 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 SIZES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
-R = 1e-3
-MATERIAL = {
-    "youngsModulus": 5e6,
-    "poissonsRatio": 0.45,
-    "coefficientRestitution": 0.3,
-    "coefficientFriction": 0.5,
-    "density": 2500.0,
-}
 
 
-def settle(n: int, nprocs: int, output: str, seed: int = 12345) -> None:
+def settle(n: int, nprocs: int, output: str) -> None:
     """The settle scenario through PyGran."""
-    from pygran_core import simulation
+    from pygran_core.validation import settle_setup
 
-    nx, ny, nz = SIZES[n]
-    a = 1.1 * 2 * R
-    grid = np.stack(np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij"), -1).reshape(
-        -1, 3
-    )
-    x = (grid + 0.5) * a + np.random.default_rng(seed).uniform(-1, 1, grid.shape) * 0.45 * (a - 2 * R)
-    with simulation.DEM(
-        engine="liggghts",
-        model=simulation.models.HertzMindlin,
-        nprocs=nprocs,
-        box=(0, nx * a, 0, ny * a, 0, (nz + 3) * a),
-        boundary=("p", "p", "f"),
-        gravity=(9.81, 0, 0, -1),
-        dt=1e-5,
-        nns_skin=4e-4,
-        output=output,
-        species=({"material": MATERIAL, "radius": R},),
-        traj={"pfile": None},
-        progress=False,
-    ) as sim:
-        sim.setupWall(species=1, plane="zplane", peq=0.0)
-        for position in x:
-            sim.createParticles(1, "single", *position)
+    with settle_setup("liggghts", Path(output), SIZES[n], nprocs=nprocs) as sim:
         sim.run(8000)
         sim.run(4000)
 

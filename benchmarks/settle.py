@@ -17,56 +17,22 @@ import json
 import resource
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
-from pygran_core import simulation
 from pygran_core.analysis import Particles
 from pygran_core.analysis.equilibrium import Neighbors
+from pygran_core.validation import settle_setup
 
 SHAPES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
-RADIUS, SPACING = 1e-3, 1.1 * 2e-3
-MATERIAL = {
-    "youngsModulus": 5e6,
-    "poissonsRatio": 0.45,
-    "coefficientRestitution": 0.3,
-    "coefficientFriction": 0.5,
-    "coefficientRollingFriction": 0.0,
-    "density": 2500.0,
-}
-
-
-def lattice(shape: tuple[int, int, int], seed: int = 12345) -> np.ndarray:
-    """Cell centres (i + 0.5) a, each displaced uniformly by up to 0.45 (a - 2r) per axis."""
-    cells = np.stack(np.meshgrid(*(np.arange(n) for n in shape), indexing="ij"), -1).reshape(-1, 3)
-    rng = np.random.default_rng(seed)
-    return (cells + 0.5) * SPACING + rng.uniform(-1, 1, cells.shape) * 0.45 * (SPACING - 2 * RADIUS)
 
 
 def run(engine: str, n: int, threads: int | None) -> dict:
-    shape = SHAPES[n]
-    nx, ny, nz = shape
+    parallel = {} if threads is None else {"nprocs" if engine == "liggghts" else "threads": threads}
     with tempfile.TemporaryDirectory() as output:
-        params = {
-            "engine": engine,
-            "model": simulation.models.HertzMindlin,
-            "output": output,
-            "box": (0, nx * SPACING, 0, ny * SPACING, 0, (nz + 3) * SPACING),
-            "boundary": ("p", "p", "f"),
-            "gravity": (9.81, 0, 0, -1),
-            "dt": 1e-5,
-            "nns_skin": 4e-4,
-            "progress": False,
-            "species": ({"material": MATERIAL, "radius": RADIUS},),
-            "traj": {"pfile": None},
-        }
-        if threads is not None:
-            params["threads" if engine != "liggghts" else "nprocs"] = threads
-        with simulation.DEM(**params) as sim:
-            sim.setupWall(species=1, plane="zplane", peq=0.0)
-            start = time.perf_counter()
-            for centre in lattice(shape):
-                sim.createParticles(1, "single", *centre)
+        start = time.perf_counter()
+        with settle_setup(engine, Path(output), SHAPES[n], **parallel) as sim:
             created = time.perf_counter() - start
             assert len(sim.extractIds()) == n
             timings = []
@@ -74,12 +40,13 @@ def run(engine: str, n: int, threads: int | None) -> dict:
                 start = time.perf_counter()
                 sim.run(steps)
                 timings.append(n * steps / (time.perf_counter() - start))
+            x = sim.extractCoords()
             bed = Particles(
-                x=sim.extractCoords()[:, 0],
-                y=sim.extractCoords()[:, 1],
-                z=sim.extractCoords()[:, 2],
+                x=x[:, 0],
+                y=x[:, 1],
+                z=x[:, 2],
                 radius=sim.extractRadii(),
-                box=np.array(params["box"]).reshape(3, 2),
+                box=np.array(sim.spec.domain.box),
                 boundary=("pp", "pp", "ff"),
             )
     return {

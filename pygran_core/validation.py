@@ -289,6 +289,53 @@ def _lattice(shape: tuple[int, int, int]) -> np.ndarray:
     return np.stack(np.meshgrid(*(np.arange(k) for k in shape), indexing="ij"), axis=-1).reshape(-1, 3)
 
 
+#: Lattice spacing of the settle scenario: 1.1 particle diameters.
+SETTLE_SPACING = 1.1 * 2 * RADIUS
+
+
+def settle_positions(shape: tuple[int, int, int], seed: int = 12345) -> np.ndarray:
+    """The settle scenario's start: cell centres ``(i + 0.5) a`` of an ``NX x NY x NZ`` lattice
+    (x slowest), each displaced uniformly by up to ``0.45 (a - 2r)`` per axis."""
+    cells = _lattice(shape)
+    jitter = np.random.default_rng(seed).uniform(-1, 1, cells.shape) * 0.45 * (SETTLE_SPACING - 2 * RADIUS)
+    return (cells + 0.5) * SETTLE_SPACING + jitter
+
+
+def settle_setup(
+    engine: str,
+    output: Path,
+    shape: tuple[int, int, int],
+    material: Mapping[str, float] = SOFT,
+    seed: int = 12345,
+    **params: Any,
+) -> DEM:
+    """The settle scenario of ``benchmarks/settle.md`` ready to run: Hertz-Mindlin spheres of
+    radius 1 mm at :func:`settle_positions` in a box periodic in x and y with a floor at
+    z = 0, gravity, dt = 1e-5 s, skin 0.4 mm. ``params`` override keywords (``threads``,
+    ``nprocs``, ``output``...)."""
+    nx, ny, nz = shape
+    a = SETTLE_SPACING
+    sim = one_species(
+        engine,
+        output,
+        material,
+        RADIUS,
+        **{
+            "model": HertzMindlin,
+            "box": (0.0, nx * a, 0.0, ny * a, 0.0, (nz + 3) * a),
+            "boundary": ("p", "p", "f"),
+            "gravity": GRAVITY,
+            "dt": 1e-5,
+            "nns_skin": 4e-4,
+            **params,
+        },
+    )
+    sim.setupWall(species=1, plane="zplane", peq=0.0)
+    for centre in settle_positions(shape, seed):
+        sim.createParticles(1, "single", *centre)
+    return sim
+
+
 def _slab_volume(z: np.ndarray, radii: np.ndarray, low: float, high: float) -> float:
     """Total volume of the spheres (centres at heights ``z``) between the planes ``low`` and ``high``."""
     a, b = (np.clip(h - z, -radii, radii) for h in (low, high))
@@ -305,10 +352,8 @@ def settle(
 ) -> Bed:
     """The settle scenario of ``benchmarks/settle.md`` with ``NX x NY x NZ = shape`` spheres.
 
-    Spheres of radius 1 mm on a lattice of spacing ``a = 2.2 mm``, each displaced by up to
-    ``0.45 (a - 2r)`` per axis (numpy, ``seed``), fall under gravity onto a floor in a box
-    periodic in x and y, for ``steps`` (settle, dense bed) steps of 1e-5 s with Hertz-Mindlin.
-    The bulk is the slab from two diameters above the floor to two diameters below the
+    The spheres of :func:`settle_setup` fall onto the floor for ``steps`` (settle, dense bed)
+    steps. The bulk is the slab from two diameters above the floor to two diameters below the
     bed's top (the highest sphere's top): its packing fraction counts the parts of spheres
     inside it exactly; the coordination number is the mean count of touching neighbours
     (:class:`~pygran_core.analysis.equilibrium.Neighbors`) of the spheres centred in it.
@@ -316,33 +361,14 @@ def settle(
     from pygran_core.analysis import Particles
     from pygran_core.analysis.equilibrium import Neighbors
 
-    radius, spacing = RADIUS, 2.2e-3
-    nx, ny, nz = shape
-    rng = np.random.default_rng(seed)
-    cells = _lattice(shape)
-    centres = (cells + 0.5) * spacing + rng.uniform(-1, 1, cells.shape) * 0.45 * (spacing - 2 * radius)
-    box = (0.0, nx * spacing, 0.0, ny * spacing, 0.0, (nz + 3) * spacing)
-    with one_species(
-        engine,
-        output,
-        material,
-        radius,
-        model=HertzMindlin,
-        box=box,
-        boundary=("p", "p", "f"),
-        gravity=GRAVITY,
-        dt=1e-5,
-        nns_skin=4e-4,
-    ) as sim:
-        sim.setupWall(species=1, plane="zplane", peq=0.0)
-        for centre in centres:
-            sim.createParticles(1, "single", *centre)
+    with settle_setup(engine, output, shape, material, seed) as sim:
         for nsteps in steps:
             sim.run(nsteps)
         x, radii = sim.extractCoords(), sim.extractRadii()
-    low, high = 4 * radius, float(np.max(x[:, 2] + radii)) - 4 * radius
-    fraction = _slab_volume(x[:, 2], radii, low, high) / (box[1] * box[3] * (high - low))
-    periodic = {"box": np.reshape(box, (3, 2)), "boundary": ("pp", "pp", "ff")}
+        box = sim.spec.domain.box
+    low, high = 4 * RADIUS, float(np.max(x[:, 2] + radii)) - 4 * RADIUS
+    fraction = _slab_volume(x[:, 2], radii, low, high) / (box[0][1] * box[1][1] * (high - low))
+    periodic = {"box": np.array(box), "boundary": ("pp", "pp", "ff")}
     bed = Particles(x=x[:, 0], y=x[:, 1], z=x[:, 2], radius=radii, **periodic)
     bulk = (x[:, 2] > low) & (x[:, 2] < high)
     coordination = float(Neighbors(bed).coon[bulk].mean())

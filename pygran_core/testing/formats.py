@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import random
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import pytest
@@ -81,6 +81,29 @@ def assert_frames_equal(
             assert actual.box is None
         else:
             np.testing.assert_array_equal(actual.box, expected.box)
+
+
+def mutate(data: Any, original: bytes, alphabet: bytes) -> bytes:
+    """``original`` with 1 to 4 random edits (a byte flipped, deleted or inserted from
+    ``alphabet``, or the rest cut), drawn with hypothesis' ``data``: input for fuzz tests."""
+    from hypothesis import strategies as st
+
+    mutated = bytearray(original)
+    for _ in range(data.draw(st.integers(1, 4))):
+        where = data.draw(st.integers(0, len(mutated) - 1))
+        action = data.draw(st.sampled_from(["flip", "delete", "insert", "cut"]))
+        byte = data.draw(st.sampled_from(list(alphabet)))
+        if action == "flip":
+            mutated[where] = byte
+        elif action == "delete":
+            del mutated[where]
+        elif action == "insert":
+            mutated.insert(where, byte)
+        else:
+            del mutated[where:]
+        if not mutated:
+            mutated = bytearray(b" ")
+    return bytes(mutated)
 
 
 def frame_size(frame: Frame) -> int:

@@ -11,7 +11,7 @@ from pygran_readers.dump import DumpTrajectory, format_frame
 
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, open_trajectory, open_writer
-from pygran_core.testing import FormatConformance, assert_frames_equal, particle_frames
+from pygran_core.testing.formats import FormatConformance, assert_frames_equal, mutate, particle_frames
 
 HEADER = "ITEM: TIMESTEP\n{step}\nITEM: NUMBER OF ATOMS\n{n}\nITEM: BOX BOUNDS pp pp ff\n0 1\n0 2\n0 3\n"
 
@@ -231,23 +231,9 @@ def test_glob_with_an_empty_last_file(tmp_path):
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_fuzz_mutated_dump_raises_only_read_error(tmp_path, data):
-    original = bytearray(dump_text([3, 0, 2], "id type x y z vx c_a[1]").encode())
-    for _ in range(data.draw(st.integers(1, 4))):
-        where = data.draw(st.integers(0, len(original) - 1))
-        action = data.draw(st.sampled_from(["flip", "delete", "insert", "cut"]))
-        byte = data.draw(st.sampled_from(list(b"0123456789 .-e\nxI:")))
-        if action == "flip":
-            original[where] = byte
-        elif action == "delete":
-            del original[where]
-        elif action == "insert":
-            original.insert(where, byte)
-        else:
-            del original[where:]
-        if not original:
-            original = bytearray(b" ")
+    original = dump_text([3, 0, 2], "id type x y z vx c_a[1]").encode()
     path = tmp_path / "fuzz.dump"
-    path.write_bytes(bytes(original))
+    path.write_bytes(mutate(data, original, b"0123456789 .-e\nxI:"))
     try:
         trajectory = DumpTrajectory([path])
         for frame in trajectory:

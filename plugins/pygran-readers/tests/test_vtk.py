@@ -17,7 +17,7 @@ from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 
 from pygran_core.errors import ReadError, UnsupportedFeature
 from pygran_core.io import Frame, open_trajectory, open_writer
-from pygran_core.testing import FormatConformance, particle_frames
+from pygran_core.testing.formats import FormatConformance, mutate, particle_frames
 
 TRIANGLE, QUAD, VERTEX = 5, 9, 1
 
@@ -310,22 +310,7 @@ def test_fuzz_mutated_legacy_vtk_raises_only_read_error(tmp_path, data, binary):
         _VTKCase().write(path, sample_meshes()[0])
     finally:
         _VTKCase.binary = False
-    original = bytearray(path.read_bytes())
-    for _ in range(data.draw(st.integers(1, 4))):
-        where = data.draw(st.integers(0, len(original) - 1))
-        action = data.draw(st.sampled_from(["flip", "delete", "insert", "cut"]))
-        byte = data.draw(st.sampled_from(list(b"0123456789 .-e\nxP\x00\xff")))
-        if action == "flip":
-            original[where] = byte
-        elif action == "delete":
-            del original[where]
-        elif action == "insert":
-            original.insert(where, byte)
-        else:
-            del original[where:]
-        if not original:
-            original = bytearray(b" ")
-    path.write_bytes(bytes(original))
+    path.write_bytes(mutate(data, path.read_bytes(), b"0123456789 .-e\nxP\x00\xff"))
     try:
         VTKTrajectory([path])[0]
     except ReadError:

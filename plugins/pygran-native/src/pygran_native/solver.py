@@ -43,6 +43,17 @@ __all__ = ["Solver"]
 _MODELS = {"hooke": 0, "hertz": 1, "thornton-ning": 2}
 _HISTORY = {"hooke": 4, "hertz": 4, "thornton-ning": 7}
 _WALL_KINDS = ("plane", "cylinder", "mesh")
+#: The contact-model settings a checkpoint stores (the arguments of Solver.set_contact_model).
+_MODEL_KEYS = (
+    "youngs",
+    "poisson",
+    "restitution",
+    "friction",
+    "rolling_friction",
+    "cohesion_energy",
+    "yield_pressure",
+    "characteristic_velocity",
+)
 
 
 def _array(value, name: str, shape: tuple, dtype=float) -> np.ndarray:
@@ -456,16 +467,7 @@ class Solver:
         state = {f"core_{k}": v for k, v in self._core.get_state().items()}
         model = self._model
         state["model_kind"] = _encode(model["kind"])
-        for key in (
-            "youngs",
-            "poisson",
-            "restitution",
-            "friction",
-            "rolling_friction",
-            "cohesion_energy",
-            "yield_pressure",
-            "characteristic_velocity",
-        ):
+        for key in _MODEL_KEYS:
             state[f"model_{key}"] = np.array(np.nan if model[key] is None else model[key], float)
         state["viscous"] = self._viscous.copy()
         state["counters"] = np.array([self._next_id, self._next_wall, self._next_vertex], np.int64)
@@ -479,16 +481,7 @@ class Solver:
         try:
             kind = _decode(state["model_kind"])
             model = {}
-            for key in (
-                "youngs",
-                "poisson",
-                "restitution",
-                "friction",
-                "rolling_friction",
-                "cohesion_energy",
-                "yield_pressure",
-                "characteristic_velocity",
-            ):
+            for key in _MODEL_KEYS:
                 value = np.asarray(state[f"model_{key}"], float)
                 model[key] = (
                     None
