@@ -13,13 +13,21 @@ from __future__ import annotations
 import abc
 import itertools
 import logging
+import os
 import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
+from pygran_core.errors import ConfigError, EngineError, ReadError, UnsupportedFeature
+from pygran_core.simulation.checkpoint import (
+    Checkpoint,
+    checkpoint_path,
+    latest_checkpoint,
+    read_checkpoint,
+    write_checkpoint,
+)
 from pygran_core.simulation.specs import positive_float, positive_int
 
 if TYPE_CHECKING:
@@ -74,6 +82,10 @@ class Monitor:
         return {name: table[:, i] for i, name in enumerate(names)}
 
 
+def _shorten(text: str, width: int = 120) -> str:
+    return "`" + (text if len(text) <= width else text[: width - 3] + "...") + "`"
+
+
 class Engine(abc.ABC):
     """Base class of DEM engines, built from a validated :class:`SimulationSpec`.
 
@@ -97,6 +109,8 @@ class Engine(abc.ABC):
         self.dt = spec.dt
         self.step = 0
         self.time = 0.0
+        #: (step, time) at the last change of dt: time is computed from it, not summed per chunk.
+        self._clock = (0, 0.0)
         self.closed = False
         self._engine_id = next(Engine._ids)
         self._handles: dict[int, Handle] = {}
@@ -108,6 +122,22 @@ class Engine(abc.ABC):
         self._log_handler.setFormatter(logging.Formatter(_LOG_FORMAT))
         self.log("%s engine opened, output in %s", self.name, self.output)
         self._check_spec(spec)
+        #: ``[call, result]`` for every call that changed the simulation, in order.
+        self._calls: list[list[Any]] = []
+        self._resume: Checkpoint | None = None
+        if spec.restart is not None and spec.restart.resume:
+            self._resume_path = latest_checkpoint(spec.restart)
+            self._resume = read_checkpoint(self._resume_path)
+            if self._resume.engine != self.name:
+                raise ConfigError(
+                    f"{self._resume_path} was written by the {self._resume.engine} engine; "
+                    f"resume it with engine={self._resume.engine!r}"
+                )
+            self.log(
+                "resuming from %s (step %d): the calls before it are checked and replayed",
+                self._resume_path,
+                self._resume.step,
+            )
 
     def _check_spec(self, spec: SimulationSpec) -> None:
         """Refuse, before the solver starts, whatever of ``spec`` this engine cannot do."""
@@ -169,8 +199,32 @@ class Engine(abc.ABC):
 
     def _call(self, kind: str, hook: Any, spec: Any) -> Handle:
         self._check_open()
+        self._journal(f"{kind} {spec!r}")
         self.log("%s %s", kind, spec)
         return self._new_handle(kind, hook(spec))
+
+    @property
+    def replaying(self) -> bool:
+        """Whether the script is being replayed up to the checkpoint it resumes from."""
+        return self._resume is not None
+
+    def _journal(self, call: str) -> Any:
+        """Record a call that changes the simulation. While :attr:`replaying`, check it is the
+        call the checkpoint's script made at this point and return that call's result."""
+        index = len(self._calls)
+        self._calls.append([call, None])
+        if self._resume is None:
+            return None
+        recorded = self._resume.journal
+        if index >= len(recorded) or recorded[index][0] != call:
+            was = recorded[index][0] if index < len(recorded) else "nothing more"
+            raise ConfigError(
+                f"This script is not the one that wrote {self._resume_path}: its call {index + 1} is "
+                f"{_shorten(call)} where that script's was {_shorten(was)}. Resume with the same "
+                "script, or start afresh without resume."
+            )
+        self._calls[index][1] = recorded[index][1]
+        return recorded[index][1]
 
     @property
     def handles(self) -> tuple[Handle, ...]:
@@ -187,17 +241,24 @@ class Engine(abc.ABC):
     def create_particles(self, spec: CreateSpec) -> int:
         """Create particles now; returns how many were created."""
         self._check_open()
-        count = self._create(spec)
+        recorded = self._journal(f"create {spec!r}")
+        if self.replaying:
+            return recorded
+        count = self._calls[-1][1] = self._create(spec)
         self.log("create %s: %d particles", spec, count)
         return count
 
     def set_properties(self, spec: SetSpec) -> int:
         """Assign velocity, angular velocity and/or radius to the selected particles; returns how many."""
         self._check_open()
+        recorded = self._journal(f"set {spec!r}")
+        if self.replaying:
+            return recorded
         ids = spec.select(self._extract("id"), self._extract("type"), self._extract("x"))
         if len(ids):
             self._assign(ids, spec)
         self.log("set %s: %d particles", spec, len(ids))
+        self._calls[-1][1] = len(ids)
         return len(ids)
 
     def setup_wall(self, spec: WallSpec) -> Handle:
@@ -231,6 +292,7 @@ class Engine(abc.ABC):
         """Pass a solver-native command through unchanged."""
         self.require("raw-commands", "raw solver commands")
         self._check_open()
+        self._journal(f"command {text}")
         self.log("command %s", text)
         self._command(text)
 
@@ -243,6 +305,7 @@ class Engine(abc.ABC):
             raise ConfigError(f"{handle!r} is not a handle returned by this simulation")
         if handle.id not in self._handles:
             raise ConfigError(f"{handle.kind} {handle.label!r} was already removed")
+        self._journal(f"remove {handle.kind} {handle.label}")
         if handle.kind == "monitor":
             del self._monitors[handle.id]
         else:
@@ -262,7 +325,9 @@ class Engine(abc.ABC):
         self._check_open()
         nsteps = positive_int(nsteps, "nsteps")
         if dt is not None:
-            self.dt = positive_float(dt, "dt")
+            dt = positive_float(dt, "dt")
+            if dt != self.dt:
+                self._clock, self.dt = (self.step, self.time), dt
         if self.dt is None:
             raise ConfigError("No time step: pass dt to run(nsteps, dt) or dt=... to DEM")
         self.log("run %d steps of dt=%g from step %d", nsteps, self.dt, self.step)
@@ -271,21 +336,32 @@ class Engine(abc.ABC):
             show = sys.stderr.isatty()
         from tqdm import tqdm
 
-        end = self.step + nsteps
-        if self.step == 0:
+        start, end = self.step, self.step + nsteps
+        self._journal(f"run {nsteps} {self.dt!r}")
+        if self.replaying:
+            if len(self._calls) < len(self._resume.journal):
+                self._set_step(end)
+                return  # a run the checkpoint's script had finished before it
+            self._restore()  # the run the checkpoint was taken in
+        elif self.step == 0:
             self._on_event()
-        with tqdm(total=nsteps, unit="step", disable=not show, desc=f"{self.name} run") as bar:
-            for chunk in self._chunks(nsteps):
+        with tqdm(
+            total=nsteps, initial=self.step - start, unit="step", disable=not show, desc=f"{self.name} run"
+        ) as bar:
+            for chunk in self._chunks(end - self.step) if end > self.step else ():
                 try:
                     self._advance(chunk)
                 except EngineError:
                     self.log("solver error at step %d", self.step, level=logging.ERROR)
                     raise
-                self.step += chunk
-                self.time += chunk * self.dt
+                self._set_step(self.step + chunk)
                 bar.update(chunk)
                 self._on_event()
         assert self.step == end
+
+    def _set_step(self, step: int) -> None:
+        self.step = step
+        self.time = self._clock[1] + (step - self._clock[0]) * self.dt
 
     def _frequencies(self) -> list[int]:
         freqs = [m.spec.freq for m in self._monitors.values()]
@@ -322,8 +398,84 @@ class Engine(abc.ABC):
                     handle.write(" ".join(repr(v) for v in row) + "\n")
         restart = self.spec.restart
         if restart is not None and self.step > 0 and self.step % restart.freq == 0:
-            restart.directory.mkdir(parents=True, exist_ok=True)
-            self._checkpoint(restart.directory / restart.fname)
+            self._checkpoint(checkpoint_path(restart, self.step))
+
+    # -- checkpoints ----------------------------------------------------------------------
+
+    def _checkpoint(self, path: Any) -> None:
+        """Write everything needed to continue from this step to ``path`` (HDF5)."""
+        width = {h: 2 + len(m.spec.quantities) for h, m in self._monitors.items()}
+        checkpoint = Checkpoint(
+            engine=self.name,
+            step=self.step,
+            time=self.time,
+            dt=self.dt,
+            journal=[list(call) for call in self._calls],
+            monitors={h: np.array(m.samples, float).reshape(-1, width[h]) for h, m in self._monitors.items()},
+            state=self._state(),
+            facts=self._facts(),
+        )
+        write_checkpoint(path, checkpoint)
+        self.log("checkpoint at step %d: %s", self.step, path)
+
+    def _restore(self) -> None:
+        """Continue from the checkpoint being resumed: the engine's state, the clock, the
+        monitors, and the trajectory files cut back to the checkpoint's step."""
+        checkpoint, self._resume = self._resume, None
+        if checkpoint.facts != self._facts():
+            self.log(
+                "resuming with %s where the checkpoint had %s: the run continues, but not bitwise",
+                self._facts(),
+                checkpoint.facts,
+                level=logging.WARNING,
+            )
+        self.step, self.time, self.dt = checkpoint.step, checkpoint.time, checkpoint.dt
+        self._clock = (int(checkpoint.state["clock"][0]), float(checkpoint.state["clock"][1]))
+        self._restore_state(checkpoint.state)
+        for handle_id, samples in checkpoint.monitors.items():
+            monitor = self._monitors[handle_id]
+            monitor.samples = [tuple(float(v) for v in row) for row in samples]
+            lines = [" ".join(repr(v) for v in row) + "\n" for row in monitor.samples]
+            monitor.path.write_text(
+                "# step time " + " ".join(monitor.spec.quantities) + "\n" + "".join(lines)
+            )
+        traj = self.spec.traj
+        for key, path in (("particles", traj.pfile), ("meshes", traj.mfile)):
+            if path is not None and path.is_file():
+                self._cut_trajectory(key, path)
+        self.log("resumed from %s at step %d", self._resume_path, self.step)
+
+    def _cut_trajectory(self, key: str, path: Any) -> None:
+        """Keep the frames of a single-file trajectory up to this step and append from there.
+
+        Files written a frame each need nothing: later frames are overwritten as they come.
+        """
+        from pygran_core.io import open_trajectory, open_writer
+
+        before = path.with_name(f"{path.stem}.before-resume{path.suffix}")
+        os.replace(path, before)
+        writer = self._writers[key] = open_writer(path)
+        kept = 0
+        try:
+            with open_trajectory(before) as old:
+                for index in range(len(old)):
+                    frame = old[index]
+                    if frame.timestep is not None and frame.timestep > self.step:
+                        break
+                    writer.write_frame(frame)
+                    kept += 1
+        except ReadError as exc:
+            self.log(
+                "resume: %s; %d frames kept in %s, the original is left as %s",
+                exc,
+                kept,
+                path,
+                before,
+                level=logging.WARNING,
+            )
+            return
+        before.unlink()
+        self.log("resume: %d frames up to step %d kept in %s", kept, self.step, path)
 
     def _write(self, key: str, path: Any, make_frame: Any) -> None:
         if key not in self._writers:
@@ -429,8 +581,17 @@ class Engine(abc.ABC):
     def _mesh_frame(self) -> Frame:
         raise self._unsupported("mesh output")
 
-    def _checkpoint(self, path: Any) -> None:
-        raise self._unsupported("checkpoints")
+    def _state(self) -> dict[str, np.ndarray]:
+        """The engine's state for a checkpoint, as named arrays (engines with ``restart``
+        extend it)."""
+        return {"clock": np.array(self._clock, float)}
+
+    def _restore_state(self, state: dict[str, np.ndarray]) -> None:
+        """Put back a :meth:`_state` result; the script's calls up to it have been replayed."""
+
+    def _facts(self) -> dict[str, Any]:
+        """What must be the same on resume for a bitwise continuation (e.g. thread count)."""
+        return {}
 
     def _remove(self, handle: Handle) -> None:
         """Delete the solver object behind ``handle``."""

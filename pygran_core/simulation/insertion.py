@@ -9,6 +9,7 @@ Python iteration per particle.
 from __future__ import annotations
 
 import abc
+import json
 import logging
 import math
 from collections.abc import Sequence
@@ -20,6 +21,7 @@ from scipy.spatial import cKDTree
 
 from pygran_core.errors import ConfigError
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
+from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine, Handle
 from pygran_core.simulation.specs import SimulationSpec
 
@@ -255,6 +257,8 @@ class PlacingEngine(Engine):
 
     def _insert_now(self, schedule: _Schedule, amount: float) -> float:
         """Insert up to ``amount`` of the target; returns the amount drawn, placed or not."""
+        if self.replaying:
+            return 0.0  # the checkpoint being resumed holds the particles
         request = schedule.request
         species, radii = self._draw(request, amount, schedule.rng)
         velocities = request.velocity.sample(len(radii), schedule.rng)
@@ -344,6 +348,27 @@ class PlacingEngine(Engine):
     def _on_event(self) -> None:
         self._run_schedules()
         super()._on_event()
+
+    def _state(self) -> dict[str, np.ndarray]:
+        state = super()._state()
+        for label, schedule in self._schedules.items():
+            end = -1 if schedule.end_step is None else schedule.end_step
+            state[f"schedules/{label}/clock"] = np.array([schedule.next_step, end], np.int64)
+            state[f"schedules/{label}/owed"] = np.array(schedule.owed)
+            state[f"schedules/{label}/rng"] = encode_text(json.dumps(schedule.rng.bit_generator.state))
+        return state
+
+    def _restore_state(self, state: dict[str, np.ndarray]) -> None:
+        super()._restore_state(state)
+        saved = {name.split("/")[1] for name in state if name.startswith("schedules/")}
+        for label in set(self._schedules) - saved:
+            del self._schedules[label]
+        for label in saved:
+            schedule = self._schedules[label]
+            schedule.next_step, end = (int(v) for v in state[f"schedules/{label}/clock"])
+            schedule.end_step = None if end < 0 else end
+            schedule.owed = float(state[f"schedules/{label}/owed"])
+            schedule.rng.bit_generator.state = json.loads(decode_text(state[f"schedules/{label}/rng"]))
 
     def _remove(self, handle: Handle) -> None:
         if handle.kind != "insertion":

@@ -150,8 +150,6 @@ def test_unsupported_and_wrong_calls_are_clear(tmp_path):
             sim.moveMesh("hopper", wiggle=True, amplitude=(0, 0, 1e-4), period=0.01)
     with pytest.raises(ConfigError, match="at least one species"):
         simulation.DEM(engine="native", box=(0, 1, 0, 1, 0, 1), output=str(tmp_path / "x"))
-    with pytest.raises(UnsupportedFeature, match="native engine does not support restart"):
-        dem(tmp_path, restart=100)
 
     class StiffSpring(simulation.models.SpringDashpot):
         """A model from a plugin, without a native kernel."""

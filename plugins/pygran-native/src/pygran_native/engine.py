@@ -41,6 +41,7 @@ class NativeEngine(PlacingEngine):
             "polydisperse",
             "insert-by-rate",
             "threads",
+            "restart",
         }
     )
 
@@ -231,6 +232,17 @@ class NativeEngine(PlacingEngine):
             "radius": solver.radii,
             "mass": solver.masses,
         }[quantity]
+
+    def _state(self) -> dict[str, np.ndarray]:
+        solver = {f"solver/{k}": v for k, v in self.solver.get_state().items()}
+        return {**super()._state(), **solver}
+
+    def _restore_state(self, state: dict[str, np.ndarray]) -> None:
+        super()._restore_state(state)
+        self.solver.set_state({k[len("solver/") :]: v for k, v in state.items() if k.startswith("solver/")})
+
+    def _facts(self) -> dict[str, Any]:
+        return {"threads": self.solver.threads}
 
     def _scalar(self, quantity: str) -> float:
         if quantity == "ke_rot":
