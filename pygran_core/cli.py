@@ -147,6 +147,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         particles=args.particles,
         progress=False if args.no_progress else None,
         report=lambda text: print(f"pygran demo: {text}"),
+        nprocs=args.nprocs,
     )
     print(summary.text(), end="")
     print(
@@ -190,6 +191,11 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--engine", default="native", help="engine to run on (default: native)")
     demo.add_argument("--particles", type=int, help="number of particles (default: 3000)")
     demo.add_argument("--output", default="pygran-demo", help="output folder (default: ./pygran-demo)")
+    demo.add_argument(
+        "--nprocs",
+        type=int,
+        help="MPI ranks for engines that run under MPI (default: every core when mpirun exists)",
+    )
     demo.add_argument("--no-progress", action="store_true", help="no progress bars")
     demo.set_defaults(func=cmd_demo)
     from pygran_core.validation import CHECKS

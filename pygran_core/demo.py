@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import shutil
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -138,8 +140,22 @@ class Summary:
         )
 
 
+def default_nprocs(engine: str) -> int:
+    """MPI ranks for ``engine``: every core where it runs under MPI and ``mpirun`` exists, else 1."""
+    from pygran_core import registry
+
+    if "mpi" in registry.get_engine(engine).capabilities and shutil.which("mpirun"):
+        return os.cpu_count() or 1
+    return 1
+
+
 def simulate(
-    study: HopperStudy, output: Path, engine: str, progress: bool | None, report: Callable[[str], None]
+    study: HopperStudy,
+    output: Path,
+    engine: str,
+    progress: bool | None,
+    report: Callable[[str], None],
+    nprocs: int = 1,
 ) -> int:
     """Fill, settle and discharge the hopper; returns the step at which the stopper was removed."""
     stl = write_stl(output / "hopper.stl", hopper_triangles(study))
@@ -166,19 +182,19 @@ def simulate(
         "mesh": {"hopper": {"file": str(stl), "material": study.material}},
         "traj": {"pfile": "traj.h5", "mfile": "walls*.vtk", "freq": frame_steps},
         "progress": progress,
-    }
+    } | ({"nprocs": nprocs} if nprocs > 1 else {})
     with simulation.DEM(**params) as sim:
         sim.setupWall(wtype="mesh", species=1, mesh="hopper")
         stopper = sim.setupWall(species=1, plane="zplane", peq=0.0)
         fill = ("cylinder", "z", 0.0, 0.0, r_top - 2 * study.radius, study.cone_height, study.height)
         sim.insert(species=1, value=study.particles, region=fill)
-        inserted = len(sim.extractIds())
+        report(f"filling the hopper with {study.particles} particles; settling for {study.settle_time} s")
+        sim.run(round(study.settle_time / study.dt / frame_steps) * frame_steps)
+        inserted = len(sim.extractIds())  # after a run: some engines insert when it starts
         if inserted < study.particles:
             raise ConfigError(
                 f"Only {inserted} of {study.particles} particles fit in the hopper; ask for fewer"
             )
-        report(f"filled the hopper with {inserted} particles; settling for {study.settle_time} s")
-        sim.run(round(study.settle_time / study.dt / frame_steps) * frame_steps)
         opened = sim.step
         sim.remove(stopper)
         report(f"stopper removed at t = {sim.time:.3f} s; discharging for {study.discharge_time} s")
@@ -196,7 +212,8 @@ def analyse(study: HopperStudy, output: Path, engine: str, opened: int) -> Summa
     packing, z_hi = _packing_fraction(study, settled)
     coon = analysis.equilibrium.Neighbors(settled).coon
     bulk = (settled.z > 2 * study.radius) & (settled.z < max(z_hi, 4 * study.radius))
-    rdf = settled.computeRDF(dr=0.05 * study.radius, rMax=6 * study.radius)
+    reach = min(6 * study.radius, 0.4 * float(np.ptp(settled.positions, axis=0).min()))  # small beds
+    rdf = settled.computeRDF(dr=0.05 * study.radius, rMax=reach)
     # computeRDF normalises by the particles' bounding box, which around a cone is partly empty:
     # renormalise by the bulk number density measured on the axis, so that g tends to 1
     box_density = (len(settled) - 1) / np.prod(np.ptp(settled.positions, axis=0))  # computeRDF's reference
@@ -296,14 +313,18 @@ def run(
     particles: int | None = None,
     progress: bool | None = None,
     report: Callable[[str], None] = lambda message: None,
+    nprocs: int | None = None,
     **changes: Any,
 ) -> Summary:
-    """Run the whole study into ``output``: simulation, then analysis. ``changes`` override
-    fields of :class:`HopperStudy` (e.g. ``discharge_time=0.5``)."""
+    """Run the whole study into ``output``: simulation, then analysis. ``nprocs`` MPI ranks
+    (default: :func:`default_nprocs`); ``changes`` override fields of :class:`HopperStudy`
+    (e.g. ``discharge_time=0.5``)."""
     study = HopperStudy(**({"particles": particles} if particles else {}), **changes)
     output = Path(output).resolve()
     output.mkdir(parents=True, exist_ok=True)
-    report(f"hopper study on the {engine} engine into {output}")
-    opened = simulate(study, output, engine, progress, report)
+    nprocs = default_nprocs(engine) if nprocs is None else nprocs
+    ranks = f" on {nprocs} MPI ranks" if nprocs > 1 else ""
+    report(f"hopper study on the {engine} engine{ranks} into {output}")
+    opened = simulate(study, output, engine, progress, report, nprocs)
     report("analysing the trajectory")
     return analyse(study, output, engine, opened)
