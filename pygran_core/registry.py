@@ -45,6 +45,7 @@ FIRST_PARTY = {
     "vtk": "pygran-readers",
     "stl": "pygran-readers",
     "h5md": "pygran-readers",
+    "yade-vtk": "pygran-readers",
 }
 
 #: kind -> (hook name, record type)

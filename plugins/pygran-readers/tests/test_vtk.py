@@ -1,5 +1,6 @@
 """VTK: legacy files written by the vtk package (ASCII/binary, polydata/unstructured), XML
-.vtu (meshio) and .vtp (vtk), particles as points, the hopper mesh sequence, and fuzzing."""
+.vtu (written by meshio) and .vtp (by vtk), both read by vtk, particles as points, the hopper
+mesh sequence, and fuzzing."""
 
 import shutil
 

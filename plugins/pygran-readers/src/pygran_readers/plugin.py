@@ -7,7 +7,7 @@ and h5py, meshio and vtk are imported inside the functions that use them.
 from __future__ import annotations
 
 from pygran_core.hookspecs import ReaderSpec, WriterSpec, hookimpl
-from pygran_readers import dump, h5md, stl, vtk
+from pygran_readers import dump, h5md, stl, vtk, yade
 
 
 @hookimpl
@@ -18,6 +18,15 @@ def pygran_readers():
         open=dump.DumpTrajectory,
         can_open=dump.can_open,
         description="LIGGGHTS/LAMMPS text dump (multi-frame, globs, gzip)",
+    )
+    # Before "vtk": the registry asks can_open in this order, and vtk's accepts any VTK file.
+    yield ReaderSpec(
+        name="yade-vtk",
+        extensions=(".vtu",),
+        open=yade.YadeTrajectory,
+        can_open=yade.can_open,
+        kinds=frozenset({"mesh", "particles"}),
+        description="YADE VTKRecorder output: <name>spheres.<iter>.vtu particles, facets/boxes meshes",
     )
     yield ReaderSpec(
         name="vtk",

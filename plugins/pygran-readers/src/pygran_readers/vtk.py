@@ -1,4 +1,4 @@
-"""VTK meshes and particles: legacy ``.vtk`` (own parser), ``.vtu`` (meshio), ``.vtp`` (vtk).
+"""VTK meshes and particles: legacy ``.vtk`` (own parser), XML ``.vtu`` and ``.vtp`` (vtk).
 
 Every file is one frame; a glob of files is a sequence of frames. A file whose cells are
 all vertices (or that has none) holds particles; it becomes ``x y z`` plus one column per
@@ -15,6 +15,7 @@ parsed a whole section at a time with numpy.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,17 +48,6 @@ POLY_SECTIONS = ("VERTICES", "LINES", "POLYGONS", "TRIANGLE_STRIPS")
 VERTEX, POLY_VERTEX = 1, 2
 _POLY_TYPE = {"VERTICES": (1, 2), "LINES": (3, 4), "TRIANGLE_STRIPS": (6, 6)}
 _POLYGON_TYPE = {3: 5, 4: 9}  # triangle, quad; other sizes are polygons (7)
-MESHIO_TYPES = {
-    "vertex": 1,
-    "line": 3,
-    "triangle": 5,
-    "polygon": 7,
-    "quad": 9,
-    "tetra": 10,
-    "hexahedron": 12,
-    "wedge": 13,
-    "pyramid": 14,
-}
 
 
 def can_open(path: Path) -> bool:
@@ -364,50 +354,94 @@ def _assemble(
     return Mesh(points, cells, types, point_data, cell_data)
 
 
-def read_vtu(path: Path) -> Mesh:
-    """An XML unstructured grid, through meshio."""
-    import meshio
+def read_xml(path: Path, polydata: bool) -> Any:
+    """The dataset of an XML ``.vtp`` (``polydata``) or ``.vtu`` file, read by the ``vtk`` package.
+
+    vtk reports errors only as console text; while it reads, that text is collected instead
+    (vtk's output window and logger are swapped, then restored) and the first error becomes a
+    :class:`ReadError`.
+    """
+    from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow, vtkStringOutputWindow
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLUnstructuredGridReader
+
+    reader = vtkXMLPolyDataReader() if polydata else vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    window, previous = vtkStringOutputWindow(), vtkOutputWindow.GetInstance()
+    cutoff = vtkLogger.GetCurrentVerbosityCutoff()
+    vtkOutputWindow.SetInstance(window)
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
+    try:
+        reader.Update()
+    finally:
+        vtkOutputWindow.SetInstance(previous)
+        vtkLogger.SetStderrVerbosity(vtkLogger.ConvertToVerbosity(cutoff))
+    error = re.search(r"ERROR: In [^\n]*\n[^\n]*?\(0x[0-9a-fA-F]+\): ([^\n]*)", window.GetOutput())
+    if error is not None or reader.GetErrorCode():
+        kind = "PolyData" if polydata else "UnstructuredGrid"
+        reason = f": {error.group(1).strip()}" if error is not None else ""
+        raise ReadError(f"{path}: frame 0: vtk cannot read it as an XML {kind} file{reason}")
+    return reader.GetOutput()
+
+
+def xml_points(dataset: Any) -> np.ndarray:
+    """A vtk dataset's points as ``(P, 3)`` float64."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    points = dataset.GetPoints()
+    if points is None:
+        return np.empty((0, 3))
+    return vtk_to_numpy(points.GetData()).astype(np.float64).reshape(-1, 3)
+
+
+def xml_arrays(data: Any) -> dict[str, np.ndarray]:
+    """The numeric arrays of a vtk point, cell or field data object, by name."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    return {
+        data.GetArrayName(i): vtk_to_numpy(data.GetArray(i)).copy()
+        for i in range(data.GetNumberOfArrays())
+        if data.GetArray(i) is not None
+    }
+
+
+def xml_cell_types(grid: Any) -> np.ndarray:
+    """The VTK cell type of each cell of an unstructured grid."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
 
     try:
-        mesh = meshio.read(path, file_format="vtu")
-    except SystemExit as exc:  # meshio exits on some malformed XML
-        raise ReadError(f"{path}: frame 0: meshio cannot read the file") from exc
-    cells: list[np.ndarray] = []
-    types: list[int] = []
-    cell_data: dict[str, list[np.ndarray]] = {name: [] for name in mesh.cell_data}
-    for block_index, block in enumerate(mesh.cells):
-        if block.type not in MESHIO_TYPES:
-            raise ReadError(f"{path}: frame 0: unsupported cell type {block.type!r}")
-        cells.extend(np.asarray(block.data, dtype=np.int64))
-        types.extend([MESHIO_TYPES[block.type]] * len(block.data))
-        for name, blocks in mesh.cell_data.items():
-            cell_data[name].append(np.asarray(blocks[block_index]))
+        types = grid.GetCellTypes()  # vtk >= 9.6; older versions need an argument here
+    except TypeError:
+        types = grid.GetCellTypesArray()
+    return np.zeros(0, np.int64) if types is None else vtk_to_numpy(types).astype(np.int64)
+
+
+def _split_cells(array: Any) -> list[np.ndarray]:
+    """The cells of a vtkCellArray, one point-index array each."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    if array is None:
+        return []
+    offsets = vtk_to_numpy(array.GetOffsetsArray()).astype(np.int64)
+    connectivity = vtk_to_numpy(array.GetConnectivityArray()).astype(np.int64)
+    return np.split(connectivity, offsets[1:-1]) if len(offsets) > 1 else []
+
+
+def read_vtu(path: Path) -> Mesh:
+    """An XML unstructured grid, through the ``vtk`` package."""
+    grid = read_xml(path, polydata=False)
     return Mesh(
-        np.asarray(mesh.points, dtype=np.float64),
-        cells,
-        types,
-        {k: np.asarray(v) for k, v in mesh.point_data.items()},
-        {k: np.concatenate(v) for k, v in cell_data.items()},
+        xml_points(grid),
+        _split_cells(grid.GetCells()),
+        xml_cell_types(grid).tolist(),
+        xml_arrays(grid.GetPointData()),
+        xml_arrays(grid.GetCellData()),
+        xml_arrays(grid.GetFieldData()),
     )
 
 
 def read_vtp(path: Path) -> Mesh:
-    """An XML polydata file, through the ``vtk`` package (meshio does not read it)."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-    from vtkmodules.vtkCommonCore import vtkCommand
-    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
-
-    errors: list[str] = []
-    reader = vtkXMLPolyDataReader()
-    reader.AddObserver(vtkCommand.ErrorEvent, lambda obj, event: errors.append(event))
-    reader.GetExecutive().AddObserver(vtkCommand.ErrorEvent, lambda obj, event: errors.append(event))
-    reader.SetFileName(str(path))
-    reader.Update()
-    poly = reader.GetOutput()
-    if errors or reader.GetErrorCode():
-        raise ReadError(f"{path}: frame 0: vtk cannot read the file")
-    points = poly.GetPoints()
-    coords = vtk_to_numpy(points.GetData()).astype(np.float64) if points is not None else np.empty((0, 3))
+    """An XML polydata file, through the ``vtk`` package."""
+    poly = read_xml(path, polydata=True)
     cells: list[np.ndarray] = []
     types: list[int] = []
     for key, get in (
@@ -416,25 +450,21 @@ def read_vtp(path: Path) -> Mesh:
         ("POLYGONS", poly.GetPolys),
         ("TRIANGLE_STRIPS", poly.GetStrips),
     ):
-        array = get()
-        offsets = vtk_to_numpy(array.GetOffsetsArray()).astype(np.int64)
-        connectivity = vtk_to_numpy(array.GetConnectivityArray()).astype(np.int64)
-        section = np.split(connectivity, offsets[1:-1]) if len(offsets) > 1 else []
+        section = _split_cells(get())
         cells.extend(section)
         if key == "POLYGONS":
             types.extend(_POLYGON_TYPE.get(len(c), 7) for c in section)
         else:
             one, many = _POLY_TYPE[key]
             types.extend(one if len(c) == 1 or key == "LINES" and len(c) == 2 else many for c in section)
-
-    def arrays(data: Any) -> dict[str, np.ndarray]:
-        return {
-            data.GetArrayName(i): vtk_to_numpy(data.GetArray(i)).copy()
-            for i in range(data.GetNumberOfArrays())
-            if data.GetArray(i) is not None
-        }
-
-    return Mesh(coords, cells, types, arrays(poly.GetPointData()), arrays(poly.GetCellData()))
+    return Mesh(
+        xml_points(poly),
+        cells,
+        types,
+        xml_arrays(poly.GetPointData()),
+        xml_arrays(poly.GetCellData()),
+        xml_arrays(poly.GetFieldData()),
+    )
 
 
 READERS = {".vtk": read_legacy, ".vtu": read_vtu, ".vtp": read_vtp}
@@ -511,7 +541,7 @@ class VTKTrajectory(Trajectory):
             mesh = _reader_for(path)(path)
         except ReadError as exc:
             raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
-        except Exception as exc:  # noqa: BLE001 - meshio/vtk raise many kinds on bad files
+        except Exception as exc:  # noqa: BLE001 - vtk raises many kinds on bad files
             raise ReadError(f"{path}: frame {index}: cannot read it: {type(exc).__name__}: {exc}") from exc
         return mesh_frame(mesh, self.kind)
 
