@@ -1,5 +1,8 @@
 """Finding libliggghts: explicit path, loader, and the install message when missing."""
 
+import subprocess
+import sys
+
 import pytest
 from pygran_liggghts.library import LIBRARY_ENV, find_library
 
@@ -29,3 +32,13 @@ def test_missing_library_says_how_to_install(monkeypatch):
     monkeypatch.setattr("ctypes.util.find_library", lambda name: None)
     with pytest.raises(EngineError, match="apt-get install -y liggghts libliggghts-dev"):
         find_library()
+
+
+def test_worker_imports_no_pygran_core():
+    """The worker starts in the time of numpy, mpi4py and the library, not of PyGran's imports."""
+    code = (
+        "import sys, pygran_liggghts.worker, pygran_liggghts.binding; "
+        "print(sorted(m for m in sys.modules if m.startswith('pygran_core')))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"

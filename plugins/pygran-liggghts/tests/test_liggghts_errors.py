@@ -4,7 +4,7 @@ import os
 import signal
 
 import pytest
-from pygran_liggghts.library import find_library
+from pygran_liggghts.library import LIBRARY_ENV, find_library
 
 from pygran_core import simulation
 from pygran_core.errors import EngineError
@@ -65,4 +65,25 @@ def test_worker_crash(tmp_path):
         os.kill(sim.engine._session.process.pid, signal.SIGKILL)
         with pytest.raises(EngineError, match="signal 9"):
             sim.run(10)
+    works(tmp_path / "after")
+
+
+def test_worker_that_cannot_start(tmp_path, monkeypatch):
+    """The worker starts in the background: DEM() returns, and the first call that waits for
+    LIGGGHTS raises the worker's own error."""
+    require_solver(find_library)
+    monkeypatch.setenv(LIBRARY_ENV, str(tmp_path / "nope.so"))  # inherited by the worker
+    sim = simulation.DEM(
+        engine="liggghts",
+        model="HertzMindlin",
+        box=(0, 0.01, 0, 0.01, 0, 0.01),
+        output=str(tmp_path / "broken"),
+        species=({"material": MATERIAL, "radius": 1e-3},),
+        progress=False,
+    )
+    sim.setupWall(species=1, plane="zplane", peq=0.0)
+    with pytest.raises(EngineError, match=r"(?s)could not start: .*nope\.so' is not a file"):
+        sim.run(10, 1e-6)
+    sim.close()
+    monkeypatch.delenv(LIBRARY_ENV)
     works(tmp_path / "after")

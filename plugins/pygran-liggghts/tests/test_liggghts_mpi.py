@@ -37,6 +37,6 @@ def test_nsim_two_runs_under_mpirun(tmp_path):
     for run, friction, diameter in (("run0", "0.2", "0.001"), ("run1", "0.7", "0.0016")):
         text = (tmp_path / "study" / run / "in.pygran").read_text()
         assert f"coefficientFriction peratomtypepair 1 {friction}\n" in text
-        assert f"diameter {diameter}\n" in text
+        assert f"set atom 1 diameter {diameter} density 2500\n" in text
         assert (tmp_path / "study" / run / "liggghts.log").is_file()
         assert (tmp_path / "study" / run / "pygran.log").is_file()

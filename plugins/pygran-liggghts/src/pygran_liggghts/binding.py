@@ -101,8 +101,8 @@ class Liggghts:
         pointer = self._lib.lammps_extract_global(self._handle, b"nlocal")
         return ctypes.cast(pointer, ctypes.POINTER(ctypes.c_int))[0]
 
-    def local(self, quantity: str) -> np.ndarray:
-        """A copy of this rank's per-atom array ``quantity`` (see :data:`ATOM_ARRAYS`)."""
+    def _view(self, quantity: str) -> np.ndarray:
+        """This rank's per-atom array ``quantity`` (see :data:`ATOM_ARRAYS`) in place."""
         name, columns, ctype = ATOM_ARRAYS[quantity]
         count = self._nlocal()
         pointer = self._lib.lammps_extract_atom(self._handle, name.encode())
@@ -110,8 +110,18 @@ class Liggghts:
             return np.empty((0, columns) if columns > 1 else 0, np.dtype(ctype))
         if columns > 1:  # double **: row pointers into one contiguous block
             pointer = ctypes.cast(pointer, ctypes.POINTER(ctypes.POINTER(ctype)))[0]
-            return np.ctypeslib.as_array(pointer, shape=(count, columns)).copy()
-        return np.ctypeslib.as_array(ctypes.cast(pointer, ctypes.POINTER(ctype)), shape=(count,)).copy()
+            return np.ctypeslib.as_array(pointer, shape=(count, columns))
+        return np.ctypeslib.as_array(ctypes.cast(pointer, ctypes.POINTER(ctype)), shape=(count,))
+
+    def local(self, quantity: str) -> np.ndarray:
+        """A copy of this rank's per-atom array ``quantity`` (see :data:`ATOM_ARRAYS`)."""
+        return self._view(quantity).copy()
+
+    def assign(self, quantity: str, ids: np.ndarray, value: Sequence[float]) -> None:
+        """Set ``quantity`` of the atoms with these ids to ``value``, in LIGGGHTS' own arrays
+        (the next ``run`` must do its full set-up, which sends them to the ghost atoms)."""
+        view = self._view(quantity)
+        view[np.isin(self._view("id"), ids)] = value
 
     def gather(self, quantities: Sequence[str], root: int | None = 0) -> dict[str, np.ndarray] | None:
         """Per-atom arrays of all ranks ordered by atom id, on rank ``root`` (``None``: on all).

@@ -122,7 +122,11 @@ class Commands:
     def setup(self, resume: Path | None = None) -> list[str]:
         """Box, materials, contact model, gravity, integrator, meshes and dumps."""
         spec = self.spec
-        lines = ["units si", "atom_style granular", "atom_modify map array"]
+        # atom sorting's bin is half the neighbour cut-off, given here since with no atoms and no
+        # insertion yet LIGGGHTS sees a zero cut-off and refuses to run ("bin size = 0.0")
+        sort_bin = spec.max_radius + spec.skin / 2
+        sort = f" sort 1000 {fmt(sort_bin)}" if sort_bin > 0 else ""
+        lines = ["units si", "atom_style granular", f"atom_modify map array{sort}"]
         if min(m["youngsModulus"] for m in self.materials) < SOFT_LIMIT:
             lines.append("soft_particles yes")  # else LIGGGHTS refuses moduli below 5 MPa in SI units
         if resume is None:
@@ -277,6 +281,15 @@ class Commands:
         return did, lines
 
     def insert(self, spec: InsertSpec, dt: float | None) -> tuple[str, list[str]]:
+        """``fix insert/pack`` or ``fix insert/rate/region``; by rate without ``freq``, every
+        :attr:`~pygran_core.simulation.insertion.PlacingEngine.rate_interval` as other engines."""
+        every = spec.freq
+        if spec.mechanism == "by_rate" and every is None:
+            if dt is None:
+                raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
+            from pygran_core.simulation.insertion import PlacingEngine
+
+            every = max(1, round(PlacingEngine.rate_interval / dt))
         distribution, lines = self._templates(spec.species, spec.weights, spec.seed)
         rid, region = self.region(spec.region)
         lines.append(region)
@@ -289,13 +302,12 @@ class Commands:
             f"overlapcheck yes all_in {'yes' if spec.all_in else 'no'}"
         )
         if spec.mechanism == "by_pack":
-            every = "once" if spec.freq is None else spec.freq
+            every = "once" if every is None else every
             amount = int(spec.value) if spec.target == "particles_in_region" else fmt(spec.value)
             lines.append(
                 f"fix {iid} all insert/pack {common} insert_every {every} {spec.target} {amount} region {rid}"
             )
             return iid, lines
-        every = spec.freq or 1000
         if spec.target == "particlerate":
             total = "INF" if spec.duration is None else str(max(1, round(spec.value * spec.duration)))
             amount = f"nparticles {total} particlerate {fmt(spec.value)}"

@@ -7,13 +7,22 @@ script itself runs under ``mpirun`` (the manual's mode), each rank loads LIGGGHT
 process; ``nSim=k`` then splits ``COMM_WORLD`` into k groups, each running its own
 simulation (there, a LIGGGHTS error ends the MPI job, as LIGGGHTS calls ``exit``).
 
+Commands wait in a queue only while the worker starts (the script goes on meanwhile) and,
+for particles created one by one, until the next request (their ``set atom`` lines merged
+into ranges) or until :data:`STREAM_LINES` are queued, which are then sent without waiting
+for the answer. A run is split into chunks (``run N pre no`` after the first when no
+command came in between, so LIGGGHTS skips its set-up).
+
 Every command sent is appended to ``<output>/in.pygran``, which reruns unchanged with the
-``liggghts`` binary; LIGGGHTS' screen output goes to ``<output>/liggghts.log``.
+``liggghts`` binary; angular velocities, which no LIGGGHTS 3.8 command sets, are written
+into its arrays and only noted there in a comment. LIGGGHTS' screen output goes to
+``<output>/liggghts.log``.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -34,11 +43,14 @@ if TYPE_CHECKING:
         WallSpec,
     )
     from pygran_core.simulation.engine import Handle
+    from pygran_core.simulation.insertion import Obstacles
     from pygran_core.simulation.specs import SimulationSpec
 
 INPUT_NAME = "in.pygran"
 LOG_NAME = "liggghts.log"
 WORKER_LOG_NAME = "worker.log"
+#: Queued lines of particles created one by one that are sent on without waiting.
+STREAM_LINES = 1000
 
 
 def mpi_placement(spec: SimulationSpec) -> tuple[Any, SimulationSpec]:
@@ -90,6 +102,16 @@ class LiggghtsEngine(Engine):
         super().__init__(spec)
         self._failure: EngineError | None = None
         self._session: Any = None
+        self._input = None
+        self._prepared = False  # no command since the last run: the next may skip its set-up
+        self._pending: list[str] = []  # lines LIGGGHTS has not run yet
+        #: ``[first, last, "keyword value ..."]``: the ``set atom first*last`` still open to
+        #: particles created next with the same properties.
+        self._open_set: list[Any] | None = None
+        self._max_id = 0
+        self._timestep = spec.dt
+        self._walls: dict[str, WallSpec] = {}  # by label: obstacles of createParticles 'random'
+        self._motions: dict[str, str] = {}  # label -> the moving mesh
         try:
             if spec.traj.mfile is not None and spec.meshes and spec.traj.mfile.suffix != ".vtk":
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
@@ -106,9 +128,6 @@ class LiggghtsEngine(Engine):
                 self._session = WorkerSession(
                     args, spec.nprocs or 1, self.output / LOG_NAME, self.output / WORKER_LOG_NAME
                 )
-            self._prepared = False
-            self._pending: list[str] = []
-            self._timestep = spec.dt
             self._execute(self.commands.setup(resume))
             if resume is not None:
                 self.step = self._request("timestep")
@@ -120,26 +139,72 @@ class LiggghtsEngine(Engine):
 
     # -- talking to LIGGGHTS ---------------------------------------------------------------
 
-    def _request(self, name: str, *params: Any) -> Any:
-        if name != "execute" and self._pending:
-            self._execute([])
+    def _ask(self, name: str, *params: Any, wait: bool = True) -> Any:
+        """One request to the session (``wait=False``: its answer is checked by the next
+        one); a failure is kept and ends this simulation."""
         if self._failure is not None:
             raise EngineError(f"This LIGGGHTS simulation stopped after an error: {self._failure}")
         try:
-            return self._session.request(name, *params)
+            if wait:
+                return self._session.request(name, *params)
+            self._session.post(name, *params)
         except EngineError as exc:
             self._failure = exc
             self.log("%s", exc)
             raise
 
-    def _execute(self, lines: list[str]) -> None:
-        """Run the pending lines and ``lines`` in LIGGGHTS, and record them in ``in.pygran``."""
-        lines, self._pending = [*self._pending, *lines], []
-        if self._input is not None:
+    def _request(self, name: str, *params: Any) -> Any:
+        """Request ``name`` after the queued lines have run."""
+        self._flush()
+        return self._ask(name, *params)
+
+    def _queue(self, lines: list[str]) -> None:
+        """Append ``lines`` to the lines LIGGGHTS has not run yet."""
+        self._close_set()
+        self._pending += lines
+        self._prepared = False
+
+    def _flush(self) -> None:
+        """Run the queued lines in LIGGGHTS (waiting for the worker to start)."""
+        lines = self._take()
+        if lines:
+            self._max_id = self._ask("execute", lines)
+
+    def _post(self) -> None:
+        """Send the queued lines without waiting: LIGGGHTS runs them while Python goes on."""
+        self._ask("execute", self._take(), wait=False)
+
+    def _take(self) -> list[str]:
+        """The queued lines, now recorded in ``in.pygran``."""
+        self._close_set()
+        lines, self._pending = self._pending, []
+        if self._input is not None and lines:
             self._input.write("".join(line + "\n" for line in lines))
             self._input.flush()
-        self._prepared = False
-        self._max_id = self._request("execute", lines)
+        return lines
+
+    def _execute(self, lines: list[str]) -> None:
+        """Queue ``lines`` and run them now, unless the worker is still starting: then they run
+        with the first request after it has started (errors in them are raised there)."""
+        self._queue(lines)
+        if self._failure is not None or self._session.ready():
+            self._flush()
+
+    def _set_atoms(self, first: int, last: int, values: str) -> None:
+        """Queue ``set atom first*last values``, merged with the open one if it continues it."""
+        current = self._open_set
+        if current is not None and current[2] == values and current[1] + 1 == first:
+            current[1] = last
+            return
+        self._close_set()
+        self._open_set = [first, last, values]
+
+    def _close_set(self) -> None:
+        if self._open_set is not None:
+            first, last, values = self._open_set
+            self._open_set = None
+            atoms = f"{first}*{last}" if last > first else str(first)
+            self._pending.append(f"set atom {atoms} {values}")
 
     def _resume_file(self) -> Path | None:
         restart = self.spec.restart
@@ -164,9 +229,11 @@ class LiggghtsEngine(Engine):
         if self.dt != self._timestep:
             lines.append(f"timestep {fmt(self.dt)}")
             self._timestep = self.dt
-        # pre no: nothing changed since the last run, so LIGGGHTS may skip its setup
-        pre = "pre no " if self._prepared and not lines and not self._pending else ""
-        self._execute([*lines, f"run {nsteps} {pre}post no"])
+        # pre no: nothing changed since the last run (no command in between), so LIGGGHTS
+        # may skip its set-up (init, neighbour lists, forces): those of the last step hold
+        pre = "pre no " if self._prepared and not lines else ""
+        self._queue([*lines, f"run {nsteps} {pre}post no"])
+        self._flush()
         self._prepared = True
 
     def _extract(self, quantity: str) -> np.ndarray:
@@ -187,55 +254,108 @@ class LiggghtsEngine(Engine):
         return label
 
     def _create(self, spec: CreateSpec) -> int:
-        if any(spec.omega):
-            raise UnsupportedFeature(
-                "LIGGGHTS cannot set the angular velocity of created particles; "
-                "use insert(..., omega=...) instead"
-            )
-        if spec.style == "random":
-            raise UnsupportedFeature(
-                "The liggghts engine does not implement createParticles 'random' "
-                "(LIGGGHTS' create_atoms random lets particles overlap); use insert()"
-            )
         species = self.spec.species[spec.species - 1]
         first = self._max_id + 1
+        radii = None  # per particle, when drawn here
         if spec.style == "single":
-            lines = [
-                f"create_atoms {spec.species} single {' '.join(fmt(v) for v in spec.position)} units box"
-            ]
-            box = np.array(self.spec.domain.box)
-            if np.all((box[:, 0] < spec.position) & (spec.position < box[:, 1])):
+            x, y, z = spec.position
+            line = f"create_atoms {spec.species} single {fmt(x)} {fmt(y)} {fmt(z)} units box"
+            if all(lo < v < hi for v, (lo, hi) in zip(spec.position, self.spec.domain.box)):
                 # inside the box LIGGGHTS gives it the next id: no round trip needed
-                self._pending += lines
+                self._pending.append(line)
+                self._prepared = False
                 self._max_id = first
             else:
-                self._execute(lines)
-        else:
+                self._queue([line])
+                self._flush()
+        elif spec.style == "lattice":
             rid, region = self.commands.region(spec.region)
-            self._execute(
+            self._queue(
                 [f"lattice sc {fmt(spec.spacing)}", region, f"create_atoms {spec.species} region {rid}"]
             )
+            self._flush()
+        else:
+            centres, radii = self._random_spheres(spec)
+            self._queue(
+                [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
+            )
+            self._max_id += len(centres)  # all strictly inside the box
         last = self._max_id
         count = max(0, last - first + 1)
         if count == 0:
             return 0
-        atoms = f"{first}*{last}" if count > 1 else str(first)
-        if spec.radius is not None or species.radius.kind == "constant":
-            radius = spec.radius if spec.radius is not None else species.radius.values[0]
-            lines = [f"set atom {atoms} diameter {fmt(2 * radius)}"]
-        else:
+        values = f"density {fmt(species.density)}"
+        if radii is None and spec.radius is None and species.radius.kind != "constant":
             radii = species.radius.sample(count, np.random.default_rng(spec.seed))
-            lines = [f"set atom {first + i} diameter {fmt(2 * r)}" for i, r in enumerate(radii)]
-        lines.append(f"set atom {atoms} density {fmt(species.density)}")
+        if radii is None or np.all(radii == radii[0]):
+            radius = radii[0] if radii is not None else spec.radius or species.radius.values[0]
+            values = f"diameter {fmt(2 * radius)} {values}"
+        else:
+            self._queue([f"set atom {first + i} diameter {fmt(2 * r)}" for i, r in enumerate(radii)])
         if any(spec.velocity):
             vx, vy, vz = (fmt(v) for v in spec.velocity)
-            lines.append(f"set atom {atoms} vx {vx} vy {vy} vz {vz}")
-        self._pending += lines  # sent with the next request
+            values += f" vx {vx} vy {vy} vz {vz}"
+        self._set_atoms(first, last, values)  # sent with the next request
+        if any(spec.omega):
+            self._set_omega(np.arange(first, last + 1), spec.omega, f"atoms {first}*{last}")
+        elif len(self._pending) >= STREAM_LINES and self._session.ready():
+            self._post()  # LIGGGHTS creates these while the script creates the next ones
         return count
 
+    def _random_spheres(self, spec: CreateSpec) -> tuple[np.ndarray, np.ndarray]:
+        """Centres and radii of ``spec.count`` spheres placed in ``spec.region`` clear of the
+        particles and walls, as every placing engine draws them for the same seed; those
+        that did not fit, or lie outside the box, are left out."""
+        from pygran_core.simulation.insertion import place_spheres
+
+        rng = np.random.default_rng(spec.seed)
+        species = self.spec.species[spec.species - 1]
+        if spec.radius is not None:
+            radii = np.full(spec.count, spec.radius)
+        else:
+            radii = species.radius.sample(spec.count, rng)
+        existing = (self._extract("x"), self._extract("radius"))
+        index, centres = place_spheres(spec.region, radii, rng, existing, self._obstacles())
+        box = np.array(self.spec.domain.box, float)
+        inside = np.all((centres > box[:, 0]) & (centres < box[:, 1]), axis=1)
+        return centres[inside], radii[index][inside]
+
+    def _obstacles(self) -> Obstacles:
+        """The plane and mesh walls new particles must clear (cylinders are not checked)."""
+        from pygran_core.simulation.insertion import Obstacles
+
+        moving = set(self._motions.values())
+        meshes = {mesh.name: mesh for mesh in self.spec.meshes}
+        points, normals, triangles = [], [], []
+        for wall in self._walls.values():
+            if wall.kind == "plane":
+                axis = "xyz".index(wall.plane[0])
+                points.append(np.eye(3)[axis] * wall.peq)
+                normals.append(np.eye(3)[axis])
+            elif wall.kind == "mesh":
+                if wall.mesh in moving:
+                    raise UnsupportedFeature(
+                        f"createParticles 'random' on LIGGGHTS while mesh {wall.mesh!r} moves "
+                        "(its current position is LIGGGHTS'); create them before moveMesh or use insert()"
+                    )
+                triangles.append(meshes[wall.mesh].triangles())
+        return Obstacles(
+            np.reshape(points, (-1, 3)),
+            np.reshape(normals, (-1, 3)),
+            np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
+        )
+
+    def _set_omega(self, ids: np.ndarray, omega: Sequence[float], which: str) -> None:
+        """Give the atoms ``ids`` the angular velocity ``omega``. LIGGGHTS 3.8 has no input
+        command for it, so it is written into its arrays; ``in.pygran`` notes it in a comment."""
+        self._flush()
+        if self._input is not None:
+            values = " ".join(fmt(w) for w in omega)
+            self._input.write(f"# PyGran: omega {values} given to {which} through the library interface\n")
+        self._request("assign", "omega", ids, tuple(omega))
+        self._prepared = False  # the next run's set-up sends the new values to ghost atoms
+
     def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
-        if spec.omega is not None:
-            raise UnsupportedFeature("LIGGGHTS 3.8 rejects setting angular velocities (set ... omega)")
         group = self.commands.new_id("set")
         lines = [f"group {group} id {' '.join(str(int(i)) for i in ids)}"]
         if spec.velocity is not None:
@@ -249,15 +369,19 @@ class LiggghtsEngine(Engine):
                 lines.append(f"set type {int(species)} density {density}")
         lines.append(f"group {group} delete")
         self._execute(lines)
+        if spec.omega is not None:
+            self._set_omega(np.asarray(ids), spec.omega, f"{len(ids)} atoms chosen by set()")
 
     def _wall(self, spec: WallSpec) -> str:
         label, lines = self.commands.wall(spec)
         self._execute(lines)
+        self._walls[label] = spec
         return label
 
     def _move_mesh(self, spec: MotionSpec) -> str:
         label, lines = self.commands.motion(spec)
         self._execute(lines)
+        self._motions[label] = spec.mesh
         return label
 
     def _viscous(self, spec: ViscousSpec) -> str:
@@ -266,10 +390,13 @@ class LiggghtsEngine(Engine):
         return label
 
     def _command(self, text: str) -> None:
-        self._execute([text])
+        self._queue([text])
+        self._flush()  # now: the user expects its effect (and errors) at once
 
     def _remove(self, handle: Handle) -> None:
         self._execute([f"unfix {handle.label}"])
+        self._walls.pop(handle.label, None)
+        self._motions.pop(handle.label, None)
 
     def _checkpoint(self, path: Any) -> None:
         name = Path(path)
@@ -288,9 +415,8 @@ class LiggghtsEngine(Engine):
     def _close(self) -> None:
         try:
             if self._session is not None and self._failure is None:
-                if self._pending:
-                    self._execute([])
+                self._flush()
                 self._session.close()
         finally:
-            if getattr(self, "_input", None) is not None:
+            if self._input is not None:
                 self._input.close()

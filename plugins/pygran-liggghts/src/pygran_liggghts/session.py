@@ -1,16 +1,18 @@
 """Where LIGGGHTS runs: in this process (under ``mpirun``) or in a worker job it can crash.
 
-:class:`Session` is what the engine asks of LIGGGHTS; every rank of its communicator runs
-the same requests. :class:`LocalSession` is a session in this process (the manual's mode:
-the whole script runs under ``mpirun``, one LIGGGHTS instance per group of ranks).
-:class:`WorkerSession` runs it in ``python -m pygran_liggghts.worker`` (under
+:class:`~.worker.Session` is what the engine asks of LIGGGHTS; every rank of its
+communicator runs the same requests. :class:`LocalSession` is a session in this process (the
+manual's mode: the whole script runs under ``mpirun``, one LIGGGHTS instance per group of
+ranks). :class:`WorkerSession` runs it in ``python -m pygran_liggghts.worker`` (under
 ``mpirun -np N`` for N > 1 ranks) and relays requests over a Unix socket, so that a LIGGGHTS
 error, which ends its process, becomes an :class:`EngineError` carrying LIGGGHTS' message.
+The worker starts in the background: the engine queues commands until it is :meth:`ready`.
 """
 
 from __future__ import annotations
 
 import os
+import select
 import shutil
 import socket
 import subprocess
@@ -22,49 +24,12 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from pygran_core.errors import EngineError
+from pygran_liggghts.worker import Session
 
 #: Seconds to wait for a worker to connect, and to exit after ``close``.
 START_TIMEOUT = 120.0
 EXIT_TIMEOUT = 30.0
-
-
-class Session:
-    """The requests PyGran makes of one LIGGGHTS instance (see :class:`~.binding.Liggghts`).
-
-    ``root`` is the rank that receives gathered arrays (``None``: every rank).
-    """
-
-    requests = frozenset({"execute", "timestep", "natoms", "gather", "scalar", "close"})
-
-    def __init__(self, args: Sequence[str], comm: Any, root: int | None) -> None:
-        from pygran_liggghts.binding import Liggghts
-
-        self.lmp = Liggghts(args, comm)
-        self.root = root
-
-    def execute(self, lines: Sequence[str]) -> int:
-        """Run ``lines``; returns the largest atom id afterwards (new atoms get the next ids)."""
-        for line in lines:
-            self.lmp.command(line)
-        return self.lmp.max_id()
-
-    def timestep(self) -> int:
-        return self.lmp.timestep()
-
-    def natoms(self) -> int:
-        return self.lmp.natoms()
-
-    def gather(self, quantities: Sequence[str]) -> dict[str, np.ndarray] | None:
-        return self.lmp.gather(quantities, root=self.root)
-
-    def scalar(self, compute: str) -> float:
-        return self.lmp.compute_scalar(compute)
-
-    def close(self) -> None:
-        self.lmp.close()
 
 
 class LocalSession(Session):
@@ -72,6 +37,12 @@ class LocalSession(Session):
 
     def __init__(self, args: Sequence[str], comm: Any) -> None:
         super().__init__(args, comm, root=None)
+
+    def ready(self) -> bool:
+        return True
+
+    def post(self, name: str, *params: Any) -> None:
+        getattr(self, name)(*params)
 
     def request(self, name: str, *params: Any) -> Any:
         return getattr(self, name)(*params)
@@ -94,56 +65,81 @@ def _tail(path: Path, lines: int = 5) -> str:
 
 class WorkerSession:
     """LIGGGHTS on ``nprocs`` MPI ranks in a worker job; ``log`` is its screen output and
-    ``stderr`` receives the job's own output (``mpirun`` and Python messages)."""
+    ``stderr`` receives the job's own output (``mpirun`` and Python messages).
+
+    The job starts in the background; the first request waits for it to connect.
+    """
 
     def __init__(self, args: Sequence[str], nprocs: int, log: Path, stderr: Path) -> None:
         self.log, self.stderr = log, stderr
+        self.connection: Connection | None = None
+        self._posted = 0  # requests sent whose answers are not read yet
         self._dir = tempfile.mkdtemp(prefix="pygran-liggghts-")
         address = os.path.join(self._dir, "socket")
-        server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        server.bind(address)
-        server.listen(1)
-        server.settimeout(0.2)
+        self._server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self._server.bind(address)
+        self._server.listen(1)
         command = [sys.executable, "-m", "pygran_liggghts.worker", address, *args]
         if nprocs > 1:
             command = [*mpirun_prefix(nprocs), *command]
-        with stderr.open("w") as out:
-            self.process = subprocess.Popen(
-                command, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
-            )
+        self._deadline = time.monotonic() + START_TIMEOUT
         try:
-            self.connection = self._accept(server)
+            with stderr.open("w") as out:
+                self.process = subprocess.Popen(
+                    command, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
+                )
         except BaseException:
             self._cleanup()
             raise
-        finally:
-            server.close()
 
-    def _accept(self, server: socket.socket) -> Connection:
-        deadline = time.monotonic() + START_TIMEOUT
-        while time.monotonic() < deadline:
-            try:
-                client, _ = server.accept()
-            except TimeoutError:
-                if self.process.poll() is not None:
-                    raise self._failure("could not start") from None
-                continue
-            client.setblocking(True)
-            return Connection(client.detach())
-        raise EngineError(
-            f"The LIGGGHTS worker did not connect within {START_TIMEOUT:g} s; see {self.stderr}"
-        )
+    def ready(self) -> bool:
+        """Whether the worker has connected (never waits)."""
+        if self.connection is None and self._server.fileno() >= 0:
+            if select.select([self._server], [], [], 0)[0]:
+                self._accept()
+        return self.connection is not None
+
+    def _accept(self) -> None:
+        """Wait for the worker to connect; fail if it exits or does not connect in time."""
+        while not select.select([self._server], [], [], 0.05)[0]:
+            if self.process.poll() is not None:
+                raise self._failure("could not start")
+            if time.monotonic() > self._deadline:
+                raise EngineError(
+                    f"The LIGGGHTS worker did not connect within {START_TIMEOUT:g} s; see {self.stderr}"
+                )
+        client, _ = self._server.accept()
+        client.setblocking(True)
+        self.connection = Connection(client.detach())
+        self._server.close()
+
+    def post(self, name: str, *params: Any) -> None:
+        """Send request ``name`` without waiting: the worker runs it while this process goes
+        on; the next :meth:`request` checks its answer."""
+        self._send((name, params))
+        self._posted += 1
 
     def request(self, name: str, *params: Any) -> Any:
         """Run request ``name`` on every rank of the worker and return rank 0's answer."""
+        self._send((name, params))
         try:
-            self.connection.send((name, params))
-            status, value = self.connection.recv()
+            replies = [self.connection.recv() for _ in range(self._posted + 1)]
         except (EOFError, OSError):
             raise self._failure("stopped") from None
-        if status == "error":
-            raise EngineError(value)
-        return value
+        finally:
+            self._posted = 0
+        for status, value in replies:
+            if status == "error":
+                raise EngineError(value)
+        return replies[-1][1]
+
+    def _send(self, message: tuple[str, tuple[Any, ...]]) -> None:
+        if self.connection is None:
+            self._accept()
+        try:
+            self.connection.send(message)
+        except OSError:
+            raise self._failure("stopped") from None
 
     def _failure(self, what: str) -> EngineError:
         """The worker died: an :class:`EngineError` with LIGGGHTS' own message."""
@@ -175,6 +171,7 @@ class WorkerSession:
         self._cleanup()
 
     def _cleanup(self) -> None:
+        self._server.close()
         shutil.rmtree(self._dir, ignore_errors=True)
 
 

@@ -1,31 +1,74 @@
 """The LIGGGHTS worker: ``python -m pygran_liggghts.worker SOCKET [liggghts args...]``.
 
-Run alone or under ``mpirun -np N``. Rank 0 connects to the engine at the Unix socket
-``SOCKET``, receives ``(request, params)`` pairs and broadcasts them; every rank executes
-each request on the shared LIGGGHTS instance, and rank 0 sends back ``("ok", result)`` or
-``("error", message)``. A LIGGGHTS error ends the job, which the engine notices.
+Run alone or under ``mpirun -np N``. Once LIGGGHTS is loaded, rank 0 connects to the
+engine at the Unix socket ``SOCKET``, receives ``(request, params)`` pairs and broadcasts
+them; every rank executes each request on the shared LIGGGHTS instance (a
+:class:`Session`), and rank 0 sends back ``("ok", result)`` or ``("error", message)``. A
+LIGGGHTS error ends the job, which the engine notices.
+
+This module imports nothing of ``pygran_core``, so that a worker starts in the time of
+numpy, mpi4py and the library.
 """
 
 from __future__ import annotations
 
 import socket
 import sys
+from collections.abc import Sequence
 from multiprocessing.connection import Connection
+from typing import Any
+
+
+class Session:
+    """The requests PyGran makes of one LIGGGHTS instance (see :class:`~.binding.Liggghts`).
+
+    ``root`` is the rank that receives gathered arrays (``None``: every rank).
+    """
+
+    requests = frozenset({"execute", "timestep", "natoms", "gather", "assign", "scalar", "close"})
+
+    def __init__(self, args: Sequence[str], comm: Any, root: int | None) -> None:
+        from pygran_liggghts.binding import Liggghts
+
+        self.lmp = Liggghts(args, comm)
+        self.root = root
+
+    def execute(self, lines: Sequence[str]) -> int:
+        """Run ``lines``; returns the largest atom id afterwards (new atoms get the next ids)."""
+        for line in lines:
+            self.lmp.command(line)
+        return self.lmp.max_id()
+
+    def timestep(self) -> int:
+        return self.lmp.timestep()
+
+    def natoms(self) -> int:
+        return self.lmp.natoms()
+
+    def gather(self, quantities: Sequence[str]) -> Any:
+        return self.lmp.gather(quantities, root=self.root)
+
+    def assign(self, quantity: str, ids: Any, value: Sequence[float]) -> None:
+        self.lmp.assign(quantity, ids, value)
+
+    def scalar(self, compute: str) -> float:
+        return self.lmp.compute_scalar(compute)
+
+    def close(self) -> None:
+        self.lmp.close()
 
 
 def main(argv: list[str]) -> None:
     from mpi4py import MPI
 
-    from pygran_liggghts.session import Session
-
     comm = MPI.COMM_WORLD
     address, args = argv[0], argv[1:]
+    session = Session(args, comm, root=0)  # before connecting: connected means ready
     connection = None
     if comm.rank == 0:
         client = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         client.connect(address)
         connection = Connection(client.detach())
-    session = Session(args, comm, root=0)
     while True:
         request = None
         if connection is not None:

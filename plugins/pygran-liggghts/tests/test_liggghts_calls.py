@@ -1,0 +1,269 @@
+"""Front-end calls on real LIGGGHTS: insertion by rate, mesh motion, .h5 trajectories,
+viscous drag, createParticles 'random' and angular velocities, run chunks with ``pre no``."""
+
+import math
+
+import numpy as np
+import pytest
+from pygran_liggghts.library import find_library
+
+from pygran_core import analysis, simulation
+from pygran_core.testing.solvers import require_solver
+
+MATERIAL = {
+    "youngsModulus": 5e6,
+    "poissonsRatio": 0.45,
+    "coefficientRestitution": 0.3,
+    "coefficientFriction": 0.5,
+    "density": 2500.0,
+}
+R = 1e-3
+MASS = 4 / 3 * math.pi * R**3 * MATERIAL["density"]
+G = 9.81
+DT = 1e-5
+VTK = 1e-8  # rounding of the mesh coordinates (about 1e-3 m) in LIGGGHTS' VTK files
+PLATE = """solid plate
+facet normal 0 0 1
+ outer loop
+  vertex 0.002 -0.001 0.005
+  vertex 0.004 -0.001 0.005
+  vertex 0.004 0.001 0.005
+ endloop
+endfacet
+facet normal 0 0 1
+ outer loop
+  vertex 0.002 -0.001 0.005
+  vertex 0.004 0.001 0.005
+  vertex 0.002 0.001 0.005
+ endloop
+endfacet
+endsolid plate
+"""
+
+
+def dem(path, **params):
+    require_solver(find_library)
+    settings = {
+        "engine": "liggghts",
+        "model": "HertzMindlin",
+        "box": (-0.01, 0.01, -0.01, 0.01, 0, 0.03),
+        "dt": DT,
+        "output": str(path),
+        "species": ({"material": MATERIAL, "radius": R},),
+        "traj": {"pfile": None},
+        "progress": False,
+    }
+    return simulation.DEM(**settings | params)
+
+
+def test_insertion_by_rate(tmp_path):
+    """Every ``freq`` steps from the next step on, rate * freq * dt particles (here 2):
+    after t = k * freq * dt the count is rate * t; ``duration`` caps it, and without
+    ``freq`` batches come every PlacingEngine.rate_interval (0.01 s) as on other engines."""
+    region = ("block", -0.009, 0.009, -0.009, 0.009, 0.001, 0.029)
+    rate = 2000.0
+    with dem(tmp_path / "freq") as sim:
+        sim.insert(species=1, insert="by_rate", rate=rate, freq=100, region=region)
+        sim.run(1000)
+        assert len(sim.extractIds()) == rate * 1000 * DT == 20
+        sim.run(1500)
+        assert len(sim.extractIds()) == 50
+    with dem(tmp_path / "duration") as sim:
+        sim.insert(species=1, insert="by_rate", rate=rate, freq=100, duration=0.015, region=region)
+        sim.run(3000)
+        assert len(sim.extractIds()) == rate * 0.015 == 30
+    with dem(tmp_path / "default", dt=2 * DT) as sim:
+        sim.insert(species=1, insert="by_rate", rate=rate, region=region)
+        sim.run(1250)  # batches of 20 at steps 1, 501 and 1001
+        count = len(sim.extractIds())
+    assert count == 60
+    assert abs(count - rate * 1250 * 2 * DT) <= rate * 0.01  # within one batch
+
+
+def _plate_motion(tmp_path, **motion):
+    """The plate's corner points (frames, 6, 3) in the mesh files written every 250 steps over
+    two runs of 500 steps after ``moveMesh(**motion)`` (LIGGGHTS writes 6 significant digits)."""
+    tmp_path.mkdir(exist_ok=True)
+    stl = tmp_path / "plate.stl"
+    stl.write_text(PLATE)
+    with dem(
+        tmp_path / "out",
+        mesh={"plate": {"file": str(stl)}},
+        traj={"freq": 250, "pfile": None, "mfile": "plate*.vtk"},
+    ) as sim:
+        sim.setupWall(wtype="mesh", mesh="plate")
+        sim.moveMesh("plate", **motion)
+        sim.run(500)
+        sim.run(500)
+    system = analysis.System(Mesh=str(tmp_path / "out" / "plate*.vtk"))
+    frames = []
+    for _ in system:
+        frames.append(np.array(system.Mesh.points))
+    system.close()
+    return np.array(frames)
+
+
+def _rotated(points, angle):
+    c, s = math.cos(angle), math.sin(angle)
+    return points @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
+
+
+@pytest.mark.parametrize("sense", [1, -1])
+def test_mesh_rotates_by_omega_t(tmp_path, sense):
+    omega = sense * math.pi / 2 / 0.01  # a quarter turn in 1000 steps, right-handed about +z
+    frames = _plate_motion(tmp_path, rotate=True, axis=(0, 0, 1), origin=(0, 0, 0), omega=omega)
+    assert len(frames) == 5
+    for k, points in enumerate(frames):
+        np.testing.assert_allclose(points, _rotated(frames[0], omega * 250 * k * DT), atol=VTK)
+    assert frames[-1][0] == pytest.approx([sense * 0.001, sense * 0.002, 0.005], abs=VTK)
+
+
+def test_mesh_moves_linearly_and_wiggles(tmp_path):
+    frames = _plate_motion(tmp_path / "linear", linear=(0.1, -0.05, 0))
+    for k, points in enumerate(frames):
+        np.testing.assert_allclose(points, frames[0] + np.array([0.1, -0.05, 0]) * 250 * k * DT, atol=VTK)
+    amplitude, period = 1e-3, 0.02
+    frames = _plate_motion(tmp_path / "wiggle", wiggle=True, amplitude=(0, 0, amplitude), period=period)
+    omega = 2 * math.pi / period
+    for k, points in enumerate(frames):
+        shift = amplitude * math.sin(omega * 250 * k * DT)
+        # LIGGGHTS integrates the wiggle's velocity with one-sided sums: error below A omega dt
+        np.testing.assert_allclose(points, frames[0] + [0, 0, shift], atol=amplitude * omega * DT)
+    assert frames[2][:, 2] - frames[0][:, 2] == pytest.approx(amplitude, rel=2e-3)  # a quarter period
+
+
+def test_h5_trajectory_reads_back(tmp_path):
+    """.h5 frames go through PyGran's H5MD writer; free fall is exact under velocity Verlet."""
+    out = tmp_path / "h5"
+    with dem(out, gravity=(G, 0, 0, -1), traj={"freq": 100, "pfile": "traj.h5"}) as sim:
+        for x in (-0.004, 0.0, 0.004):
+            sim.createParticles(1, "single", x, 0.0, 0.02)
+        sim.run(300)
+        sim.run(200)
+        final = sim.extractCoords()
+    with analysis.System(Particles=str(out / "traj.h5")) as system:
+        assert len(system) == 6
+        for k in system:
+            particles = system.Particles
+            assert particles.timestep == 100 * k
+            t = 100 * k * DT
+            np.testing.assert_allclose(particles.z, 0.02 - G * t**2 / 2, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(particles.x, [-0.004, 0.0, 0.004], atol=1e-15)
+            np.testing.assert_allclose(particles.radius, R)
+        system.goto(-1)
+        np.testing.assert_array_equal(system.Particles.positions, final)
+
+
+def test_viscous_drag_gives_terminal_velocity(tmp_path):
+    """fix viscous is F = -gamma * scale * v: m dv/dt = m g - gamma v, terminal velocity
+    m g / gamma reached as 1 - exp(-t / tau), tau = m / gamma. Species 2 has no drag."""
+    tau = 0.01
+    gamma = MASS / tau / 2  # scale=2 below
+    species = ({"material": MATERIAL, "radius": R}, {"material": MATERIAL, "radius": R})
+    with dem(tmp_path, gravity=(G, 0, 0, -1), species=species) as sim:
+        sim.createParticles(1, "single", -0.005, 0.0, 0.025)
+        sim.createParticles(2, "single", 0.005, 0.0, 0.025)
+        sim.addViscous(gamma=gamma, scale=2, species=1)
+        sim.run(round(tau / DT))
+        v = sim.extractVelocities()[:, 2]
+        assert -v[0] == pytest.approx(G * tau * (1 - math.exp(-1)), rel=0.01)
+        assert -v[1] == pytest.approx(G * tau, rel=1e-9)  # free fall
+        sim.run(round(9 * tau / DT))
+        assert -sim.extractVelocities()[0, 2] == pytest.approx(MASS * G / (2 * gamma), rel=1e-3)
+
+
+def test_random_creation_clears_particles_and_walls(tmp_path):
+    region = ("block", -0.005, 0.005, -0.005, 0.005, 0.0, 0.01)
+    with dem(tmp_path) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=0.004)
+        assert sim.createParticles(1, "single", 0.0, 0.0, 0.002) == 1
+        assert sim.createParticles(1, "random", 40, region=region, radius=5e-4, vel=(0, 0, -0.1)) == 40
+        x, r, v = sim.extractCoords(), sim.extractRadii(), sim.extractVelocities()
+        mass = sim.engine.extract("mass")
+    assert len(x) == 41
+    assert np.all(r[1:] == 5e-4) and r[0] == R
+    gaps = np.linalg.norm(x[:, None] - x[None], axis=-1) - (r[:, None] + r[None])
+    assert gaps[~np.eye(len(x), dtype=bool)].min() >= 0  # no overlaps, the single one included
+    assert np.all(np.abs(x[:, 2] - 0.004) >= r)  # clear of the plane wall
+    inside = np.all(
+        (x[1:] >= [-0.005, -0.005, 0] + r[1:, None]) & (x[1:] <= [0.005, 0.005, 0.01] - r[1:, None])
+    )
+    assert inside
+    np.testing.assert_array_equal(v[1:], np.tile([0, 0, -0.1], (40, 1)))
+    assert mass[1] == pytest.approx(4 / 3 * math.pi * 5e-4**3 * MATERIAL["density"], rel=1e-12)
+
+
+def test_spinning_sphere_ends_rolling_at_two_sevenths(tmp_path):
+    """A sphere spinning at omega0 without moving, set on a floor, ends rolling at 2/7 r omega0
+    (angular momentum about the contact point), whatever the friction."""
+    omega0 = 10.0
+    with dem(tmp_path / "spin", gravity=(G, 0, 0, -1)) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=0.0)
+        sim.createParticles(1, "single", 0.0, 0.0, R, omega=(0, omega0, 0))
+        np.testing.assert_array_equal(sim.extractOmegas(), [[0, omega0, 0]])
+        sim.run(5000)
+        v, w = sim.extractVelocities()[0], sim.extractOmegas()[0]
+    assert v[0] == pytest.approx(2 / 7 * R * omega0, rel=0.01)
+    assert w[1] * R == pytest.approx(v[0], rel=0.01)  # rolling without slip
+    assert "# PyGran: omega 0 10 0 given to atoms 1*1" in (tmp_path / "spin" / "in.pygran").read_text()
+
+
+def test_omega_on_two_ranks(tmp_path):
+    """Angular velocities written into LIGGGHTS' arrays reach atoms on both ranks (the box is
+    split in z) and stay through runs (no torque without contacts)."""
+    with dem(tmp_path, nprocs=2) as sim:
+        region = ("block", -0.005, 0.005, -0.001, 0.001, 0.002, 0.028)
+        assert sim.createParticles(1, "lattice", 0.004, region=region, omega=(1, 2, 3)) == 21
+        x = sim.extractCoords()
+        assert x[:, 2].min() < 0.015 < x[:, 2].max()
+        assert sim.set(region=("block", 0.001, 0.01, -0.01, 0.01, 0, 0.03), omega=(4, 5, 6)) == 7
+        sim.run(100)
+        w = sim.extractOmegas()
+        assert sim.createParticles(1, "single", 0.0, 0.005, 0.02, omega=(0, 0, -5)) == 1
+        sim.run(100)
+        w_new = sim.extractOmegas()
+    right = x[:, 0] > 0.001
+    np.testing.assert_array_equal(w[right], np.tile([4, 5, 6], (7, 1)))
+    np.testing.assert_array_equal(w[~right], np.tile([1, 2, 3], (14, 1)))
+    np.testing.assert_array_equal(w_new[:-1], w)
+    np.testing.assert_array_equal(w_new[-1], [0, 0, -5])
+
+
+def test_run_chunks_with_pre_no_match_one_run(tmp_path):
+    """A run split into chunks (``run N pre no`` after the first) gives what one run gives."""
+    results = []
+    for chunks in (1, 10):
+        with dem(tmp_path / f"chunks{chunks}", gravity=(G, 0, 0, -1)) as sim:
+            sim.engine.max_run_chunks = chunks
+            sim.setupWall(species=1, plane="zplane", peq=0.0)
+            region = ("block", -0.004, 0.004, -0.004, 0.004, 0.002, 0.008)
+            sim.createParticles(1, "lattice", 0.0025, region=region)
+            sim.run(3000)
+            results.append(sim.extractCoords())
+        runs = (tmp_path / f"chunks{chunks}" / "in.pygran").read_text().count("pre no")
+        assert runs == chunks - 1
+    assert len(results[0]) == 27
+    np.testing.assert_array_equal(results[0], results[1])
+
+
+def test_particles_created_one_by_one_stream_to_liggghts(tmp_path):
+    """Once the worker is up, every 1000 queued lines of particles created one by one go to
+    LIGGGHTS without waiting; their ``set atom`` lines are ranges."""
+    rng = np.random.default_rng(7)
+    centres = rng.uniform([-0.009, -0.009, 0.001], [0.009, 0.009, 0.029], (1200, 3))
+    with dem(tmp_path) as sim:
+        assert len(sim.extractIds()) == 0  # waits for the worker
+        for k, centre in enumerate(centres):
+            sim.createParticles(1, "single", *centre, vel=(0, 0, -0.5) if k < 1100 else (0, 0, 0))
+        x, v, ids = sim.extractCoords(), sim.extractVelocities(), sim.extractIds()
+        mass = sim.engine.extract("mass")
+    np.testing.assert_array_equal(ids, np.arange(1, 1201))
+    np.testing.assert_array_equal(x, centres)
+    np.testing.assert_array_equal(v[:, 2], np.where(ids <= 1100, -0.5, 0.0))
+    np.testing.assert_allclose(mass, MASS, rtol=1e-12)
+    sets = [line for line in (tmp_path / "in.pygran").read_text().splitlines() if line.startswith("set")]
+    assert sets == [
+        "set atom 1*1000 diameter 0.002 density 2500 vx 0 vy 0 vz -0.5",
+        "set atom 1001*1100 diameter 0.002 density 2500 vx 0 vy 0 vz -0.5",
+        "set atom 1101*1200 diameter 0.002 density 2500",
+    ]
