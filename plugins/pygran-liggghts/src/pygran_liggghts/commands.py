@@ -129,11 +129,11 @@ class Commands:
         lines = ["units si", "atom_style granular", f"atom_modify map array{sort}"]
         if min(m["youngsModulus"] for m in self.materials) < SOFT_LIMIT:
             lines.append("soft_particles yes")  # else LIGGGHTS refuses moduli below 5 MPa in SI units
+        lines.append("newton off")  # granular pairs with history need it; restart files omit it
         if resume is None:
             bounds = " ".join(fmt(v) for lo_hi in spec.domain.box for v in lo_hi)
             lines += [
                 f"boundary {' '.join(spec.domain.boundary)}",
-                "newton off",
                 f"region pg_domain block {bounds} units box",
                 f"create_box {len(self.materials)} pg_domain",
             ]
@@ -167,7 +167,7 @@ class Commands:
                 f"fix {self.mesh_ids[mesh.name]} all {mesh.mtype} file {mesh.file} "
                 f"type {self.mesh_types[mesh.name]}{placement}"
             )
-        return lines + self._dumps()
+        return lines + self._dumps(append=resume is not None)
 
     def _material_tables(self) -> list[str]:
         required = ["youngsModulus", "poissonsRatio", "coefficientRestitution", "coefficientFriction"]
@@ -229,7 +229,8 @@ class Commands:
             )
         return lines
 
-    def _dumps(self) -> list[str]:
+    def _dumps(self, append: bool = False) -> list[str]:
+        """Particle and mesh dumps; ``append`` continues a particle dump (on resume)."""
         traj, lines = self.spec.traj, []
         if native_particles(self.spec):
             group = "all"
@@ -244,6 +245,8 @@ class Commands:
             traj.pfile.parent.mkdir(parents=True, exist_ok=True)
             lines.append(f"dump pg_dump {group} custom {traj.freq} {traj.pfile} {' '.join(traj.args)}")
             lines += [f"dump_modify pg_dump {arg}" for arg in traj.dump_modify]
+            if append and "*" not in traj.pfile.name:
+                lines.append("dump_modify pg_dump append yes")
         if native_meshes(self.spec):
             traj.mfile.parent.mkdir(parents=True, exist_ok=True)
             lines.append(f"dump pg_mesh_dump all mesh/vtk {traj.freq} {traj.mfile} {' '.join(traj.margs)}")

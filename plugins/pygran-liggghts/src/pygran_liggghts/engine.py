@@ -21,7 +21,7 @@ into its arrays and only noted there in a comment. LIGGGHTS' screen output goes 
 
 from __future__ import annotations
 
-import re
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
+from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine
 from pygran_liggghts.commands import Commands, fmt, native_meshes, native_particles
 from pygran_liggghts.session import LocalSession, WorkerSession, under_mpirun
@@ -49,6 +50,8 @@ if TYPE_CHECKING:
 INPUT_NAME = "in.pygran"
 LOG_NAME = "liggghts.log"
 WORKER_LOG_NAME = "worker.log"
+#: The checkpoint entry naming LIGGGHTS' own restart file.
+RESTART_KEY = "liggghts/restart"
 #: Queued lines of particles created one by one that are sent on without waiting.
 STREAM_LINES = 1000
 
@@ -112,6 +115,8 @@ class LiggghtsEngine(Engine):
         self._timestep = spec.dt
         self._walls: dict[str, WallSpec] = {}  # by label: obstacles of createParticles 'random'
         self._motions: dict[str, str] = {}  # label -> the moving mesh
+        self._restart_file: Path | None = None  # of the last checkpoint
+        self._replayed_once: set[str] = set()  # one-off insertions not redone on resume
         try:
             if spec.traj.mfile is not None and spec.meshes and spec.traj.mfile.suffix != ".vtk":
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
@@ -129,10 +134,6 @@ class LiggghtsEngine(Engine):
                     args, spec.nprocs or 1, self.output / LOG_NAME, self.output / WORKER_LOG_NAME
                 )
             self._execute(self.commands.setup(resume))
-            if resume is not None:
-                self.step = self._request("timestep")
-                self.time = self.step * (self.dt or 0.0)
-                self.log("resumed from %s at step %d", resume, self.step)
         except BaseException:
             self.close()
             raise
@@ -207,20 +208,13 @@ class LiggghtsEngine(Engine):
             self._pending.append(f"set atom {atoms} {values}")
 
     def _resume_file(self) -> Path | None:
-        restart = self.spec.restart
-        if restart is None or not restart.resume:
+        """The LIGGGHTS restart file of the checkpoint being resumed (read instead of a new box)."""
+        if self._resume is None:
             return None
-        if restart.lastfile is not None:
-            if not restart.lastfile.is_file():
-                raise ConfigError(f"restart lastfile {restart.lastfile} does not exist")
-            return restart.lastfile
-        files = sorted(
-            restart.directory.glob("*.restart"),
-            key=lambda p: int(m.group(1)) if (m := re.search(r"\.(\d+)\.restart$", p.name)) else -1,
-        )
-        if not files:
-            raise ConfigError(f"restart resume=True but {restart.directory} holds no .restart file")
-        return files[-1]
+        name = self.spec.restart.directory / decode_text(self._resume.state[RESTART_KEY])
+        if not name.is_file():
+            raise ConfigError(f"{self._resume_path} needs the LIGGGHTS restart file {name}, which is missing")
+        return name
 
     # -- engine hooks ------------------------------------------------------------------------
 
@@ -250,6 +244,11 @@ class LiggghtsEngine(Engine):
 
     def _insert(self, spec: InsertSpec) -> str:
         label, lines = self.commands.insert(spec, self.dt)
+        if self.replaying and spec.mechanism == "by_pack" and not spec.freq:
+            # done before the checkpoint: its particles are in the restart file, and a new
+            # insert/pack would fill its region up again
+            self._replayed_once.add(label)
+            return label
         self._execute(lines)
         return label
 
@@ -394,13 +393,50 @@ class LiggghtsEngine(Engine):
         self._flush()  # now: the user expects its effect (and errors) at once
 
     def _remove(self, handle: Handle) -> None:
+        if handle.label in self._replayed_once:
+            self._replayed_once.discard(handle.label)
+            return
         self._execute([f"unfix {handle.label}"])
         self._walls.pop(handle.label, None)
         self._motions.pop(handle.label, None)
 
+    def _restart_name(self) -> str:
+        """This step's LIGGGHTS restart file, named after the checkpoint's."""
+        stem = Path(self.spec.restart.fname.replace("*", "")).stem.rstrip(".")
+        return f"{stem}.{self.step}.restart"
+
+    def _state(self) -> dict[str, np.ndarray]:
+        """LIGGGHTS writes its own restart file (atoms, fix states by id) beside the checkpoint."""
+        self._execute([f"write_restart {self.spec.restart.directory / self._restart_name()}"])
+        return {**super()._state(), RESTART_KEY: encode_text(self._restart_name())}
+
     def _checkpoint(self, path: Any) -> None:
-        name = Path(path)
-        self._execute([f"write_restart {name.with_name(f'{name.stem}.{self.step}.restart')}"])
+        previous = self._restart_file
+        super()._checkpoint(path)
+        self._restart_file = self.spec.restart.directory / self._restart_name()
+        if "*" not in self.spec.restart.fname and previous not in (None, self._restart_file):
+            previous.unlink(missing_ok=True)  # its checkpoint has just been replaced
+
+    def _cut_trajectory(self, key: str, path: Any) -> None:
+        """A dump LIGGGHTS writes itself keeps the frames before this step; LIGGGHTS appends
+        from here, starting with this step's frame."""
+        native = native_particles(self.spec) if key == "particles" else native_meshes(self.spec)
+        if not native:
+            super()._cut_trajectory(key, path)
+            return
+        if not self._root:
+            return
+        from pygran_core.io import open_trajectory, open_writer
+
+        before = path.with_name(f"{path.stem}.before-resume{path.suffix}")
+        os.replace(path, before)
+        with open_writer(path) as writer, open_trajectory(before) as old:
+            for index in range(len(old)):
+                frame = old[index]
+                if frame.timestep >= self.step:
+                    break
+                writer.write_frame(frame)
+        before.unlink()
 
     def _write(self, key: str, path: Any, make_frame: Any) -> None:
         # .dump particles and .vtk meshes are written by LIGGGHTS' own dump commands
