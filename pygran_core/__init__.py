@@ -5,15 +5,28 @@ Public names: :mod:`simulation`, :mod:`analysis`, :mod:`params`, :mod:`units`,
 and :class:`ContactModel`.
 """
 
+from importlib import import_module
 from importlib.metadata import version as _version
+from typing import Any
 
-from pygran_core import analysis, errors, params, simulation, units
-from pygran_core.analysis import SubSystem
+from pygran_core import errors, params, simulation, units
 from pygran_core.hookspecs import hookimpl
 from pygran_core.simulation import Engine
 from pygran_core.simulation.models import ContactModel
 
 __version__ = _version("pygran-core")
+
+
+def __getattr__(name: str) -> Any:
+    """``analysis`` (and its ``SubSystem``) load on first use: a simulation script that
+    never analyses does not pay for scipy.spatial."""
+    if name == "analysis":
+        return import_module("pygran_core.analysis")
+    if name == "SubSystem":
+        return import_module("pygran_core.analysis").SubSystem
+    raise AttributeError(f"module 'pygran_core' has no attribute {name!r}")
+
+
 __all__ = [
     "ContactModel",
     "Engine",

@@ -100,8 +100,9 @@ def write_checkpoint(path: Path, checkpoint: Checkpoint) -> None:
         f.attrs["step"] = checkpoint.step
         f.attrs["time"] = checkpoint.time
         f.attrs["dt"] = np.nan if checkpoint.dt is None else checkpoint.dt
-        f.attrs["journal"] = json.dumps(checkpoint.journal)
-        f.attrs["facts"] = json.dumps(checkpoint.facts)
+        # datasets, not attributes: an attribute holds at most 64 KiB
+        f.create_dataset("journal", data=encode_text(json.dumps(checkpoint.journal)))
+        f.create_dataset("facts", data=encode_text(json.dumps(checkpoint.facts)))
         for position, samples in checkpoint.monitors.items():
             f.create_dataset(f"monitors/{position}", data=samples)
         for name, value in checkpoint.state.items():
@@ -136,10 +137,10 @@ def read_checkpoint(path: Path) -> Checkpoint:
                 step=int(f.attrs["step"]),
                 time=float(f.attrs["time"]),
                 dt=None if np.isnan(dt) else dt,
-                journal=json.loads(f.attrs["journal"]),
+                journal=json.loads(decode_text(f["journal"][()])),
                 monitors={int(k): v[()] for k, v in f.get("monitors", {}).items()},
                 state={k: np.asarray(v) for k, v in state.items()},
-                facts=json.loads(f.attrs["facts"]),
+                facts=json.loads(decode_text(f["facts"][()])),
             )
     except (OSError, KeyError) as exc:
         raise ReadError(f"{path}: unreadable checkpoint ({exc})") from None

@@ -208,3 +208,33 @@ def test_a_file_that_is_not_a_checkpoint_is_named(tmp_path):
             output=str(tmp_path),
             restart=(100, "restart", "restart.h5", True),
         )
+
+
+def test_a_long_journal_fits_in_the_checkpoint(tmp_path):
+    """Thousands of calls (far beyond the 64 KiB of an HDF5 attribute) before a checkpoint."""
+
+    def script(resume):
+        with simulation.DEM(
+            engine="native",
+            model=HertzMindlin,
+            box=(0, 0.05, 0, 0.05, 0, 0.05),
+            species=({"material": SOFT, "radius": 1e-3},),
+            output=str(tmp_path),
+            restart=(10, "restart", "restart.h5", resume),
+            progress=False,
+            traj={"pfile": None},
+        ) as sim:
+            for i in range(3000):
+                sim.createParticles(
+                    1,
+                    "single",
+                    0.002 + 0.003 * (i % 15),
+                    0.002 + 0.003 * (i // 15 % 15),
+                    0.002 + 0.003 * (i // 225),
+                )
+            sim.run(20, 1e-5)
+            return sim.extractCoords()
+
+    first = script(False)
+    assert len(read_checkpoint(tmp_path / "restart" / "restart.h5").journal) == 3001
+    np.testing.assert_array_equal(script(True), first)

@@ -11,7 +11,6 @@ from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.integrate import solve_ivp
 
 from pygran_core import params
 from pygran_core.errors import ConfigError
@@ -239,6 +238,8 @@ class ContactModel(abc.ABC):
             "atol": 1e-13 * np.array([v0 * span, v0]),
             "dense_output": True,
         }
+
+        from scipy.integrate import solve_ivp  # here: importing PyGran need not load scipy.integrate
 
         def rhs(t: float, y: Array, history: float | None) -> tuple[float, float]:
             return y[1], -float(self.normal_force(y[0], y[1], history)) / self.effective_mass
