@@ -331,8 +331,7 @@ def settle_setup(
         },
     )
     sim.setupWall(species=1, plane="zplane", peq=0.0)
-    for centre in settle_positions(shape, seed):
-        sim.createParticles(1, "single", *centre)
+    sim.createParticles(1, "single", settle_positions(shape, seed))
     return sim
 
 

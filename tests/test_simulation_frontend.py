@@ -251,7 +251,10 @@ def test_create_wall_motion_viscous_monitor_specs():
     s = spec(mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}})
     single = calls.parse_create(1, "single", (0, 0, 1e-2), {"vel": (0, 0, -0.1), "omega": (1, 0, 0)}, s, 3)
     assert single.position == (0, 0, 0.01) and single.velocity == (0, 0, -0.1) and single.omega == (1, 0, 0)
-    with pytest.raises(ConfigError, match="give 3 coordinates"):
+    with pytest.raises(
+        ConfigError,
+        match=r"x, y, z\) or \(species, .single., positions\) with an \(N, 3\) array: got \(0, 0\)",
+    ):
         calls.parse_create(1, "single", (0, 0), {}, s, 3)
     assert calls.parse_create(1, "random", (50,), {"region": ("block", 0, 1, 0, 1, 0, 1)}, s, 3).count == 50
     assert (

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from numbers import Integral
 from typing import Any
 
@@ -256,12 +256,14 @@ def _omega(value: Any) -> Vector:
 
 @dataclass(frozen=True)
 class CreateSpec:
-    """Particles of one species: ``single`` at ``position``, a ``lattice`` of spacing
-    ``spacing`` filling ``region``, or ``random``: ``count`` placed without overlap in ``region``."""
+    """Particles of one species: ``single`` at ``position`` (or one at each row of the
+    ``(N, 3)`` array ``positions``), a ``lattice`` of spacing ``spacing`` filling ``region``,
+    or ``random``: ``count`` placed without overlap in ``region``."""
 
     species: int
     style: str
     position: Vector | None = None
+    positions: np.ndarray | None = field(default=None, compare=False)
     region: Region | None = None
     spacing: float | None = None
     count: int | None = None
@@ -269,6 +271,11 @@ class CreateSpec:
     omega: Vector = (0.0, 0.0, 0.0)
     radius: float | None = None
     seed: int = 0
+
+    @property
+    def centres(self) -> np.ndarray:
+        """The ``single`` style's centres as an ``(N, 3)`` array."""
+        return self.positions if self.positions is not None else np.array([self.position], float)
 
 
 def parse_create(
@@ -288,9 +295,19 @@ def parse_create(
         "seed": int(kwargs.get("seed", seed)),
     }
     if style == "single":
+        if len(args) == 1 and np.ndim(args[0]) == 2:
+            positions = np.array(args[0], float)
+            if positions.shape[1:] != (3,) or not len(positions) or not np.isfinite(positions).all():
+                raise ConfigError(
+                    "createParticles(species, 'single', positions): positions must be a non-empty "
+                    f"(N, 3) array of finite coordinates, got shape {positions.shape}"
+                )
+            positions.flags.writeable = False
+            return CreateSpec(positions=positions, **common)  # type: ignore[arg-type]
         if len(args) != 3:
             raise ConfigError(
-                f"createParticles(species, 'single', x, y, z): give 3 coordinates, got {args!r}"
+                "createParticles(species, 'single', x, y, z) or (species, 'single', positions) with "
+                f"an (N, 3) array: got {args!r}"
             )
         return CreateSpec(position=number_tuple(args, "position"), **common)  # type: ignore[arg-type]
     region = parse_region(kwargs.get("region"), spec)

@@ -82,8 +82,8 @@ class DEM:
         return self.engine.insert(calls.parse_insert(request, self.spec, self._seed()))
 
     def createParticles(self, species: Any, style: str, *args: Any, **kwargs: Any) -> int:  # noqa: N802
-        """Create particles now: ``'single'`` at x, y, z; ``'lattice'`` or ``'random'`` in a
-        region. Returns how many were created."""
+        """Create particles now: ``'single'`` at x, y, z (or one per row of an ``(N, 3)`` array
+        of positions); ``'lattice'`` or ``'random'`` in a region. Returns how many were created."""
         return self.engine.create_particles(
             calls.parse_create(species, style, args, kwargs, self.spec, self._seed())
         )

@@ -305,8 +305,12 @@ class PlacingEngine(Engine):
         species = self.spec.species[request.species - 1]
         rng = np.random.default_rng(request.seed)
         if request.style == "single":
-            centres = np.array([request.position], float)
-            radii = np.array([request.radius or species.radius.sample(1, rng)[0]])
+            centres = request.centres
+            radii = (
+                np.full(len(centres), request.radius)
+                if request.radius
+                else species.radius.sample(len(centres), rng)
+            )
         elif request.style == "lattice":
             axes = [
                 np.arange(lo + request.spacing / 2, hi, request.spacing) for lo, hi in request.region.bounds()

@@ -267,3 +267,13 @@ def test_particles_created_one_by_one_stream_to_liggghts(tmp_path):
         "set atom 1001*1100 diameter 0.002 density 2500 vx 0 vy 0 vz -0.5",
         "set atom 1101*1200 diameter 0.002 density 2500",
     ]
+
+
+def test_create_many_single_particles_from_an_array(tmp_path):
+    positions = np.column_stack([np.linspace(-0.008, 0.008, 30), np.zeros(30), np.full(30, 0.01)])
+    with dem(tmp_path) as sim:
+        assert sim.createParticles(1, "single", positions, vel=(0, 0, -0.5)) == 30
+        np.testing.assert_array_equal(sim.extractIds(), np.arange(1, 31))
+        np.testing.assert_array_equal(sim.extractCoords(), positions)
+        np.testing.assert_array_equal(sim.extractVelocities()[:, 2], -0.5)
+        np.testing.assert_array_equal(sim.extractRadii(), R)

@@ -172,3 +172,22 @@ def test_set_velocity_omega_and_radius(tmp_path):
         assert mass[2] / mass[0] == pytest.approx((8 / 5) ** 3)
         with pytest.raises(ConfigError, match="use set\\(radius=...\\)"):
             sim.velocity(radius=1e-4)
+
+
+def test_create_many_single_particles_from_an_array(tmp_path):
+    positions = np.random.default_rng(1).uniform(-8e-4, 8e-4, (50, 3)) * (1, 1, 0) + (0, 0, 1e-3)
+    positions[:, 2] += np.arange(50) * 5e-5
+    species = ({"material": SOFT, "radius": ("normal", 5e-5, 5e-6)},)
+    with (
+        dem(tmp_path / "one", species=species, seed=3) as one,
+        dem(tmp_path / "many", species=species, seed=3) as many,
+    ):
+        assert many.createParticles(1, "single", positions, vel=(0, 0, -0.1)) == 50
+        for p in positions:
+            one.createParticles(1, "single", *p, vel=(0, 0, -0.1))
+        np.testing.assert_array_equal(many.extractCoords(), positions)
+        np.testing.assert_array_equal(one.extractCoords(), positions)
+        np.testing.assert_array_equal(many.extractVelocities()[:, 2], -0.1)
+        assert len(np.unique(many.extractRadii())) == 50  # drawn per particle
+        with pytest.raises(ConfigError, match=r"\(N, 3\) array of finite coordinates, got shape \(4, 2\)"):
+            many.createParticles(1, "single", np.zeros((4, 2)))

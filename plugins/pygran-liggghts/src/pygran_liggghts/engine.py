@@ -257,15 +257,16 @@ class LiggghtsEngine(Engine):
         first = self._max_id + 1
         radii = None  # per particle, when drawn here
         if spec.style == "single":
-            x, y, z = spec.position
-            line = f"create_atoms {spec.species} single {fmt(x)} {fmt(y)} {fmt(z)} units box"
-            if all(lo < v < hi for v, (lo, hi) in zip(spec.position, self.spec.domain.box)):
-                # inside the box LIGGGHTS gives it the next id: no round trip needed
-                self._pending.append(line)
+            centres = spec.centres
+            lines = [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
+            box = np.array(self.spec.domain.box, float)
+            if np.all((centres > box[:, 0]) & (centres < box[:, 1])):
+                # inside the box LIGGGHTS gives them the next ids: no round trip needed
+                self._pending += lines
                 self._prepared = False
-                self._max_id = first
+                self._max_id += len(lines)
             else:
-                self._queue([line])
+                self._queue(lines)
                 self._flush()
         elif spec.style == "lattice":
             rid, region = self.commands.region(spec.region)
