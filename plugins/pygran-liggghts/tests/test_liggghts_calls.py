@@ -9,14 +9,8 @@ from pygran_liggghts.library import find_library
 
 from pygran_core import analysis, simulation
 from pygran_core.testing.solvers import require_solver
+from pygran_core.validation import SOFT as MATERIAL
 
-MATERIAL = {
-    "youngsModulus": 5e6,
-    "poissonsRatio": 0.45,
-    "coefficientRestitution": 0.3,
-    "coefficientFriction": 0.5,
-    "density": 2500.0,
-}
 R = 1e-3
 MASS = 4 / 3 * math.pi * R**3 * MATERIAL["density"]
 G = 9.81

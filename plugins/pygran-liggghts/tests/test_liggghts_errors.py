@@ -9,14 +9,7 @@ from pygran_liggghts.library import LIBRARY_ENV, find_library
 from pygran_core import simulation
 from pygran_core.errors import EngineError
 from pygran_core.testing.solvers import require_solver
-
-MATERIAL = {
-    "youngsModulus": 5e6,
-    "poissonsRatio": 0.45,
-    "coefficientRestitution": 0.3,
-    "coefficientFriction": 0.5,
-    "density": 2500.0,
-}
+from pygran_core.validation import SOFT as MATERIAL
 
 
 def make(path, **extra):

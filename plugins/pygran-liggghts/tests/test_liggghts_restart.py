@@ -12,14 +12,8 @@ from pygran_core import simulation
 from pygran_core.io import open_trajectory
 from pygran_core.simulation.checkpoint import read_checkpoint
 from pygran_core.testing.solvers import require_solver
+from pygran_core.validation import SOFT as MATERIAL
 
-MATERIAL = {
-    "youngsModulus": 5e6,
-    "poissonsRatio": 0.45,
-    "coefficientRestitution": 0.3,
-    "coefficientFriction": 0.5,
-    "density": 2500.0,
-}
 R = 1e-3
 
 

@@ -183,16 +183,20 @@ def test_a_changed_script_is_refused_with_the_differing_call(straight, tmp_path)
             sim.run(2500, 1e-6)
 
 
+def resume_in(output):
+    return simulation.DEM(
+        engine="native",
+        model=HertzMindlin,
+        box=(0, 1, 0, 1, 0, 1),
+        species=({"material": SOFT, "radius": 0.01},),
+        output=str(output),
+        restart=(100, "restart", "restart.h5", True),
+    )
+
+
 def test_resume_without_a_checkpoint_says_what_to_do(tmp_path):
     with pytest.raises(ConfigError, match="run once without resume"):
-        simulation.DEM(
-            engine="native",
-            model=HertzMindlin,
-            box=(0, 1, 0, 1, 0, 1),
-            species=({"material": SOFT, "radius": 0.01},),
-            output=str(tmp_path),
-            restart=(100, "restart", "restart.h5", True),
-        )
+        resume_in(tmp_path)
 
 
 def test_a_file_that_is_not_a_checkpoint_is_named(tmp_path):
@@ -200,14 +204,7 @@ def test_a_file_that_is_not_a_checkpoint_is_named(tmp_path):
     bad.parent.mkdir()
     bad.write_text("not hdf5")
     with pytest.raises(ReadError, match=r"restart\.h5: unreadable checkpoint"):
-        simulation.DEM(
-            engine="native",
-            model=HertzMindlin,
-            box=(0, 1, 0, 1, 0, 1),
-            species=({"material": SOFT, "radius": 0.01},),
-            output=str(tmp_path),
-            restart=(100, "restart", "restart.h5", True),
-        )
+        resume_in(tmp_path)
 
 
 def test_a_long_journal_fits_in_the_checkpoint(tmp_path):
