@@ -9,8 +9,8 @@ with the reference, per-pair tests compare engines with each other.
 
 The engines are every installed one plus the first-party ones: with ``CI=true`` an engine
 whose plugin or solver is missing, or that does not declare what the comparison needs,
-fails; elsewhere it is skipped with the reason. A model an engine does not declare, and a
-scenario listed in :data:`CANNOT`, must raise :class:`UnsupportedFeature`: that is asserted.
+fails; elsewhere it is skipped with the reason. A model an engine does not declare must
+raise :class:`UnsupportedFeature`: that is asserted.
 """
 
 from __future__ import annotations
@@ -193,21 +193,18 @@ def hopper(engine: str, output: Path) -> tuple[float, np.ndarray]:
 
 # -- parameters -------------------------------------------------------------------------------------
 
-#: Scenarios an engine is known not to run: what its UnsupportedFeature says (asserted).
-CANNOT = {("yade", "settled"): "walls in a periodic domain"}
 
-
-def unsupported(engine: str, scenario: str, model: str | None = None) -> str | None:
-    """What ``engine`` must raise UnsupportedFeature about for ``scenario`` (and ``model``), if anything."""
+def unsupported(engine: str, model: str | None = None) -> str | None:
+    """What ``engine`` must raise UnsupportedFeature about for ``model``, if anything."""
     if model is not None and not _declares(engine, MODEL_CAPABILITY[model]):
         return model
-    return CANNOT.get((engine, scenario))
+    return None
 
 
 def measure(runs: Runs, scenario, engine: str, model: str | None = None):
     """The scenario's result, or ``None`` once the engine's expected UnsupportedFeature is asserted."""
     args = () if model is None else (model,)
-    reason = unsupported(engine, scenario.__name__, model)
+    reason = unsupported(engine, model)
     if reason is None:
         return runs.get(scenario, engine, *args)
     require_engine(engine)
@@ -216,37 +213,19 @@ def measure(runs: Runs, scenario, engine: str, model: str | None = None):
     return None
 
 
-def pairs(scenario: str, model: str | None = None) -> list[tuple[str, str]]:
-    """Pairs of engines that both run ``scenario`` (with ``model``)."""
-    return list(itertools.combinations([e for e in ENGINES if unsupported(e, scenario, model) is None], 2))
+def pairs(model: str | None = None) -> list[tuple[str, str]]:
+    """Pairs of engines that both run ``model`` (every pair without one)."""
+    return list(itertools.combinations([e for e in ENGINES if unsupported(e, model) is None], 2))
 
 
 MODELS = {model.__name__: model for model in IMPACT_MATERIALS}
-
-#: Known plugin bugs, reported to the plugin's owner: (engine, model) -> what is wrong. The
-#: wall-impact tests with them are strict xfails, which fail as soon as the bug is fixed.
-KNOWN_BUGS = {
-    ("yade", "HertzMindlin"): (
-        "pygran-yade: sphere-wall Hertz-Mindlin contact time and overlap are 2^(1/5) = 1.149 times "
-        "the reference without damping (1.16 times the contact time with e = 0.5), whatever R and "
-        "nu: the wall acts as a sphere of the same radius, R* = R/2"
-    )
-}
-
-
-def impact_cases(*engines: str, model: str) -> dict:
-    """``pytest.param`` keywords for a wall-impact test on ``engines`` with ``model``."""
-    bugs = [KNOWN_BUGS[e, model] for e in engines if (e, model) in KNOWN_BUGS]
-    marks = [pytest.mark.xfail(strict=True, reason=bug) for bug in bugs]
-    return {"id": "-".join((*engines, model)), "marks": marks}
-
 
 # -- one engine against the reference -------------------------------------------------------------
 
 
 @pytest.mark.parametrize(
     ("engine", "model"),
-    [pytest.param(e, m, **impact_cases(e, model=m)) for e in ENGINES for m in MODELS],
+    [pytest.param(e, m, id=f"{e}-{m}") for e in ENGINES for m in MODELS],
 )
 def test_wall_impact_matches_the_reference_model(runs, engine, model):
     measured = measure(runs, impact, engine, model)
@@ -297,7 +276,7 @@ def test_hopper_discharges(runs, engine):
 
 @pytest.mark.parametrize(
     ("a", "b", "model"),
-    [pytest.param(a, b, m, **impact_cases(a, b, model=m)) for m in MODELS for a, b in pairs("impact", m)],
+    [pytest.param(a, b, m, id=f"{a}-{b}-{m}") for m in MODELS for a, b in pairs(m)],
 )
 def test_engines_agree_on_wall_impacts(runs, a, b, model):
     first, second = (runs.get(impact, e, model) for e in (a, b))
@@ -305,21 +284,21 @@ def test_engines_agree_on_wall_impacts(runs, a, b, model):
     assert close(first.restitution, second.restitution, 0.02), (first, second)
 
 
-@pytest.mark.parametrize(("a", "b"), pairs("two_spheres"))
+@pytest.mark.parametrize(("a", "b"), pairs())
 def test_engines_agree_on_two_sphere_collisions(runs, a, b):
     first, second = (runs.get(two_spheres, e) for e in (a, b))
     assert close(first.contact_time, second.contact_time, 0.02), (first, second)
     assert close(first.restitution, second.restitution, 0.02), (first, second)
 
 
-@pytest.mark.parametrize(("a", "b"), pairs("settled"))
+@pytest.mark.parametrize(("a", "b"), pairs())
 def test_engines_agree_on_the_settled_bed(runs, a, b):
     first, second = (runs.get(settled, e) for e in (a, b))
     assert close(first.packing_fraction, second.packing_fraction, 0.02), (first, second)
     assert close(first.coordination, second.coordination, 0.10), (first, second)
 
 
-@pytest.mark.parametrize(("a", "b"), pairs("hopper"))
+@pytest.mark.parametrize(("a", "b"), pairs())
 def test_engines_agree_on_hopper_discharge(runs, a, b):
     (first, _), (second, _) = (runs.get(hopper, e) for e in (a, b))
     assert close(first, second, 0.15), (first, second)

@@ -23,6 +23,17 @@ import numpy as np
 #: Runs up to this many steps call ``O.step()`` in a loop: ``O.run(n, True)`` polls for the
 #: end of the run every 40 ms, which dominates short runs.
 STEP_LOOP = 64
+#: YADE's cell is periodic along every axis: along a non-periodic one it is this many domain
+#: lengths long, so that no particle meets an image of itself and a plane wall (3 lengths
+#: wide there, see the adapter's ``plane_triangle``) stays under half of it.
+APERIODIC_CELL = 10
+
+
+def sort_axis(periodic) -> int:
+    """The collider's sort axis: the first non-periodic one. Its initial sweep along a
+    periodic axis misses pairs with a body wider than half the period (a plane wall), which
+    never is along a non-periodic axis (see the adapter's ``plane_triangle``)."""
+    return next((axis for axis in range(3) if not periodic[axis]), 0)
 
 
 def to_bytes(array) -> bytes:
@@ -75,11 +86,11 @@ class Simulation:
 
     # -- setup ----------------------------------------------------------------------------
 
-    def setup(self, model, materials, pairs, gravity, box, periodic, dt):
+    def setup(self, model, materials, matches, gravity, box, periodic, dt):
         """Materials, contact law, gravity and the (periodic) cell; returns material ids.
 
-        ``model`` is ``"hertz"`` (``pairs``: restitution per material pair) or ``"linear"``
-        (``pairs``: normal stiffness per material pair, every material carrying ``betan``).
+        ``model`` is ``"hertz"`` or ``"linear"`` (every material then carrying ``betan``);
+        ``matches`` maps attributes of the Ip2 functor to ``(material i, material j, value)``.
         """
         y, O = self.yade, self.O  # noqa: E741 - YADE's own name for the scene
         O.reset()
@@ -87,33 +98,36 @@ class Simulation:
             cls = y.FrictViscoMat if model == "linear" else y.FrictMat
             O.materials.append(cls(**props))
         self.materials = [m.id for m in O.materials]
-        matches = [(self.materials[i], self.materials[j], value) for i, j, value in pairs]
+        makers = {
+            name: y.MatchMaker(
+                matches=[(self.materials[i], self.materials[j], value) for i, j, value in pairs]
+            )
+            for name, pairs in matches.items()
+        }
         if model == "hertz":
-            ip2 = y.Ip2_FrictMat_FrictMat_MindlinPhys(en=y.MatchMaker(matches=matches))
+            ip2 = y.Ip2_FrictMat_FrictMat_MindlinPhys(**makers)
             law2 = y.Law2_ScGeom_MindlinPhys_Mindlin()
         else:
-            ip2 = y.Ip2_FrictViscoMat_FrictViscoMat_FrictViscoPhys(
-                kn=y.MatchMaker(matches=matches), kRatio=1.0
-            )
+            ip2 = y.Ip2_FrictViscoMat_FrictViscoMat_FrictViscoPhys(kRatio=1.0, **makers)
             law2 = y.Law2_ScGeom_FrictViscoPhys_CundallStrackVisco()
         box = np.asarray(box, float)
         if any(periodic):
-            # YADE's cell is periodic along all three axes: make the others long enough
-            # that no particle meets its own image across them.
             lengths = box[:, 1] - box[:, 0]
             O.periodic = True
-            O.cell.setBox(tuple(lengths[i] if periodic[i] else 4 * lengths[i] for i in range(3)))
+            O.cell.setBox(tuple(lengths[i] if periodic[i] else APERIODIC_CELL * lengths[i] for i in range(3)))
         self.periodic = tuple(bool(p) for p in periodic)
         self.bounds = box
         O.engines = [
             y.ForceResetter(),
+            # plane walls are facets wider than the period: they meet spheres at their unwrapped positions
             y.InsertionSortCollider(
-                [y.Bo1_Sphere_Aabb(), y.Bo1_Facet_Aabb(), y.Bo1_Box_Aabb()], allowBiggerThanPeriod=True
+                [y.Bo1_Sphere_Aabb(), y.Bo1_Facet_Aabb()],
+                allowBiggerThanPeriod=True,
+                sortAxis=sort_axis(periodic),
             ),
+            # hertzian: a facet's reference radius is 1e8 sphere radii, so R* = R as for a flat wall
             y.InteractionLoop(
-                [y.Ig2_Sphere_Sphere_ScGeom(), y.Ig2_Facet_Sphere_ScGeom(), y.Ig2_Box_Sphere_ScGeom()],
-                [ip2],
-                [law2],
+                [y.Ig2_Sphere_Sphere_ScGeom(), y.Ig2_Facet_Sphere_ScGeom(hertzian=True)], [ip2], [law2]
             ),
             y.NewtonIntegrator(damping=0.0, gravity=vector(gravity)),
         ]
@@ -148,13 +162,6 @@ class Simulation:
             for tri in triangles
         ]
         return self.O.bodies.append(bodies)
-
-    def slab(self, centre, half_extents, material):
-        """Add a fixed box (a plane wall's solid side); returns its id in a list."""
-        body = self.utils.box(
-            vector(centre), vector(half_extents), material=self.materials[material], fixed=True
-        )
-        return [self.O.bodies.append(body)]
 
     def facet_vertices(self, ids):
         """Current corners ``(T, 3, 3)`` of the facets ``ids`` (moving meshes move them)."""
