@@ -2,8 +2,13 @@
 
 Prints particle-steps/s of the settling (8,000 steps) and dense-bed (4,000 steps) phases
 for 1 thread and for ``--threads`` threads (each in a fresh process), the speed-up, the
-coordination number, and the peak RSS growth per particle from creating and running the
-solver (inputs are built before the baseline is taken).
+coordination number, the peak RSS growth per particle from creating and running the
+solver (inputs are built before the baseline is taken), the load average, and per phase the
+solver's timers (:attr:`Solver.timings`: wall seconds per phase, and each thread's CPU
+seconds in the pair and particle loops, which show the load balance even on a busy
+machine; with their busiest thread's sums, ``*_span``, they give the run's time on idle
+cores). ``--chunk 80`` calls ``Solver.run`` with at most 80 steps, as ``simulation.DEM``
+does (100 calls per run).
 
     .venv/bin/python benchmarks/native_solver.py --n 20000 --threads 2
 """
@@ -12,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -47,22 +53,36 @@ def rss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
-def measure(n: int, threads: int) -> dict:
+def advance(solver: Solver, steps: int, chunk: int) -> dict:
+    """Run ``steps`` in calls of at most ``chunk`` steps; the solver's phase timings of it,
+    and ``wall``, the seconds of the calls."""
+    before = solver.timings
+    start = time.perf_counter()
+    for done in range(0, steps, chunk):
+        solver.run(min(chunk, steps - done), DT)
+    wall = time.perf_counter() - start
+    timings = {
+        k: (v - before[k]).tolist() if isinstance(v, np.ndarray) else v - before[k]
+        for k, v in solver.timings.items()
+    }
+    return timings | {"wall": wall}
+
+
+def measure(n: int, threads: int, chunk: int) -> dict:
     box, x = lattice(n)
     baseline = rss_bytes()
     solver = scenario(box, x, threads)
     solver.run(0, DT)
-    t0 = time.perf_counter()
-    solver.run(8000, DT)
-    t1 = time.perf_counter()
-    solver.run(4000, DT)
-    t2 = time.perf_counter()
+    settle = advance(solver, 8000, chunk)
+    bed = advance(solver, 4000, chunk)
     grown = rss_bytes() - baseline
     return {
         "N": solver.n,
         "threads": threads,
-        "settle_pss": n * 8000 / (t1 - t0),
-        "bed_pss": n * 4000 / (t2 - t1),
+        "settle_pss": n * 8000 / settle["wall"],
+        "bed_pss": n * 4000 / bed["wall"],
+        "settle_timings": settle,
+        "bed_timings": bed,
         "coordination": 2 * len(solver.contacts()[0]) / solver.n,
         "lost": solver.lost,
         "rebuilds": solver.rebuilds,
@@ -71,34 +91,71 @@ def measure(n: int, threads: int) -> dict:
     }
 
 
+def idle_seconds(timings: dict) -> float:
+    """The calls' estimated wall time on idle cores: the pair and particle loops taking their
+    busiest thread's CPU time (``*_span``) instead of their wall time."""
+    return timings["wall"] + sum(timings[f"{k}_span"] - timings[k] for k in ("pairs", "particles"))
+
+
+def breakdown(timings: dict) -> str:
+    """One line of phase timings: seconds and share of the run, and :func:`idle_seconds`."""
+    run = timings["run"]
+    phases = ("pairs", "particles", "drift", "walls", "rebuild")
+    parts = [f"{k} {timings[k]:.2f} s ({100 * timings[k] / run:.1f}%)" for k in phases]
+    rebuild = [f"{k[8:]} {timings[k]:.3f}" for k in timings if k.startswith("rebuild_")]
+    other = run - sum(timings[k] for k in phases)
+    cpu = [
+        f"{k} " + "/".join(f"{t:.2f}" for t in timings[f"{k}_cpu"]) + f" (span {timings[f'{k}_span']:.2f})"
+        for k in ("pairs", "particles")
+    ]
+    return (
+        f"calls {timings['wall']:.2f} s, outside the solver's loop {timings['wall'] - run:.3f} s; "
+        f"run {run:.2f} s (idle cores: {idle_seconds(timings):.2f} s): "
+        + ", ".join(parts)
+        + f", other {other:.3f} s; "
+        f"rebuild parts: {', '.join(rebuild)}; CPU s per thread: {', '.join(cpu)}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=20000, choices=sorted(SIZES))
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--chunk", type=int, default=8000, help="most steps per Solver.run call")
     parser.add_argument("--one", action="store_true", help="run one measurement in this process")
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(measure(args.n, args.threads)))
+        print(json.dumps(measure(args.n, args.threads, args.chunk)))
         return
     results = []
     for threads in sorted({1, args.threads}):
         command = [sys.executable, __file__, "--one", "--n", str(args.n), "--threads", str(threads)]
+        command += ["--chunk", str(args.chunk)]
+        load = os.getloadavg()[0]
         out = subprocess.run(command, capture_output=True, text=True, check=True)
         res = json.loads(out.stdout.strip().splitlines()[-1])
+        res["load"] = (load, os.getloadavg()[0])
         results.append(res)
         print(
-            f"N={res['N']} threads={res['threads']}: "
+            f"N={res['N']} threads={res['threads']} (load average {load:.2f} -> {res['load'][1]:.2f}): "
             f"settle {res['settle_pss'] / 1e6:.2f} M particle-steps/s, "
             f"dense bed {res['bed_pss'] / 1e6:.2f} M, coordination {res['coordination']:.2f}, "
             f"{res['rebuilds']} rebuilds, "
             f"peak RSS growth {res['rss_bytes_per_particle']:.0f} B/particle "
             f"(solver allocation {res['solver_bytes_per_particle']:.0f} B/particle)"
         )
+        for phase in ("settle", "bed"):
+            print(f"  {phase}: {breakdown(res[f'{phase}_timings'])}")
     if len(results) == 2:
         one, many = results
+        idle = [
+            idle_seconds(one[f"{phase}_timings"]) / idle_seconds(many[f"{phase}_timings"])
+            for phase in ("settle", "bed")
+        ]
         print(
             f"speed-up {many['threads']}/1 threads: settle {many['settle_pss'] / one['settle_pss']:.2f}x, "
-            f"dense bed {many['bed_pss'] / one['bed_pss']:.2f}x"
+            f"dense bed {many['bed_pss'] / one['bed_pss']:.2f}x; "
+            f"estimated on idle cores: settle {idle[0]:.2f}x, dense bed {idle[1]:.2f}x"
         )
     print(json.dumps(results))
 

@@ -138,6 +138,20 @@ def test_rotating_mesh_turns_at_the_requested_rate(tmp_path):
     np.testing.assert_allclose(end, quarter, atol=1e-9)
 
 
+def test_wiggling_mesh_follows_the_sine(tmp_path):
+    mesh = {"drum": {"file": str(SILO), "args": ("scale 1e-3",)}}
+    amplitude = np.array([2e-4, 0.0, -1e-4])
+    with dem(tmp_path, mesh=mesh, gravity=None) as sim:
+        sim.setupWall(wtype="mesh", mesh="drum")
+        start = sim.engine._mesh_frame().arrays["points"]
+        sim.moveMesh("drum", wiggle=True, amplitude=tuple(amplitude), period=0.01)
+        for fraction, steps in ((0.25, 5000), (0.5, 5000), (1.0, 10000)):
+            sim.run(steps)
+            moved = sim.engine._mesh_frame().arrays["points"] - start
+            expected = amplitude * np.sin(2 * np.pi * fraction)
+            np.testing.assert_allclose(moved, np.tile(expected, (len(start), 1)), atol=1e-12)
+
+
 def test_unsupported_and_wrong_calls_are_clear(tmp_path):
     mesh = {"hopper": {"file": str(SILO), "args": ("scale 1e-3",)}}
     with dem(tmp_path, mesh=mesh) as sim:
@@ -146,8 +160,9 @@ def test_unsupported_and_wrong_calls_are_clear(tmp_path):
         ):
             sim.moveMesh("hopper", linear=(0, 0, 1e-3))
         sim.setupWall(wtype="mesh", mesh="hopper")
-        with pytest.raises(UnsupportedFeature, match="wiggling meshes"):
-            sim.moveMesh("hopper", wiggle=True, amplitude=(0, 0, 1e-4), period=0.01)
+        sim.moveMesh("hopper", wiggle=True, amplitude=(0, 0, 1e-4), period=0.01)
+        with pytest.raises(ConfigError, match="already moves"):
+            sim.moveMesh("hopper", linear=(0, 0, 1e-3))
     with pytest.raises(ConfigError, match="at least one species"):
         simulation.DEM(engine="native", box=(0, 1, 0, 1, 0, 1), output=str(tmp_path / "x"))
 

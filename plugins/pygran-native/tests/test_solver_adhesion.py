@@ -49,14 +49,36 @@ def test_thornton_ning_impact_matches_reference(gamma, v0):
     assert min(force) == pytest.approx(ref.force.min(), rel=0.01, abs=1e-9)
 
 
-def test_slow_adhesive_impact_is_captured():
+@pytest.mark.parametrize("side", [1, -1], ids=["above", "below"])
+def test_slow_adhesive_impact_is_captured(side):
     ref = ThorntonNing(material=material(0.3)).displacement(velocity=0.2)
     assert ref.captured
     s = tn_solver(0.3)
+    s.add_plane((0, 0, 0), (0, 0, 1))  # two-sided: the same from below
+    s.add_particles([[0, 0, side * R]], R, densities=RHO, velocities=[[0, 0, -side * 0.2]])
+    s.run(40000, ref.time[-1] / 2000)
+    assert R - side * s.positions[0, 2] > -1e-5 and s.walls()  # still stuck to the wall
+    assert side * s.positions[0, 2] < 0  # the centre sank past the plane: held by the contact's side
+
+
+def test_plane_contact_side_survives_rebuilds_and_checkpoints():
+    ref = ThorntonNing(material=material(0.3)).displacement(velocity=0.2)
+    dt = ref.time[-1] / 2000
+    s = tn_solver(0.3)
     s.add_plane((0, 0, 0), (0, 0, 1))
     s.add_particles([[0, 0, R]], R, densities=RHO, velocities=[[0, 0, -0.2]])
-    s.run(40000, ref.time[-1] / 2000)
-    assert R - s.positions[0, 2] > -1e-5 and s.walls()  # still stuck to the wall
+    s.run(20000, dt)
+    sunk = s.positions[0, 2]
+    assert -0.2 * R < sunk < 0  # centre past the plane
+    s.add_particles([[-0.009, 0.005, 0.005]], R, densities=RHO, velocities=[[20.0, 0, 0]])  # forces rebuilds
+    s.run(1000, dt)
+    restored = tn_solver(0.3)
+    restored.set_state(s.get_state())
+    for solver in (s, restored):
+        solver.run(1000, dt)
+        assert solver.rebuilds > 5
+        assert solver.positions[0, 2] == pytest.approx(sunk, abs=0.05 * R)  # not pushed to the other side
+    assert restored.positions[0, 2] == s.positions[0, 2]
 
 
 @pytest.mark.parametrize("gamma", [0.0, 0.05])

@@ -76,6 +76,29 @@ def test_state_round_trip_is_bitwise(threads):
     assert restored.time == s.time and restored.rebuilds == s.rebuilds
 
 
+def test_state_round_trip_keeps_wall_motion_and_plane_sides():
+    # gravity upwards: one sphere rests under a plane (a contact from below, side -1), another
+    # under a wiggling plate; the state is taken in mid-wiggle
+    s = Solver(box=[[-0.01] * 3, [0.01] * 3], gravity=(0, 0, 9.81), skin=2e-4, threads=2)
+    s.set_contact_model("hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5)
+    s.add_plane((0, 0, 0), (0, 0, 1))
+    corners = [[-4e-3, -4e-3, 5e-3], [4e-3, -4e-3, 5e-3], [4e-3, 4e-3, 5e-3], [-4e-3, 4e-3, 5e-3]]
+    plate = s.add_mesh(corners, [[0, 1, 2], [0, 2, 3]])
+    s.set_mesh_motion(plate, amplitude=(3e-5, 0, 4e-5), period=7e-3)
+    s.add_particles([[-5e-3, 0, -R], [0, 1e-3, 5e-3 - R]], R, densities=RHO)
+    s.run(1234, 1e-5)
+    state = s.get_state()
+    restored = Solver(box=s.box, gravity=(0, 0, 9.81), skin=2e-4, threads=2)
+    restored.set_state(state)
+    for solver in (s, restored):
+        solver.run(2000, 1e-5)
+    for a, b in zip(
+        snapshot(s) + [s.mesh_triangles(plate)], snapshot(restored) + [restored.mesh_triangles(plate)]
+    ):
+        np.testing.assert_array_equal(a, b)
+    assert restored.time == s.time and -R < s.positions[0, 2] < -R + 1e-5  # pressed against the plane
+
+
 def test_tangential_history_survives_rebuilds_and_resorting():
     # a sphere resting on a tilted frictional floor sticks (history holds it) while others move
     s = Solver(
@@ -167,6 +190,11 @@ def test_bad_arguments_name_the_argument():
         s.add_mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 3]])
     with pytest.raises(ConfigError, match="mesh"):
         s.set_mesh_motion(s.add_plane((0, 0, 0), (0, 0, 1)), velocity=(0, 0, 1))
+    mesh = s.add_mesh([[0, 0, 0], [1e-3, 0, 0], [0, 1e-3, 0]], [[0, 1, 2]])
+    with pytest.raises(ConfigError, match="period"):
+        s.set_mesh_motion(mesh, amplitude=(0, 0, 1e-4))
+    with pytest.raises(ConfigError, match="period"):
+        s.set_mesh_motion(mesh, amplitude=(0, 0, 1e-4), period=0.0)
     with pytest.raises(ConfigError, match="wall"):
         s.remove_wall(42)
     with pytest.raises(ConfigError, match="dt"):

@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 from pygran_native.solver import Solver
 
+from pygran_core.simulation.models import HertzMindlin
+
 R, RHO, E, NU = 1e-3, 2500.0, 5e6, 0.45
 OVERLAP = 2e-5
 
@@ -96,6 +98,58 @@ def test_sphere_bouncing_on_a_mesh_matches_the_plane():
         s.run(3000, 2e-6)
         results.append(np.concatenate([s.positions[0], s.velocities[0]]))
     np.testing.assert_allclose(results[0], results[1], rtol=1e-9, atol=1e-15)
+
+
+def test_plane_is_two_sided_with_the_model_restitution():
+    v0 = 0.5
+    ref = HertzMindlin(
+        material=dict(youngsModulus=E, poissonsRatio=NU, coefficientRestitution=0.5, density=RHO, radius=R)
+    ).displacement(velocity=v0)
+    final = {}
+    for side in (1, -1):  # from above and from below the plane z = 0 of normal +z
+        s = solver()
+        s.add_plane((0, 0, 0), (0, 0, 1))
+        s.add_particles([[0, 0, side * (R + 1e-6)]], R, densities=RHO, velocities=[[0, 0, -side * v0]])
+        s.run(1500, ref.contact_time / 1000)
+        assert s.forces[0, 2] == 0  # the contact is over
+        final[side] = (s.positions[0, 2], s.velocities[0, 2])
+        assert side * s.velocities[0, 2] / v0 == pytest.approx(ref.restitution, rel=0.01)
+    assert final[1] == (-final[-1][0], -final[-1][1])  # mirror images, bit for bit
+
+
+def wiggling_plate(amplitude, period):
+    s = solver(gravity=(0, 0, -9.81))
+    plate = s.add_mesh(*grid_mesh())
+    s.set_mesh_motion(plate, amplitude=amplitude, period=period)
+    return s, plate
+
+
+def test_wiggle_displacement_follows_the_closed_form():
+    amplitude, period = np.array([1e-4, -2e-4, 3e-4]), 0.01
+    s, plate = wiggling_plate(amplitude, period)
+    start = s.mesh_triangles(plate)
+    s.run(250, period / 1000)  # a quarter period: displaced by the amplitude
+    np.testing.assert_allclose(
+        s.mesh_triangles(plate) - start, np.broadcast_to(amplitude, start.shape), atol=1e-15
+    )
+    s.run(750, period / 1000)  # back at the start after the full period
+    np.testing.assert_allclose(s.mesh_triangles(plate), start, atol=1e-15)
+    s.run(99_000, period / 1000)  # and after 100 periods: nothing accumulates
+    np.testing.assert_allclose(s.mesh_triangles(plate), start, atol=1e-15)
+
+
+def test_particle_resting_on_a_wiggling_plate_moves_with_it():
+    amplitude, period = 5e-5, 0.02  # peak acceleration 0.5 g: the particle stays on the plate
+    omega = 2 * math.pi / period
+    s, _ = wiggling_plate((0, 0, amplitude), period)
+    s.add_particles([[1e-3, 1e-3, R]], R, densities=RHO)
+    dt = 2e-6
+    s.run(int(period / dt), dt)  # one period: the start-up transient dies out
+    deviation = []
+    for _ in range(50):
+        s.run(int(period / dt / 50), dt)
+        deviation.append(s.velocities[0, 2] - amplitude * omega * math.cos(omega * s.time))
+    assert np.abs(deviation).max() < 0.01 * amplitude * omega
 
 
 def test_cylinder_inside_holds_particles():

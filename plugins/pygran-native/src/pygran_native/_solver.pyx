@@ -9,20 +9,30 @@ rebuild):
   code ``nb_s`` (0..26) and ``hs`` history values per pair: tangential displacement (3),
   the last normal force, and for Thornton-Ning the largest overlap, the unloading
   curvature radius and the plastic offset;
-- wall list (CSR over particles): wall element ``wl_e`` and its ``hs`` history values;
+- wall list (CSR over particles): wall element ``wl_e`` and its ``whs = hs + 1`` history
+  values: the contact's ``hs`` values and, for a plane, the side the contact started on
+  (``+1`` along the plane's normal, ``-1`` against it, ``0`` while there is no contact);
 - wall elements: planes, cylinders and triangles (with mesh topology and rigid motion).
 
-A contact's tangential history is carried across rebuilds and re-sorts by looking the
-pair up in the previous list (its sign follows the pair's orientation). Each thread owns a
-contiguous block of the cell-sorted particles (a slab of the domain, balanced by work at
-every rebuild); pair forces go to per-thread buffers summed in thread order, so results are
-deterministic for a given thread count.
+Planes are two-sided: a new contact takes the side of the particle's centre and keeps it
+while it lasts, so a deeply plastic contact whose centre sinks past the plane is still
+pushed back to where it came from. A contact's history is carried across rebuilds and
+re-sorts by looking the pair (or particle and wall element) up in the previous list (a
+pair's tangential history changes sign with the pair's orientation).
+
+Threads: in the pair loop (pair and wall forces) each thread owns a contiguous block of the
+cell-sorted rows (a slab of the domain); the bounds move after every step to where the work
+the loop counted (listed pairs, touching pairs, wall entries) splits evenly. Forces on a
+thread's own rows go to a shared buffer, forces on later rows to the thread's own buffer;
+the particle loop (equal blocks) adds them in thread order. The bounds are part of the
+state, so results are bitwise reproducible for a given thread count.
 """
 
 from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite
 from libc.stdlib cimport malloc, calloc, realloc, free
 from libc.string cimport memcpy, memset
 from libc.stdint cimport int64_t, uint8_t
+from posix.time cimport clock_gettime, timespec, CLOCK_THREAD_CPUTIME_ID
 from cython.parallel cimport prange
 cimport openmp
 
@@ -35,6 +45,9 @@ DEF MAXCAND = 64
 DEF CHUNK = 64     # particles per chunk of the static OpenMP schedule of the rebuild loops
 DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
 DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
+DEF NMOT = 14      # motion values per wall element, see motion_origin
+DEF WROW = 5       # work of a row of the pair loop, a touching pair and a wall entry in units of
+DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
 
 cdef enum:
     HOOKE = 0
@@ -56,6 +69,26 @@ cdef enum:
     EDGE = 1
     VERTEX = 2
 
+# wall-clock timers of the time-step loop's phases (seconds), in the order of TIMERS
+cdef enum:
+    T_RUN = 0
+    T_DRIFT = 1
+    T_WALLS = 2
+    T_PAIRS = 3
+    T_PARTICLES = 4
+    T_REBUILD = 5
+    T_CELLS = 6
+    T_SORT = 7
+    T_PERMUTE = 8
+    T_COUNT = 9
+    T_FILL = 10
+    T_PAIRS_SPAN = 11
+    T_PARTICLES_SPAN = 12
+    NTIMERS = 13
+
+TIMERS = ("run", "drift", "walls", "pairs", "particles", "rebuild", "rebuild_cells", "rebuild_sort",
+          "rebuild_permute", "rebuild_count", "rebuild_fill", "pairs_span", "particles_span")
+
 cdef struct Coef:
     double E        # effective modulus E*
     double G        # effective shear modulus G*
@@ -69,8 +102,9 @@ cdef struct Coef:
 
 
 cdef struct Ctx:
-    int n, cap, hs, model, nt, nthreads, ncells, update, kick, fuse
+    int n, cap, hs, whs, model, nt, nthreads, ncells, update, kick, fuse
     int nc[3]
+    int ax[3]
     double cs[3]
     double lo[3]
     double grav[3]
@@ -86,6 +120,9 @@ cdef struct Ctx:
     double *m
     int *type
     double *buf
+    int *pb
+    int *work
+    long long *tstat
     int *perm
     int *cell
     int *nb_start
@@ -116,6 +153,14 @@ cdef struct Ctx:
     double *emot
     Coef *coef
     double *visc
+    double *cpu
+
+
+cdef inline double thread_cpu() noexcept nogil:
+    """CPU seconds of the calling thread (not counting time it was descheduled or waiting)."""
+    cdef timespec ts
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts)
+    return ts.tv_sec + 1e-9 * ts.tv_nsec
 
 
 cdef inline double dot3(const double* a, const double* b) noexcept nogil:
@@ -380,7 +425,8 @@ cdef inline int closest_on_triangle(const double* p, const double* A, const doub
 
 
 cdef inline double primitive_gap(int kind, const double* g, const double* p, double* nrm) noexcept nogil:
-    """Distance from p to a plane or cylinder surface (negative behind it) and the unit normal."""
+    """Distance from p to a plane or cylinder surface and the unit normal: negative behind
+    a cylinder's surface; for a plane, negative on the side its normal points away from."""
     cdef double d, rho, u0, u1
     cdef int ax, a0, a1
     if kind == PLANE:
@@ -407,6 +453,24 @@ cdef inline double primitive_gap(int kind, const double* g, const double* p, dou
         nrm[a1] = -nrm[a1]
         return g[3] - rho
     return rho - g[3]
+
+
+cdef inline void motion_origin(const double* mot, double tau, double* o, double* vo) noexcept nogil:
+    """Position and velocity of a moving wall's origin ``tau`` after its motion started.
+
+    ``mot``: velocity V (3), angular velocity W (3), origin o0 (3), start time, wiggle
+    amplitude A (3) and period T (0: no wiggle); the origin is at
+    ``o0 + V tau + A sin(2 pi tau / T)``, and the wall at ``o + R(W tau)(X - o0)``.
+    """
+    cdef double ph, s = 0.0, cw = 0.0
+    cdef int k
+    if mot[13] > 0.0:
+        ph = 2.0 * M_PI * tau / mot[13]
+        s = sin(ph)
+        cw = 2.0 * M_PI / mot[13] * cos(ph)
+    for k in range(3):
+        o[k] = mot[6 + k] + mot[k] * tau + mot[10 + k] * s
+        vo[k] = mot[k] + mot[10 + k] * cw
 
 
 cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogil:
@@ -445,15 +509,24 @@ cdef inline void zero_hist(double* h, int hs) noexcept nogil:
             return
 
 
-cdef inline int cell_index(const Ctx* c, const double* p, int* cc) noexcept nogil:
+cdef inline int cell_id(const int* nc, const int* ax, const int* cc) noexcept nogil:
+    """Index of the cell of coordinates cc. Axis ax[0] varies slowest: a block of consecutive
+    cells, such as a thread's, is a slab across the axis with the most cells (the smallest
+    interface between threads, and in a bed each slab has the bed's full height)."""
+    return (cc[ax[0]] * nc[ax[1]] + cc[ax[1]]) * nc[ax[2]] + cc[ax[2]]
+
+
+cdef inline int locate(const double* p, const double* lo, const double* cs, const int* nc, const int* ax,
+                       int* cc) noexcept nogil:
+    """Cell coordinates cc (clamped to the grid) and index of point p."""
     cdef int d
     for d in range(3):
-        cc[d] = <int>floor((p[d] - c.lo[d]) / c.cs[d])
+        cc[d] = <int>floor((p[d] - lo[d]) / cs[d])
         if cc[d] < 0:
             cc[d] = 0
-        elif cc[d] >= c.nc[d]:
-            cc[d] = c.nc[d] - 1
-    return (cc[2] * c.nc[1] + cc[1]) * c.nc[0] + cc[0]
+        elif cc[d] >= nc[d]:
+            cc[d] = nc[d] - 1
+    return cell_id(nc, ax, cc)
 
 
 cdef uint8_t carry_pair(const Ctx* c, int a, int b, double* h) noexcept nogil:
@@ -487,7 +560,7 @@ cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
     cdef double dx, dy, dz, rc
     cdef const double* xi = &c.x[3 * i]
     cdef const double* sv
-    cell_index(c, xi, cc)
+    locate(xi, c.lo, c.cs, c.nc, c.ax, cc)
     pos = c.nb_start[i] if fill else 0
     for d2 in range(-1, 2):
         nb[2] = cc[2] + d2
@@ -513,7 +586,7 @@ cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
                         continue
                     s[0] = 1 if nb[0] < 0 else -1
                     nb[0] += s[0] * c.nc[0]
-                cid = (nb[2] * c.nc[1] + nb[1]) * c.nc[0] + nb[0]
+                cid = cell_id(c.nc, c.ax, nb)
                 code = 9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1
                 sv = &c.shiftv[3 * code]
                 j = c.cell_start[cid]
@@ -548,11 +621,13 @@ cdef int scan_walls(const Ctx* c, int i, bint fill) noexcept nogil:
         if c.ekind[e] == TRIANGLE:
             continue
         gap = primitive_gap(c.ekind[e], &c.egeo[9 * e], xi, nrm)
+        if c.ekind[e] == PLANE:
+            gap = fabs(gap)
         if gap < reach:
             if fill:
                 c.wl_e[pos + cnt] = e
             cnt += 1
-    cid = cell_index(c, xi, cc)
+    cid = locate(xi, c.lo, c.cs, c.nc, c.ax, cc)
     for k in range(c.ctri_start[cid], c.ctri_start[cid + 1]):
         e = c.ctri[k]
         g = &c.egeo[9 * e]
@@ -565,16 +640,26 @@ cdef int scan_walls(const Ctx* c, int i, bint fill) noexcept nogil:
     if fill:
         for k in range(cnt):
             e = c.wl_e[pos + k]
-            memset(&c.wl_h[(pos + k) * c.hs], 0, c.hs * sizeof(double))
+            memset(&c.wl_h[(pos + k) * c.whs], 0, c.whs * sizeof(double))
             for q in range(c.ow_start[oi], c.ow_start[oi + 1]):
                 if c.ow_e[q] == e:
-                    memcpy(&c.wl_h[(pos + k) * c.hs], &c.ow_h[q * c.hs], c.hs * sizeof(double))
+                    memcpy(&c.wl_h[(pos + k) * c.whs], &c.ow_h[q * c.whs], c.whs * sizeof(double))
                     break
     return cnt
 
 
-cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
-    """Forces of particle i's half-list contacts into thread ``tid``'s buffer."""
+cdef inline int row_work(int listed, int touching, int walls) noexcept nogil:
+    """Work of a row of the pair loop, in units of a listed pair that is apart."""
+    return WROW + listed + WTOUCH * (touching + walls)
+
+
+cdef int pair_row(const Ctx* c, int i, int tid, int* hmax) noexcept nogil:
+    """Forces of particle i's half-list contacts and walls; returns the row's work.
+
+    Thread ``tid`` owns the rows up to ``pb[tid + 1]``: forces on them go to the shared
+    buffer ``buf``, forces on later rows to the thread's own buffer ``tid + 1`` (``hmax``:
+    the last row it wrote there).
+    """
     # locals: the flag store through uint8_t* may alias anything, including *c
     cdef const double* x = c.x
     cdef const double* v = c.v
@@ -587,8 +672,10 @@ cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
     cdef double* nb_h = c.nb_h
     cdef const double* shiftv = c.shiftv
     cdef const Coef* coef = c.coef + c.type[i] * c.nt
-    cdef double* buf = c.buf + <long long>tid * c.cap * 6
+    cdef double* buf = c.buf
+    cdef double* halo = c.buf + <long long>(tid + 1) * c.cap * 6
     cdef int hs = c.hs, model = c.model, update = c.update, k, j, q, res, kend = c.nb_start[i + 1]
+    cdef int own = c.pb[tid + 1], touching = 0, last = -1
     cdef double dt = c.dt
     cdef double d[3]
     cdef double n[3]
@@ -645,15 +732,28 @@ cdef void pair_row(const Ctx* c, int i, int tid) noexcept nogil:
                 nb_s[k] &= ~TOUCH
             continue
         nb_s[k] |= TOUCH
+        touching += 1
         cross3(n, Ft, cx)
-        bj = &buf[j * 6]
+        if j < own:
+            bj = &buf[j * 6]
+        else:
+            bj = &halo[j * 6]
+            last = j if j > last else last
         for q in range(3):
             fi[q] += F[q]
             fi[3 + q] += Mr[q] - ri * cx[q]
             bj[q] -= F[q]
             bj[3 + q] -= Mr[q] + rj * cx[q]
-    for q in range(6):
-        buf[i * 6 + q] += fi[q]
+    for q in range(3):   # walls after the loop, into other arrays: fi can live in registers there
+        F[q] = 0.0
+        Ft[q] = 0.0
+    wall_row(c, i, F, Ft)
+    for q in range(3):
+        buf[i * 6 + q] += fi[q] + F[q]
+        buf[i * 6 + 3 + q] += fi[3 + q] + Ft[q]
+    if last > hmax[0]:
+        hmax[0] = last
+    return row_work(kend - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
 
 
 cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const double* n,
@@ -662,10 +762,11 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
 
     Returns the :func:`contact_force` result; clears the history on NO_CONTACT.
     """
-    cdef double tau
     cdef double vr[3]
     cdef double rw[3]
     cdef double vw[3]
+    cdef double o[3]
+    cdef double vo[3]
     cdef double Fc[3]
     cdef double Ft[3]
     cdef double Mr[3]
@@ -677,20 +778,20 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
     for k in range(3):
         vw[k] = 0.0
     if q != NULL and c.emoving[e]:
-        mot = &c.emot[10 * e]
-        tau = c.time - mot[9]
+        mot = &c.emot[NMOT * e]
+        motion_origin(mot, c.time - mot[9], o, vo)
         for k in range(3):
-            rel[k] = q[k] - (mot[6 + k] + mot[k] * tau)
+            rel[k] = q[k] - o[k]
         cross3(&mot[3], rel, vw)
         for k in range(3):
-            vw[k] += mot[k]
+            vw[k] += vo[k]
     for k in range(3):
         vr[k] = c.v[3 * i + k] - vw[k]
         rw[k] = ri * c.w[3 * i + k]
     res = contact_force(c.model, &c.coef[c.type[i] * c.nt + c.etype[e]], delta, ri, c.m[i], n, vr, rw,
                         &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
     if res == NO_CONTACT:
-        zero_hist(h, c.hs)
+        zero_hist(h, c.whs)
     if res != IN_CONTACT:
         return res
     cross3(n, Ft, cx)
@@ -713,14 +814,14 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
     vertex (a shared edge or vertex of a flat or convex surface counts once; concave
     corners give one contact per face).
     """
-    cdef int k, e, a, b, nc = 0, nacc = 0, reg, u, w2, ok
+    cdef int k, e, a, b, nc = 0, nacc = 0, reg, u, w2, ok, hs = c.hs
     cdef int ck[MAXCAND]
     cdef int creg[MAXCAND]
     cdef int cfeat[MAXCAND]
     cdef int acc[MAXCAND]
     cdef double cq[3 * MAXCAND]
     cdef double cd2[MAXCAND]
-    cdef double gap, d2, dist
+    cdef double gap, d2, dist, side = 1.0
     cdef double nrm[3]
     cdef double* h
     cdef const double* g
@@ -728,19 +829,25 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
     cdef double ri = c.r[i]
     for k in range(c.wl_start[i], c.wl_start[i + 1]):
         e = c.wl_e[k]
-        h = &c.wl_h[<long long>k * c.hs]
+        h = &c.wl_h[<long long>k * c.whs]
         g = &c.egeo[9 * e]
         if c.ekind[e] != TRIANGLE:
             gap = primitive_gap(c.ekind[e], g, xi, nrm)
+            if c.ekind[e] == PLANE:   # the contact's side, or the centre's for a new contact
+                side = h[hs] if h[hs] != 0.0 else (1.0 if gap >= 0.0 else -1.0)
+                gap *= side
+                for a in range(3):
+                    nrm[a] *= side
             if gap < -ri:   # behind the wall: passed through it
-                zero_hist(h, c.hs)
-            else:
-                wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T)
+                zero_hist(h, c.whs)
+            elif wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T) != NO_CONTACT and c.ekind[e] == PLANE \
+                    and c.update:
+                h[hs] = side
             continue
         creg[nc] = closest_on_triangle(xi, g, g + 3, g + 6, &cq[3 * nc], &cfeat[nc])
         d2 = (xi[0] - cq[3 * nc]) ** 2 + (xi[1] - cq[3 * nc + 1]) ** 2 + (xi[2] - cq[3 * nc + 2]) ** 2
-        if (d2 >= ri * ri and not (c.hs > 4 and h[4] > 0.0)) or d2 == 0.0 or nc == MAXCAND:
-            zero_hist(h, c.hs)
+        if (d2 >= ri * ri and not (hs > 4 and h[4] > 0.0)) or d2 == 0.0 or nc == MAXCAND:
+            zero_hist(h, c.whs)
             continue
         cd2[nc] = d2
         ck[nc] = k
@@ -751,7 +858,7 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
                 continue
             k = ck[a]
             e = c.wl_e[k]
-            h = &c.wl_h[<long long>k * c.hs]
+            h = &c.wl_h[<long long>k * c.whs]
             ok = 1
             if reg != FACE:
                 u = c.evid[3 * e + cfeat[a]]
@@ -762,7 +869,7 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
                         ok = 0
                         break
             if not ok:
-                zero_hist(h, c.hs)
+                zero_hist(h, c.whs)
                 continue
             dist = sqrt(cd2[a])
             for b in range(3):
@@ -788,9 +895,10 @@ cdef inline void drift_row(const Ctx* c, int i, int tid) noexcept nogil:
 
 
 cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
-    """Sum the thread buffers, add gravity, viscous and wall forces; second half kick, and
-    with ``fuse`` the first half kick and drift of the next step (one pass instead of two,
-    the same arithmetic)."""
+    """Sum the buffers (the shared one, then those of the threads that wrote row i, in
+    thread order) and clear them, add gravity and viscous forces; second half kick, and with
+    ``fuse`` the first half kick and drift of the next step (one pass instead of two, the
+    same arithmetic)."""
     cdef double mi = c.m[i], g = c.visc[c.type[i]], s
     cdef double F[3]
     cdef double T[3]
@@ -800,12 +908,13 @@ cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
         F[q] = mi * c.grav[q] - g * c.v[3 * i + q]
         T[q] = 0.0
     for k in range(c.nthreads):
+        if k > 0 and not (c.pb[k] <= i <= c.tstat[PAD * (k - 1) + 1]):
+            continue
         b = &c.buf[(<long long>k * c.cap + i) * 6]
         for q in range(3):
             F[q] += b[q]
             T[q] += b[3 + q]
         memset(b, 0, 6 * sizeof(double))
-    wall_row(c, i, F, T)
     for q in range(3):
         c.f[3 * i + q] = F[q]
         c.t[3 * i + q] = T[q]
@@ -820,16 +929,27 @@ cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
         drift_row(c, i, tid)
 
 
-cdef void pair_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
-    cdef int i
-    for i in range(lo, hi):
-        pair_row(c, i, t)
+cdef void pair_block(const Ctx* c, int t) noexcept nogil:
+    """Thread t's rows of the pair loop; records their work and the last row of its buffer."""
+    cdef int i, hmax = -1
+    cdef long long total = 0
+    cdef double t0 = thread_cpu()
+    for i in range(c.pb[t], c.pb[t + 1]):
+        c.work[i] = pair_row(c, i, t, &hmax)
+        total += c.work[i]
+    c.tstat[PAD * t] = total
+    c.tstat[PAD * t + 1] = hmax
+    c.cpu[PAD * t + 2] = thread_cpu() - t0
+    c.cpu[PAD * t] += c.cpu[PAD * t + 2]
 
 
 cdef void particle_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
     cdef int i
+    cdef double t0 = thread_cpu()
     for i in range(lo, hi):
         particle_row(c, i, t)
+    c.cpu[PAD * t + 3] = thread_cpu() - t0
+    c.cpu[PAD * t + 1] += c.cpu[PAD * t + 3]
 
 
 cdef void drift_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
@@ -847,6 +967,10 @@ cdef class Core:
 
     cdef public int n, cap, nthreads, hs, model, ntypes, dirty
     cdef public double time, skin
+    # the clock: time = t_base + (step - step_base) dt_base, re-based when dt changes, so it
+    # does not accumulate round-off step by step
+    cdef double t_base, dt_base
+    cdef long long step_base
     cdef public long long step, lost, rebuilds
     cdef double lo[3]
     cdef double hi[3]
@@ -890,6 +1014,7 @@ cdef class Core:
     cdef long long ow_cap
     # cells
     cdef int nc[3]
+    cdef int ax[3]          # axes from the slowest-varying in the cell index, see cell_id
     cdef double cs[3]
     cdef int ncells
     cdef int *cell_start
@@ -911,12 +1036,17 @@ cdef class Core:
     cdef double *egeo       # 9 per element: plane p,n; cylinder axis,c0,c1,R,inside; triangle vertices
     cdef double *eref       # triangle vertices at the motion's start
     cdef double *ebuilt     # triangle vertices at the last rebuild
-    cdef double *emot       # v(3), w(3), origin(3), t0
+    cdef double *emot       # NMOT per element, see motion_origin
     # contact tables
     cdef Coef *coef
     cdef double *visc
     cdef double *tmax
-    cdef int *bounds        # particles [bounds[t], bounds[t + 1]) belong to thread t
+    cdef int *pb            # rows [pb[t], pb[t + 1]) of the pair loop belong to thread t
+    cdef int *work          # work of each row in the last pair loop (see row_work)
+    cdef long long *tstat   # per thread (PAD apart): work of its rows, last row of its buffer
+    cdef double timers[NTIMERS]
+    cdef double *cpu        # per thread (PAD apart): CPU seconds in the pair and particle loops,
+                            # in total and in the last step
 
     def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads):
         cdef int d, a, b, c
@@ -943,11 +1073,14 @@ cdef class Core:
         self.wl_start = <int*>calloc(1, sizeof(int))
         self.ow_start = <int*>calloc(1, sizeof(int))
         self.tmax = <double*>calloc(threads * PAD, sizeof(double))
-        self.bounds = <int*>calloc(threads + 1, sizeof(int))
+        self.pb = <int*>calloc(threads + 1, sizeof(int))
+        self.tstat = <long long*>calloc(threads * PAD, sizeof(long long))
+        self.cpu = <double*>calloc(threads * PAD, sizeof(double))
         self.coef = <Coef*>calloc(1, sizeof(Coef))
         self.visc = <double*>calloc(1, sizeof(double))
         self.ntypes = 1
-        if not (self.nb_start and self.ob_start and self.wl_start and self.ow_start and self.tmax and self.bounds):
+        if not (self.nb_start and self.ob_start and self.wl_start and self.ow_start and self.tmax and self.pb
+                and self.tstat and self.cpu):
             raise MemoryError()
 
     def __dealloc__(self):
@@ -962,7 +1095,7 @@ cdef class Core:
                   <size_t>self.etype, <size_t>self.ewall, <size_t>self.evid, <size_t>self.emoving,
                   <size_t>self.egeo, <size_t>self.eref, <size_t>self.ebuilt, <size_t>self.emot,
                   <size_t>self.coef, <size_t>self.visc, <size_t>self.tmax,
-                  <size_t>self.bounds):
+                  <size_t>self.pb, <size_t>self.work, <size_t>self.tstat, <size_t>self.cpu):
             free(<void*>p)
 
     # ------------------------------------------------------------------ memory ----------
@@ -985,6 +1118,7 @@ cdef class Core:
         self.type = <int*>self._grow(self.type, c * sizeof(int))
         self.perm = <int*>self._grow(self.perm, c * sizeof(int))
         self.cell = <int*>self._grow(self.cell, c * sizeof(int))
+        self.work = <int*>self._grow(self.work, c * sizeof(int))
         self.pid = <int64_t*>self._grow(self.pid, c * sizeof(int64_t))
         self.nb_start = <int*>self._grow(self.nb_start, (c + 1) * sizeof(int))
         self.ob_start = <int*>self._grow(self.ob_start, (c + 1) * sizeof(int))
@@ -1038,7 +1172,7 @@ cdef class Core:
         if a == NULL:
             return -1
         self.wl_e = <int*>a
-        b = grow(self.wl_h, cap * self.hs * sizeof(double))
+        b = grow(self.wl_h, cap * (self.hs + 1) * sizeof(double))
         if b == NULL:
             return -1
         self.wl_h = <double*>b
@@ -1148,7 +1282,7 @@ cdef class Core:
             self.egeo = <double*>self._grow(self.egeo, 9 * cap * sizeof(double))
             self.eref = <double*>self._grow(self.eref, 9 * cap * sizeof(double))
             self.ebuilt = <double*>self._grow(self.ebuilt, 9 * cap * sizeof(double))
-            self.emot = <double*>self._grow(self.emot, 10 * cap * sizeof(double))
+            self.emot = <double*>self._grow(self.emot, NMOT * cap * sizeof(double))
             self.ecap = cap
         for i in range(k):
             self.ekind[base + i] = kind[i]
@@ -1161,8 +1295,8 @@ cdef class Core:
                 self.egeo[9 * (base + i) + d] = geo[i, d]
                 self.eref[9 * (base + i) + d] = geo[i, d]
                 self.ebuilt[9 * (base + i) + d] = geo[i, d]
-            for d in range(10):
-                self.emot[10 * (base + i) + d] = 0.0
+            for d in range(NMOT):
+                self.emot[NMOT * (base + i) + d] = 0.0
         self.ne = base + k
         self.dirty = 1
         self.binned_dirty = 1
@@ -1188,8 +1322,8 @@ cdef class Core:
                 self.egeo[9 * k + d] = self.egeo[9 * e + d]
                 self.eref[9 * k + d] = self.eref[9 * e + d]
                 self.ebuilt[9 * k + d] = self.ebuilt[9 * e + d]
-            for d in range(10):
-                self.emot[10 * k + d] = self.emot[10 * e + d]
+            for d in range(NMOT):
+                self.emot[NMOT * k + d] = self.emot[NMOT * e + d]
             k += 1
         self.ne = k
         k = 0
@@ -1199,8 +1333,8 @@ cdef class Core:
             while e < self.wl_start[i + 1]:
                 if newidx[self.wl_e[e]] >= 0:
                     self.wl_e[k] = newidx[self.wl_e[e]]
-                    for d in range(self.hs):
-                        self.wl_h[k * self.hs + d] = self.wl_h[e * self.hs + d]
+                    for d in range(self.hs + 1):
+                        self.wl_h[k * (self.hs + 1) + d] = self.wl_h[e * (self.hs + 1) + d]
                     k += 1
                 e += 1
         self.wl_start[self.n] = k
@@ -1208,35 +1342,37 @@ cdef class Core:
         self.dirty = 1
         self.binned_dirty = 1
 
-    def set_motion(self, int wall, double[::1] vel, double[::1] omega, double[::1] origin):
-        """Rigid motion of a wall's triangles from now on: ``x(t) = o + V tau + R(W tau)(X - o)``."""
+    def set_motion(self, int wall, double[::1] vel, double[::1] omega, double[::1] origin,
+                   double[::1] amplitude, double period):
+        """Rigid motion of a wall's triangles from now on (see motion_origin); ``period`` 0:
+        no wiggle."""
         cdef int e, d
-        cdef bint moving = vel[0] != 0 or vel[1] != 0 or vel[2] != 0 or omega[0] != 0 or omega[1] != 0 \
-            or omega[2] != 0
+        cdef bint moving = period > 0.0
+        for d in range(3):
+            moving = moving or vel[d] != 0.0 or omega[d] != 0.0
         for e in range(self.ne):
             if self.ewall[e] != wall or self.ekind[e] != TRIANGLE:
                 continue
             for d in range(9):
                 self.eref[9 * e + d] = self.egeo[9 * e + d]
             for d in range(3):
-                self.emot[10 * e + d] = vel[d]
-                self.emot[10 * e + 3 + d] = omega[d]
-                self.emot[10 * e + 6 + d] = origin[d]
-            self.emot[10 * e + 9] = self.time
+                self.emot[NMOT * e + d] = vel[d]
+                self.emot[NMOT * e + 3 + d] = omega[d]
+                self.emot[NMOT * e + 6 + d] = origin[d]
+                self.emot[NMOT * e + 10 + d] = amplitude[d]
+            self.emot[NMOT * e + 9] = self.time
+            self.emot[NMOT * e + 13] = period
             self.emoving[e] = moving
         self.dirty = 1
         self.binned_dirty = 1
 
     # ------------------------------------------------------------------ rebuild ---------
-    cdef int setup_cells(self) noexcept nogil:
-        """Cell grid of side >= 2 r_max + skin over the box; -1 when out of memory."""
-        cdef double rmax = 0.0, cut, size
-        cdef int i, d
+    cdef int setup_cells(self, double rmax) noexcept nogil:
+        """Cell grid of side >= 2 rmax + skin over the box; -1 when out of memory."""
+        cdef double cut, size
+        cdef int d, k
         cdef long long total
         cdef void* p
-        for i in range(self.n):
-            if self.r[i] > rmax:
-                rmax = self.r[i]
         cut = 2.0 * rmax + self.skin
         size = cut
         while True:
@@ -1251,6 +1387,12 @@ cdef class Core:
                 break
             size *= 1.26
         self.ncells = <int>total
+        # axes by decreasing cell count (ties: z before y before x)
+        self.ax[0], self.ax[1], self.ax[2] = 2, 1, 0
+        for d in range(2):
+            for k in range(2 - d):
+                if self.nc[self.ax[k + 1]] > self.nc[self.ax[k]]:
+                    self.ax[k], self.ax[k + 1] = self.ax[k + 1], self.ax[k]
         if self.ncells + 2 > self.cell_cap:
             p = grow(self.cell_start, (self.ncells + 2) * sizeof(int))
             if p == NULL:
@@ -1264,15 +1406,8 @@ cdef class Core:
         return 0
 
     cdef inline int cell_of(self, const double* p) noexcept nogil:
-        cdef int c[3]
-        cdef int d
-        for d in range(3):
-            c[d] = <int>floor((p[d] - self.lo[d]) / self.cs[d])
-            if c[d] < 0:
-                c[d] = 0
-            elif c[d] >= self.nc[d]:
-                c[d] = self.nc[d] - 1
-        return (c[2] * self.nc[1] + c[1]) * self.nc[0] + c[0]
+        cdef int cc[3]
+        return locate(p, self.lo, self.cs, self.nc, self.ax, cc)
 
     cdef void tri_cells(self, int e, double reach, int* lo3, int* hi3) noexcept nogil:
         """Range of cells within ``reach`` of triangle e's bounding box."""
@@ -1324,6 +1459,7 @@ cdef class Core:
         cdef int e, a, b, c, cc
         cdef int lo3[3]
         cdef int hi3[3]
+        cdef int abc[3]
         cdef long long total
         cdef void* p
         memset(self.ctri_start, 0, (self.ncells + 1) * sizeof(int))
@@ -1334,7 +1470,10 @@ cdef class Core:
                     for b in range(lo3[1], hi3[1] + 1):
                         for a in range(lo3[0], hi3[0] + 1):
                             if self.tri_near_cell(e, a, b, c, reach):
-                                self.ctri_start[(c * self.nc[1] + b) * self.nc[0] + a + 1] += 1
+                                abc[0] = a
+                                abc[1] = b
+                                abc[2] = c
+                                self.ctri_start[cell_id(self.nc, self.ax, abc) + 1] += 1
         for c in range(self.ncells):
             self.ctri_start[c + 1] += self.ctri_start[c]
         total = self.ctri_start[self.ncells]
@@ -1352,7 +1491,10 @@ cdef class Core:
                     for b in range(lo3[1], hi3[1] + 1):
                         for a in range(lo3[0], hi3[0] + 1):
                             if self.tri_near_cell(e, a, b, c, reach):
-                                cc = (c * self.nc[1] + b) * self.nc[0] + a
+                                abc[0] = a
+                                abc[1] = b
+                                abc[2] = c
+                                cc = cell_id(self.nc, self.ax, abc)
                                 self.ctri[self.cell_start[cc]] = e
                                 self.cell_start[cc] += 1
         return 0
@@ -1362,12 +1504,14 @@ cdef class Core:
         c.n = self.n
         c.cap = self.cap
         c.hs = self.hs
+        c.whs = self.hs + 1
         c.model = self.model
         c.nt = self.ntypes
         c.nthreads = self.nthreads
         c.ncells = self.ncells
         for d in range(3):
             c.nc[d] = self.nc[d]
+            c.ax[d] = self.ax[d]
             c.cs[d] = self.cs[d]
             c.lo[d] = self.lo[d]
             c.grav[d] = self.grav[d]
@@ -1384,6 +1528,9 @@ cdef class Core:
         c.m = self.m
         c.type = self.type
         c.buf = self.buf
+        c.pb = self.pb
+        c.work = self.work
+        c.tstat = self.tstat
         c.perm = self.perm
         c.cell = self.cell
         c.nb_start = self.nb_start
@@ -1414,38 +1561,47 @@ cdef class Core:
         c.emot = self.emot
         c.coef = self.coef
         c.visc = self.visc
+        c.cpu = self.cpu
 
-    cdef void permute3(self, double** a, int n) noexcept nogil:
-        """Reorder a 3-vector array by ``perm``, swapping it with ``f`` (scratch during a rebuild)."""
-        cdef int i, d
-        cdef double* tmp = self.f
-        cdef double* src = a[0]
+    cdef void permute(self, int n) noexcept nogil:
+        """Reorder the particle arrays by ``perm`` in three parallel passes. f, t and x0 are
+        recomputed after a rebuild, so they serve as scratch: x, v and w are gathered into them
+        and swapped with them; r, m, type and pid are gathered into the old x and v, then
+        copied back while x0 becomes a copy of x."""
+        cdef int i, d, T = self.nthreads
         cdef int* perm = self.perm
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
+        cdef double* p
+        cdef double* nx = self.f
+        cdef double* nv = self.t
+        cdef double* nw = self.x0
+        cdef double* sr
+        cdef double* sm
+        cdef int* st
+        cdef int64_t* sp
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T):
             for d in range(3):
-                tmp[3 * i + d] = src[3 * perm[i] + d]
-        self.f = src
-        a[0] = tmp
-
-    cdef void permute_scalars(self, int n) noexcept nogil:
-        """Reorder r, m, type and pid by ``perm`` through ``t`` (scratch during a rebuild)."""
-        cdef int i
-        cdef int* perm = self.perm
-        cdef double* tmp = self.t
-        cdef int* itmp = <int*>self.t
-        cdef int64_t* ltmp = <int64_t*>self.t
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
-            tmp[i] = self.r[perm[i]]
-        memcpy(self.r, tmp, n * sizeof(double))
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
-            tmp[i] = self.m[perm[i]]
-        memcpy(self.m, tmp, n * sizeof(double))
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
-            itmp[i] = self.type[perm[i]]
-        memcpy(self.type, itmp, n * sizeof(int))
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=self.nthreads):
-            ltmp[i] = self.pid[perm[i]]
-        memcpy(self.pid, ltmp, n * sizeof(int64_t))
+                nx[3 * i + d] = self.x[3 * perm[i] + d]
+                nv[3 * i + d] = self.v[3 * perm[i] + d]
+                nw[3 * i + d] = self.w[3 * perm[i] + d]
+        p = self.x; self.x = nx; self.f = p
+        p = self.v; self.v = nv; self.t = p
+        p = self.w; self.w = nw; self.x0 = p
+        sr = self.f
+        sm = self.f + n
+        st = <int*>(self.f + 2 * n)
+        sp = <int64_t*>self.t
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T):
+            sr[i] = self.r[perm[i]]
+            sm[i] = self.m[perm[i]]
+            st[i] = self.type[perm[i]]
+            sp[i] = self.pid[perm[i]]
+        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T):
+            self.r[i] = sr[i]
+            self.m[i] = sm[i]
+            self.type[i] = st[i]
+            self.pid[i] = sp[i]
+            for d in range(3):
+                self.x0[3 * i + d] = self.x[3 * i + d]
 
     cdef int rebuild(self) noexcept nogil:
         """Wrap, drop lost particles, sort into cells, rebuild both lists carrying histories."""
@@ -1457,11 +1613,12 @@ cdef class Core:
         cdef uint8_t *bp
         cdef double *dp
         cdef long long cap
-        if self.setup_cells() < 0:
-            return -1
+        cdef double t0 = openmp.omp_get_wtime(), t1
         for i in range(n):
             if self.r[i] > rmax:
                 rmax = self.r[i]
+        if self.setup_cells(rmax) < 0:
+            return -1
         self.make_ctx(&c)
         if self.binned_dirty or self.binned_reach != rmax + self.skin or self.any_moving() \
                 or self.binned_nc[0] != self.nc[0] or self.binned_nc[1] != self.nc[1] or self.binned_nc[2] != self.nc[2]:
@@ -1471,6 +1628,7 @@ cdef class Core:
             self.binned_reach = rmax + self.skin
             for d in range(3):
                 self.binned_nc[d] = self.nc[d]
+        t1 = self.lap(T_CELLS, t0)
         # wrap periodic coordinates, mark particles outside a fixed boundary (or removed) lost
         for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
             self.cell[i] = self._place(i)
@@ -1492,12 +1650,9 @@ cdef class Core:
             self.cell_start[i] = self.cell_start[i - 1]
         self.cell_start[0] = 0
         nnew = self.cell_start[self.ncells]
-        # f and t are recomputed after every rebuild: they serve as scratch space here
-        self.permute3(&self.x, nnew)
-        self.permute3(&self.v, nnew)
-        self.permute3(&self.w, nnew)
-        self.permute_scalars(nnew)
-        memcpy(self.x0, self.x, 3 * nnew * sizeof(double))
+        t1 = self.lap(T_SORT, t1)
+        self.permute(nnew)
+        t1 = self.lap(T_PERMUTE, t1)
         # the current lists become the previous ones
         ip = self.ob_start; self.ob_start = self.nb_start; self.nb_start = ip
         ip = self.ob_j; self.ob_j = self.nb_j; self.nb_j = ip
@@ -1520,15 +1675,25 @@ cdef class Core:
             self.wl_start[i + 1] += self.wl_start[i]
         if self.reserve_pairs(self.nb_start[nnew]) < 0 or self.reserve_walls(self.wl_start[nnew]) < 0:
             return -1
+        t1 = self.lap(T_COUNT, t1)
         self.make_ctx(&c)
         for i in prange(nnew, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
             scan_pairs(&c, i, True)
             scan_walls(&c, i, True)
+            self.work[i] = self.estimated_work(i)
         for i in range(9 * self.ne):
             self.ebuilt[i] = self.egeo[i]
         self.balance()
+        self.lap(T_FILL, t1)
+        self.lap(T_REBUILD, t0)
         self.rebuilds += 1
         return 0
+
+    cdef inline double lap(self, int k, double since) noexcept nogil:
+        """Add the wall-clock time since ``since`` to timer k; returns now."""
+        cdef double now = openmp.omp_get_wtime()
+        self.timers[k] += now - since
+        return now
 
     cdef inline int _place(self, int i) noexcept nogil:
         """Wrap particle i into the periodic box; its cell, -1 if lost, -2 if removed."""
@@ -1560,19 +1725,22 @@ cdef class Core:
     cdef double move_walls(self) noexcept nogil:
         """Place moving triangles at the current time; largest vertex move since the rebuild."""
         cdef int e, k, d, last = -1
-        cdef double tau = 0.0, dmax = 0.0, dd, s
+        cdef double dmax = 0.0, dd, s
         cdef double Rm[9]
         cdef double rel[3]
+        cdef double o[3]
+        cdef double vo[3]
         cdef double* mot
         cdef double* ref
         cdef double* cur
+        memset(o, 0, 3 * sizeof(double))   # set at each wall's first element
         for e in range(self.ne):
             if not self.emoving[e]:
                 continue
-            mot = &self.emot[10 * e]
+            mot = &self.emot[NMOT * e]
             if self.ewall[e] != last:
-                tau = self.time - mot[9]
-                rotation(&mot[3], tau, Rm)
+                motion_origin(mot, self.time - mot[9], o, vo)
+                rotation(&mot[3], self.time - mot[9], Rm)
                 last = self.ewall[e]
             for k in range(3):
                 ref = &self.eref[9 * e + 3 * k]
@@ -1581,41 +1749,69 @@ cdef class Core:
                     rel[d] = ref[d] - mot[6 + d]
                 dd = 0.0
                 for d in range(3):
-                    cur[d] = mot[6 + d] + mot[d] * tau + Rm[3 * d] * rel[0] + Rm[3 * d + 1] * rel[1] \
-                        + Rm[3 * d + 2] * rel[2]
+                    cur[d] = o[d] + Rm[3 * d] * rel[0] + Rm[3 * d + 1] * rel[1] + Rm[3 * d + 2] * rel[2]
                     s = cur[d] - self.ebuilt[9 * e + 3 * k + d]
                     dd += s * s
                 if dd > dmax:
                     dmax = dd
         return sqrt(dmax)
 
+    cdef inline int estimated_work(self, int i) noexcept nogil:
+        """Row i's work in the pair loop, counting the pairs that touched at the last step."""
+        cdef int k, touching = 0
+        for k in range(self.nb_start[i], self.nb_start[i + 1]):
+            touching += (self.nb_s[k] & TOUCH) != 0
+        return row_work(self.nb_start[i + 1] - self.nb_start[i], touching,
+                        self.wl_start[i + 1] - self.wl_start[i])
+
     cdef void balance(self) noexcept nogil:
-        """Split the (cell-sorted) particles into one contiguous block per thread, with
-        about equal work ``particles + 2 pairs`` in each: a spatial slab per thread, so few
-        neighbours belong to another thread, and a partition that depends only on the state."""
-        cdef int t, lo = 0, hi, mid, n = self.n, T = self.nthreads
-        cdef double total = n + 2.0 * self.nb_start[n], target
-        self.bounds[0] = 0
+        """Split the (cell-sorted) rows of the pair loop into one block per thread with about
+        equal ``work``: a spatial slab per thread, so few neighbours belong to another thread."""
+        cdef int t, i = 0, n = self.n, T = self.nthreads
+        cdef long long total = 0, prefix = 0
+        for t in range(n):
+            total += self.work[t]
         for t in range(1, T):
-            target = total * t / T
-            hi = n
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if mid + 2.0 * self.nb_start[mid] < target:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            self.bounds[t] = lo
-        self.bounds[T] = n
+            while i < n and prefix < total * t // T:
+                prefix += self.work[i]
+                i += 1
+            self.pb[t] = i
+        self.pb[0] = 0
+        self.pb[T] = n
+
+    cdef void rebalance(self) noexcept nogil:
+        """Move each bound of the pair loop to where the work of the loop just run splits
+        evenly (the first row where its prefix reaches ``total t / T``), walking from where the
+        bound was: the partition follows contacts as they form, and depends only on the state."""
+        cdef int t, b, T = self.nthreads
+        cdef long long total = 0, old = 0, prefix, target
+        for t in range(T):
+            total += self.tstat[PAD * t]
+        for t in range(1, T):
+            old += self.tstat[PAD * (t - 1)]   # the work before the old bound t
+            target = total * t // T
+            b = self.pb[t]
+            prefix = old
+            while b > 0 and prefix - self.work[b - 1] >= target:
+                b -= 1
+                prefix -= self.work[b]
+            while b < self.n and prefix < target:
+                prefix += self.work[b]
+                b += 1
+            self.pb[t] = b
 
     cdef void forces(self, double dt, bint update, bint kick, bint fuse) noexcept nogil:
         """Forces (pair loop, then per particle), second half kick; ``fuse``: see particle_row.
 
-        Thread t works on its block of particles and writes pair forces on other particles
-        to buffer t: the result depends on the thread count only.
+        The pair loop's partition (see pair_row) fixes the order of the sums, and depends
+        only on the state: results are deterministic for a given thread count. The particle
+        loop sums in an order independent of its partition: equal blocks of rows.
         """
         cdef Ctx c
         cdef int t, T = self.nthreads
+        cdef double t0 = openmp.omp_get_wtime()
+        cdef double span[2]
+        span[0] = span[1] = 0.0
         self.make_ctx(&c)
         c.dt = dt
         c.update = update
@@ -1624,20 +1820,30 @@ cdef class Core:
         for t in range(T):
             self.tmax[PAD * t] = 0.0
         for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
-            pair_block(&c, self.bounds[t], self.bounds[t + 1], t)
+            pair_block(&c, t)
+        t0 = self.lap(T_PAIRS, t0)
         for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
-            particle_block(&c, self.bounds[t], self.bounds[t + 1], t)
+            particle_block(&c, <long long>c.n * t // T, <long long>c.n * (t + 1) // T, t)
+        self.rebalance()
+        self.lap(T_PARTICLES, t0)
+        for t in range(T):   # the busiest thread's CPU time: the loops' wall time on idle cores
+            span[0] = max(span[0], self.cpu[PAD * t + 2])
+            span[1] = max(span[1], self.cpu[PAD * t + 3])
+        self.timers[T_PAIRS_SPAN] += span[0]
+        self.timers[T_PARTICLES_SPAN] += span[1]
 
     cdef double drift(self, double dt) noexcept nogil:
         """First half kick and drift; the largest displacement since the last rebuild."""
         cdef Ctx c
         cdef int t, T = self.nthreads
+        cdef double t0 = openmp.omp_get_wtime()
         self.make_ctx(&c)
         c.dt = dt
         for t in range(T):
             self.tmax[PAD * t] = 0.0
         for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
-            drift_block(&c, self.bounds[t], self.bounds[t + 1], t)
+            drift_block(&c, <long long>c.n * t // T, <long long>c.n * (t + 1) // T, t)
+        self.lap(T_DRIFT, t0)
         return self.max_displacement()
 
     cdef double max_displacement(self) noexcept nogil:
@@ -1650,8 +1856,12 @@ cdef class Core:
 
     cdef int _run(self, long long nsteps, double dt) noexcept nogil:
         cdef long long s
-        cdef double dp, dw
+        cdef double dp, dw, t0 = openmp.omp_get_wtime(), t1
         cdef bint fused = False
+        if dt != self.dt_base:
+            self.t_base = self.time
+            self.step_base = self.step
+            self.dt_base = dt
         if self.dirty:
             if self.rebuild() < 0:
                 return -1
@@ -1659,14 +1869,17 @@ cdef class Core:
             self.dirty = 0
         for s in range(nsteps):
             dp = self.max_displacement() if fused else self.drift(dt)
-            self.time += dt
             self.step += 1
+            self.time = self.t_base + (self.step - self.step_base) * dt
+            t1 = openmp.omp_get_wtime()
             dw = self.move_walls()
+            self.lap(T_WALLS, t1)
             if dp + dw > 0.5 * self.skin:
                 if self.rebuild() < 0:
                     return -1
             fused = s + 1 < nsteps   # the last step ends after its second half kick
             self.forces(dt, True, True, fused)
+        self.lap(T_RUN, t0)
         return 0
 
     def run(self, long long nsteps, double dt):
@@ -1728,15 +1941,23 @@ cdef class Core:
     cdef inline bint _in_contact(self, int k) noexcept nogil:
         return self.nb_s[k] & TOUCH and (self.hs == 4 or self.nb_h[k * self.hs + 4] > 0.0)
 
+    def timings(self):
+        """Seconds spent so far: wall clock per phase (``TIMERS``), and per-thread CPU time in
+        the pair and particle loops (``pairs_cpu``, ``particles_cpu``)."""
+        out = {name: self.timers[k] for k, name in enumerate(TIMERS)}
+        out["pairs_cpu"] = np.array([self.cpu[PAD * t] for t in range(self.nthreads)])
+        out["particles_cpu"] = np.array([self.cpu[PAD * t + 1] for t in range(self.nthreads)])
+        return out
+
     def pair_count(self):
         """Entries of the neighbour and wall lists."""
         return self.nb_start[self.n], self.wl_start[self.n]
 
     def memory_bytes(self):
         """Bytes held by the per-particle arrays and lists (allocated capacity)."""
-        return (self.cap * (18 * 8 + 2 * 8 + 3 * 4 + 8 + 4 * 4 + 6 * 8 * self.nthreads)
+        return (self.cap * (18 * 8 + 2 * 8 + 4 * 4 + 8 + 4 * 4 + 6 * 8 * self.nthreads)
                 + self.nb_cap * (5 + 8 * self.hs) + self.ob_cap * (5 + 8 * self.hs)
-                + self.wl_cap * (4 + 8 * self.hs) + self.ow_cap * (4 + 8 * self.hs)
+                + self.wl_cap * (12 + 8 * self.hs) + self.ow_cap * (12 + 8 * self.hs)
                 + self.cell_cap * 8 + self.ctri_cap * 4)
 
     def elements(self):
@@ -1758,14 +1979,16 @@ cdef class Core:
             "nb_start": _copy_i(self.nb_start, n + 1), "nb_j": _copy_i(self.nb_j, npair),
             "nb_s": _copy_b(self.nb_s, npair), "nb_h": _copy_d(self.nb_h, npair * self.hs),
             "wl_start": _copy_i(self.wl_start, n + 1), "wl_e": _copy_i(self.wl_e, nwall),
-            "wl_h": _copy_d(self.wl_h, nwall * self.hs),
+            "wl_h": _copy_d(self.wl_h, nwall * (self.hs + 1)),
             "ekind": _copy_i(self.ekind, ne), "etype": _copy_i(self.etype, ne),
             "ewall": _copy_i(self.ewall, ne), "evid": _copy_i(self.evid, 3 * ne),
             "emoving": _copy_i(self.emoving, ne), "egeo": _copy_d(self.egeo, 9 * ne),
             "eref": _copy_d(self.eref, 9 * ne), "ebuilt": _copy_d(self.ebuilt, 9 * ne),
-            "emot": _copy_d(self.emot, 10 * ne), "visc": _copy_d(self.visc, self.ntypes),
-            "scalars": np.array([self.time], dtype=float),
-            "counters": np.array([self.step, self.lost, self.rebuilds, self.dirty], dtype=np.int64),
+            "emot": _copy_d(self.emot, NMOT * ne), "visc": _copy_d(self.visc, self.ntypes),
+            "scalars": np.array([self.time, self.t_base, self.dt_base], dtype=float),
+            "counters": np.array([self.step, self.lost, self.rebuilds, self.dirty, self.step_base],
+                                 dtype=np.int64),
+            "bounds": _copy_i(self.pb, self.nthreads + 1),
         }
         return state
 
@@ -1804,9 +2027,14 @@ cdef class Core:
             memcpy(self.nb_s, cnp.PyArray_DATA(nbs), npair)
         self.set_viscous(np.ascontiguousarray(state["visc"], dtype=float))
         self.n = n
-        self.time = float(state["scalars"][0])
-        self.step, self.lost, self.rebuilds, self.dirty = (int(k) for k in state["counters"])
-        self.balance()
+        self.time, self.t_base, self.dt_base = (float(k) for k in state["scalars"])
+        self.step, self.lost, self.rebuilds, self.dirty, self.step_base = (int(k) for k in state["counters"])
+        if state["bounds"].shape[0] == self.nthreads + 1:
+            _put_i(self.pb, state["bounds"])
+        else:   # another thread count: sums in another order anyway
+            for i in range(n):
+                self.work[i] = self.estimated_work(i)
+            self.balance()
 
 
 cdef object _copy_d(const double* p, long long k):

@@ -168,13 +168,13 @@ class NativeEngine(PlacingEngine):
             )
         if spec.mesh in self._motions.values():
             raise ConfigError(f"mesh {spec.mesh!r} already moves; remove() that motion first")
-        if spec.kind == "wiggle":
-            raise self._unsupported("wiggling meshes (time-dependent velocity)")
         wall = self._mesh_walls[spec.mesh]
         if spec.kind == "rotate":
             self.solver.set_mesh_motion(
                 wall, angular_velocity=spec.omega * np.asarray(spec.axis), origin=spec.origin
             )
+        elif spec.kind == "wiggle":
+            self.solver.set_mesh_motion(wall, amplitude=spec.amplitude, period=spec.period)
         else:
             self.solver.set_mesh_motion(wall, velocity=spec.velocity)
         label = self._label("motion")

@@ -21,9 +21,12 @@ Conventions (LIGGGHTS):
   friction ``cdt`` when ``rolling_friction > 0``; pair values from
   :mod:`pygran_core.simulation.models.mixing`, a wall being a body of infinite radius and
   mass of its own type;
-- walls: one-sided planes, cylinders (inside or outside), and triangle meshes (two-sided;
-  face, edge and vertex contacts, a shared edge or vertex counted once) with rigid motion.
-  Meshes are not repeated across periodic boundaries.
+- walls: two-sided planes (LIGGGHTS primitive planes: a contact pushes the particle back
+  to the side its centre was on when the contact began, even if a deeply plastic contact
+  lets the centre sink past the plane), cylinders (inside or outside), and triangle meshes
+  (two-sided; face, edge and vertex contacts, a shared edge or vertex counted once) with
+  rigid motion: translation, rotation and wiggle. Meshes are not repeated across periodic
+  boundaries.
 """
 
 from __future__ import annotations
@@ -322,7 +325,7 @@ class Solver:
         return handle
 
     def add_plane(self, point, normal, type: int = 0) -> int:
-        """One-sided plane through ``point``; particles live on the side ``normal`` points to."""
+        """Two-sided plane through ``point`` with ``normal`` (see the module docstring)."""
         p = _array(point, "point", (3,))
         nrm = _array(normal, "normal", (3,))
         length = np.linalg.norm(nrm)
@@ -362,17 +365,37 @@ class Solver:
         return handle
 
     def set_mesh_motion(
-        self, mesh: int, velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0), origin=(0.0, 0.0, 0.0)
+        self,
+        mesh: int,
+        velocity=(0.0, 0.0, 0.0),
+        angular_velocity=(0.0, 0.0, 0.0),
+        origin=(0.0, 0.0, 0.0),
+        amplitude=(0.0, 0.0, 0.0),
+        period: float | None = None,
     ) -> None:
-        """Rigid motion of a mesh from now on: translation at ``velocity`` and rotation at
-        ``angular_velocity`` (rad/s, a vector) about the moving point ``origin``."""
+        """Rigid motion of a mesh from now on (time ``t0``), replacing any earlier one.
+
+        Translation at ``velocity``, a wiggle of ``amplitude`` (a vector) and ``period``
+        (LIGGGHTS ``move/mesh wiggle``: displacement ``A sin(2 pi (t - t0) / T)``, velocity
+        ``A (2 pi / T) cos(2 pi (t - t0) / T)``), and rotation at ``angular_velocity``
+        (rad/s, a vector) about ``origin``, which follows the translation and the wiggle.
+        Positions come from the closed form at every step, so nothing drifts. With no
+        arguments the mesh stops.
+        """
         if self._walls.get(mesh) != "mesh":
             raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
+        amplitude = _array(amplitude, "amplitude", (3,))
+        if period is not None and not (math.isfinite(period) and period > 0):
+            raise ConfigError(f"period: must be > 0, got {period!r}.")
+        if np.any(amplitude != 0) and period is None:
+            raise ConfigError("period: a wiggle amplitude needs a period.")
         self._core.set_motion(
             mesh,
             _array(velocity, "velocity", (3,)),
             _array(angular_velocity, "angular_velocity", (3,)),
             _array(origin, "origin", (3,)),
+            amplitude,
+            0.0 if period is None or not np.any(amplitude != 0) else float(period),
         )
 
     def remove_wall(self, wall: int) -> None:
@@ -450,6 +473,19 @@ class Solver:
     def memory_bytes(self) -> int:
         """Bytes allocated for particles, thread buffers and neighbour/wall lists."""
         return int(self._core.memory_bytes())
+
+    @property
+    def timings(self) -> dict:
+        """Seconds spent in :meth:`run` so far, by phase (wall clock): ``run`` (all of it),
+        ``drift`` (first half kicks not fused with the previous step), ``walls`` (moving the
+        meshes), ``pairs`` (pair and wall forces), ``particles`` (summing them, gravity,
+        viscous forces, integration), ``rebuild`` and its parts ``rebuild_cells``, ``rebuild_sort``,
+        ``rebuild_permute``, ``rebuild_count``, ``rebuild_fill``; the CPU seconds of each
+        thread in the pair and particle loops (arrays ``pairs_cpu``, ``particles_cpu``), and
+        their sums over steps of the busiest thread's CPU seconds (``pairs_span``,
+        ``particles_span``: the loops' wall time on otherwise idle cores). Not part of
+        :meth:`get_state`."""
+        return self._core.timings()
 
     @property
     def rebuilds(self) -> int:
