@@ -879,14 +879,14 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
                 nacc += 1
 
 
-cdef inline void drift_row(const Ctx* c, int i, int tid) noexcept nogil:
-    """First half kick and drift of particle i; its squared displacement since the rebuild
-    raises thread ``tid``'s maximum (per-thread maxima are a cache line apart)."""
+cdef inline void drift_row(const Ctx* c, int i, int tid, const double* F, const double* T) noexcept nogil:
+    """First half kick (force F, torque T) and drift of particle i; its squared displacement
+    since the rebuild raises thread ``tid``'s maximum (per-thread maxima are a cache line apart)."""
     cdef int d
     cdef double s = 0.5 * c.dt / c.m[i], u = 0.5 * c.dt / (0.4 * c.m[i] * c.r[i] * c.r[i]), q, dd = 0.0
     for d in range(3):
-        c.v[3 * i + d] += s * c.f[3 * i + d]
-        c.w[3 * i + d] += u * c.t[3 * i + d]
+        c.v[3 * i + d] += s * F[d]
+        c.w[3 * i + d] += u * T[d]
         c.x[3 * i + d] += c.dt * c.v[3 * i + d]
         q = c.x[3 * i + d] - c.x0[3 * i + d]
         dd += q * q
@@ -898,7 +898,8 @@ cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
     """Sum the buffers (the shared one, then those of the threads that wrote row i, in
     thread order) and clear them, add gravity and viscous forces; second half kick, and with
     ``fuse`` the first half kick and drift of the next step (one pass instead of two, the
-    same arithmetic)."""
+    same arithmetic; ``f`` and ``t`` are then left alone: they hold the forces of a run's
+    last step, which is not fused)."""
     cdef double mi = c.m[i], g = c.visc[c.type[i]], s
     cdef double F[3]
     cdef double T[3]
@@ -915,9 +916,10 @@ cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
             F[q] += b[q]
             T[q] += b[3 + q]
         memset(b, 0, 6 * sizeof(double))
-    for q in range(3):
-        c.f[3 * i + q] = F[q]
-        c.t[3 * i + q] = T[q]
+    if not c.fuse:
+        for q in range(3):
+            c.f[3 * i + q] = F[q]
+            c.t[3 * i + q] = T[q]
     if c.kick:
         s = 0.5 * c.dt / mi
         for q in range(3):
@@ -926,7 +928,7 @@ cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
         for q in range(3):
             c.w[3 * i + q] += s * T[q]
     if c.fuse:
-        drift_row(c, i, tid)
+        drift_row(c, i, tid, F, T)
 
 
 cdef void pair_block(const Ctx* c, int t) noexcept nogil:
@@ -955,7 +957,7 @@ cdef void particle_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
 cdef void drift_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
     cdef int i
     for i in range(lo, hi):
-        drift_row(c, i, t)
+        drift_row(c, i, t, &c.f[3 * i], &c.t[3 * i])
 
 
 cdef class Core:

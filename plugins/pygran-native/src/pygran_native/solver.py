@@ -325,7 +325,8 @@ class Solver:
         return handle
 
     def add_plane(self, point, normal, type: int = 0) -> int:
-        """Two-sided plane through ``point`` with ``normal`` (see the module docstring)."""
+        """Two-sided plane through ``point``; ``normal`` only breaks the tie of a contact that
+        begins with the centre exactly on the plane (see the module docstring)."""
         p = _array(point, "point", (3,))
         nrm = _array(normal, "normal", (3,))
         length = np.linalg.norm(nrm)
