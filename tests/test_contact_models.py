@@ -12,7 +12,7 @@ from scipy.integrate import quad
 from scipy.optimize import brentq
 
 from pygran_core import params, registry
-from pygran_core.errors import ConfigError
+from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.simulation.models import ContactModel, HertzMindlin, SpringDashpot, ThorntonNing, plugin
 
 # The manual's Listing 3.2 powder.
@@ -277,6 +277,27 @@ def test_rolling_resistance_is_a_constant_directional_torque():
     magnitude = 0.1 * 1e-4 * 2.0
     expected = [[0, 0, -magnitude], [-0.6 * magnitude, 0.8 * magnitude, 0], [0, 0, 0]]
     np.testing.assert_allclose(torque, expected)
+
+
+@pytest.mark.parametrize("model_class", [SpringDashpot, HertzMindlin, ThorntonNing])
+def test_rolling_model_keyword_defaults_to_cdt_on_class_and_instance(model_class):
+    material = dict(POWDER, yieldPress=1e6, coefficientRollingFriction=0.1)
+    assert model_class.rolling == "cdt"
+    assert model_class(material=material).rolling == "cdt"
+    for name in ("cdt", "epsd", "epsd2", "epsd3"):
+        model = model_class(material=material, rolling=name)
+        assert model.rolling == name and model_class.rolling == "cdt"
+    assert "rolling='epsd2'" in repr(model_class(material=material, rolling="epsd2"))
+    with pytest.raises(ConfigError, match="Did you mean 'epsd2'"):
+        model_class(material=material, rolling="espd2")
+    with pytest.raises(ConfigError, match="cdt, epsd, epsd2, epsd3"):
+        model_class(material=material, rolling=2)
+
+
+def test_rolling_torque_of_spring_models_is_left_to_the_engines():
+    model = HertzMindlin(material=dict(POWDER, coefficientRollingFriction=0.1), rolling="epsd")
+    with pytest.raises(UnsupportedFeature, match="rolling='cdt'"):
+        model.rolling_torque(1.0, np.ones(3))
 
 
 # --- construction and errors -------------------------------------------------------------

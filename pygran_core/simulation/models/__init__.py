@@ -6,8 +6,16 @@ mixing rules are in :mod:`~pygran_core.simulation.models.mixing`.
 """
 
 from pygran_core.simulation.models import mixing
-from pygran_core.simulation.models.base import ContactModel, Impact
+from pygran_core.simulation.models.base import ROLLING_MODELS, ContactModel, Impact
 from pygran_core.simulation.models.thornton_ning import ThorntonNing
 from pygran_core.simulation.models.viscoelastic import HertzMindlin, SpringDashpot
 
-__all__ = ["ContactModel", "HertzMindlin", "Impact", "SpringDashpot", "ThorntonNing", "mixing"]
+__all__ = [
+    "ROLLING_MODELS",
+    "ContactModel",
+    "HertzMindlin",
+    "Impact",
+    "SpringDashpot",
+    "ThorntonNing",
+    "mixing",
+]

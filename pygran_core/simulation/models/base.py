@@ -13,12 +13,26 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pygran_core import params
-from pygran_core.errors import ConfigError
+from pygran_core.errors import ConfigError, UnsupportedFeature, unknown_key
 from pygran_core.simulation.models import mixing
 
-__all__ = ["ContactModel", "Impact"]
+__all__ = ["ROLLING_MODELS", "ContactModel", "Impact"]
 
 Array = NDArray[np.float64]
+
+#: The rolling-resistance models of LIGGGHTS 3.8 (``rolling_friction <name>``) that a contact
+#: model names with ``rolling=``; ``cdt``, the original PyGran's, is the default.
+#: With ``k_n``/``k_t`` the normal/tangential stiffness and ``mu_r`` the
+#: ``coefficientRollingFriction``, the spring models limit their torque to ``mu_r R* |F_n|``.
+ROLLING_MODELS: Mapping[str, str] = MappingProxyType(
+    {
+        "cdt": "constant directional torque mu_r R* |F_n| against the relative rotation",
+        "epsd": "elastic-plastic spring-dashpot (Ai et al. 2011), k_r = 2.25 k_n mu_r^2 R*^2, "
+        "damped by coefficientRollingViscousDamping",
+        "epsd2": "elastic-plastic spring (Iwashita & Oda 1998), k_r = k_t R*^2, no damping",
+        "epsd3": "epsd with a user prefactor, k_r = coeffRollingStiffness k_n mu_r^2 R*^2",
+    }
+)
 
 
 @dataclass(frozen=True)
@@ -74,12 +88,28 @@ class ContactModel(abc.ABC):
     bodies approach; normal forces are positive when repulsive. Tangential vectors lie on
     the last array axis. ``max_overlap`` is the normal history (largest overlap of the
     contact so far) for models with hysteresis; ``None`` means the contact is loading.
+
+    ``rolling`` names the rolling-resistance model engines use, one of
+    :data:`ROLLING_MODELS` (LIGGGHTS' ``rolling_friction`` styles); the class attribute
+    holds the default ``"cdt"``, so an engine given the class or an instance reads
+    ``model.rolling`` either way.
     """
 
     #: Material keys a model cannot do without (``density`` or ``mass`` is always needed).
     required: ClassVar[tuple[str, ...]] = ("youngsModulus", "poissonsRatio", "radius")
+    #: The rolling-resistance model, a key of :data:`ROLLING_MODELS`.
+    rolling: str = "cdt"
 
-    def __init__(self, material: Mapping[str, float], *, partner: Mapping[str, float] | None = None) -> None:
+    def __init__(
+        self,
+        material: Mapping[str, float],
+        *,
+        partner: Mapping[str, float] | None = None,
+        rolling: str = "cdt",
+    ) -> None:
+        if not isinstance(rolling, str) or rolling not in ROLLING_MODELS:
+            raise unknown_key("rolling-friction model (rolling=)", str(rolling), ROLLING_MODELS)
+        self.rolling = rolling
         mine = params.validate(material, allow=("radius", "mass"))
         theirs = {} if partner is None else params.validate(partner, allow=("radius", "mass"))
         missing = [key for key in self.required if key not in mine]
@@ -193,7 +223,14 @@ class ContactModel(abc.ABC):
 
         ``M_r = -mu_r R* |F_n| w / |w|`` with ``w = omega_1 - omega_2`` the relative angular
         velocity (shape ``(..., 3)``); zero where ``w = 0``. Body 2 gets ``-M_r``.
+        The spring models (``epsd``...) carry a torque history only engines integrate:
+        for them this raises :class:`~pygran_core.errors.UnsupportedFeature`.
         """
+        if self.rolling != "cdt":
+            raise UnsupportedFeature(
+                f"{type(self).__name__}.rolling_torque is the cdt law; rolling={self.rolling!r} is "
+                "computed by the engines (its torque has a history). Use rolling='cdt' here."
+            )
         if self.rolling_friction is None:
             raise ConfigError(
                 f"{type(self).__name__}: the rolling torque needs 'coefficientRollingFriction'."
@@ -284,7 +321,8 @@ class ContactModel(abc.ABC):
         return self.displacement(velocity).restitution
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}(material={dict(self.material)!r})"
+        rolling = "" if self.rolling == "cdt" else f", rolling={self.rolling!r}"
+        return f"{type(self).__name__}(material={dict(self.material)!r}{rolling})"
 
 
 def _sphere_mass(material: Mapping[str, float]) -> float:

@@ -54,8 +54,14 @@ class ThorntonNing(ContactModel):
 
     required = (*ContactModel.required, "yieldPress")
 
-    def __init__(self, material: Mapping[str, float], *, partner: Mapping[str, float] | None = None) -> None:
-        super().__init__(material, partner=partner)
+    def __init__(
+        self,
+        material: Mapping[str, float],
+        *,
+        partner: Mapping[str, float] | None = None,
+        rolling: str = "cdt",
+    ) -> None:
+        super().__init__(material, partner=partner, rolling=rolling)
         R, E = self.effective_radius, self.effective_modulus
         self.yield_radius = math.pi * self.yield_pressure * R / (2 * E)
         self.yield_overlap = float(self._overlap(self.yield_radius, R))

@@ -41,8 +41,9 @@ class _Viscoelastic(ContactModel):
         *,
         partner: Mapping[str, float] | None = None,
         limitForce: bool = False,
+        rolling: str = "cdt",
     ) -> None:
-        super().__init__(material, partner=partner)
+        super().__init__(material, partner=partner, rolling=rolling)
         self.limit_force = bool(limitForce)
         e = self.restitution_coefficient
         #: LIGGGHTS' damping parameter: ``beta = ln e / sqrt(ln^2 e + pi^2)`` (<= 0).
@@ -93,8 +94,9 @@ class SpringDashpot(_Viscoelastic):
         *,
         partner: Mapping[str, float] | None = None,
         limitForce: bool = False,
+        rolling: str = "cdt",
     ) -> None:
-        super().__init__(material, partner=partner, limitForce=limitForce)
+        super().__init__(material, partner=partner, limitForce=limitForce, rolling=rolling)
         R, E, m = self.effective_radius, self.effective_modulus, self.effective_mass
         V = self.material["characteristicVelocity"]
         self.kn = 16 / 15 * math.sqrt(R) * E * (15 * m * V**2 / (16 * math.sqrt(R) * E)) ** 0.2
