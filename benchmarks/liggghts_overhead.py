@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/liggghts_overhead.py [--n 20000] [--nprocs 1] [--repeat 3]
 
-Runs the settle scenario of shared/benchmarks/settle.md (N spheres created one by one,
+Runs the settle scenario of benchmarks/README.md (N spheres created one by one,
 8,000 settling + 4,000 dense-bed steps, no output) as a PyGran script in a fresh Python
 process, and the same simulation with the bare binary: the commands PyGran generated
 (``in.pygran``) with its run chunks replaced by the script's two runs (``run 8000``,

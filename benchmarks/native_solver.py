@@ -1,4 +1,4 @@
-"""The settle scenario of shared/benchmarks/settle.md run directly on the native Solver.
+"""The settle scenario of benchmarks/README.md run directly on the native Solver.
 
 Prints particle-steps/s of the settling (8,000 steps) and dense-bed (4,000 steps) phases
 for 1 thread and for ``--threads`` threads (each in a fresh process), the speed-up, the

@@ -18,8 +18,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from pygran_readers.dump import DumpTrajectory, format_frame
 
+from pygran_core.formats.dump import DumpTrajectory, format_frame
 from pygran_core.io import Frame
 
 COLUMNS = "id type x y z radius vx vy vz fx fy fz".split()

@@ -1,4 +1,4 @@
-"""The settle scenario of ``shared/benchmarks/settle.md`` through ``simulation.DEM`` on any engine.
+"""The settle scenario of ``benchmarks/README.md`` through ``simulation.DEM`` on any engine.
 
     python benchmarks/settle.py --engine native --n 20000 --threads 1
     python benchmarks/settle.py --engine liggghts --n 20000

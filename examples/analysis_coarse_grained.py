@@ -15,7 +15,7 @@ from pathlib import Path
 
 from pygran_core import analysis
 
-HOPPER = Path(__file__).resolve().parents[1] / ".." / "shared" / "fixtures" / "liggghts-hopper"
+HOPPER = Path(__file__).resolve().parents[1] / "tests" / "data" / "liggghts-hopper"
 
 
 class CoarseParticles(analysis.Particles):

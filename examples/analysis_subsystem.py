@@ -18,7 +18,7 @@ import numpy as np
 
 from pygran_core import analysis
 
-HOPPER = Path(__file__).resolve().parents[1] / ".." / "shared" / "fixtures" / "liggghts-hopper"
+HOPPER = Path(__file__).resolve().parents[1] / "tests" / "data" / "liggghts-hopper"
 
 
 def main(argv: list[str]) -> dict:

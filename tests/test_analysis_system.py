@@ -1,9 +1,7 @@
 """System: construction, frame cursor, user subclasses (module=), units; hopper acceptance."""
 
-import shutil
 import sys
 import textwrap
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +11,6 @@ from pygran_core.analysis import Mesh, Particles, System, equilibrium
 from pygran_core.errors import ConfigError, ReadError
 from pygran_core.io import Frame, open_writer
 
-FIXTURES = Path(__file__).resolve().parents[1] / ".." / "shared" / "fixtures"
 COUNTS = [3, 5, 0, 2]  # particles per frame of the synthetic trajectory
 
 
@@ -160,17 +157,6 @@ def test_module_by_path_name_or_object_without_touching_sys_path(traj, monkeypat
 
 
 # -- acceptance on the real LIGGGHTS hopper run ----------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def hopper(tmp_path_factory):
-    source = FIXTURES / "liggghts-hopper"
-    if not source.is_dir():
-        pytest.fail(f"The shared test fixtures are missing: expected {source.resolve()} (see its README.md)")
-    target = tmp_path_factory.mktemp("hopper")
-    for path in source.iterdir():
-        shutil.copy(path, target)
-    return target
 
 
 def hopper_counts():

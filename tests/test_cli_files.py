@@ -1,31 +1,18 @@
 """pygran info and pygran convert on the real LIGGGHTS hopper run."""
 
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from pygran_core.io import open_trajectory
 
 PYGRAN = str(Path(sys.executable).with_name("pygran"))
-FIXTURES = Path(__file__).resolve().parents[1] / ".." / "shared" / "fixtures" / "liggghts-hopper"
 
 
 def run(*args, cwd):
     return subprocess.run([PYGRAN, *args], capture_output=True, text=True, cwd=cwd)
-
-
-@pytest.fixture(scope="module")
-def hopper(tmp_path_factory):
-    if not FIXTURES.is_dir():
-        pytest.fail(f"The shared fixtures are missing: expected {FIXTURES.resolve()}")
-    folder = tmp_path_factory.mktemp("hopper")
-    for path in FIXTURES.iterdir():
-        shutil.copy(path, folder)
-    return folder
 
 
 def test_info_on_a_dump_glob(hopper):

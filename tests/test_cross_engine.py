@@ -41,7 +41,7 @@ from pygran_core.validation import (
 ENGINES = sorted(set(registry.available("engine")) | {"native", "liggghts", "yade"})
 #: What every compared engine must declare: Hertz-Mindlin, plane and mesh walls, periodic boxes.
 NEEDED = frozenset({"hertz-mindlin", "primitive-walls", "mesh-walls", "periodic"})
-SILO = Path(__file__).resolve().parents[2] / "shared" / "fixtures" / "meshes" / "silo.stl"
+SILO = Path(__file__).resolve().parent / "data" / "meshes" / "silo.stl"
 #: The hopper's material (LIGGGHTS' softest without soft_particles) and sphere radius.
 HOPPER_MATERIAL = {
     "youngsModulus": 5e6,

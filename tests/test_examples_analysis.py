@@ -3,29 +3,16 @@
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from pygran_core.analysis import Mesh, Particles, System
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "examples"
-FIXTURES = REPO / ".." / "shared" / "fixtures" / "liggghts-hopper"
-
-
-@pytest.fixture(scope="module")
-def hopper(tmp_path_factory) -> Path:
-    if not FIXTURES.is_dir():
-        pytest.fail(f"Shared test fixtures missing: expected {FIXTURES.resolve()} (see its README.md)")
-    target = tmp_path_factory.mktemp("hopper")
-    for path in FIXTURES.iterdir():
-        shutil.copy(path, target)
-    return target
 
 
 def run(name: str, cwd: Path, *args: str) -> str:

@@ -19,7 +19,7 @@ from pygran_core.simulation.specs import (
     parse_simulation,
 )
 
-FIXTURES = Path(__file__).resolve().parents[2] / "shared" / "fixtures"
+DATA = Path(__file__).resolve().parent / "data"
 MATERIAL = dict(params.glass, coefficientRollingFriction=0.0)
 BASE = {"box": (0, 1e-2, 0, 1e-2, 0, 2e-2), "species": ({"material": MATERIAL, "radius": 5e-4},)}
 
@@ -143,8 +143,7 @@ def test_restart_forms(tmp_path, monkeypatch):
 
 
 def test_mesh_from_stl_with_liggghts_style_args(tmp_path, monkeypatch):
-    silo = FIXTURES / "meshes" / "silo.stl"
-    assert silo.is_file(), f"shared fixtures missing: {silo}"
+    silo = DATA / "meshes" / "silo.stl"
     mesh = spec(
         mesh={
             "hopper": {
@@ -247,7 +246,7 @@ def test_insert_spec():
 
 
 def test_create_wall_motion_viscous_monitor_specs():
-    silo = FIXTURES / "meshes" / "silo.stl"
+    silo = DATA / "meshes" / "silo.stl"
     s = spec(mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}})
     single = calls.parse_create(1, "single", (0, 0, 1e-2), {"vel": (0, 0, -0.1), "omega": (1, 0, 0)}, s, 3)
     assert single.position == (0, 0, 0.01) and single.velocity == (0, 0, -0.1) and single.omega == (1, 0, 0)

@@ -1,4 +1,4 @@
-"""A hopper made of shared/fixtures/meshes/silo.stl: fill by pack, remove the stopper, flow."""
+"""A hopper made of tests/data/meshes/silo.stl: fill by pack, remove the stopper, flow."""
 
 from pathlib import Path
 
@@ -8,7 +8,7 @@ from pygran_liggghts.library import find_library
 from pygran_core import simulation
 from pygran_core.testing.solvers import require_solver
 
-SILO = Path("/work/shared/fixtures/meshes/silo.stl")
+SILO = Path(__file__).resolve().parents[3] / "tests" / "data" / "meshes" / "silo.stl"
 MATERIAL = {
     "youngsModulus": 1e7,
     "poissonsRatio": 0.3,

@@ -10,7 +10,7 @@ from pygran_core import analysis, simulation
 from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.simulation.models import HertzMindlin
 
-SILO = Path(__file__).resolve().parents[3] / ".." / "shared" / "fixtures" / "meshes" / "silo.stl"
+SILO = Path(__file__).resolve().parents[3] / "tests" / "data" / "meshes" / "silo.stl"
 SOFT = {
     "youngsModulus": 1e6,
     "poissonsRatio": 0.3,
@@ -106,7 +106,6 @@ def test_viscous_drag_gives_the_terminal_velocity(tmp_path):
 
 
 def test_hopper_fills_then_discharges_after_the_stopper_is_removed(tmp_path):
-    assert SILO.is_file(), f"shared fixture missing: {SILO}"
     mesh = {"hopper": {"file": str(SILO), "mtype": "mesh/surface", "material": SOFT, "args": ("scale 1e-3",)}}
     with dem(tmp_path, mesh=mesh, traj={"pfile": "traj.h5", "freq": 10000}) as sim:
         sim.setupWall(wtype="mesh", species=1, mesh="hopper")

@@ -217,8 +217,8 @@ def test_writer_replaces_files_atomically_and_names_them_by_timestep(tmp_path):
         open_writer(tmp_path / "p*.vtk").write_frame(Frame({"x": np.zeros(1), "y": np.zeros(1)}))
 
 
-def test_hopper_mesh_sequence(fixtures, tmp_path):
-    for path in (fixtures / "liggghts-hopper").glob("mesh*.vtk"):
+def test_hopper_mesh_sequence(data_dir, tmp_path):
+    for path in (data_dir / "liggghts-hopper").glob("mesh*.vtk"):
         shutil.copy(path, tmp_path)
     meshes = open_trajectory(str(tmp_path / "mesh*.vtk"))
     assert len(meshes) == 31
