@@ -1,6 +1,7 @@
 """File access for trajectories and meshes: the base classes formats implement, and lookup.
 
-Formats live in plugins (``pygran-readers`` and third-party ones); this module holds what
+Formats are registered like plugins (the core's own in :mod:`pygran_core.formats`,
+``pygran-readers`` and third-party ones); this module holds what
 they share: :class:`Frame` (one snapshot), :class:`Trajectory` (a lazy, random-access
 sequence of frames) and :class:`TrajectoryWriter` (appends one frame at a time), plus
 :func:`open_trajectory` / :func:`open_writer`, which pick the format through the registry.

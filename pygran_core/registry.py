@@ -33,7 +33,10 @@ from pygran_core.hookspecs import EngineSpec, ModelSpec, ReaderSpec, WriterSpec
 ENTRY_POINT_GROUPS = ("pygran.engines", "pygran.models", "pygran.readers")
 CORE_DISTRIBUTION = "pygran-core"
 #: Plugins shipped inside the core distribution itself: plugin name -> module.
-BUILTIN_PLUGINS = {"core-models": "pygran_core.simulation.models.plugin"}
+BUILTIN_PLUGINS = {
+    "core-models": "pygran_core.simulation.models.plugin",
+    "core-formats": "pygran_core.formats.plugin",
+}
 STRICT_ENV = "PYGRAN_STRICT_PLUGINS"
 
 #: Which first-party distribution provides a name, for the "how to install" hint.
@@ -41,10 +44,7 @@ FIRST_PARTY = {
     "native": "pygran-native",
     "liggghts": "pygran-liggghts",
     "yade": "pygran-yade",
-    "dump": "pygran-readers",
     "vtk": "pygran-readers",
-    "stl": "pygran-readers",
-    "h5md": "pygran-readers",
     "yade-vtk": "pygran-readers",
 }
 

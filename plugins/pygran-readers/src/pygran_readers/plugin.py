@@ -1,25 +1,18 @@
-"""Registers the pygran-readers file formats with PyGran.
+"""Registers the pygran-readers file formats with PyGran: VTK (legacy, VTU, VTP) and YADE output.
 
-Only this module is imported at plugin discovery; the format modules import numpy only,
-and h5py, meshio and vtk are imported inside the functions that use them.
+The LIGGGHTS dump, H5MD and STL are the core's own (``pygran_core.formats``). Only this
+module is imported at plugin discovery; vtk is imported inside the functions that use it.
 """
 
 from __future__ import annotations
 
 from pygran_core.hookspecs import ReaderSpec, WriterSpec, hookimpl
-from pygran_readers import dump, h5md, stl, vtk, yade
+from pygran_readers import vtk, yade
 
 
 @hookimpl
 def pygran_readers():
-    yield ReaderSpec(
-        name="dump",
-        extensions=(".dump", ".dump.gz", ".lammpstrj", ".lammpstrj.gz"),
-        open=dump.DumpTrajectory,
-        can_open=dump.can_open,
-        description="LIGGGHTS/LAMMPS text dump (multi-frame, globs, gzip)",
-    )
-    # Before "vtk": the registry asks can_open in this order, and vtk's accepts any VTK file.
+    # "yade-vtk" before "vtk": the registry asks can_open in this order, and vtk's accepts any VTK file.
     yield ReaderSpec(
         name="yade-vtk",
         extensions=(".vtu",),
@@ -36,37 +29,10 @@ def pygran_readers():
         kinds=frozenset({"mesh", "particles"}),
         description="VTK legacy and XML meshes or particle points, one frame per file",
     )
-    yield ReaderSpec(
-        name="stl",
-        extensions=(".stl",),
-        open=stl.STLTrajectory,
-        kinds=frozenset({"mesh"}),
-        description="STL surface mesh (ASCII or binary)",
-    )
-    yield ReaderSpec(
-        name="h5md",
-        extensions=(".h5md", ".h5", ".hdf5"),
-        open=h5md.H5MDTrajectory,
-        can_open=h5md.can_open,
-        description="HDF5 in the H5MD layout",
-    )
 
 
 @hookimpl
 def pygran_writers():
-    yield WriterSpec(
-        name="dump",
-        extensions=(".dump",),
-        open=dump.DumpWriter,
-        description="LIGGGHTS/LAMMPS text dump; '*' in the name writes a file per frame",
-    )
-    yield WriterSpec(
-        name="h5md",
-        extensions=(".h5md", ".h5", ".hdf5"),
-        open=h5md.H5MDWriter,
-        description="HDF5 in the H5MD layout, flushed frame by frame",
-        options={"group": "all", "units": None, "compression": 4},
-    )
     yield WriterSpec(
         name="vtk",
         extensions=(".vtk",),

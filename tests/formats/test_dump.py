@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from pygran_readers.dump import DumpTrajectory, format_frame
 
 from pygran_core.errors import ReadError
+from pygran_core.formats.dump import DumpTrajectory, format_frame
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.testing.formats import FormatConformance, assert_frames_equal, mutate, particle_frames
 
@@ -97,8 +97,8 @@ class TestDumpPerFrameFiles(TestDump):
         return str(tmp_path / "out*.dump"), frames
 
 
-def test_hopper_fixture(fixtures, tmp_path):
-    for path in (fixtures / "liggghts-hopper").glob("particles*.dump"):
+def test_hopper_fixture(data_dir, tmp_path):
+    for path in (data_dir / "liggghts-hopper").glob("particles*.dump"):
         shutil.copy(path, tmp_path)
     trajectory = open_trajectory(str(tmp_path / "particles*.dump"))
     assert len(trajectory) == 31

@@ -122,7 +122,7 @@ class H5MDWriter(TrajectoryWriter):
         h5md.create_group("author").attrs["name"] = "PyGran"
         creator = h5md.create_group("creator")
         creator.attrs["name"] = "PyGran"
-        creator.attrs["version"] = version("pygran-readers")
+        creator.attrs["version"] = version("pygran-core")
         particles = f.create_group(f"particles/{self.group}", track_order=True)
         self._clock: Any = None  # the element holding the step and time datasets
         self._values: list[tuple[Any, tuple[str, ...]]] = []

@@ -84,8 +84,8 @@ def test_changing_columns_is_refused(tmp_path):
             out.write_frame(Frame({"id": np.array([1])}))
 
 
-def test_dump_to_h5md_to_dump_preserves_every_value(fixtures, tmp_path):
-    for path in (fixtures / "liggghts-hopper").glob("particles*.dump"):
+def test_dump_to_h5md_to_dump_preserves_every_value(data_dir, tmp_path):
+    for path in (data_dir / "liggghts-hopper").glob("particles*.dump"):
         shutil.copy(path, tmp_path)
     source = open_trajectory(str(tmp_path / "particles*.dump"))
     with open_writer(tmp_path / "hopper.h5md") as out:

@@ -1,0 +1,50 @@
+"""Registers the core's formats (entry-point group ``pygran.readers`` for plugins)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from pygran_core.formats import dump, h5md, stl
+from pygran_core.hookspecs import ReaderSpec, WriterSpec, hookimpl
+
+
+@hookimpl
+def pygran_readers() -> Iterator[ReaderSpec]:
+    yield ReaderSpec(
+        name="dump",
+        extensions=(".dump", ".dump.gz", ".lammpstrj", ".lammpstrj.gz"),
+        open=dump.DumpTrajectory,
+        can_open=dump.can_open,
+        description="LIGGGHTS/LAMMPS text dump (multi-frame, globs, gzip)",
+    )
+    yield ReaderSpec(
+        name="stl",
+        extensions=(".stl",),
+        open=stl.STLTrajectory,
+        kinds=frozenset({"mesh"}),
+        description="STL surface mesh (ASCII or binary)",
+    )
+    yield ReaderSpec(
+        name="h5md",
+        extensions=(".h5md", ".h5", ".hdf5"),
+        open=h5md.H5MDTrajectory,
+        can_open=h5md.can_open,
+        description="HDF5 in the H5MD layout",
+    )
+
+
+@hookimpl
+def pygran_writers() -> Iterator[WriterSpec]:
+    yield WriterSpec(
+        name="dump",
+        extensions=(".dump",),
+        open=dump.DumpWriter,
+        description="LIGGGHTS/LAMMPS text dump; '*' in the name writes a file per frame",
+    )
+    yield WriterSpec(
+        name="h5md",
+        extensions=(".h5md", ".h5", ".hdf5"),
+        open=h5md.H5MDWriter,
+        description="HDF5 in the H5MD layout, flushed frame by frame",
+        options={"group": "all", "units": None, "compression": 4},
+    )
