@@ -49,31 +49,7 @@ html_static_path: list[str] = []
 html_theme_options = {"description": "DEM simulation and analysis of granular materials"}
 
 
-# -- docstring work-arounds -----------------------------------------------------------------
-# pygran_core/params.py, module docstring line 21 ("impact velocity scale (hooke stiffness,
-# impacts)"): the text is one character wider than the table's middle column, which docutils
-# rejects ("Malformed table. Text in column margin"). Until the table is widened, show a
-# simple table whose text runs into a column margin as a literal block. A well-formed table
-# is left alone, so this does nothing once the docstring is fixed.
-
-
-def _margin_columns(rule: str) -> list[int]:
-    return [i for i, ch in enumerate(rule) if ch == " " and 0 < i < len(rule.rstrip())]
-
-
-def _literal_broken_tables(app, what, name, obj, options, lines):  # noqa: ANN001
-    rules = [i for i, line in enumerate(lines) if line.strip() and set(line.strip()) <= {"=", " "}]
-    if len(rules) < 2:
-        return
-    start, end = rules[0], rules[-1]
-    margins = _margin_columns(lines[start])
-    broken = any(len(line) > col and line[col] != " " for line in lines[start : end + 1] for col in margins)
-    if broken:
-        lines[start : end + 1] = ["::", ""] + ["    " + line for line in lines[start : end + 1]] + [""]
-
-
 def setup(app):  # noqa: ANN001, ANN201
-    app.connect("autodoc-process-docstring", _literal_broken_tables)
     app.connect("warn-missing-reference", _quiet_missing_reference)
 
 
