@@ -75,6 +75,8 @@ def size_classes(radius: RadiusDistribution) -> list[tuple[float, float]]:
 
 #: LIGGGHTS refuses Young's moduli below this (SI) unless told ``soft_particles yes``.
 SOFT_LIMIT = 5e6
+#: ... and above this unless told ``hard_particles yes``.
+HARD_LIMIT = 1e9
 
 
 class Commands:
@@ -127,8 +129,12 @@ class Commands:
         sort_bin = spec.max_radius + spec.skin / 2
         sort = f" sort 1000 {fmt(sort_bin)}" if sort_bin > 0 else ""
         lines = ["units si", "atom_style granular", f"atom_modify map array{sort}"]
-        if min(m["youngsModulus"] for m in self.materials) < SOFT_LIMIT:
-            lines.append("soft_particles yes")  # else LIGGGHTS refuses moduli below 5 MPa in SI units
+        moduli = [m["youngsModulus"] for m in self.materials]
+        # LIGGGHTS refuses moduli outside 5 MPa - 1 GPa in SI units unless told
+        if min(moduli) < SOFT_LIMIT:
+            lines.append("soft_particles yes")
+        if max(moduli) > HARD_LIMIT:
+            lines.append("hard_particles yes")
         lines.append("newton off")  # granular pairs with history need it; restart files omit it
         if resume is None:
             bounds = " ".join(fmt(v) for lo_hi in spec.domain.box for v in lo_hi)
