@@ -25,11 +25,12 @@ def main(argv: list[str]) -> dict:
     Granular = analysis.System(Particles=particles, Mesh=meshes, units="si")
 
     # The System is iterable: each step loads the next frame into Granular.Particles / .Mesh
+    # and yields its timestep; Granular.frame is the frame's index
     counts = []
-    for frame in Granular:
-        counts.append(len(Granular.Particles))
+    for ts in Granular:
+        counts.append(Granular.Particles.natoms)
         print(
-            f"frame {frame}: timestep {Granular.Particles.timestep}, {counts[-1]} particles, "
+            f"frame {Granular.frame}: timestep {ts}, {counts[-1]} particles, "
             f"{Granular.Mesh.nCells()} wall cells"
         )
 

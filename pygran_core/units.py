@@ -18,7 +18,8 @@ representable integer power of ten, which keeps the rounding error to one operat
 
 from __future__ import annotations
 
-from typing import TypeVar
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -58,10 +59,9 @@ ArrayT = TypeVar("ArrayT", float, np.ndarray)
 
 
 def _system(name: str) -> tuple[int, int, int]:
-    try:
-        return SYSTEMS[name]
-    except KeyError:
-        raise unknown_key("unit system", name, SYSTEMS) from None
+    if not isinstance(name, str) or name not in SYSTEMS:
+        raise unknown_key("unit system", str(name), SYSTEMS)
+    return SYSTEMS[name]
 
 
 def exponent(dimension: str, source: str, target: str) -> int:
@@ -89,3 +89,30 @@ def convert(value: ArrayT, dimension: str, source: str, target: str) -> ArrayT:
     if k == 0:
         return value
     return value * 10.0**k if k > 0 else value / 10.0 ** (-k)
+
+
+class UnitName(str):
+    """The name of a unit system (a ``str``) that converts its owner when called.
+
+    ``System.units`` and ``SubSystem.units`` return one: compare or print it as a string
+    (``system.units == "si"``), or call it as the original PyGran's method,
+    ``system.units("micro")`` to convert and ``system.units()`` for the name.
+    """
+
+    _convert: Callable[[str], Any]
+
+    def __new__(cls, name: str, convert: Callable[[str], Any]) -> UnitName:
+        new = super().__new__(cls, name)
+        new._convert = convert
+        return new
+
+    def __call__(self, units: str | None = None) -> str:
+        """Convert the owner to ``units`` (si, cgs, micro, nano) and return it; no argument: the name."""
+        if units is None:
+            return str(self)
+        _system(units)
+        self._convert(units)
+        return units
+
+    def __reduce__(self) -> tuple[type[str], tuple[str]]:
+        return str, (str(self),)  # pickles and copies as the plain name

@@ -44,7 +44,7 @@ def test_frames_counts_and_cursor(traj):
     with pytest.raises(StopIteration):
         system.next()
     assert system.goto(2) == 2 and len(system.Particles) == 0
-    assert system.Particles.keys()[:2] == ["id", "type"]
+    assert system.Particles.keys()[:2] == ["id", "type"] and system.Particles.keys[:2] == ("id", "type")
     assert system.rewind() == 0 and system.Particles.timestep == 0
     np.testing.assert_array_equal(system.Particles.x, frame(0, 3).arrays["x"])
 
@@ -52,10 +52,18 @@ def test_frames_counts_and_cursor(traj):
 def test_iteration_visits_every_frame_from_the_first_and_repeats(traj):
     system = System(Particles=str(traj / "traj*.dump"))
     system.goto(2)
-    first = [(k, len(system.Particles), system.Particles.timestep) for k in system]
-    second = [(k, len(system.Particles), system.Particles.timestep) for k in system]
-    assert first == second == [(k, n, 100 * k) for k, n in enumerate(COUNTS)]
+    first = [(ts, system.frame, len(system.Particles)) for ts in system]
+    second = [(ts, system.frame, len(system.Particles)) for ts in system]
+    assert first == second == [(100 * k, k, n) for k, n in enumerate(COUNTS)]
     assert system.frame == 0
+    assert [(k, system.Particles.timestep) for k in system.frames()] == [(k, 100 * k) for k in range(4)]
+
+
+def test_skip_moves_to_the_first_frame_with_particles(traj):
+    system = System(Particles=str(traj / "traj*.dump"))
+    assert system.skip() == 0  # frame 0 has 3 particles
+    system.goto(2)  # empty
+    assert system.skip() == 3 and len(system.Particles) == 2
 
 
 def test_sources_list_tuple_and_object(traj):

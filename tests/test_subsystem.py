@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from pygran_core import SubSystem
+from pygran_core.errors import ConfigError
 
 
 class Grains(SubSystem):
@@ -127,7 +128,7 @@ def test_translate_scale_noise_in_place(grains):
     assert not np.array_equal(grains.x, before)
     np.testing.assert_allclose(grains.x, before + np.random.default_rng(1).normal(0, 0.1, 4))
     np.testing.assert_array_equal(again.x, grains.x)
-    with pytest.raises(KeyError, match=r"no attributes \['vx'\]"):
+    with pytest.raises(ConfigError, match=r"no attributes \['vx'\]"):
         grains.scale(2, "vx")
 
 

@@ -38,6 +38,11 @@ class Particles(SubSystem):
     """Spherical particles: one array per LIGGGHTS column (``id``, ``type``, ``x``, ``radius``,
     ``vx``, ``fx``, ...) plus ``positions`` (N, 3), and the statistics of powder technology."""
 
+    @property
+    def natoms(self) -> int:
+        """Number of particles (the original's ``natoms``; the same as ``len(particles)``)."""
+        return len(self)
+
     # -- geometry helpers -------------------------------------------------------------------
 
     @property

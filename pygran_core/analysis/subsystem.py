@@ -4,8 +4,13 @@ A SubSystem maps attribute names to per-element numpy arrays of one length N (1-
 N x k for vectors such as mesh cells) and holds metadata (``timestep``, ``box``, ``units``,
 and for meshes the shared ``points``). Arrays are read-only to the user; the methods that
 change them (:meth:`translate`, :meth:`scale`, :meth:`noise`, :meth:`convert`) replace them
-explicitly. Slicing with an int, a slice, an integer array or a boolean mask returns a new
-object of the same class.
+explicitly. Slicing with an int, a slice, a list, an integer array or a boolean mask returns
+a new object of the same class.
+
+The original PyGran's forms work beside today's: ``obj.keys`` prints and iterates as the
+attribute names and ``obj.keys()`` returns them as a list; ``obj.units`` is the unit
+system's name and ``obj.units("micro")`` converts (as :meth:`convert`);
+``translate(value, attr)`` takes the original's argument order and keywords.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core import units as _units
-from pygran_core.errors import did_you_mean
+from pygran_core.errors import ConfigError, PyGranError, did_you_mean
 
 Selection = int | slice | Sequence[int] | np.ndarray
 
@@ -35,6 +40,25 @@ DIMENSIONS: dict[str, str] = {
     "density": "density",
     "time": "time",
 }
+
+
+class SelectionError(PyGranError, IndexError):
+    """A selection (index, slice, list, mask) or frame that does not fit the object."""
+
+
+class AttributeProblem(PyGranError, AttributeError):
+    """An attribute that does not exist, or one that is read-only."""
+
+
+class Keys(tuple[str, ...]):
+    """Attribute names: prints and iterates as the original's ``keys`` property; calling it
+    (today's ``keys()``) returns them as a list."""
+
+    def __call__(self) -> list[str]:
+        return list(self)
+
+    def __repr__(self) -> str:
+        return repr(list(self))
 
 
 def _frozen(values: Any) -> np.ndarray:
@@ -80,7 +104,7 @@ class SubSystem:
                 meta[key] = value
         lengths = {key: len(value) for key, value in fields.items()}
         if len(set(lengths.values())) > 1:
-            raise ValueError(f"{type(self).__name__} attributes have different lengths: {lengths}")
+            raise ConfigError(f"{type(self).__name__} attributes have different lengths: {lengths}")
         _units.exponent("length", meta["units"], "si")  # an unknown unit system is a ConfigError
         object.__setattr__(self, "_fields", fields)
         object.__setattr__(self, "_meta", meta)
@@ -123,9 +147,15 @@ class SubSystem:
         """Read-only view of the metadata."""
         return MappingProxyType(self._meta)
 
-    def keys(self) -> list[str]:
-        """Names of the per-element arrays."""
-        return list(self._fields)
+    @property
+    def keys(self) -> Keys:
+        """Names of the per-element arrays: ``for k in obj.keys`` or ``obj.keys()`` (a list)."""
+        return Keys(self._fields)
+
+    @property
+    def units(self) -> _units.UnitName:
+        """The unit system of the numbers; ``obj.units("micro")`` converts, as :meth:`convert`."""
+        return _units.UnitName(self._meta["units"], self.convert)
 
     def __contains__(self, key: object) -> bool:
         return key in self._fields
@@ -143,14 +173,14 @@ class SubSystem:
         if name in meta:
             return meta[name]
         known = [*fields, *meta]
-        raise AttributeError(
+        raise AttributeProblem(
             f"{type(self).__name__} has no attribute {name!r}.{did_you_mean(name, known)} "
             f"Attributes: {', '.join(known) or 'none'}."
         )
 
     def __setattr__(self, name: str, value: Any) -> None:
         if name in self.__dict__.get("_fields", {}) or name in self.__dict__.get("_meta", {}):
-            raise AttributeError(
+            raise AttributeProblem(
                 f"{type(self).__name__}.{name} is read-only; use translate(), scale() or build "
                 f"a new object, e.g. {type(self).__name__}({type(self).__name__}=obj, {name}=...)"
             )
@@ -160,7 +190,7 @@ class SubSystem:
         return sorted({*super().__dir__(), *self._fields, *self._meta})
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}(N={len(self)}, keys={self.keys()})"
+        return f"{type(self).__name__}(N={len(self)}, keys={self.keys!r})"
 
     # -- selection, iteration, concatenation ---------------------------------------------
 
@@ -181,20 +211,23 @@ class SubSystem:
             return selection
         if isinstance(selection, (int, np.integer)) and not isinstance(selection, bool):
             if not -n <= selection < n:
-                raise IndexError(f"Index {selection} is out of range for {n} elements")
+                raise SelectionError(f"Index {selection} is out of range for {n} elements")
             start = int(selection) % n
             return slice(start, start + 1)
         index = np.asarray(selection)
         if index.dtype == bool:
             if index.shape != (n,):
-                raise IndexError(f"Boolean mask of shape {index.shape} does not match {n} elements")
+                raise SelectionError(f"Boolean mask of shape {index.shape} does not match {n} elements")
             return index
         if index.size == 0:
             return index.astype(np.intp)
         if not np.issubdtype(index.dtype, np.integer):
-            raise IndexError(f"Cannot select with an array of {index.dtype}; use ints or booleans")
+            raise SelectionError(
+                f"Cannot select {type(self).__name__} elements with {selection!r:.60}: use an int, a slice, "
+                "a list or array of ints, or a boolean mask"
+            )
         if index.min() < -n or index.max() >= n:
-            raise IndexError(f"Indices {index.min()}..{index.max()} out of range for {n} elements")
+            raise SelectionError(f"Indices {index.min()}..{index.max()} out of range for {n} elements")
         return index
 
     def __iter__(self) -> Iterator[SubSystem]:
@@ -216,7 +249,10 @@ class SubSystem:
         self._check_same_units(other)
         missing = [key for key in self._fields if key not in other._fields]
         if missing:
-            raise ValueError(f"Cannot append: the other {type(other).__name__} lacks {missing}")
+            raise ConfigError(
+                f"Cannot append with +=: the other {type(other).__name__} lacks {missing}; use + to keep "
+                "only the common attributes"
+            )
         self._replace({k: np.concatenate((v, other._fields[k])) for k, v in self._fields.items()})
         return self
 
@@ -241,7 +277,7 @@ class SubSystem:
 
     def _check_same_units(self, other: SubSystem) -> None:
         if self.units != other.units:
-            raise ValueError(
+            raise ConfigError(
                 f"Cannot combine {type(self).__name__} in {self.units!r} units with one in "
                 f"{other.units!r} units; convert() one of them first"
             )
@@ -267,36 +303,47 @@ class SubSystem:
         arrays = [*self._fields, *(k for k, v in self._meta.items() if isinstance(v, np.ndarray))]
         unknown = [name for name in names if name not in arrays]
         if unknown:
-            raise KeyError(f"{type(self).__name__} has no attributes {unknown}; it has {arrays}")
+            raise ConfigError(f"{type(self).__name__} has no attributes {unknown}; it has {arrays}")
         return names
 
-    def translate(
-        self, offset: float | Sequence[float], attr: Sequence[str] | str | None = None
-    ) -> SubSystem:
-        """Add ``offset`` (one value, or one per attribute) to ``attr`` in place; returns self.
+    def translate(self, value: float | Sequence[float], attr: Sequence[str] | str | None = None) -> SubSystem:
+        """Add ``value`` (one number, or one per attribute) to ``attr`` in place; returns self.
 
-        For a vector attribute such as mesh ``points`` (N, 3), ``offset`` may be a 3-vector.
+        The original's call ``translate(value=(dx, dy, dz), attr=('x', 'y', 'z'))`` works as
+        is; ``attr`` defaults to the positions. For a vector attribute such as mesh
+        ``points`` (N, 3), ``value`` may be a 3-vector.
         """
         names = self._targets(attr)
-        offset = np.asarray(offset, dtype=float)
+        offset = np.asarray(value, dtype=float)
         if len(names) == 1 and self._array(names[0]).ndim == 2:
             self._replace({names[0]: self._array(names[0]) + offset})
             return self
-        offsets = np.broadcast_to(offset, (len(names),) + offset.shape[1:])
+        if offset.ndim > 1 or offset.size not in (1, len(names)):
+            raise ConfigError(
+                f"translate: give one value or one per attribute ({len(names)} for {names}), got {value!r}"
+            )
+        offsets = np.broadcast_to(offset, (len(names),))
         self._replace({n: self._array(n) + o for n, o in zip(names, offsets)})
         return self
 
-    def scale(self, factor: float, attr: Sequence[str] | str | None = None) -> SubSystem:
-        """Multiply ``attr`` by ``factor`` in place; returns self."""
-        self._replace({n: self._array(n) * factor for n in self._targets(attr)})
+    def scale(self, value: float, attr: Sequence[str] | str | None = None) -> SubSystem:
+        """Multiply ``attr`` (default the positions) by ``value`` in place; returns self."""
+        self._replace({n: self._array(n) * value for n in self._targets(attr)})
         return self
 
     def noise(
-        self, sigma: float, attr: Sequence[str] | str | None = None, *, seed: int | np.random.Generator
+        self,
+        sigma: float,
+        attr: Sequence[str] | str | None = None,
+        *,
+        seed: int | np.random.Generator | None = None,
     ) -> SubSystem:
-        """Add Gaussian noise of standard deviation ``sigma`` to ``attr`` in place; returns self."""
+        """Add Gaussian noise of standard deviation ``sigma`` to ``attr`` in place; returns self.
+
+        ``seed`` makes it reproducible; without it the noise differs on every call (as the original's).
+        """
         if sigma < 0:
-            raise ValueError(f"noise: sigma must be >= 0, got {sigma}")
+            raise ConfigError(f"noise: sigma must be >= 0, got {sigma}")
         rng = np.random.default_rng(seed)
         self._replace(
             {n: self._array(n) + rng.normal(0.0, sigma, self._array(n).shape) for n in self._targets(attr)}

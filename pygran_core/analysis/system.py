@@ -12,6 +12,10 @@ module='coarseGrained')``. A class name is looked up first in ``module`` and the
 script counts when its file is ``coarseGrained.py``, and ``coarseGrained.py`` in the current
 directory is found too), or the path of a ``.py`` file. Loading a file never changes
 ``sys.path`` or ``sys.modules``.
+
+The original PyGran's System calls work unchanged: ``for ts in system`` (the timestep of
+each frame), ``system.skip()``, ``system.goto(-1)``, ``system.frame``, ``len(system)`` (the
+number of frames) and ``system.units("micro")``.
 """
 
 from __future__ import annotations
@@ -25,8 +29,10 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+import numpy as np
+
 from pygran_core import units as _units
-from pygran_core.analysis.subsystem import SubSystem
+from pygran_core.analysis.subsystem import SelectionError, SubSystem
 from pygran_core.errors import ConfigError, did_you_mean
 from pygran_core.io import Trajectory, open_trajectory
 
@@ -140,11 +146,15 @@ class _Source:
 class System:
     """A DEM system: one or more SubSystems read from trajectories, moved frame by frame.
 
-    ``len(system)`` is the number of frames; ``for frame in system`` visits every frame from
-    the first (yielding its index) and rewinds at the end; :meth:`goto` jumps anywhere
-    (negative counts from the end). ``system.Particles`` (or any given class name) is the
-    SubSystem of the current frame, read when first used. Trajectories of one frame and
-    ready-made objects stay the same in every frame.
+    ``len(system)`` is the number of frames and :attr:`frame` the current one (0 after
+    construction). ``for ts in system`` visits every frame in order from the first (the
+    trajectory's files sorted by their numbers: ``particles1000.dump`` after
+    ``particles900.dump``), yields the frame's timestep (its index when the frame has
+    none) and rewinds at the end; :meth:`frames` yields the indices instead. :meth:`goto`
+    jumps anywhere (negative counts from the end), :meth:`skip` to the first frame with
+    elements. ``system.Particles`` (or any given class name) is the SubSystem of the
+    current frame, read when first used. Trajectories of one frame and ready-made objects
+    stay the same in every frame.
     """
 
     def __init__(self, units: str = "si", module: ModuleType | PathLike | None = None, **kwargs: Any) -> None:
@@ -168,9 +178,22 @@ class System:
         self._current: dict[str, SubSystem] = {}
 
     @property
-    def units(self) -> str:
-        """The unit system every SubSystem is expressed in."""
-        return self._units
+    def units(self) -> _units.UnitName:
+        """The unit system every SubSystem is expressed in (a ``str``).
+
+        ``system.units("micro")`` (the original's method) converts the current frame's
+        SubSystems in place, so references to them see the new numbers, and every frame
+        read afterwards; ``system.units()`` returns the name.
+        """
+        return _units.UnitName(self._units, self._convert)
+
+    def _convert(self, units: str) -> None:
+        for name, obj in self._current.items():
+            if obj is self._sources[name].fixed:  # never change an object the user passed in
+                self._current[name] = obj.copy().convert(units)
+            else:
+                obj.convert(units)
+        self._units = units
 
     @property
     def frame(self) -> int:
@@ -199,8 +222,11 @@ class System:
     def goto(self, frame: int) -> int:
         """Make ``frame`` (negative counts from the end) the current frame; returns its index."""
         n = self._n_frames
-        if not isinstance(frame, int) or not -n <= frame < n:
-            raise IndexError(f"Frame {frame!r} is out of range: the system has {n} frames (0..{n - 1})")
+        if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
+            raise ConfigError(f"goto needs a frame number, not {frame!r}")
+        if not -n <= frame < n:
+            raise SelectionError(f"Frame {frame!r} is out of range: the system has {n} frames (0..{n - 1})")
+        frame = int(frame)
         if frame % n != self._frame:
             self._frame = frame % n
             self._current = {}
@@ -218,11 +244,34 @@ class System:
 
     __next__ = next
 
-    def __iter__(self) -> Iterator[int]:
+    def skip(self) -> int:
+        """Go to the first frame (from the current one on) in which some SubSystem has elements,
+        skipping empty frames as the original did; returns its index. Stays on the last frame
+        when every later frame is empty."""
+        while (
+            not any(len(getattr(self, name)) for name in self._sources) and self._frame + 1 < self._n_frames
+        ):
+            self.goto(self._frame + 1)
+        return self._frame
+
+    def timestep(self) -> int:
+        """Timestep of the current frame: the first SubSystem's that has one, else the frame index."""
+        for name in self._sources:
+            step = getattr(self, name).meta.get("timestep")
+            if step is not None:
+                return int(step)
+        return self._frame
+
+    def frames(self) -> Iterator[int]:
+        """Visit every frame from the first, yielding its index; rewinds at the end."""
         for frame in range(self._n_frames):
             self.goto(frame)
             yield frame
         self.rewind()
+
+    def __iter__(self) -> Iterator[int]:
+        for _ in self.frames():
+            yield self.timestep()
 
     def __repr__(self) -> str:
         where = f"frame {self._frame} of {self._n_frames}, units={self._units!r}"
