@@ -9,6 +9,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from pygran_core.analysis import Particles, equilibrium  # noqa: E402
+from pygran_core.errors import ConfigError  # noqa: E402
 
 R = 0.5
 
@@ -60,6 +61,24 @@ def test_coordination_per_type_pair_on_a_rock_salt_lattice():
     assert len(neighbors.coordination(1, 2)) == (types == 1).sum()
     with pytest.raises(TypeError):
         neighbors.coordination(1)
+
+
+def test_overlaps_give_integer_indices_and_coon_is_also_the_original_method():
+    particles = make([[0, 0, 0], [0.9, 0, 0], [1.8, 0, 0], [5, 0, 0]], radius=[0.5] * 4, type=[1, 2, 1, 2])
+    neighbors = equilibrium.Neighbors(particles)
+    overlaps = neighbors.overlaps
+    assert overlaps.shape == (2, 3) and overlaps.i.dtype.kind == "i"
+    np.testing.assert_array_equal(overlaps.i, [0, 1])
+    np.testing.assert_array_equal(overlaps.j, [1, 2])
+    np.testing.assert_allclose(overlaps.d, [0.1, 0.1])
+    rows = [(d, i, j) for d, i, j in overlaps]
+    assert [(i, j) for _, i, j in rows] == [(0, 1), (1, 2)] and all(type(i) is int for _, i, _ in rows)
+    assert int(overlaps[1][2]) == 2 and particles[overlaps[:, 1]].x.tolist() == [0.0, 0.9]
+    np.testing.assert_array_equal(neighbors.coon, [1, 2, 1, 0])
+    np.testing.assert_array_equal(neighbors.coon(), [1, 2, 1, 0])
+    np.testing.assert_array_equal(neighbors.coon(1, 2), [1, 1])
+    with pytest.raises(ConfigError, match="needs both types"):
+        neighbors.coon(1)
 
 
 def test_pairs_overlaps_and_cutoff():

@@ -13,6 +13,7 @@ import numpy as np
 
 from pygran_core.analysis.particles import Particles
 from pygran_core.analysis.system import System
+from pygran_core.errors import ConfigError
 
 
 class Temporal:
@@ -20,7 +21,7 @@ class Temporal:
 
     def __init__(self, system: System, subsystem: str = "Particles") -> None:
         if subsystem not in system.names:
-            raise ValueError(f"Temporal: the System has no {subsystem!r}; it has {system.names}")
+            raise ConfigError(f"Temporal: the System has no {subsystem!r}; it has {system.names}")
         self.system, self.subsystem = system, subsystem
 
     def _frames(self) -> Iterator[Any]:
@@ -53,10 +54,10 @@ class Temporal:
         frames = [(obj.meta.get("timestep"), obj.meta.get("time")) for obj in self._frames()]
         if dt is not None:
             if any(step is None for step, _ in frames):
-                raise ValueError("Temporal: dt was given but some frames have no timestep")
+                raise ConfigError("Temporal: dt was given but some frames have no timestep")
             return np.array([step for step, _ in frames], dtype=float) * dt
         if any(time is None for _, time in frames):
-            raise ValueError(
+            raise ConfigError(
                 "Temporal: the frames carry no time; pass dt= (the simulation time step) to use timestep * dt"
             )
         return np.array([time for _, time in frames], dtype=float)

@@ -7,6 +7,7 @@ no Python loop over particles or pairs. Periodic boundaries (``boundary`` flags 
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -15,10 +16,82 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from pygran_core.analysis.particles import Particles
+from pygran_core.errors import ConfigError
 
 #: Relative round-off allowance: spheres touch when ``d <= (r_i + r_j) * (1 + CONTACT_TOLERANCE)``
 #: and overlap when ``r_i + r_j - d > (r_i + r_j) * CONTACT_TOLERANCE``.
 CONTACT_TOLERANCE = 1e-9
+
+
+class Overlap(NamedTuple):
+    """One overlapping pair: the overlap ``d`` and the particle indices ``i < j``."""
+
+    d: float
+    i: int
+    j: int
+
+
+class Overlaps(np.ndarray):
+    """(K, 3) float rows ``(d, i, j)``, as the original's ``overlaps``, with integer indices at hand.
+
+    ``overlaps[:, 0]`` are the overlaps; :attr:`d`, :attr:`i` and :attr:`j` the columns
+    (``i`` and ``j`` as integer arrays, ready to index particles); iterating yields
+    :class:`Overlap` rows whose ``i`` and ``j`` are ints, so ``for d, i, j in overlaps`` and
+    the original's ``int(contact[1])`` both work.
+    """
+
+    def __new__(cls, d: np.ndarray, pairs: np.ndarray) -> Overlaps:
+        rows = np.column_stack((d, pairs)).astype(float).reshape(-1, 3)
+        new = rows.view(cls)
+        new._pairs = pairs.astype(np.intp).reshape(-1, 2)
+        new.setflags(write=False)
+        return new
+
+    def __array_finalize__(self, obj: Any) -> None:
+        self._pairs = None  # views and slices are plain float arrays
+
+    def _rows(self) -> bool:
+        return self._pairs is not None
+
+    @property
+    def d(self) -> np.ndarray:
+        """(K,) overlap of each pair."""
+        return np.asarray(self)[:, 0]
+
+    @property
+    def i(self) -> np.ndarray:
+        """(K,) index of the first particle of each pair."""
+        return self._pairs[:, 0] if self._rows() else np.asarray(self)[:, 1].astype(np.intp)
+
+    @property
+    def j(self) -> np.ndarray:
+        """(K,) index of the second particle of each pair."""
+        return self._pairs[:, 1] if self._rows() else np.asarray(self)[:, 2].astype(np.intp)
+
+    def __iter__(self) -> Iterator[Any]:
+        if not self._rows():
+            return iter(np.asarray(self))
+        return (Overlap(float(d), int(i), int(j)) for d, (i, j) in zip(np.asarray(self)[:, 0], self._pairs))
+
+
+class Coordination(np.ndarray):
+    """Coordination number per particle (an int array), also callable as the original's method:
+    ``neighbors.coon()`` is the same array, ``neighbors.coon(type1, type2)`` the number of
+    ``type2`` neighbours of each ``type1`` particle (:meth:`Neighbors.coordination`)."""
+
+    _neighbors: Neighbors | None
+
+    def __array_finalize__(self, obj: Any) -> None:
+        self._neighbors = None
+
+    def __call__(self, type1: int | None = None, type2: int | None = None) -> np.ndarray:
+        if type1 is None and type2 is None:
+            return np.asarray(self)
+        if type1 is None or type2 is None or self._neighbors is None:
+            raise ConfigError(
+                "coon(type1, type2) needs both types, e.g. coon(1, 2); coon() gives every particle's"
+            )
+        return self._neighbors.coordination(type1, type2)
 
 
 class ForceChains(NamedTuple):
@@ -41,9 +114,9 @@ class Neighbors:
 
     def __init__(self, particles: Particles, cutoff: float | None = None) -> None:
         if not isinstance(particles, Particles):
-            raise TypeError(f"Neighbors needs a Particles object, not {type(particles).__name__}")
-        if cutoff is not None and cutoff <= 0:
-            raise ValueError(f"Neighbors: cutoff must be positive, got {cutoff}")
+            raise ConfigError(f"Neighbors needs a Particles object, not {type(particles).__name__}")
+        if cutoff is not None and not cutoff > 0:
+            raise ConfigError(f"Neighbors: cutoff must be positive, got {cutoff}")
         self.particles = particles
         self.cutoff = cutoff
         radii = particles._radii() if len(particles) else np.zeros(0)
@@ -76,15 +149,19 @@ class Neighbors:
         return self._distances
 
     @property
-    def overlaps(self) -> np.ndarray:
-        """(K, 3) rows ``(overlap, i, j)`` for every pair whose spheres overlap (beyond round-off)."""
+    def overlaps(self) -> Overlaps:
+        """(K, 3) rows ``(d, i, j)`` for every pair whose spheres overlap by ``d`` (beyond round-off);
+        see :class:`Overlaps` for the integer columns ``.i`` and ``.j``."""
         hit = self._overlapping
-        return np.column_stack((self._overlap[hit], self._all_pairs[hit])).astype(float).reshape(-1, 3)
+        return Overlaps(self._overlap[hit], self._all_pairs[hit])
 
     @property
-    def coon(self) -> np.ndarray:
-        """Coordination number of every particle."""
-        return np.bincount(self._pairs.ravel(), minlength=len(self.particles))
+    def coon(self) -> Coordination:
+        """Coordination number of every particle; ``coon()`` and ``coon(type1, type2)`` as the original."""
+        counts = np.bincount(self._pairs.ravel(), minlength=len(self.particles)).view(Coordination)
+        counts._neighbors = self
+        counts.setflags(write=False)
+        return counts
 
     def coordination(self, type1: int, type2: int) -> np.ndarray:
         """The number of ``type2`` neighbours of each ``type1`` particle (in their order)."""
@@ -105,8 +182,8 @@ class Neighbors:
         conflicts first, ties broken by index), so a conflicting pair loses one particle, not
         both. The result has the class of the particles.
         """
-        if percent < 0:
-            raise ValueError(f"filter: percent must be >= 0, got {percent}")
+        if not percent >= 0:
+            raise ConfigError(f"filter: percent must be >= 0, got {percent}")
         n = len(self.particles)
         radii = self.particles._radii() if n else np.zeros(0)
         i, j = self._all_pairs.T

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core.analysis.subsystem import DIMENSIONS, SubSystem, _frozen
+from pygran_core.errors import ConfigError
 
 
 class Mesh(SubSystem):
@@ -32,7 +33,7 @@ class Mesh(SubSystem):
         **data: Any,
     ) -> None:
         if points is None and self._copy_source(dict(data)) is None:
-            raise ValueError("Mesh needs points=(n, 3) and cells=(m, k), or a Mesh to copy (Mesh=other)")
+            raise ConfigError("Mesh needs points=(n, 3) and cells=(m, k), or a Mesh to copy (Mesh=other)")
         if cells is not None:
             data["cells"] = np.asarray(cells, dtype=np.intp).reshape(len(cells), -1)
         super().__init__(**data)
@@ -42,13 +43,13 @@ class Mesh(SubSystem):
         n_points = len(arrays["points"])
         wrong = {k: len(v) for k, v in arrays.items() if len(v) != n_points}
         if wrong:
-            raise ValueError(f"Mesh point data must have one row per point ({n_points}): {wrong}")
+            raise ConfigError(f"Mesh point data must have one row per point ({n_points}): {wrong}")
         clash = sorted(set(arrays) & set(self._fields))
         if clash:
-            raise ValueError(f"Mesh point data and cell data share the names {clash}")
+            raise ConfigError(f"Mesh point data and cell data share the names {clash}")
         cells = self._fields.get("cells")
         if cells is not None and len(cells) and not -1 <= cells.min() <= cells.max() < n_points:
-            raise ValueError(
+            raise ConfigError(
                 f"Mesh cells refer to points {self.cells.min()}..{self.cells.max()}; there are {n_points}"
             )
         self._meta.update({k: _frozen(v) for k, v in arrays.items()}, point_keys=tuple(arrays))
@@ -94,7 +95,7 @@ class Mesh(SubSystem):
         """A mesh Frame (``points``, ``cells``, point and cell data named in its attrs) as keywords."""
         arrays = dict(frame.arrays)
         if "points" not in arrays or "cells" not in arrays:
-            raise ValueError(f"Not a mesh frame (no points/cells): its arrays are {sorted(arrays)}")
+            raise ConfigError(f"Not a mesh frame (no points/cells): its arrays are {sorted(arrays)}")
         point_data = {key: arrays.pop(key) for key in frame.attrs.get("point_data", ())}
         meta = {"timestep": frame.timestep, "time": frame.time, "box": frame.box}
         return {

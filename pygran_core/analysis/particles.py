@@ -12,7 +12,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pygran_core.analysis.subsystem import SubSystem
-from pygran_core.errors import unknown_key
+from pygran_core.errors import ConfigError, unknown_key
 
 _SHAPES = ("box", "cylinder-x", "cylinder-y", "cylinder-z")
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -79,7 +79,7 @@ class Particles(SubSystem):
 
     def _require(self, what: str) -> None:
         if len(self) == 0:
-            raise ValueError(f"{what} needs at least one particle; this {type(self).__name__} is empty")
+            raise ConfigError(f"{what} needs at least one particle; this {type(self).__name__} is empty")
 
     # -- structure ---------------------------------------------------------------------------
 
@@ -94,7 +94,7 @@ class Particles(SubSystem):
         quarter of the smallest non-periodic extent. Pair counting runs in cKDTree.
         """
         if len(self) < 2:
-            raise ValueError(
+            raise ConfigError(
                 f"computeRDF needs at least two particles; this {type(self).__name__} has {len(self)}"
             )
         data, boxsize = self._tree_data()
@@ -104,7 +104,7 @@ class Particles(SubSystem):
         limit = np.where(periodic, length / 2, length / 4)
         rMax = float(limit.min() if rMax is None else rMax)
         if rMax <= 0 or (periodic & (rMax > length / 2)).any():
-            raise ValueError(
+            raise ConfigError(
                 f"computeRDF: rMax={rMax} must be > 0 and at most half of each periodic box length"
             )
         nbins = max(1, int(round(rMax / (dr or rMax / 100))))
@@ -112,7 +112,7 @@ class Particles(SubSystem):
         inside = ((data >= lower + rMax) & (data <= lower + length - rMax)) | periodic
         references = np.flatnonzero(inside.all(axis=1))
         if references.size == 0:
-            raise ValueError(
+            raise ConfigError(
                 f"computeRDF: no particle lies at least rMax={rMax:g} from every non-periodic face of the "
                 f"region {lower} + {length}; choose a smaller rMax"
             )
@@ -153,7 +153,7 @@ class Particles(SubSystem):
         if density is None and "mass" in self:
             return np.asarray(self.mass, dtype=float)
         if density is None and "density" not in self:
-            raise ValueError(
+            raise ConfigError(
                 "computeMass needs a true density: pass density=... or give the particles a 'mass' or "
                 f"'density' attribute (they have {self.keys()})"
             )
@@ -220,17 +220,17 @@ class Particles(SubSystem):
         """
         self._require("Mixing statistics")
         if "type" not in self:
-            raise ValueError(f"Mixing statistics need a 'type' attribute; the particles have {self.keys()}")
+            raise ConfigError(f"Mixing statistics need a 'type' attribute; the particles have {self.keys()}")
         types = np.unique(self.type)
         if species is None:
             if types.size != 2:
-                raise ValueError(
+                raise ConfigError(
                     f"Mixing statistics of {types.size} types {types.tolist()}: pass species=<type> to "
                     "compare one type against the rest"
                 )
             species = types[0]
         elif species not in types:
-            raise ValueError(f"species={species} is not among the particle types {types.tolist()}")
+            raise ConfigError(f"species={species} is not among the particle types {types.tolist()}")
         radii = self._radii()
         resol = float(resol or 6 * radii.mean())
         positions = self.positions
@@ -270,7 +270,7 @@ class Particles(SubSystem):
         deviation = fraction - fraction.mean()
         variance = deviation.var()
         if variance == 0:
-            raise ValueError("computeScaleSegregation: the composition is the same in every cell")
+            raise ConfigError("computeScaleSegregation: the composition is the same in every cell")
         pairs = cKDTree(cells).query_pairs(reach + 1e-9, output_type="ndarray")
         d2 = ((cells[pairs[:, 0]] - cells[pairs[:, 1]]) ** 2).sum(axis=1)
         products = deviation[pairs[:, 0]] * deviation[pairs[:, 1]]

@@ -221,6 +221,8 @@ class SubSystem:
             return index
         if index.size == 0:
             return index.astype(np.intp)
+        if index.dtype.kind == "f" and np.isfinite(index).all() and np.array_equal(index, np.round(index)):
+            index = index.astype(np.intp)  # whole numbers, e.g. a column of Neighbors.overlaps
         if not np.issubdtype(index.dtype, np.integer):
             raise SelectionError(
                 f"Cannot select {type(self).__name__} elements with {selection!r:.60}: use an int, a slice, "
