@@ -137,10 +137,11 @@ def test_h5_trajectory_reads_back(tmp_path):
         final = sim.extractCoords()
     with analysis.System(Particles=str(out / "traj.h5")) as system:
         assert len(system) == 6
-        for k in system:
+        assert list(system) == [0, 100, 200, 300, 400, 500]  # iterating gives each frame's step
+        for step in system:
             particles = system.Particles
-            assert particles.timestep == 100 * k
-            t = 100 * k * DT
+            assert particles.timestep == step
+            t = step * DT
             np.testing.assert_allclose(particles.z, 0.02 - G * t**2 / 2, rtol=0, atol=1e-12)
             np.testing.assert_allclose(particles.x, [-0.004, 0.0, 0.004], atol=1e-15)
             np.testing.assert_allclose(particles.radius, R)
