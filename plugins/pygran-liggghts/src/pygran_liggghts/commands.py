@@ -329,6 +329,8 @@ class Commands:
         return iid, lines
 
     def wall(self, spec: WallSpec) -> tuple[str, list[str]]:
+        """A primitive wall's fix; a mesh wall only gets its id and is checked here (all mesh
+        walls share one fix, see :meth:`mesh_walls`)."""
         wid = self.new_id("wall")
         if spec.kind == "mesh":
             if spec.mesh in self.bare_meshes and spec.species != 1:
@@ -336,14 +338,18 @@ class Commands:
                     f"mesh {spec.mesh!r} has no material of its own, so it is made of species 1; "
                     "give it 'material' in mesh={...} to use another one"
                 )
-            return wid, [
-                f"fix {wid} all wall/gran {self.granular} mesh n_meshes 1 meshes {self.mesh_ids[spec.mesh]}"
-            ]
+            return wid, []
         if spec.kind == "plane":
             geometry = f"{spec.plane} {fmt(spec.peq)}"
         else:
             geometry = f"{spec.axis}cylinder {fmt(spec.radius)} {fmt(spec.centre[0])} {fmt(spec.centre[1])}"
         return wid, [f"fix {wid} all wall/gran {self.granular} primitive type {spec.species} {geometry}"]
+
+    def mesh_walls(self, meshes: Sequence[str]) -> tuple[str, list[str]]:
+        """The one ``fix wall/gran`` LIGGGHTS allows for mesh walls, with ``meshes`` (names)."""
+        wid = self.new_id("meshwalls")
+        ids = " ".join(self.mesh_ids[name] for name in meshes)
+        return wid, [f"fix {wid} all wall/gran {self.granular} mesh n_meshes {len(meshes)} meshes {ids}"]
 
     def motion(self, spec: MotionSpec) -> tuple[str, list[str]]:
         mid = self.new_id("move")

@@ -115,6 +115,8 @@ class LiggghtsEngine(Engine):
         self._timestep = spec.dt
         self._walls: dict[str, WallSpec] = {}  # by label: obstacles of createParticles 'random'
         self._motions: dict[str, str] = {}  # label -> the moving mesh
+        self._mesh_walls: dict[str, str] = {}  # label -> the mesh, in the order they were added
+        self._mesh_fix: str | None = None  # the one fix wall/gran of all mesh walls
         self._restart_file: Path | None = None  # of the last checkpoint
         self._replayed_once: set[str] = set()  # one-off insertions not redone on resume
         try:
@@ -373,10 +375,25 @@ class LiggghtsEngine(Engine):
             self._set_omega(np.asarray(ids), spec.omega, f"{len(ids)} atoms chosen by set()")
 
     def _wall(self, spec: WallSpec) -> str:
+        if spec.kind == "mesh" and spec.mesh in self._mesh_walls.values():
+            raise ConfigError(f"mesh {spec.mesh!r} is already a wall; remove that wall first")
         label, lines = self.commands.wall(spec)
+        if spec.kind == "mesh":
+            self._mesh_walls[label] = spec.mesh
+            lines = self._rebuild_mesh_walls()
         self._execute(lines)
         self._walls[label] = spec
         return label
+
+    def _rebuild_mesh_walls(self) -> list[str]:
+        """Lines replacing the fix of the mesh walls by one with the current ones (LIGGGHTS
+        allows one such fix; contacts with meshes start afresh, without tangential history)."""
+        lines = [] if self._mesh_fix is None else [f"unfix {self._mesh_fix}"]
+        self._mesh_fix = None
+        if self._mesh_walls:
+            self._mesh_fix, fix = self.commands.mesh_walls(list(self._mesh_walls.values()))
+            lines += fix
+        return lines
 
     def _move_mesh(self, spec: MotionSpec) -> str:
         label, lines = self.commands.motion(spec)
@@ -397,7 +414,10 @@ class LiggghtsEngine(Engine):
         if handle.label in self._replayed_once:
             self._replayed_once.discard(handle.label)
             return
-        self._execute([f"unfix {handle.label}"])
+        if self._mesh_walls.pop(handle.label, None) is not None:
+            self._execute(self._rebuild_mesh_walls())
+        else:
+            self._execute([f"unfix {handle.label}"])
         self._walls.pop(handle.label, None)
         self._motions.pop(handle.label, None)
 
