@@ -28,19 +28,10 @@ powderX = {
 
 
 def thornton(model: simulation.models.ThorntonNing, velocity: float) -> float:
-    """Thornton (1997) eq. (30), with the yield velocity of the model's particle-wall pair."""
-    delta_y = model.yield_radius**2 / model.effective_radius
-    v_y = np.sqrt(
-        16
-        / 15
-        * model.effective_modulus
-        * np.sqrt(model.effective_radius)
-        * delta_y**2.5
-        / model.effective_mass
-    )
-    if velocity <= v_y:
+    """Thornton (1997) eq. (30) at the impact ``velocity``, with the model's yield velocity."""
+    if velocity <= model.yieldVel:
         return 1.0
-    r = v_y / velocity
+    r = model.yieldVel / velocity
     return np.sqrt(6 * np.sqrt(3) / 5 * (1 - r**2 / 6)) * (r / (r + 2 * np.sqrt(6 / 5 - r**2 / 5))) ** 0.25
 
 

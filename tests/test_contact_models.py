@@ -102,6 +102,46 @@ def test_spring_dashpot_restitution_and_contact_time(e):
     assert model.contactTime() == pytest.approx(t_c, rel=1e-12)
 
 
+@pytest.mark.parametrize("limit", [False, True])
+@pytest.mark.parametrize("e", [0.3, 0.9, 1.0])
+def test_spring_dashpot_closed_form_matches_the_integrated_impact(e, limit):
+    model = SpringDashpot(material=dict(POWDER, coefficientRestitution=e), limitForce=limit)
+    kn, gamman = hooke_coefficients(e)
+    alpha, omega = gamman / (2 * MASS), math.sqrt(kn / MASS - (gamman / (2 * MASS)) ** 2)
+    time, soln, force = exact = model.displacementAnalytical()
+    numeric = model.displacement()
+    assert time[0] == 0 and soln[0].tolist() == [0.0, 0.1] and soln[-1, 0] == 0
+    assert np.diff(time[:-1]) == pytest.approx(0.01 * model.contactTime(), rel=1e-9)
+    inside = time < math.pi / omega
+    delta = 0.1 / omega * np.exp(-alpha * time) * np.sin(omega * time)
+    np.testing.assert_allclose(soln[inside & (force != 0), 0], delta[inside & (force != 0)], rtol=1e-12)
+    assert exact.restitution == pytest.approx(numeric.restitution, rel=1e-7)
+    assert exact.contact_time == pytest.approx(numeric.contact_time, rel=1e-7)
+    np.testing.assert_allclose(
+        np.interp(time, numeric.time, numeric.soln[:, 0]), soln[:, 0], atol=1e-5 * soln[:, 0].max()
+    )
+    if limit and e < 1:  # the particle leaves with the speed it has when k delta + gamma ddelta/dt = 0
+
+        def rate(t):
+            return 0.1 * math.exp(-alpha * t) * (math.cos(omega * t) - alpha / omega * math.sin(omega * t))
+
+        def push(t):
+            return kn * 0.1 / omega * math.exp(-alpha * t) * math.sin(omega * t) + gamman * rate(t)
+
+        t_star = brentq(push, 1e-3 / omega, math.pi / omega, xtol=1e-20, rtol=1e-14)
+        assert force.min() >= 0 and exact.restitution > e
+        assert exact.restitution == pytest.approx(-rate(t_star) / 0.1, rel=1e-10)
+    else:
+        assert exact.restitution == pytest.approx(e, rel=1e-12)
+
+
+def test_closed_form_refuses_cohesion_and_bad_steps():
+    with pytest.raises(ConfigError, match="closed form has no cohesion"):
+        SpringDashpot(material=dict(POWDER, cohesionEnergyDensity=1e5)).displacementAnalytical()
+    with pytest.raises(ConfigError, match="dt must be > 0"):
+        SpringDashpot(material=POWDER).displacementAnalytical(0)
+
+
 def test_undamped_spring_reaches_the_hertz_overlap_at_the_characteristic_velocity():
     impact = SpringDashpot(material=dict(POWDER, coefficientRestitution=1)).displacement()
     assert impact.max_overlap == pytest.approx(hertz_max_overlap(MASS, 1e-4, E_STAR, 0.1), rel=0.005)
@@ -145,7 +185,24 @@ def yield_velocity(p_y, E=E_STAR, R=1e-4, m=MASS):
 
 def test_yield_velocity_is_thorntons():
     p_y = 2e6
-    assert yield_velocity(p_y) == pytest.approx(1.56 * math.sqrt(p_y**5 / (E_STAR**4 * 997.164)), rel=0.005)
+    thornton = math.sqrt(p_y**5 / (E_STAR**4 * 997.164))
+    assert yield_velocity(p_y) == pytest.approx(1.56 * thornton, rel=0.005)
+    model = ThorntonNing(material=dict(POWDER, yieldPress=p_y))
+    assert model.yieldVel == pytest.approx(math.pi**2 / math.sqrt(40) * thornton, rel=1e-12)
+    assert model.yieldVel == pytest.approx(1.56 * thornton, rel=4e-4)  # Thornton rounds pi^2/sqrt(40)
+    assert model.restitution(0.999 * model.yieldVel) == pytest.approx(1, abs=1e-6)  # still elastic
+    assert model.restitution(1.05 * model.yieldVel) < 1 - 1e-4  # yields
+
+
+def test_thornton_ning_limit_force_holds_without_adhesion_and_is_refused_with_it():
+    material = dict(POWDER, yieldPress=1e6)
+    limited = ThorntonNing(material=material, limitForce=True).displacement()
+    assert limited.force.min() >= 0
+    assert limited.restitution == pytest.approx(ThorntonNing(material=material).restitution(), rel=1e-12)
+    with pytest.raises(ConfigError, match="limitForce=True would remove the JKR adhesion"):
+        ThorntonNing(material=dict(material, cohesionEnergyDensity=0.04), limitForce=True)
+    with pytest.raises(ConfigError, match="limitForce must be True or False"):
+        HertzMindlin(material=POWDER, limitForce="on")
 
 
 @pytest.mark.parametrize("p_y", [1e6, 3e6])

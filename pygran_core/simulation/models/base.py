@@ -89,6 +89,8 @@ class ContactModel(abc.ABC):
     the last array axis. ``max_overlap`` is the normal history (largest overlap of the
     contact so far) for models with hysteresis; ``None`` means the contact is loading.
 
+    ``limitForce=True`` (the original PyGran's option) keeps the normal force from
+    turning attractive at the end of a contact; see each model for what that means there.
     ``rolling`` names the rolling-resistance model engines use, one of
     :data:`ROLLING_MODELS` (LIGGGHTS' ``rolling_friction`` styles); the class attribute
     holds the default ``"cdt"``, so an engine given the class or an instance reads
@@ -105,8 +107,12 @@ class ContactModel(abc.ABC):
         material: Mapping[str, float],
         *,
         partner: Mapping[str, float] | None = None,
+        limitForce: bool = False,
         rolling: str = "cdt",
     ) -> None:
+        if not isinstance(limitForce, (bool, np.bool_)):
+            raise ConfigError(f"limitForce must be True or False, got {limitForce!r}")
+        self.limit_force = bool(limitForce)
         if not isinstance(rolling, str) or rolling not in ROLLING_MODELS:
             raise unknown_key("rolling-friction model (rolling=)", str(rolling), ROLLING_MODELS)
         self.rolling = rolling

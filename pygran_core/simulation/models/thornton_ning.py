@@ -8,6 +8,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pygran_core.errors import ConfigError
 from pygran_core.simulation.models.base import Array, ContactModel
 
 __all__ = ["ThorntonNing"]
@@ -46,6 +47,16 @@ class ThorntonNing(ContactModel):
     energy is lost by plasticity and adhesion hysteresis only, so
     ``coefficientRestitution`` is not used.
 
+    Yield velocity (:attr:`yieldVel`): the impact speed at which the loading first reaches
+    the yield radius, from ``m* V_y^2 / 2 = 8/15 E* R*^(1/2) delta_y^(5/2)`` with the
+    adhesion-free ``delta_y = a_y^2 / R*``. For a sphere on a flat wall
+    (``m* = 4/3 pi R*^3 rho``) this is Thornton's (1997, J. Appl. Mech. 64, 383)
+    ``V_y = 1.56 sqrt(p_y^5 / (E*^4 rho))``: the exact constant is
+    ``pi^2 / sqrt(40) = 1.5605``, which Thornton rounds to 1.56.
+
+    ``limitForce=True`` (force never attractive) holds by construction without adhesion;
+    with adhesion the attraction is the JKR force itself, so it is refused.
+
     Tangential: ``F_t = -k_t xi`` with ``k_t = 8 G* a`` and the Coulomb limit.
     :meth:`contactTime` is the Hertz value ``2.868 (m*^2 / (R* E*^2 v))^(1/5)``.
     ``max_overlap`` (the largest overlap of the contact so far) is the history of the
@@ -59,14 +70,29 @@ class ThorntonNing(ContactModel):
         material: Mapping[str, float],
         *,
         partner: Mapping[str, float] | None = None,
+        limitForce: bool = False,
         rolling: str = "cdt",
     ) -> None:
-        super().__init__(material, partner=partner, rolling=rolling)
+        super().__init__(material, partner=partner, limitForce=limitForce, rolling=rolling)
+        if self.limit_force and self.cohesion > 0:
+            raise ConfigError(
+                "ThorntonNing: limitForce=True would remove the JKR adhesion (cohesionEnergyDensity "
+                f"= {self.cohesion:g}), the model's only attraction; drop limitForce or the cohesion"
+            )
         R, E = self.effective_radius, self.effective_modulus
         self.yield_radius = math.pi * self.yield_pressure * R / (2 * E)
         self.yield_overlap = float(self._overlap(self.yield_radius, R))
         self.yield_force = float(self._force(self.yield_radius, R))
         self.pull_off_force = 3 * math.pi * self.cohesion * R
+        hertz_yield_overlap = self.yield_radius**2 / R
+        self.yield_velocity = math.sqrt(
+            16 / 15 * E * math.sqrt(R) * hertz_yield_overlap**2.5 / self.effective_mass
+        )
+
+    @property
+    def yieldVel(self) -> float:
+        """The yield velocity V_y (the original's property; see the class docstring)."""
+        return self.yield_velocity
 
     def _model_coefficients(self) -> dict[str, float]:
         return {
@@ -74,6 +100,7 @@ class ThorntonNing(ContactModel):
             "yield_overlap": self.yield_overlap,
             "yield_force": self.yield_force,
             "pull_off_force": self.pull_off_force,
+            "yield_velocity": self.yield_velocity,
         }
 
     # --- JKR geometry ------------------------------------------------------------------
