@@ -1,7 +1,8 @@
 """VTK: legacy files written by the vtk package (ASCII/binary, polydata/unstructured), XML
-.vtu (written by meshio) and .vtp (by vtk), both read by vtk, particles as points, the hopper
-mesh sequence, and fuzzing."""
+.vtu and .vtp written by meshio and by vtk in each of its encodings, particles as points, the
+hopper mesh sequence, and damaged XML files."""
 
+import re
 import shutil
 
 import meshio
@@ -10,11 +11,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pygran_readers.vtk import VTKTrajectory
-from vtkmodules.util.numpy_support import numpy_to_vtk
+from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkUnstructuredGrid
 from vtkmodules.vtkIOLegacy import vtkPolyDataWriter, vtkUnstructuredGridWriter
-from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
+from vtkmodules.vtkIOXML import (
+    vtkXMLPolyDataWriter,
+    vtkXMLUnstructuredGridReader,
+    vtkXMLUnstructuredGridWriter,
+)
 
 from pygran_core.errors import ReadError, UnsupportedFeature
 from pygran_core.io import Frame, open_trajectory, open_writer
@@ -129,13 +134,60 @@ class TestLegacyUnstructuredBinary(_VTKCase):
 
 
 class TestXMLPolyData(_VTKCase):
+    """.vtp as vtk writes it by default: appended base64 data, zlib-compressed, UInt32 headers."""
+
     suffix = ".vtp"
+    exact = True
+
+    def configure(self, writer):
+        """How the vtk writer encodes the data; subclasses vary it."""
 
     def write(self, path, mesh):
-        writer = vtkXMLPolyDataWriter()
+        writer = vtkXMLPolyDataWriter() if self.suffix == ".vtp" else vtkXMLUnstructuredGridWriter()
         writer.SetFileName(str(path))
-        writer.SetInputData(vtk_dataset(*mesh, False))
+        writer.SetInputData(vtk_dataset(*mesh, self.suffix == ".vtu"))
+        self.configure(writer)
         assert writer.Write() == 1
+
+
+class TestXMLPolyDataAscii(TestXMLPolyData):
+    exact = False  # vtk's ASCII writer prints fewer digits than a float64 needs
+
+    def configure(self, writer):
+        writer.SetDataModeToAscii()
+
+
+class TestXMLPolyDataRawLZMABigEndian(TestXMLPolyData):
+    def configure(self, writer):
+        writer.SetDataModeToAppended()
+        writer.EncodeAppendedDataOff()
+        writer.SetCompressorTypeToLZMA()
+        writer.SetByteOrderToBigEndian()
+
+
+class TestXMLUnstructuredInlineBinary(TestXMLPolyData):
+    suffix = ".vtu"
+
+    def configure(self, writer):
+        writer.SetDataModeToBinary()
+        writer.SetHeaderTypeToUInt64()
+
+
+class TestXMLUnstructuredUncompressed(TestXMLPolyData):
+    suffix = ".vtu"
+
+    def configure(self, writer):
+        writer.SetDataModeToBinary()
+        writer.SetCompressorTypeToNone()
+
+
+class TestXMLUnstructuredRawUncompressed(TestXMLPolyData):
+    suffix = ".vtu"
+
+    def configure(self, writer):
+        writer.SetDataModeToAppended()
+        writer.EncodeAppendedDataOff()
+        writer.SetCompressorTypeToNone()
 
 
 class TestXMLUnstructured(_VTKCase):
@@ -316,3 +368,125 @@ def test_fuzz_mutated_legacy_vtk_raises_only_read_error(tmp_path, data, binary):
         VTKTrajectory([path])[0]
     except ReadError:
         pass
+
+
+def polydata_of_every_section():
+    """Five points; a vertex, a poly-vertex, a line, a polyline, a triangle, a quad, a strip."""
+    data = vtkPolyData()
+    points = vtkPoints()
+    points.SetData(numpy_to_vtk(np.arange(15, dtype=float).reshape(5, 3), deep=True))
+    data.SetPoints(points)
+    for setter, cells in (
+        (data.SetVerts, [[4], [0, 1]]),
+        (data.SetLines, [[0, 1], [1, 2, 3]]),
+        (data.SetPolys, [[0, 1, 2], [0, 1, 2, 3]]),
+        (data.SetStrips, [[0, 1, 2, 3, 4]]),
+    ):
+        array = vtkCellArray()
+        for cell in cells:
+            array.InsertNextCell(len(cell), cell)
+        setter(array)
+    ids = numpy_to_vtk(np.arange(7, dtype=np.int32) * 10, deep=True)
+    ids.SetName("cid")
+    data.GetCellData().AddArray(ids)
+    return data
+
+
+def test_polydata_sections_in_vtk_cell_order(tmp_path):
+    writer = vtkXMLPolyDataWriter()
+    writer.SetFileName(str(tmp_path / "all.vtp"))
+    writer.SetInputData(polydata_of_every_section())
+    assert writer.Write() == 1
+    frame = open_trajectory(tmp_path / "all.vtp", kind="mesh")[0]
+    cells = [[p for p in row if p >= 0] for row in frame.arrays["cells"].tolist()]
+    assert cells == [[4], [0, 1], [0, 1], [1, 2, 3], [0, 1, 2], [0, 1, 2, 3], [0, 1, 2, 3, 4]]
+    assert frame.arrays["cell_types"].tolist() == [VERTEX, 2, 3, 4, TRIANGLE, QUAD, 6]
+    assert frame.arrays["cid"].tolist() == [0, 10, 20, 30, 40, 50, 60]
+    assert frame.arrays["points"][4].tolist() == [12.0, 13.0, 14.0]
+
+
+def test_several_pieces_read_as_vtk_reads_them(tmp_path):
+    points, cells, point_data, cell_data = sample_meshes()[2]
+    writer = vtkXMLUnstructuredGridWriter()
+    writer.SetFileName(str(tmp_path / "pieces.vtu"))
+    writer.SetInputData(vtk_dataset(points, cells, point_data, cell_data, unstructured=True))
+    writer.SetNumberOfPieces(3)
+    assert writer.Write() == 1
+    assert (tmp_path / "pieces.vtu").read_text().count("<Piece ") == 3
+    reader = vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(tmp_path / "pieces.vtu"))
+    reader.Update()
+    grid = reader.GetOutput()
+    frame = open_trajectory(tmp_path / "pieces.vtu")[0]
+    np.testing.assert_array_equal(frame.arrays["points"], vtk_to_numpy(grid.GetPoints().GetData()))
+    offsets = vtk_to_numpy(grid.GetCells().GetOffsetsArray())
+    connectivity = vtk_to_numpy(grid.GetCells().GetConnectivityArray())
+    want = [connectivity[a:b].tolist() for a, b in zip(offsets[:-1], offsets[1:])]
+    assert [[p for p in row if p >= 0] for row in frame.arrays["cells"].tolist()] == want
+    np.testing.assert_array_equal(frame.arrays["temperature"], vtk_to_numpy(grid.GetPointData().GetArray(0)))
+    np.testing.assert_array_equal(frame.arrays["v"], vtk_to_numpy(grid.GetCellData().GetArray("v")))
+
+
+ASCII_GRID = """<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="3" NumberOfCells="1">
+      <PointData>
+        <DataArray type="Float64" Name="t" NumberOfComponents="1" format="ascii">1 2 3</DataArray>
+      </PointData>
+      <Points>
+        <DataArray type="Float32" Name="Points" NumberOfComponents="3" format="ascii">
+          0 0 0 1 0 0 0 1 0</DataArray>
+      </Points>
+      <Cells>
+        <DataArray type="Int64" Name="connectivity" format="ascii">0 1 2</DataArray>
+        <DataArray type="Int64" Name="offsets" format="ascii">3</DataArray>
+        <DataArray type="UInt8" Name="types" format="ascii">5</DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+"""
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ('NumberOfCells="1"', 'NumberOfCells="-1"', "line 4: NumberOfCells=-1 is negative"),
+        ('NumberOfComponents="1"', 'NumberOfComponents="900000000000"', "line 6: array 't' holds 3 values"),
+        (
+            'NumberOfPoints="3"',
+            'NumberOfPoints="4"',
+            "line 9: array 'Points' holds 9 values; 4 tuples of 3 Float32 need 12",
+        ),
+        (">0 1 2<", ">0 1 7<", "line 13: <Cells> refers to point 7 but the piece has 3 points"),
+        (">3</", ">2</", "line 13: <Cells> connectivity has 3 values, the offsets use 2"),
+        (">5</", ">500</", "line 15: array 'types': a value does not fit in uint8"),
+        ('format="ascii">1 2 3', 'format="ascii">1 x 3', "line 6: array 't': not a list of float64 numbers"),
+        (
+            'format="ascii">1 2 3',
+            'format="binary">AAAA',
+            "line 6: array 't': the data ends inside its 1-item",
+        ),
+        ('<?xml version="1.0"?>', '<!DOCTYPE x [<!ENTITY a "aaaa">]>', "line 1: a DOCTYPE declaration"),
+        ("</Cells>", "", "line 17: not well-formed XML: mismatched tag"),
+        (
+            'byte_order="LittleEndian"',
+            'compressor="vtkLZ4DataCompressor"',
+            "line 2: compressor 'vtkLZ4DataCompressor' is not supported",
+        ),
+        (
+            'type="UnstructuredGrid"',
+            'type="ImageData"',
+            "line 2: only UnstructuredGrid and PolyData files are read",
+        ),
+    ],
+)
+def test_damaged_xml_is_a_read_error_naming_file_frame_and_line(tmp_path, old, new, message):
+    (tmp_path / "a0.vtu").write_text(ASCII_GRID)
+    assert ASCII_GRID.count(old) == 1
+    (tmp_path / "a1.vtu").write_text(ASCII_GRID.replace(old, new))
+    trajectory = open_trajectory(str(tmp_path / "a*.vtu"), format="vtk")
+    assert trajectory[0].arrays["cells"].tolist() == [[0, 1, 2]]
+    with pytest.raises(ReadError, match=rf"a1\.vtu: frame 1, {re.escape(message)}"):
+        trajectory[1]

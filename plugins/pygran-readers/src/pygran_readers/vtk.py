@@ -1,4 +1,4 @@
-"""VTK meshes and particles: legacy ``.vtk`` (own parser), XML ``.vtu`` and ``.vtp`` (vtk).
+"""VTK meshes and particles: legacy ``.vtk`` and XML ``.vtu``/``.vtp`` (:mod:`pygran_readers.vtkxml`).
 
 Every file is one frame; a glob of files is a sequence of frames. A file whose cells are
 all vertices (or that has none) holds particles; it becomes ``x y z`` plus one column per
@@ -15,7 +15,6 @@ parsed a whole section at a time with numpy.
 from __future__ import annotations
 
 import os
-import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,6 +79,17 @@ class Mesh:
         if "TIME" in self.field_data and np.size(self.field_data["TIME"]) == 1:
             found["time"] = float(np.ravel(self.field_data["TIME"])[0])
         return found
+
+
+def poly_cell_types(section: str, cells: list[np.ndarray]) -> list[int]:
+    """VTK cell types of the cells of a polydata section (``VERTICES``, ``LINES``,
+    ``POLYGONS``, ``TRIANGLE_STRIPS``; none for ``CELLS``, whose types are listed)."""
+    if section == "POLYGONS":
+        return [_POLYGON_TYPE.get(len(c), 7) for c in cells]
+    if section not in _POLY_TYPE:
+        return []
+    one, many = _POLY_TYPE[section]
+    return [one if len(c) == 1 or section == "LINES" and len(c) == 2 else many for c in cells]
 
 
 class _Legacy:
@@ -333,11 +343,7 @@ def _assemble(
         sections, key=lambda s: POLY_SECTIONS.index(s[0]) if s[0] in POLY_SECTIONS else 0
     ):
         cells.extend(section)
-        if key == "POLYGONS":
-            types.extend(_POLYGON_TYPE.get(len(c), 7) for c in section)
-        elif key in _POLY_TYPE:
-            one, many = _POLY_TYPE[key]
-            types.extend(one if len(c) == 1 or key == "LINES" and len(c) == 2 else many for c in section)
+        types.extend(poly_cell_types(key, section))
     if any(key == "CELLS" for key, _ in sections):
         if cell_types is None or len(cell_types) != len(cells):
             raise cur.fail(f"CELL_TYPES must give one type for each of the {len(cells)} cells")
@@ -354,131 +360,21 @@ def _assemble(
     return Mesh(points, cells, types, point_data, cell_data)
 
 
-def read_xml(path: Path, polydata: bool) -> Any:
-    """The dataset of an XML ``.vtp`` (``polydata``) or ``.vtu`` file, read by the ``vtk`` package.
-
-    vtk reports errors only as console text; while it reads, that text is collected instead
-    (vtk's output window and logger are swapped, then restored) and the first error becomes a
-    :class:`ReadError`.
-    """
-    from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow, vtkStringOutputWindow
-    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLUnstructuredGridReader
-
-    reader = vtkXMLPolyDataReader() if polydata else vtkXMLUnstructuredGridReader()
-    reader.SetFileName(str(path))
-    window, previous = vtkStringOutputWindow(), vtkOutputWindow.GetInstance()
-    cutoff = vtkLogger.GetCurrentVerbosityCutoff()
-    vtkOutputWindow.SetInstance(window)
-    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
-    try:
-        reader.Update()
-    finally:
-        vtkOutputWindow.SetInstance(previous)
-        vtkLogger.SetStderrVerbosity(vtkLogger.ConvertToVerbosity(cutoff))
-    error = re.search(r"ERROR: In [^\n]*\n[^\n]*?\(0x[0-9a-fA-F]+\): ([^\n]*)", window.GetOutput())
-    if error is not None or reader.GetErrorCode():
-        kind = "PolyData" if polydata else "UnstructuredGrid"
-        reason = f": {error.group(1).strip()}" if error is not None else ""
-        raise ReadError(f"{path}: frame 0: vtk cannot read it as an XML {kind} file{reason}")
-    return reader.GetOutput()
-
-
-def xml_points(dataset: Any) -> np.ndarray:
-    """A vtk dataset's points as ``(P, 3)`` float64."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-
-    points = dataset.GetPoints()
-    if points is None:
-        return np.empty((0, 3))
-    return vtk_to_numpy(points.GetData()).astype(np.float64).reshape(-1, 3)
-
-
-def xml_arrays(data: Any) -> dict[str, np.ndarray]:
-    """The numeric arrays of a vtk point, cell or field data object, by name."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-
-    return {
-        data.GetArrayName(i): vtk_to_numpy(data.GetArray(i)).copy()
-        for i in range(data.GetNumberOfArrays())
-        if data.GetArray(i) is not None
-    }
-
-
-def xml_cell_types(grid: Any) -> np.ndarray:
-    """The VTK cell type of each cell of an unstructured grid."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-
-    try:
-        types = grid.GetCellTypes()  # vtk >= 9.6; older versions need an argument here
-    except TypeError:
-        types = grid.GetCellTypesArray()
-    return np.zeros(0, np.int64) if types is None else vtk_to_numpy(types).astype(np.int64)
-
-
-def _split_cells(array: Any) -> list[np.ndarray]:
-    """The cells of a vtkCellArray, one point-index array each."""
-    from vtkmodules.util.numpy_support import vtk_to_numpy
-
-    if array is None:
-        return []
-    offsets = vtk_to_numpy(array.GetOffsetsArray()).astype(np.int64)
-    connectivity = vtk_to_numpy(array.GetConnectivityArray()).astype(np.int64)
-    return np.split(connectivity, offsets[1:-1]) if len(offsets) > 1 else []
-
-
-def read_vtu(path: Path) -> Mesh:
-    """An XML unstructured grid, through the ``vtk`` package."""
-    grid = read_xml(path, polydata=False)
-    return Mesh(
-        xml_points(grid),
-        _split_cells(grid.GetCells()),
-        xml_cell_types(grid).tolist(),
-        xml_arrays(grid.GetPointData()),
-        xml_arrays(grid.GetCellData()),
-        xml_arrays(grid.GetFieldData()),
-    )
-
-
-def read_vtp(path: Path) -> Mesh:
-    """An XML polydata file, through the ``vtk`` package."""
-    poly = read_xml(path, polydata=True)
-    cells: list[np.ndarray] = []
-    types: list[int] = []
-    for key, get in (
-        ("VERTICES", poly.GetVerts),
-        ("LINES", poly.GetLines),
-        ("POLYGONS", poly.GetPolys),
-        ("TRIANGLE_STRIPS", poly.GetStrips),
-    ):
-        section = _split_cells(get())
-        cells.extend(section)
-        if key == "POLYGONS":
-            types.extend(_POLYGON_TYPE.get(len(c), 7) for c in section)
-        else:
-            one, many = _POLY_TYPE[key]
-            types.extend(one if len(c) == 1 or key == "LINES" and len(c) == 2 else many for c in section)
-    return Mesh(
-        xml_points(poly),
-        cells,
-        types,
-        xml_arrays(poly.GetPointData()),
-        xml_arrays(poly.GetCellData()),
-        xml_arrays(poly.GetFieldData()),
-    )
-
-
-READERS = {".vtk": read_legacy, ".vtu": read_vtu, ".vtp": read_vtp}
-
-
 def _reader_for(path: Path) -> Any:
+    """The parser of a file: by its suffix, else by its first bytes."""
+    from pygran_readers import vtkxml
+
     suffix = path.suffix.lower()
-    if suffix in READERS:
-        return READERS[suffix]
-    with open(path, "rb") as handle:
-        head = handle.read(512)
-    if head.startswith(b"# vtk DataFile"):
+    if suffix in (".vtu", ".vtp"):
+        return vtkxml.read_xml
+    if suffix == ".vtk":
         return read_legacy
-    return read_vtp if b'type="PolyData"' in head else read_vtu
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(512)
+    except OSError as exc:
+        raise ReadError(f"{path}: frame 0: cannot read the file: {exc}") from exc
+    return read_legacy if head.startswith(b"# vtk DataFile") else vtkxml.read_xml
 
 
 def mesh_frame(mesh: Mesh, kind: str | None) -> Frame:
@@ -541,8 +437,6 @@ class VTKTrajectory(Trajectory):
             mesh = _reader_for(path)(path)
         except ReadError as exc:
             raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
-        except Exception as exc:  # noqa: BLE001 - vtk raises many kinds on bad files
-            raise ReadError(f"{path}: frame {index}: cannot read it: {type(exc).__name__}: {exc}") from exc
         return mesh_frame(mesh, self.kind)
 
 

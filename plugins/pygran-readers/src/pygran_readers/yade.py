@@ -25,7 +25,7 @@ import numpy as np
 
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, PathLike, Trajectory
-from pygran_readers import vtk
+from pygran_readers import vtk, vtkxml
 
 #: The file names VTKRecorder gives: ``<fileName><kind>.<iteration>.vtu``.
 FILE_NAME = re.compile(r"(spheres|facets|boxes)\.(\d+)\.vtu$", re.IGNORECASE)
@@ -90,35 +90,32 @@ class YadeTrajectory(Trajectory):
     def _read_frame(self, index: int) -> Frame:
         path = self.paths[index]
         try:
-            if _kind(path) in ("facets", "boxes"):
-                frame = vtk.mesh_frame(vtk.read_vtu(path), "mesh")
-            else:
-                frame = _spheres(path)
+            mesh = vtkxml.read_xml(path)
+            frame = (
+                vtk.mesh_frame(mesh, "mesh") if _kind(path) in ("facets", "boxes") else _spheres(path, mesh)
+            )
         except ReadError as exc:
             raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
-        except Exception as exc:  # noqa: BLE001 - vtk raises many kinds on bad files
-            raise ReadError(f"{path}: frame {index}: cannot read it: {type(exc).__name__}: {exc}") from exc
         frame.timestep = _iteration(path)
         return frame
 
 
-def _spheres(path: Path) -> Frame:
+def _spheres(path: Path, grid: vtk.Mesh) -> Frame:
     """The particles of one VTKRecorder spheres file."""
-    grid = vtk.read_xml(path, polydata=False)
-    points = vtk.xml_points(grid)
+    points = grid.points
     n = len(points)
 
     def fail(message: str) -> ReadError:
         return ReadError(f"{path}: frame 0: {message}")
 
-    types = vtk.xml_cell_types(grid)
+    types = np.asarray(grid.cell_types, dtype=np.int64)
     if len(types) != n or (types != vtk.VERTEX).any():
         found = ", ".join(str(t) for t in np.unique(types)) or "none"
         raise fail(
             f"not a YADE spheres file: expected one vertex cell (type 1) per sphere for {n} points, "
             f"found {len(types)} cells of types {found}"
         )
-    data = vtk.xml_arrays(grid.GetPointData())
+    data = grid.point_data
     if "radii" not in data:
         raise fail(f"not a YADE spheres file: no 'radii' point data (it has {sorted(data) or 'none'})")
     columns: dict[str, np.ndarray] = {}
