@@ -1,8 +1,12 @@
 """Material dictionaries (S.I. units) and their validation.
 
-Every material is a read-only mapping with the manual's keys (chapter 3). Copy it to
-change or extend it, e.g. ``dict(params.stearicAcid, radius=1e-4)``; the module's own
-mappings cannot be modified by accident.
+``glass``, ``organic``, ``stearicAcid``, ``cohesionless``, ``cohesive`` and ``steel`` are the
+original PyGran's materials, value for value (``stearicAcid`` is the manual's Listing 3.1);
+``sodaLimeGlass``, ``bearingSteel``, ``microcrystallineCellulose``, ``cohesivePowder`` and
+``quartzSand`` are realistic values from the literature (sources below). Each access
+(``params.glass``, ``from pygran_core.params import glass``) gives a new plain ``dict`` that
+a script may change in place (``glass['radius'] = 1e-3``) without changing the material
+for anyone else; :data:`MATERIALS` holds the read-only originals.
 
 ==================================  ===============================================  ========
 key                                 meaning                                          unit
@@ -31,18 +35,6 @@ from collections.abc import Callable, Iterable, Mapping
 from types import MappingProxyType
 
 from pygran_core.errors import ConfigError, unknown_key
-
-__all__ = [
-    "MATERIALS",
-    "KEYS",
-    "cohesionless",
-    "cohesive",
-    "glass",
-    "organic",
-    "stearicAcid",
-    "steel",
-    "validate",
-]
 
 _positive = (lambda x: x > 0, "must be > 0")
 _non_negative = (lambda x: x >= 0, "must be >= 0")
@@ -97,109 +89,175 @@ def _material(**values: float) -> Mapping[str, float]:
     return MappingProxyType(validate(values))
 
 
-#: Stearic acid, the manual's Listing 3.1.
-stearicAcid = _material(
-    youngsModulus=4.15e7,
-    poissonsRatio=0.25,
-    coefficientFriction=0.5,
-    coefficientRollingFriction=0.0,
-    cohesionEnergyDensity=0.033,
-    coefficientRestitution=0.9,
-    coefficientRollingViscousDamping=0.1,
-    yieldPress=2.2e6,
-    characteristicVelocity=0.1,
-    density=997.164,
-)
+#: The original PyGran's materials (PyGran 1.x ``params``), value for value: scripts written
+#: for it depend on them (``organic``'s soft modulus sets their time step).
+_ORIGINAL = {
+    "glass": _material(
+        youngsModulus=63e9,
+        poissonsRatio=0.24,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.0,
+        cohesionEnergyDensity=0.05,
+        coefficientRestitution=0.9,
+        coefficientRollingViscousDamping=0.1,
+        yieldPress=62e9,
+        characteristicVelocity=0.1,
+        density=2500.0,
+    ),
+    # the manual's Listing 3.1
+    "stearicAcid": _material(
+        youngsModulus=4.15e7,
+        poissonsRatio=0.25,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.0,
+        cohesionEnergyDensity=0.033,
+        coefficientRestitution=0.9,
+        coefficientRollingViscousDamping=0.1,
+        yieldPress=2.2e6,
+        characteristicVelocity=0.1,
+        density=997.164,
+    ),
+    "organic": _material(
+        youngsModulus=1e7,
+        poissonsRatio=0.25,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.0,
+        cohesionEnergyDensity=0.0,
+        coefficientRestitution=0.9,
+        coefficientRollingViscousDamping=0.1,
+        yieldPress=2.2e6,
+        characteristicVelocity=0.1,
+        density=1000.0,
+    ),
+    "cohesionless": _material(
+        youngsModulus=1e7,
+        poissonsRatio=0.25,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.0,
+        coefficientRestitution=0.9,
+        coefficientRollingViscousDamping=0.1,
+        yieldPress=2.2e6,
+        characteristicVelocity=0.1,
+        density=1000.0,
+    ),
+    "cohesive": _material(
+        youngsModulus=1e7,
+        poissonsRatio=0.25,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.0,
+        cohesionEnergyDensity=2e5,
+        coefficientRestitution=0.9,
+        coefficientRollingViscousDamping=0.1,
+        yieldPress=2.2e6,
+        characteristicVelocity=0.1,
+        density=1000.0,
+    ),
+    "steel": _material(
+        youngsModulus=2e11,
+        poissonsRatio=0.3,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.0,
+        cohesionEnergyDensity=0.0,
+        coefficientRestitution=0.9,
+        coefficientRollingViscousDamping=0.1,
+        yieldPress=2e10,
+        characteristicVelocity=0.1,
+        density=8050.0,
+    ),
+}
 
 # Representative literature values. Sources:
-# - glass (soda-lime): E, nu, density from standard soda-lime glass data (E ~ 63-72 GPa,
+# - sodaLimeGlass: E, nu, density from standard soda-lime glass data (E ~ 63-72 GPa,
 #   nu ~ 0.22-0.24); restitution 0.97 and friction 0.092 measured for glass spheres by
 #   Foerster, Louge, Chang & Allia, Phys. Fluids 6 (1994) 1108; yieldPress ~ Vickers hardness.
-# - steel (AISI 52100 bearing balls): E 210 GPa, nu 0.3, density 7810 kg/m^3 (ASM Handbook
+# - bearingSteel (AISI 52100 balls): E 210 GPa, nu 0.3, density 7810 kg/m^3 (ASM Handbook
 #   vol. 1); restitution ~0.9 at ~1 m/s (Goldsmith, Impact, 1960); yieldPress ~ hardness.
-# - organic (microcrystalline cellulose granules): E ~ 8 GPa and nu ~ 0.3 (Roberts, Rowe &
-#   York, Int. J. Pharm. 105 (1994) 177), true density 1560 kg/m^3, Heckel mean yield
-#   pressure ~ 50-90 MPa.
-# - cohesive: the manual's cohesive organic powder (Listing 3.4), surface energy 0.04 J/m^2,
-#   typical of organic crystals such as lactose (~0.04-0.05 J/m^2).
-# - cohesionless (dry quartz sand): bulk modulus 37 GPa and shear modulus 44 GPa of quartz
-#   (Mavko, Mukerji & Dvorkin, The Rock Physics Handbook) give E = 94.5 GPa, nu = 0.074;
-#   density 2650 kg/m^3; interparticle friction ~0.5; yieldPress ~ hardness of quartz.
+# - microcrystallineCellulose (granules): E ~ 8 GPa and nu ~ 0.3 (Roberts, Rowe & York,
+#   Int. J. Pharm. 105 (1994) 177), true density 1560 kg/m^3, Heckel mean yield pressure
+#   ~ 50-90 MPa.
+# - cohesivePowder: the manual's cohesive organic powder (Listing 3.4), surface energy
+#   0.04 J/m^2, typical of organic crystals such as lactose (~0.04-0.05 J/m^2).
+# - quartzSand (dry): bulk modulus 37 GPa and shear modulus 44 GPa of quartz (Mavko, Mukerji
+#   & Dvorkin, The Rock Physics Handbook) give E = 94.5 GPa, nu = 0.074; density 2650 kg/m^3;
+#   interparticle friction ~0.5; yieldPress ~ hardness of quartz.
 # Rolling friction coefficients are typical calibrated values for the cdt model (1e-3 to
 # 1e-2; Ai, Chen, Rotter & Ooi, Powder Technol. 206 (2011) 269).
-glass = _material(
-    youngsModulus=6.3e10,
-    poissonsRatio=0.23,
-    coefficientFriction=0.092,
-    coefficientRollingFriction=0.002,
-    cohesionEnergyDensity=0.0,
-    coefficientRestitution=0.97,
-    coefficientRollingViscousDamping=0.0,
-    yieldPress=5.5e9,
-    characteristicVelocity=1.0,
-    density=2500.0,
-)
+_REALISTIC = {
+    "sodaLimeGlass": _material(
+        youngsModulus=6.3e10,
+        poissonsRatio=0.23,
+        coefficientFriction=0.092,
+        coefficientRollingFriction=0.002,
+        cohesionEnergyDensity=0.0,
+        coefficientRestitution=0.97,
+        coefficientRollingViscousDamping=0.0,
+        yieldPress=5.5e9,
+        characteristicVelocity=1.0,
+        density=2500.0,
+    ),
+    "bearingSteel": _material(
+        youngsModulus=2.1e11,
+        poissonsRatio=0.3,
+        coefficientFriction=0.2,
+        coefficientRollingFriction=0.002,
+        cohesionEnergyDensity=0.0,
+        coefficientRestitution=0.9,
+        coefficientRollingViscousDamping=0.0,
+        yieldPress=7.0e9,
+        characteristicVelocity=1.0,
+        density=7810.0,
+    ),
+    "microcrystallineCellulose": _material(
+        youngsModulus=8.0e9,
+        poissonsRatio=0.3,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.005,
+        cohesionEnergyDensity=0.0,
+        coefficientRestitution=0.75,
+        coefficientRollingViscousDamping=0.0,
+        yieldPress=7.0e7,
+        characteristicVelocity=0.1,
+        density=1560.0,
+    ),
+    "cohesivePowder": _material(
+        youngsModulus=6.0e9,
+        poissonsRatio=0.25,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.01,
+        cohesionEnergyDensity=0.04,
+        coefficientRestitution=0.5,
+        coefficientRollingViscousDamping=0.0,
+        yieldPress=4.0e7,
+        characteristicVelocity=0.04,
+        density=1500.0,
+    ),
+    "quartzSand": _material(
+        youngsModulus=9.45e10,
+        poissonsRatio=0.074,
+        coefficientFriction=0.5,
+        coefficientRollingFriction=0.005,
+        cohesionEnergyDensity=0.0,
+        coefficientRestitution=0.8,
+        coefficientRollingViscousDamping=0.0,
+        yieldPress=1.1e10,
+        characteristicVelocity=1.0,
+        density=2650.0,
+    ),
+}
 
-steel = _material(
-    youngsModulus=2.1e11,
-    poissonsRatio=0.3,
-    coefficientFriction=0.2,
-    coefficientRollingFriction=0.002,
-    cohesionEnergyDensity=0.0,
-    coefficientRestitution=0.9,
-    coefficientRollingViscousDamping=0.0,
-    yieldPress=7.0e9,
-    characteristicVelocity=1.0,
-    density=7810.0,
-)
+#: Every material by name, read-only: the reference the module attributes are copied from.
+MATERIALS: Mapping[str, Mapping[str, float]] = MappingProxyType(_ORIGINAL | _REALISTIC)
 
-organic = _material(
-    youngsModulus=8.0e9,
-    poissonsRatio=0.3,
-    coefficientFriction=0.5,
-    coefficientRollingFriction=0.005,
-    cohesionEnergyDensity=0.0,
-    coefficientRestitution=0.75,
-    coefficientRollingViscousDamping=0.0,
-    yieldPress=7.0e7,
-    characteristicVelocity=0.1,
-    density=1560.0,
-)
+__all__ = ["KEYS", "MATERIALS", "validate", *MATERIALS]
 
-cohesive = _material(
-    youngsModulus=6.0e9,
-    poissonsRatio=0.25,
-    coefficientFriction=0.5,
-    coefficientRollingFriction=0.01,
-    cohesionEnergyDensity=0.04,
-    coefficientRestitution=0.5,
-    coefficientRollingViscousDamping=0.0,
-    yieldPress=4.0e7,
-    characteristicVelocity=0.04,
-    density=1500.0,
-)
 
-cohesionless = _material(
-    youngsModulus=9.45e10,
-    poissonsRatio=0.074,
-    coefficientFriction=0.5,
-    coefficientRollingFriction=0.005,
-    cohesionEnergyDensity=0.0,
-    coefficientRestitution=0.8,
-    coefficientRollingViscousDamping=0.0,
-    yieldPress=1.1e10,
-    characteristicVelocity=1.0,
-    density=2650.0,
-)
+def __getattr__(name: str) -> dict[str, float]:
+    """``params.glass`` (or ``from params import glass``): a new ``dict`` copy each time, so a
+    script may change its copy in place without changing what another import gets."""
+    if name in MATERIALS:
+        return dict(MATERIALS[name])
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
-#: Every material above by name (read-only).
-MATERIALS: Mapping[str, Mapping[str, float]] = MappingProxyType(
-    {
-        "stearicAcid": stearicAcid,
-        "glass": glass,
-        "steel": steel,
-        "organic": organic,
-        "cohesive": cohesive,
-        "cohesionless": cohesionless,
-    }
-)
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *MATERIALS])

@@ -23,31 +23,82 @@ STEARIC_ACID = {  # the manual's Listing 3.1
 }
 
 
+COMMON = {  # shared by the six original materials
+    "coefficientFriction": 0.5,
+    "coefficientRollingFriction": 0.0,
+    "coefficientRestitution": 0.9,
+    "coefficientRollingViscousDamping": 0.1,
+    "characteristicVelocity": 0.1,
+}
+#: The original PyGran's materials: (E, nu, cohesionEnergyDensity or None, yieldPress, density).
+ORIGINAL = {
+    "glass": (63e9, 0.24, 0.05, 62e9, 2500),
+    "organic": (1e7, 0.25, 0, 2.2e6, 1000),
+    "stearicAcid": (4.15e7, 0.25, 0.033, 2.2e6, 997.164),
+    "cohesionless": (1e7, 0.25, None, 2.2e6, 1000),
+    "cohesive": (1e7, 0.25, 2e5, 2.2e6, 1000),
+    "steel": (2e11, 0.3, 0, 2e10, 8050),
+}
+REALISTIC = ["sodaLimeGlass", "bearingSteel", "microcrystallineCellulose", "cohesivePowder", "quartzSand"]
+
+
 def test_stearic_acid_has_the_manual_values():
-    assert dict(params.stearicAcid) == STEARIC_ACID
+    assert params.stearicAcid == STEARIC_ACID
 
 
-@pytest.mark.parametrize("name", ["stearicAcid", "glass", "steel", "organic", "cohesive", "cohesionless"])
-def test_every_material_is_complete_and_valid(name):
+@pytest.mark.parametrize("name", ORIGINAL)
+def test_the_original_materials_carry_the_original_values(name):
+    youngs, poisson, cohesion, yield_press, density = ORIGINAL[name]
+    expected = COMMON | {
+        "youngsModulus": youngs,
+        "poissonsRatio": poisson,
+        "yieldPress": yield_press,
+        "density": density,
+    }
+    if cohesion is not None:
+        expected["cohesionEnergyDensity"] = cohesion
     material = getattr(params, name)
-    assert params.MATERIALS[name] is material
+    assert material == expected and type(material) is dict
+    assert params.validate(material) == material
+
+
+def test_organic_is_soft_enough_for_the_original_scripts_time_step():
+    # spheres of 50 um at the original scripts' dt = 1e-6 s: below half the Rayleigh time
+    # (with E = 8 GPa it was 8 Rayleigh times and the particles exploded)
+    organic = params.organic
+    shear = organic["youngsModulus"] / (2 * (1 + organic["poissonsRatio"]))
+    rayleigh = math.pi * 5e-5 * math.sqrt(organic["density"] / shear) / (0.1631 * 0.25 + 0.8766)
+    assert 2e-6 < rayleigh < 3e-6
+
+
+@pytest.mark.parametrize("name", REALISTIC)
+def test_realistic_materials_are_complete_and_valid(name):
+    material = getattr(params, name)
     assert set(material) == params.KEYS
-    assert params.validate(material) == dict(material)
+    assert params.validate(material) == material == dict(params.MATERIALS[name])
 
 
-def test_materials_are_physically_distinct():
-    assert params.steel["density"] > params.glass["density"] > params.organic["density"]
-    assert params.steel["youngsModulus"] > params.glass["youngsModulus"] > params.organic["youngsModulus"]
-    assert params.cohesive["cohesionEnergyDensity"] > 0 == params.cohesionless["cohesionEnergyDensity"]
+def test_realistic_materials_are_physically_distinct():
+    glass, steel, cellulose = params.sodaLimeGlass, params.bearingSteel, params.microcrystallineCellulose
+    assert steel["density"] > glass["density"] > cellulose["density"]
+    assert steel["youngsModulus"] > glass["youngsModulus"] > cellulose["youngsModulus"]
+    assert params.cohesivePowder["cohesionEnergyDensity"] > 0 == params.quartzSand["cohesionEnergyDensity"]
 
 
-def test_module_materials_cannot_be_modified_but_can_be_copied():
+def test_a_script_changes_its_copy_and_nothing_else():
+    from pygran_core.params import steel
+
+    steel["radius"] = 1e-3
+    steel["youngsModulus"] = 1e9
+    assert "radius" not in params.steel and params.steel["youngsModulus"] == 2e11
+    from pygran_core.params import steel as again
+
+    assert again["youngsModulus"] == 2e11 and again is not steel
+    assert params.MATERIALS["steel"]["youngsModulus"] == 2e11
     with pytest.raises(TypeError):
-        params.glass["density"] = 1.0  # type: ignore[index]
-    copy = dict(params.stearicAcid, radius=1e-4)
-    copy["density"] = 1.0
-    assert params.stearicAcid["density"] == 997.164
-    assert copy["radius"] == 1e-4
+        params.MATERIALS["glass"]["density"] = 1.0  # type: ignore[index]
+    with pytest.raises(AttributeError, match="no attribute 'glas'"):
+        params.glas  # noqa: B018
 
 
 def test_ints_and_floats_are_accepted_and_returned_as_floats():

@@ -20,7 +20,7 @@ from pygran_core.simulation.specs import (
 )
 
 DATA = Path(__file__).resolve().parent / "data"
-MATERIAL = dict(params.glass, coefficientRollingFriction=0.0)
+MATERIAL = dict(params.glass, cohesionEnergyDensity=0.0)  # the toy engine has no cohesion
 BASE = {"box": (0, 1e-2, 0, 1e-2, 0, 2e-2), "species": ({"material": MATERIAL, "radius": 5e-4},)}
 
 
