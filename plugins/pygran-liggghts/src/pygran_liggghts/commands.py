@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, UnsupportedFeature
+from pygran_core.errors import ConfigError, UnsupportedFeature, unknown_key
 from pygran_core.simulation.calls import (
     InsertSpec,
     MotionSpec,
@@ -28,7 +28,16 @@ from pygran_core.simulation.models import mixing
 from pygran_core.simulation.specs import RadiusDistribution, SimulationSpec
 
 #: PyGran contact model -> LIGGGHTS ``gran model``.
-MODELS = {"SpringDashpot": "hooke", "HertzMindlin": "hertz"}
+MODELS = {"SpringDashpot": "hooke", "HertzMindlin": "hertz", "ThorntonNing": "thornton_ning"}
+#: LIGGGHTS ``rolling_friction`` model -> the material keys it reads besides
+#: ``coefficientRollingFriction`` (``epsd3`` also reads the global ``coeffRollingStiffness``,
+#: which PyGran's materials do not carry).
+ROLLING = {
+    "cdt": (),
+    "epsd": ("coefficientRollingViscousDamping",),
+    "epsd2": (),
+    "epsd3": ("coefficientRollingViscousDamping", "coeffRollingStiffness"),
+}
 #: Size classes a normal or lognormal radius distribution is discretised into (LIGGGHTS
 #: 3.x particle templates have one radius each).
 SIZE_CLASSES = 9
@@ -85,10 +94,15 @@ class Commands:
     def __init__(self, spec: SimulationSpec) -> None:
         self.spec = spec
         self._counter = itertools.count(1)
-        model = spec.model.__name__
-        if model not in MODELS:
-            raise UnsupportedFeature(f"LIGGGHTS has no kernel for the {model} model")
-        self.model = MODELS[model]
+        model = spec.model if isinstance(spec.model, type) else type(spec.model)
+        if model.__name__ not in MODELS:
+            raise UnsupportedFeature(f"LIGGGHTS has no kernel for the {model.__name__} model")
+        self.model = MODELS[model.__name__]
+        #: The ``rolling_friction`` model (the model's ``rolling``, default the original's cdt).
+        self.rolling_model = getattr(spec.model, "rolling", "cdt")
+        if self.rolling_model not in ROLLING:
+            raise unknown_key("rolling-friction model", str(self.rolling_model), ROLLING)
+        self.limit_force = bool(getattr(spec.model, "limit_force", False))
         #: Materials by atom type (1-based): the species, then meshes with their own material.
         self.materials: list[Mapping[str, float]] = [s.material for s in spec.species]
         self.mesh_ids: dict[str, str] = {}
@@ -105,6 +119,11 @@ class Commands:
             raise ConfigError("LIGGGHTS needs at least one species: pass species=({'material': ...},)")
         self.cohesion = any(m.get("cohesionEnergyDensity", 0) > 0 for m in self.materials)
         self.rolling = any(m.get("coefficientRollingFriction", 0) > 0 for m in self.materials)
+        if self.rolling and "coeffRollingStiffness" in ROLLING[self.rolling_model]:
+            raise UnsupportedFeature(
+                f"LIGGGHTS' rolling_friction {self.rolling_model} needs coeffRollingStiffness, which "
+                "PyGran's materials do not carry; use rolling='epsd' (its stiffness prefactor is 2.25)"
+            )
 
     def new_id(self, kind: str) -> str:
         return f"pg_{kind}{next(self._counter)}"
@@ -113,10 +132,12 @@ class Commands:
     def granular(self) -> str:
         """The ``model ...`` arguments shared by ``pair_style gran`` and ``fix wall/gran``."""
         words = f"model {self.model} tangential history"
-        if self.cohesion:
+        if self.cohesion and self.model != "thornton_ning":  # Thornton-Ning has JKR adhesion itself
             words += " cohesion sjkr"
         if self.rolling:
-            words += " rolling_friction cdt"
+            words += f" rolling_friction {self.rolling_model}"
+        if self.limit_force:
+            words += " limitForce on"
         return words
 
     # -- the simulation ------------------------------------------------------------------
@@ -176,11 +197,28 @@ class Commands:
         return lines + self._dumps(append=resume is not None)
 
     def _material_tables(self) -> list[str]:
-        required = ["youngsModulus", "poissonsRatio", "coefficientRestitution", "coefficientFriction"]
+        """``fix property/global`` tables of the materials by atom type, pairs mixed by PyGran's rules.
+
+        Thornton-Ning: no viscous damping (``coefficientRestitution`` 1, as the reference
+        model), ``surfaceEnergy`` the work of adhesion ``2 Gamma`` of the pair (Gamma the
+        ``cohesionEnergyDensity``), and the yield as ``coefficientYieldRatio``, the contact
+        radius at yield over the particle radius: LIGGGHTS yields a contact when its radius
+        reaches that ratio times the radius of particle i. The ratio ``pi p_y / (2 E*)``
+        (E* of the species against its own material) makes a sphere on a wall of its own
+        material yield at ``yieldPress`` exactly, as the reference model; two equal spheres
+        (R* = r/2) then yield at twice ``yieldPress``.
+        """
+        thornton_ning = self.model == "thornton_ning"
+        required = ["youngsModulus", "poissonsRatio", "coefficientFriction"]
+        required.append("yieldPress" if thornton_ning else "coefficientRestitution")
         if self.model == "hooke":
             required.append("characteristicVelocity")
+        if self.rolling:
+            required += ROLLING[self.rolling_model]
         for index, material in enumerate(self.materials, start=1):
             missing = [key for key in required if key not in material]
+            if index > len(self.spec.species) and thornton_ning:
+                missing = [key for key in missing if key != "yieldPress"]  # walls never yield
             if missing:
                 raise ConfigError(f"LIGGGHTS needs {', '.join(missing)} in the material of atom type {index}")
 
@@ -194,21 +232,33 @@ class Commands:
                 fmt(v) for v in values.ravel()
             )
 
+        def per_type(name: str, values: np.ndarray) -> str:
+            return f"fix pg_{name} all property/global {name} peratomtype " + " ".join(fmt(v) for v in values)
+
         E, nu = column("youngsModulus"), column("poissonsRatio")
+        restitution = np.ones((n, n))
+        if not thornton_ning:
+            restitution = mixing.pair_table(mixing.pair_restitution, column("coefficientRestitution"))
         lines = [
-            "fix pg_youngsModulus all property/global youngsModulus peratomtype "
-            + " ".join(fmt(v) for v in E),
-            "fix pg_poissonsRatio all property/global poissonsRatio peratomtype "
-            + " ".join(fmt(v) for v in nu),
-            table(
-                "coefficientRestitution",
-                mixing.pair_table(mixing.pair_restitution, column("coefficientRestitution")),
-            ),
+            per_type("youngsModulus", E),
+            per_type("poissonsRatio", nu),
+            table("coefficientRestitution", restitution),
             table(
                 "coefficientFriction", mixing.pair_table(mixing.pair_friction, column("coefficientFriction"))
             ),
         ]
-        if self.cohesion:
+        if thornton_ning:
+            # a ratio above 1 (a contact wider than the sphere) is never reached: LIGGGHTS takes
+            # at most 1; types of walls only (never particle i) need a value, not a meaning
+            ratio = math.pi * column("yieldPress") / (2 * mixing.effective_modulus(E, nu, E, nu))
+            lines += [
+                per_type("coefficientYieldRatio", np.nan_to_num(np.minimum(ratio, 1.0), nan=1.0)),
+                table(
+                    "surfaceEnergy",
+                    2 * mixing.pair_table(mixing.pair_cohesion, column("cohesionEnergyDensity", 0.0)),
+                ),
+            ]
+        elif self.cohesion:
             lines.append(
                 table(
                     "cohesionEnergyDensity",
@@ -222,6 +272,14 @@ class Commands:
                     mixing.pair_table(mixing.pair_friction, column("coefficientRollingFriction", 0.0)),
                 )
             )
+            if "coefficientRollingViscousDamping" in ROLLING[self.rolling_model]:
+                damping = column("coefficientRollingViscousDamping")
+                # mixed as friction: the smaller of the two
+                lines.append(
+                    table(
+                        "coefficientRollingViscousDamping", mixing.pair_table(mixing.pair_friction, damping)
+                    )
+                )
         if self.model == "hooke":
             velocities = set(column("characteristicVelocity"))
             if len(velocities) > 1:
