@@ -202,4 +202,13 @@ def test_hopper_coordination_and_rdf(hopper):
 
 
 def test_analysis_exports():
-    assert set(analysis.__all__) == {"System", "SubSystem", "Particles", "Mesh", "equilibrium", "dynamics"}
+    assert set(analysis.__all__) == {
+        "System",
+        "SubSystem",
+        "Particles",
+        "Mesh",
+        "equilibrium",
+        "dynamics",
+        "imaging",
+        "mixing",
+    }

@@ -23,6 +23,14 @@ from pygran_core.errors import ConfigError
 CONTACT_TOLERANCE = 1e-9
 
 
+def _plain_results(
+    self: np.ndarray, array: np.ndarray, context: Any = None, return_scalar: bool = False
+) -> Any:
+    """Ufunc and reduction results (``coon.mean()``, ``overlaps * 2``) as plain arrays or scalars."""
+    array = np.asarray(array)
+    return array[()] if return_scalar else array
+
+
 class Overlap(NamedTuple):
     """One overlapping pair: the overlap ``d`` and the particle indices ``i < j``."""
 
@@ -49,6 +57,8 @@ class Overlaps(np.ndarray):
 
     def __array_finalize__(self, obj: Any) -> None:
         self._pairs = None  # views and slices are plain float arrays
+
+    __array_wrap__ = _plain_results
 
     def _rows(self) -> bool:
         return self._pairs is not None
@@ -83,6 +93,8 @@ class Coordination(np.ndarray):
 
     def __array_finalize__(self, obj: Any) -> None:
         self._neighbors = None
+
+    __array_wrap__ = _plain_results
 
     def __call__(self, type1: int | None = None, type2: int | None = None) -> np.ndarray:
         if type1 is None and type2 is None:

@@ -11,6 +11,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pygran_core.analysis import mixing
 from pygran_core.analysis.subsystem import SubSystem
 from pygran_core.errors import ConfigError, unknown_key
 
@@ -25,13 +26,6 @@ class RDF(NamedTuple):
     g: np.ndarray
     r: np.ndarray
     references: np.ndarray
-
-
-class ScaleSegregation(NamedTuple):
-    """Danckwerts' correlation coefficient ``R`` at each separation ``r`` of grid cells."""
-
-    R: np.ndarray
-    r: np.ndarray
 
 
 class Particles(SubSystem):
@@ -208,87 +202,18 @@ class Particles(SubSystem):
         extent = upper - lower
         return float(np.degrees(np.arctan2(extent[2], (extent[0] + extent[1]) / 4)))
 
-    # -- mixing and segregation -------------------------------------------------------------------
-
-    def _species_grid(
-        self, resol: float | None, species: int | None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Bin particles on a cubic grid of side ``resol`` (default three mean diameters).
-
-        Returns (volume of ``species`` per cell, total volume per cell, particle count per cell,
-        integer cell coordinates), each restricted to the non-empty cells.
-        """
-        self._require("Mixing statistics")
-        if "type" not in self:
-            raise ConfigError(f"Mixing statistics need a 'type' attribute; the particles have {self.keys()}")
-        types = np.unique(self.type)
-        if species is None:
-            if types.size != 2:
-                raise ConfigError(
-                    f"Mixing statistics of {types.size} types {types.tolist()}: pass species=<type> to "
-                    "compare one type against the rest"
-                )
-            species = types[0]
-        elif species not in types:
-            raise ConfigError(f"species={species} is not among the particle types {types.tolist()}")
-        radii = self._radii()
-        resol = float(resol or 6 * radii.mean())
-        positions = self.positions
-        cell = ((positions - positions.min(axis=0)) // resol).astype(np.intp)
-        shape = tuple(cell.max(axis=0) + 1)
-        flat = np.ravel_multi_index(cell.T, shape)
-        occupied, flat = np.unique(flat, return_inverse=True)
-        volume = radii**3
-        total = np.bincount(flat, weights=volume)
-        part = np.bincount(flat, weights=np.where(self.type == species, volume, 0.0), minlength=occupied.size)
-        return part, total, np.bincount(flat), np.column_stack(np.unravel_index(occupied, shape))
+    # -- mixing and segregation (pygran_core.analysis.mixing) ------------------------------------
 
     def computeIntensitySegregation(self, resol: float | None = None, species: int | None = None) -> float:
-        """Danckwerts' intensity of segregation ``var(a) / (mean(a) (1 - mean(a)))``, where ``a``
-        is the volume fraction of ``species`` in each non-empty grid cell of side ``resol``.
-
-        1 when every cell holds one species only; near 0 for a fine random mixture.
-        """
-        part, total, _, _ = self._species_grid(resol, species)
-        fraction = part / total
-        mean = fraction.mean()
-        return float(fraction.var() / (mean * (1.0 - mean)))
+        """Danckwerts' intensity of segregation on cells of side ``resol``: :func:`.mixing.intensity`."""
+        return mixing.intensity(self, resol, species)
 
     def computeScaleSegregation(
         self, resol: float | None = None, maxDist: float | None = None, species: int | None = None
-    ) -> ScaleSegregation:
-        """Danckwerts' coefficient of correlation ``R(r) = <(a_i - m)(a_j - m)> / var(a)`` over every
-        pair of non-empty grid cells ``r`` apart, up to ``maxDist`` (default ten cells).
-
-        ``a`` is the volume fraction of ``species`` per cell of side ``resol``. The average is
-        exact (all pairs, found with cKDTree), one value per distinct separation; ``R(0) = 1``.
-        """
-        part, total, _, cells = self._species_grid(resol, species)
-        resol = float(resol or 6 * self._radii().mean())
-        reach = 10.0 if maxDist is None else maxDist / resol
-        fraction = part / total
-        deviation = fraction - fraction.mean()
-        variance = deviation.var()
-        if variance == 0:
-            raise ConfigError("computeScaleSegregation: the composition is the same in every cell")
-        pairs = cKDTree(cells).query_pairs(reach + 1e-9, output_type="ndarray")
-        d2 = ((cells[pairs[:, 0]] - cells[pairs[:, 1]]) ** 2).sum(axis=1)
-        products = deviation[pairs[:, 0]] * deviation[pairs[:, 1]]
-        sums = np.bincount(d2, weights=products, minlength=1)
-        counts = np.bincount(d2, minlength=1)
-        sums[0], counts[0] = (deviation**2).sum(), deviation.size
-        seen = np.flatnonzero(counts)
-        return ScaleSegregation(sums[seen] / counts[seen] / variance, np.sqrt(seen) * resol)
+    ) -> mixing.ScaleSegregation:
+        """Danckwerts' coefficient of correlation ``R(r)`` up to ``maxDist``: :func:`.mixing.scale`."""
+        return mixing.scale(self, resol, maxDist, species)
 
     def computeLaceyIndex(self, resol: float | None = None, species: int | None = None) -> float:
-        """Lacey's mixing index ``(s0^2 - s^2) / (s0^2 - sr^2)`` on grid cells of side ``resol``.
-
-        ``s^2`` is the variance of the volume fraction of ``species`` over non-empty cells about
-        its overall fraction ``p``; ``s0^2 = p (1 - p)`` (fully segregated) and
-        ``sr^2 = s0^2 / n`` (random, ``n`` mean particles per cell). 0 segregated, ~1 random.
-        """
-        part, total, count, _ = self._species_grid(resol, species)
-        p = part.sum() / total.sum()
-        s2 = ((part / total - p) ** 2).mean()
-        s0 = p * (1.0 - p)
-        return float((s0 - s2) / (s0 - s0 / count.mean()))
+        """Lacey's mixing index on cells of side ``resol`` (0 segregated, 1 random): :func:`.mixing.lacey`."""
+        return mixing.lacey(self, resol, species)
