@@ -31,6 +31,17 @@ def spec(**overrides):
 def test_unknown_keyword_suggests_the_closest():
     with pytest.raises(ConfigError, match="Unknown simulation keyword 'boundry'. Did you mean 'boundary'"):
         spec(boundry=("p", "p", "f"))
+    for typo, keyword in (("gravty", "gravity"), ("gravtiy", "gravity"), ("nsim", "nSim"), ("dtt", "dt")):
+        with pytest.raises(ConfigError, match=f"'{typo}'. Did you mean '{keyword}'"):
+            spec(**{typo: 1})
+
+
+def test_the_scripts_own_keys_are_kept_apart():
+    s = spec(stages={"insertion": 1e5, "run": 1e5}, nsteps=1e5, relax=True, run=2e4, T=300)
+    assert s.user_keys == ("stages", "nsteps", "relax", "run", "T")
+    assert spec().user_keys == ()
+    with pytest.raises(ConfigError, match="'read_data' of PyGran 1.x is not supported: read the particles"):
+        spec(read_data=("traj.dump", 0))
     with pytest.raises(ConfigError, match="Unknown species 1 keyword 'radus'. Did you mean 'radius'"):
         spec(species=({"material": MATERIAL, "radus": 1e-3},))
 
@@ -304,8 +315,10 @@ def test_dem_on_a_third_party_engine(with_plugins, tmp_path):
         "progress": False,
         "seed": 5,
         "traj": {"pfile": None},
+        "stages": {"settle": 20},
     }
     with simulation.DEM(**kwargs) as sim:
+        assert sim.pargs["stages"] == {"settle": 20} and sim.pargs["engine"] == "toy"
         first = [sim._seed() for _ in range(3)]
         assert sim.createParticles(1, "single", 0.0, 0.0, 1e-2) == 1
         monitor = sim.monitor(quantities=("n",), freq=10)
@@ -318,6 +331,7 @@ def test_dem_on_a_third_party_engine(with_plugins, tmp_path):
         assert [again._seed() for _ in range(3)] == first
     log = (tmp_path / "o" / "pygran.log").read_text()
     assert "create CreateSpec(species=1, style='single'" in log and "run 20 steps" in log
+    assert log.count("'stages'") == 1 and "keys of the script's own" in log
 
 
 def test_set_spec_selects_by_species_region_and_ids():

@@ -58,17 +58,26 @@ class DEM:
     The keywords are those of the manual's chapter 4 (``box``, ``boundary``, ``gravity``,
     ``species``, ``mesh``, ``traj``, ``output``, ``restart``, ``dt``, ...), plus ``engine``,
     ``seed`` (every random choice derives from it), ``threads``/``nprocs`` and
-    ``progress``. Each method returns what the engine created: a :class:`Handle` to pass to
-    :meth:`remove`, a :class:`Monitor`, a count or an array.
+    ``progress``. Other keys are the script's own (``'stages'``, ``'nsteps'``): kept in
+    :attr:`pargs` with everything else given, and named once in ``pygran.log``. Each method
+    returns what the engine created: a :class:`Handle` to pass to :meth:`remove`, a
+    :class:`Monitor`, a count or an array.
     """
 
     def __init__(self, **params: Any) -> None:
+        #: Every keyword given, the script's own keys included (PyGran 1.x's ``pargs``).
+        self.pargs: dict[str, Any] = dict(params)
         engine_name = resolve_engine(params.pop("engine", None))
         model = resolve_model(params.pop("model", DEFAULT_MODEL))
         self.spec: SimulationSpec = parse_simulation(params, engine_name, model)
         self._seeds = np.random.SeedSequence(self.spec.seed)
         factory = registry.get_engine(engine_name).factory
         self.engine: Engine = factory(self.spec)
+        if self.spec.user_keys:
+            self.engine.log(
+                "keys of the script's own, not simulation keywords (kept in DEM.pargs): %s",
+                ", ".join(map(repr, self.spec.user_keys)),
+            )
 
     def _seed(self) -> int:
         """A fresh seed for one call, derived reproducibly from the simulation's ``seed``."""

@@ -69,6 +69,27 @@ def check_keys(kind: str, given: Mapping[str, Any], known: Sequence[str]) -> Non
             raise unknown_key(kind, key, known)
 
 
+def edits(a: str, b: str) -> int:
+    """The number of single-letter insertions, deletions, substitutions and swaps of two
+    neighbours that turn ``a`` into ``b`` (optimal string alignment distance)."""
+    previous, current = None, list(range(len(b) + 1))
+    for i, x in enumerate(a, start=1):
+        before, previous, current = previous, current, [i] + [0] * len(b)
+        for j, y in enumerate(b, start=1):
+            current[j] = min(previous[j] + 1, current[j - 1] + 1, previous[j - 1] + (x != y))
+            if i > 1 and j > 1 and x == b[j - 2] and a[i - 2] == y:
+                current[j] = min(current[j], before[j - 2] + 1)
+    return current[-1]
+
+
+def near_miss(key: str, known: Sequence[str]) -> str | None:
+    """The known keyword ``key`` is probably a misspelling of: within two edits of it (one
+    where either word has at most three letters), else ``None``."""
+    best = min(known, key=lambda k: edits(key, k))
+    allowed = 1 if min(len(key), len(best)) <= 3 else 2
+    return best if edits(key, best) <= allowed else None
+
+
 # -- domain, gravity -----------------------------------------------------------------------
 
 
@@ -473,6 +494,8 @@ class SimulationSpec:
     progress: bool | None = None
     #: With ``nSim=k > 1``: the k runs, each with its own parameters and output directory.
     runs: tuple[SimulationSpec, ...] = ()
+    #: The script's own keys (not simulation keywords), kept by ``DEM`` and named in the log.
+    user_keys: tuple[str, ...] = ()
 
     @property
     def max_radius(self) -> float:
@@ -509,6 +532,40 @@ SIMULATION_KEYS = (
 )
 
 
+#: Keywords of PyGran 1.x that PyGran does not take, with what to do instead.
+REFUSED_KEYS = {
+    "read_data": "read the particles with analysis.System and create them with createParticles",
+    "cylinder": "give a box around the cylinder and a cylinder wall: setupWall(axis=..., radius=...)",
+}
+
+
+def split_keys(params: Mapping[str, Any]) -> tuple[str, ...]:
+    """The keys of ``params`` that are the script's own (``'stages'``, ``'nsteps'``, ...).
+
+    A key within one or two edits of a simulation keyword is taken for a misspelling of it
+    (``'gravty'``) and is a :class:`ConfigError` naming the keyword, as are the keywords of
+    PyGran 1.x that PyGran does not take (:data:`REFUSED_KEYS`).
+    """
+    own = []
+    for key in params:
+        if key in SIMULATION_KEYS:
+            continue
+        if key in REFUSED_KEYS:
+            raise ConfigError(
+                f"The simulation keyword {key!r} of PyGran 1.x is not supported: {REFUSED_KEYS[key]}"
+            )
+        if not isinstance(key, str):
+            raise ConfigError(f"Simulation keywords are strings, got {key!r}")
+        close = near_miss(key, SIMULATION_KEYS)
+        if close is not None:
+            raise ConfigError(
+                f"Unknown simulation keyword {key!r}. Did you mean {close!r}? A key of the script's own "
+                "must differ from every simulation keyword by more than two letters."
+            )
+        own.append(key)
+    return tuple(own)
+
+
 def default_output(model: type) -> str:
     """The manual's default output folder: the model's name and the time of day."""
     return f"{model.__name__}-{time.strftime('%d%m%Y-%H%M%S')}"
@@ -543,11 +600,12 @@ def run_params(params: Mapping[str, Any], index: int, nsim: int) -> dict[str, An
 
 def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> SimulationSpec:
     """Validate ``simulation.DEM`` keywords; ``engine`` and ``model`` are already resolved.
+    Keys that are not simulation keywords are the script's own (see :func:`split_keys`).
 
     With ``nSim=k > 1`` the spec holds the k runs in :attr:`SimulationSpec.runs` (see
     :func:`run_params`); its own fields are those of run 0 but for ``output`` and ``nsim``.
     """
-    check_keys("simulation keyword", params, SIMULATION_KEYS)
+    user_keys = split_keys(params)
     nsim = positive_int(params.get("nSim", 1), "nSim")
     if nsim > 1:
         output = params.get("output", default_output(model))
@@ -594,4 +652,5 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
         threads=None if threads is None else positive_int(threads, "threads"),
         nprocs=None if nprocs is None else positive_int(nprocs, "nprocs"),
         progress=params.get("progress"),
+        user_keys=user_keys,
     )
