@@ -13,6 +13,7 @@ import itertools
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -45,6 +46,28 @@ SIZE_CLASSES = 9
 DUMP_COLUMNS = frozenset(
     "id type x y z vx vy vz fx fy fz omegax omegay omegaz tqx tqy tqz radius mass".split()
 )
+
+
+def kernel(model: Any) -> str:
+    """LIGGGHTS' ``gran model`` for a contact model: one of :data:`MODELS`, given as its
+    class, an instance, or a subclass that only sets attributes (``rolling = 'epsd2'``).
+    A subclass that overrides a method changes the force law, which LIGGGHTS cannot run."""
+    cls = model if isinstance(model, type) else type(model)
+    for depth, base in enumerate(cls.__mro__):
+        if base.__name__ in MODELS and base.__module__.startswith("pygran_core.simulation.models"):
+            changed = [
+                f"{sub.__name__}.{name}"
+                for sub in cls.__mro__[:depth]
+                for name, value in vars(sub).items()
+                if callable(value) or isinstance(value, (property, classmethod, staticmethod))
+            ]
+            if changed:
+                raise UnsupportedFeature(
+                    f"LIGGGHTS runs its own {base.__name__} kernel, not {', '.join(changed)}: "
+                    "a subclass may set attributes such as rolling, not override methods"
+                )
+            return MODELS[base.__name__]
+    raise UnsupportedFeature(f"LIGGGHTS has no kernel for the {cls.__name__} model")
 
 
 def fmt(value: float) -> str:
@@ -94,10 +117,7 @@ class Commands:
     def __init__(self, spec: SimulationSpec) -> None:
         self.spec = spec
         self._counter = itertools.count(1)
-        model = spec.model if isinstance(spec.model, type) else type(spec.model)
-        if model.__name__ not in MODELS:
-            raise UnsupportedFeature(f"LIGGGHTS has no kernel for the {model.__name__} model")
-        self.model = MODELS[model.__name__]
+        self.model = kernel(spec.model)
         #: The ``rolling_friction`` model (the model's ``rolling``, default the original's cdt).
         self.rolling_model = getattr(spec.model, "rolling", "cdt")
         if self.rolling_model not in ROLLING:
