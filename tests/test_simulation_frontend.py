@@ -149,7 +149,7 @@ def test_restart_forms(tmp_path, monkeypatch):
         True,
     )
     assert spec(restart=100).restart.freq == 100
-    with pytest.raises(ConfigError, match="restart freq must be a positive integer"):
+    with pytest.raises(ConfigError, match="restart freq must be at least 1 step"):
         spec(restart=(0,))
 
 
@@ -177,6 +177,25 @@ def test_mesh_from_stl_with_liggghts_style_args(tmp_path, monkeypatch):
         spec(mesh={"m": {"file": str(tmp_path / "none.stl")}})
     with pytest.raises(ConfigError, match="Unknown mesh 'm' argument 'scal'. Did you mean 'scale'"):
         spec(mesh={"m": {"file": str(silo), "args": ("scal 2",)}})
+
+
+def test_step_counts_may_be_floats_truncated_as_liggghts_does():
+    s = spec(traj={"freq": 1e3}, restart=(5e3, "restart", "r.h5", False, None))
+    assert (s.traj.freq, s.restart.freq, s.notes) == (1000, 5000, ())
+    third = spec(traj={"freq": 1e3 / 3}, restart=2500.5)
+    assert (third.traj.freq, third.restart.freq) == (333, 2500)
+    assert third.notes == (
+        f"traj freq {1e3 / 3!r} truncated to 333 steps",
+        "restart freq 2500.5 truncated to 2500 steps",
+    )
+    notes = []
+    assert calls.parse_insert({"value": 10, "freq": 1e4}, s, 1, notes).freq == 10000 and notes == []
+    assert calls.parse_monitor({"freq": 250.9}, notes).freq == 250 and notes == [
+        "monitor freq 250.9 truncated to 250 steps"
+    ]
+    for bad, message in ((0.5, "at least 1 step"), ("1e5", "a number of steps"), (float("inf"), "a number")):
+        with pytest.raises(ConfigError, match=f"traj freq must be {message}"):
+            spec(traj={"freq": bad})
 
 
 def test_numbers_may_be_int_or_float():
@@ -322,9 +341,11 @@ def test_dem_on_a_third_party_engine(with_plugins, tmp_path):
         first = [sim._seed() for _ in range(3)]
         assert sim.createParticles(1, "single", 0.0, 0.0, 1e-2) == 1
         monitor = sim.monitor(quantities=("n",), freq=10)
-        sim.run(20)
+        sim.run(2e1)
         assert monitor.values["n"].tolist() == [1, 1, 1]
         assert sim.step == 20 and sim.time == pytest.approx(2e-3)
+        sim.run(50 / 3)  # LIGGGHTS truncates: 16 steps
+        assert sim.step == 36
         with pytest.raises(UnsupportedFeature, match="toy engine does not support plane walls"):
             sim.setupWall(species=1, plane="zplane", peq=0.0)
     with simulation.DEM(**{**kwargs, "output": str(tmp_path / "p")}) as again:
@@ -332,6 +353,7 @@ def test_dem_on_a_third_party_engine(with_plugins, tmp_path):
     log = (tmp_path / "o" / "pygran.log").read_text()
     assert "create CreateSpec(species=1, style='single'" in log and "run 20 steps" in log
     assert log.count("'stages'") == 1 and "keys of the script's own" in log
+    assert f"run nsteps {50 / 3!r} truncated to 16 steps" in log and "run 20 steps" in log
 
 
 def test_set_spec_selects_by_species_region_and_ids():

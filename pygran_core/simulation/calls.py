@@ -24,6 +24,7 @@ from pygran_core.simulation.specs import (
     one_of,
     positive_float,
     positive_int,
+    step_count,
 )
 
 # -- regions ---------------------------------------------------------------------------------
@@ -199,7 +200,9 @@ INSERT_KEYS = (
 )
 
 
-def parse_insert(kwargs: Mapping[str, Any], spec: SimulationSpec, seed: int) -> InsertSpec:
+def parse_insert(
+    kwargs: Mapping[str, Any], spec: SimulationSpec, seed: int, notes: list[str] | None = None
+) -> InsertSpec:
     check_keys("insert keyword", kwargs, INSERT_KEYS)
     for unsupported in ("orientation", "set_property"):
         if unsupported in kwargs:
@@ -237,7 +240,7 @@ def parse_insert(kwargs: Mapping[str, Any], spec: SimulationSpec, seed: int) -> 
         region=parse_region(kwargs.get("region"), spec),
         velocity=parse_velocity(kwargs.get("vel_type", "constant"), kwargs.get("vel", (0, 0, 0))),
         omega=_omega(kwargs.get("omega", (0, 0, 0))),
-        freq=None if freq == "once" else positive_int(freq, "insert freq"),
+        freq=None if freq == "once" else step_count(freq, "insert freq", notes),
         duration=None if duration is None else positive_float(duration, "insert duration"),
         all_in=kwargs.get("all_in", "yes") in ("yes", True),
         seed=int(kwargs.get("seed", seed)),
@@ -466,7 +469,7 @@ class MonitorSpec:
     file: str
 
 
-def parse_monitor(kwargs: Mapping[str, Any]) -> MonitorSpec:
+def parse_monitor(kwargs: Mapping[str, Any], notes: list[str] | None = None) -> MonitorSpec:
     check_keys("monitor keyword", kwargs, ("quantities", "freq", "file", "name"))
     quantities = kwargs.get("quantities", ("ke",))
     quantities = (quantities,) if isinstance(quantities, str) else tuple(quantities)
@@ -474,7 +477,7 @@ def parse_monitor(kwargs: Mapping[str, Any]) -> MonitorSpec:
         one_of(quantity, "monitor quantity", MONITOR_QUANTITIES)
     return MonitorSpec(
         quantities,
-        positive_int(kwargs.get("freq", 100), "monitor freq"),
+        step_count(kwargs.get("freq", 100), "monitor freq", notes),
         str(kwargs.get("file", kwargs.get("name", "monitor") + ".txt")),
     )
 

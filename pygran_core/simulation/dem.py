@@ -17,7 +17,7 @@ from pygran_core.errors import ConfigError, PluginNotFound
 from pygran_core.simulation import calls
 from pygran_core.simulation.engine import Engine, Handle, Monitor
 from pygran_core.simulation.models import ContactModel
-from pygran_core.simulation.specs import SimulationSpec, parse_simulation
+from pygran_core.simulation.specs import SimulationSpec, parse_simulation, step_count
 
 DEFAULT_ENGINE = "native"
 DEFAULT_MODEL = "SpringDashpot"
@@ -78,6 +78,12 @@ class DEM:
                 "keys of the script's own, not simulation keywords (kept in DEM.pargs): %s",
                 ", ".join(map(repr, self.spec.user_keys)),
             )
+        self._note(list(self.spec.notes))
+
+    def _note(self, notes: list[str]) -> None:
+        """Log what parsing changed in what the script gave (step counts truncated)."""
+        for note in notes:
+            self.engine.log("%s", note)
 
     def _seed(self) -> int:
         """A fresh seed for one call, derived reproducibly from the simulation's ``seed``."""
@@ -88,7 +94,10 @@ class DEM:
     def insert(self, species: Any = "all", value: Any = None, **kwargs: Any) -> Handle:
         """Insert particles by pack or by rate into a region (manual 4.2.1); returns a handle."""
         request = {"species": species, **kwargs} | ({} if value is None else {"value": value})
-        return self.engine.insert(calls.parse_insert(request, self.spec, self._seed()))
+        notes: list[str] = []
+        handle = self.engine.insert(calls.parse_insert(request, self.spec, self._seed(), notes))
+        self._note(notes)
+        return handle
 
     def createParticles(self, species: Any, style: str, *args: Any, **kwargs: Any) -> int:  # noqa: N802
         """Create particles now: ``'single'`` at x, y, z (or one per row of an ``(N, 3)`` array
@@ -138,7 +147,10 @@ class DEM:
 
     def monitor(self, **kwargs: Any) -> Monitor:
         """Sample ``quantities`` (``ke``, ``n``, ...) every ``freq`` steps into ``file`` and memory."""
-        return self.engine.monitor(calls.parse_monitor(kwargs))
+        notes: list[str] = []
+        monitor = self.engine.monitor(calls.parse_monitor(kwargs, notes))
+        self._note(notes)
+        return monitor
 
     def command(self, text: str) -> None:
         """Pass a solver-native command through (engines with ``raw-commands``)."""
@@ -146,9 +158,13 @@ class DEM:
 
     # -- running and results ------------------------------------------------------------------
 
-    def run(self, nsteps: int, dt: float | None = None, *, progress: bool | None = None) -> None:
-        """Advance ``nsteps`` steps of ``dt`` (default: the ``dt`` given to DEM)."""
-        self.engine.run(nsteps, dt, progress=progress)
+    def run(self, nsteps: float, dt: float | None = None, *, progress: bool | None = None) -> None:
+        """Advance ``nsteps`` steps of ``dt`` (default: the ``dt`` given to DEM). A float
+        ``nsteps`` (``1e5``, ``nsteps / 3``) is truncated to whole steps as LIGGGHTS does."""
+        notes: list[str] = []
+        steps = step_count(nsteps, "run nsteps", notes)
+        self._note(notes)
+        self.engine.run(steps, dt, progress=progress)
 
     def remove(self, handle: Handle | Monitor) -> None:
         """Remove an insertion, wall, mesh motion, force or monitor."""

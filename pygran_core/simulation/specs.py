@@ -38,6 +38,20 @@ def positive_int(value: Any, name: str) -> int:
     return int(value)
 
 
+def step_count(value: Any, name: str, notes: list[str] | None = None) -> int:
+    """A number of steps (or a frequency in steps) as LIGGGHTS reads one: an int, or a float
+    truncated toward zero (``1e5`` is 100000 steps, ``1e5 / 3`` is 33333). When truncation
+    changes the value, a line saying so is appended to ``notes`` (for ``pygran.log``)."""
+    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+        raise ConfigError(f"{name} must be a number of steps such as 1000 or 1e5, got {value!r}")
+    steps = int(value)
+    if steps <= 0:
+        raise ConfigError(f"{name} must be at least 1 step, got {value!r}")
+    if steps != value and notes is not None:
+        notes.append(f"{name} {value!r} truncated to {steps} steps")
+    return steps
+
+
 def positive_float(value: Any, name: str) -> float:
     """``value`` (int or float) as a float > 0, or a :class:`ConfigError` naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, Real) or not value > 0:
@@ -407,7 +421,7 @@ class TrajectorySpec:
 TRAJ_KEYS = ("freq", "pfile", "mfile", "dir", "sel", "style", "args", "margs")
 
 
-def parse_traj(value: Any, output: Path, dump_modify: Any) -> TrajectorySpec:
+def parse_traj(value: Any, output: Path, dump_modify: Any, notes: list[str] | None = None) -> TrajectorySpec:
     value = {} if value is None else value
     if not isinstance(value, Mapping):
         raise ConfigError(f"traj must be a dict with keys {TRAJ_KEYS}, got {value!r}")
@@ -422,7 +436,7 @@ def parse_traj(value: Any, output: Path, dump_modify: Any) -> TrajectorySpec:
         raise ConfigError(f"traj sel must be 'all' or a species number (1, 2, ...), got {sel!r}")
     dump_modify = () if dump_modify is None else tuple(str(d) for d in dump_modify)
     return TrajectorySpec(
-        freq=positive_int(value.get("freq", 1000), "traj freq"),
+        freq=step_count(value.get("freq", 1000), "traj freq", notes),
         sel=sel,
         style=one_of(value.get("style", "custom"), "traj style", ("custom", "custom/vtk", "atom")),
         args=tuple(value.get("args", TrajectorySpec.args)),
@@ -443,11 +457,11 @@ class RestartSpec:
     lastfile: Path | None = None
 
 
-def parse_restart(value: Any, output: Path) -> RestartSpec | None:
+def parse_restart(value: Any, output: Path, notes: list[str] | None = None) -> RestartSpec | None:
     """The manual's 5-tuple ``(freq, dir, fname, resume, lastfile)``, a dict, or a frequency."""
     if value is None:
         return None
-    if isinstance(value, Integral) and not isinstance(value, bool):
+    if isinstance(value, Real) and not isinstance(value, bool):
         value = (value,)
     if isinstance(value, Mapping):
         check_keys("restart keyword", value, ("freq", "dir", "fname", "resume", "lastfile"))
@@ -459,7 +473,7 @@ def parse_restart(value: Any, output: Path) -> RestartSpec | None:
     freq, directory, fname, resume, lastfile = (*value, *([None] * (5 - len(value))))
     directory = output / (directory or "restart")
     return RestartSpec(
-        freq=positive_int(freq, "restart freq"),
+        freq=step_count(freq, "restart freq", notes),
         directory=directory,
         fname=fname or "restart.h5",
         resume=bool(resume),
@@ -496,6 +510,8 @@ class SimulationSpec:
     runs: tuple[SimulationSpec, ...] = ()
     #: The script's own keys (not simulation keywords), kept by ``DEM`` and named in the log.
     user_keys: tuple[str, ...] = ()
+    #: What parsing changed in what was given (step counts truncated), for the log.
+    notes: tuple[str, ...] = ()
 
     @property
     def max_radius(self) -> float:
@@ -633,6 +649,9 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
     if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
         raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     threads, nprocs = params.get("threads"), params.get("nprocs")
+    notes: list[str] = []
+    traj = parse_traj(params.get("traj"), output, params.get("dump_modify"), notes)
+    restart = parse_restart(params.get("restart"), output, notes)
     return SimulationSpec(
         engine=engine,
         model=model,
@@ -646,11 +665,12 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
         units=units,
         nns_type=one_of(params.get("nns_type", "bin"), "nns_type", ("bin", "nsq", "multi")),
         nns_skin=None if params.get("nns_skin") is None else positive_float(params["nns_skin"], "nns_skin"),
-        traj=parse_traj(params.get("traj"), output, params.get("dump_modify")),
-        restart=parse_restart(params.get("restart"), output),
+        traj=traj,
+        restart=restart,
         nsim=positive_int(params.get("nSim", 1), "nSim"),
         threads=None if threads is None else positive_int(threads, "threads"),
         nprocs=None if nprocs is None else positive_int(nprocs, "nprocs"),
         progress=params.get("progress"),
         user_keys=user_keys,
+        notes=tuple(notes),
     )
