@@ -1,4 +1,5 @@
-"""PyGran's exceptions: every error PyGran raises on purpose derives from :class:`PyGranError`."""
+"""PyGran's exceptions and warnings: every error PyGran raises on purpose derives from
+:class:`PyGranError`, every warning it issues from :class:`PyGranWarning`."""
 
 from __future__ import annotations
 
@@ -32,6 +33,18 @@ class ReadError(PyGranError):
 
 class EngineError(PyGranError):
     """The solver behind an engine reported an error or died."""
+
+
+class PyGranWarning(UserWarning):
+    """Base class of PyGran's warnings: something ran, but probably not as the user meant."""
+
+
+class TimeStepWarning(PyGranWarning):
+    """The time step resolves contacts poorly (see :mod:`pygran_core.simulation.timestep`)."""
+
+
+class LostParticlesWarning(PyGranWarning):
+    """Particles left the domain, became non-finite or were deleted during a run."""
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:

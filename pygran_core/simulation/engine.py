@@ -13,14 +13,24 @@ from __future__ import annotations
 import abc
 import itertools
 import logging
+import math
 import os
 import sys
+import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, EngineError, ReadError, UnsupportedFeature
+from pygran_core.errors import (
+    ConfigError,
+    EngineError,
+    LostParticlesWarning,
+    ReadError,
+    TimeStepWarning,
+    UnsupportedFeature,
+)
 from pygran_core.simulation.checkpoint import (
     Checkpoint,
     checkpoint_path,
@@ -29,6 +39,7 @@ from pygran_core.simulation.checkpoint import (
     write_checkpoint,
 )
 from pygran_core.simulation.specs import positive_float, positive_int
+from pygran_core.simulation.timestep import Assessment, Body, Limits, characteristic_speed, limits
 
 if TYPE_CHECKING:
     from pygran_core.io import Frame, TrajectoryWriter
@@ -54,6 +65,11 @@ MODEL_CAPABILITY = {
 }
 #: Per-particle quantities ``extract`` knows, with their shape per particle.
 EXTRACTABLE = {"x": 3, "v": 3, "omega": 3, "f": 3, "torque": 3, "radius": 1, "mass": 1, "id": 1, "type": 1}
+#: The faces of the domain, as lost particles and :meth:`Engine.expect_outflow` name them.
+FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
+#: Lost particles faster than this many times what the simulation explains (the
+#: characteristic velocity, the speeds given, a fall across the box) point to an instability.
+FAST_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
@@ -80,6 +96,43 @@ class Monitor:
         table = np.array(self.samples, float).reshape(-1, 2 + len(self.spec.quantities))
         names = ("step", "time", *self.spec.quantities)
         return {name: table[:, i] for i, name in enumerate(names)}
+
+
+@dataclass(frozen=True)
+class LostParticles:
+    """Particles lost during a run: ``count`` in all, and ``where`` by place: a face of the
+    domain they left through (``"z-"``: below the lower z bound, see :data:`FACES`),
+    ``"non-finite"`` (position or velocity NaN or infinite) or ``"unknown"``. ``max_speed``
+    is the largest speed (m/s) they had when last seen, ``None`` if unknown."""
+
+    count: int = 0
+    where: Mapping[str, int] = field(default_factory=dict)
+    max_speed: float | None = None
+
+    def __add__(self, other: LostParticles) -> LostParticles:
+        where = dict(self.where)
+        for place, n in other.where.items():
+            where[place] = where.get(place, 0) + n
+        speeds = [s for s in (self.max_speed, other.max_speed) if s is not None]
+        return LostParticles(self.count + other.count, where, max(speeds, default=None))
+
+    def places(self, exclude: frozenset[str] = frozenset()) -> str:
+        """``"150 through z-, 3 non-finite"``, leaving out the places in ``exclude``."""
+        named = {"non-finite": "{} became non-finite", "unknown": "{} where the engine cannot tell"}
+        parts = [
+            named.get(place, "{} through " + place).format(n)
+            for place, n in sorted(self.where.items())
+            if n and place not in exclude
+        ]
+        return ", ".join(parts)
+
+
+def _user_stacklevel() -> int:
+    """The ``stacklevel`` of ``warnings.warn`` that points at the first caller outside PyGran."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_globals.get("__name__", "").startswith("pygran"):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def _shorten(text: str, width: int = 120) -> str:
@@ -117,6 +170,18 @@ class Engine(abc.ABC):
         self._handle_ids = itertools.count(1)
         self._monitors: dict[int, Monitor] = {}
         self._writers: dict[str, TrajectoryWriter] = {}
+        #: Particles lost in all runs so far, and in the last run.
+        self.lost = 0
+        self.last_lost = LostParticles()
+        #: The last run's time step against the contacts present (``None``: no contact possible).
+        self.time_step_check: Assessment | None = None
+        self._outflow: frozenset[str] = frozenset()
+        self._limits: dict[tuple[Any, ...], Limits | None] = {}
+        self._warned: set[tuple[float, Limits]] = set()
+        self._wall_specs: dict[int, WallSpec] = {}  # by handle id: the wall materials contacts meet
+        self._insert_specs: dict[int, InsertSpec] = {}  # by handle id: species that may appear
+        self._speeds = 0.0  # the largest speed the script gave particles
+        self._broken: set[int] = set()  # ids of non-finite particles counted by a _Watch
         self._logger = logging.getLogger(f"pygran.simulation.{self.name}")
         self._log_handler = logging.FileHandler(self.output / LOG_NAME, encoding="utf-8")
         self._log_handler.setFormatter(logging.Formatter(_LOG_FORMAT))
@@ -154,15 +219,6 @@ class Engine(abc.ABC):
             self.require("mpi", "several MPI ranks (nSim, nprocs)")
         if spec.threads not in (None, 1):
             self.require("threads", "threads")
-        for species in spec.species:
-            if species.style == "multisphere":
-                self.require("multisphere", "multisphere particles")
-            if species.radius.kind != "constant":
-                self.require("polydisperse", "size distributions")
-            if species.material.get("cohesionEnergyDensity", 0) > 0:
-                self.require("cohesion", "cohesion")
-            if species.material.get("coefficientRollingFriction", 0) > 0:
-                self.require("rolling-friction", "rolling friction")
 
     # -- common behaviour ------------------------------------------------------------
 
@@ -173,6 +229,15 @@ class Engine(abc.ABC):
         self._log_handler.handle(record)
         if self._logger.isEnabledFor(level):
             self._logger.handle(record)
+
+    def _warn(self, message: str, category: type[Warning]) -> None:
+        """Issue a warning at the user's line, recorded in ``pygran.log`` (not logged twice
+        on the console)."""
+        record = self._logger.makeRecord(
+            self._logger.name, logging.WARNING, __file__, 0, "%s", (message,), None
+        )
+        self._log_handler.handle(record)
+        warnings.warn(message, category, stacklevel=_user_stacklevel())
 
     def require(self, capability: str, what: str | None = None) -> None:
         """Raise :class:`UnsupportedFeature` unless this engine has ``capability``."""
@@ -236,7 +301,11 @@ class Engine(abc.ABC):
     def insert(self, spec: InsertSpec) -> Handle:
         if spec.mechanism == "by_rate":
             self.require("insert-by-rate", "insertion by rate")
-        return self._call("insertion", self._insert, spec)
+        handle = self._call("insertion", self._insert, spec)
+        self._insert_specs[handle.id] = spec
+        spread = np.linalg.norm(spec.velocity.spread) * (3 if spec.velocity.kind == "gaussian" else 1)
+        self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity.mean) + spread))
+        return handle
 
     def create_particles(self, spec: CreateSpec) -> int:
         """Create particles now; returns how many were created."""
@@ -245,6 +314,7 @@ class Engine(abc.ABC):
         if self.replaying:
             return recorded
         count = self._calls[-1][1] = self._create(spec)
+        self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity)))
         self.log("create %s: %d particles", spec, count)
         return count
 
@@ -257,13 +327,17 @@ class Engine(abc.ABC):
         ids = spec.select(self._extract("id"), self._extract("type"), self._extract("x"))
         if len(ids):
             self._assign(ids, spec)
+        if spec.velocity is not None:
+            self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity)))
         self.log("set %s: %d particles", spec, len(ids))
         self._calls[-1][1] = len(ids)
         return len(ids)
 
     def setup_wall(self, spec: WallSpec) -> Handle:
         self.require("mesh-walls" if spec.kind == "mesh" else "primitive-walls", f"{spec.kind} walls")
-        return self._call("wall", self._wall, spec)
+        handle = self._call("wall", self._wall, spec)
+        self._wall_specs[handle.id] = spec
+        return handle
 
     def move_mesh(self, spec: MotionSpec) -> Handle:
         self.require("moving-mesh", "moving meshes")
@@ -311,25 +385,37 @@ class Engine(abc.ABC):
         else:
             self._remove(handle)
         del self._handles[handle.id]
+        self._wall_specs.pop(handle.id, None)
+        self._insert_specs.pop(handle.id, None)
         self.log("remove %s %s", handle.kind, handle.label)
 
     # -- running -----------------------------------------------------------------------
 
-    def run(self, nsteps: int, dt: float | None = None, *, progress: bool | None = None) -> None:
+    def run(
+        self, nsteps: int, dt: float | None = None, *, progress: bool | None = None, check_dt: bool = True
+    ) -> None:
         """Advance ``nsteps`` time steps (of ``dt``, or the simulation's time step).
 
-        Trajectory frames, monitor samples and checkpoints are taken at their frequencies
-        (in absolute steps); the solver runs uninterrupted between them and between the
-        progress bar's updates, shown on a terminal unless ``progress=False``.
+        Before it, the time step is checked against the contacts that can happen
+        (:mod:`~pygran_core.simulation.timestep`): a :class:`TimeStepWarning` if it resolves
+        them poorly, a :class:`ConfigError` if it cannot resolve them at all, unless
+        ``check_dt=False``. Trajectory frames, monitor samples and checkpoints are taken at
+        their frequencies (in absolute steps); the solver runs uninterrupted between them and
+        between the progress bar's updates, shown on a terminal unless ``progress=False``.
+        Particles lost during the run are reported (see :meth:`expect_outflow`), counted in
+        :attr:`lost` and described in :attr:`last_lost`.
         """
         self._check_open()
         nsteps = positive_int(nsteps, "nsteps")
         if dt is not None:
             dt = positive_float(dt, "dt")
-            if dt != self.dt:
-                self._clock, self.dt = (self.step, self.time), dt
-        if self.dt is None:
+        run_dt = dt if dt is not None else self.dt
+        if run_dt is None:
             raise ConfigError("No time step: pass dt to run(nsteps, dt) or dt=... to DEM")
+        if not self.replaying:
+            self._check_time_step(run_dt, check_dt)
+        if run_dt != self.dt:
+            self._clock, self.dt = (self.step, self.time), run_dt
         self.log("run %d steps of dt=%g from step %d", nsteps, self.dt, self.step)
         show = progress if progress is not None else self.spec.progress
         if show is None:
@@ -345,6 +431,9 @@ class Engine(abc.ABC):
             self._restore()  # the run the checkpoint was taken in
         elif self.step == 0:
             self._on_event()
+        counted = self._lost_since_last()
+        watch = _Watch(self) if counted is None else None
+        lost = counted or LostParticles()
         with tqdm(
             total=nsteps, initial=self.step - start, unit="step", disable=not show, desc=f"{self.name} run"
         ) as bar:
@@ -357,7 +446,164 @@ class Engine(abc.ABC):
                 self._set_step(self.step + chunk)
                 bar.update(chunk)
                 self._on_event()
+                lost += (
+                    watch.update(chunk * self.dt)
+                    if watch is not None
+                    else self._lost_since_last() or LostParticles()
+                )
         assert self.step == end
+        self._report_lost(lost, start, watch is not None)
+
+    # -- the time step and lost particles ------------------------------------------------
+
+    def expect_outflow(self, *faces: str) -> None:
+        """Declare that particles leave through these faces of the domain (``"z-"``: below the
+        lower z bound; see :data:`FACES`): their loss is logged, not warned. Call it without
+        faces to expect none again."""
+        for face in faces:
+            if face not in FACES:
+                from pygran_core.errors import unknown_key
+
+                raise unknown_key("outflow face", str(face), FACES)
+            if self.spec.domain.periodic["xyz".index(face[0])]:
+                raise ConfigError(
+                    f"outflow face {face!r}: the {face[0]} axis is periodic, nothing leaves there"
+                )
+        self._outflow = frozenset(faces)
+        self.log("outflow expected through %s", ", ".join(sorted(self._outflow)) or "no face")
+
+    def _check_time_step(self, dt: float, check_dt: bool) -> None:
+        """Compare ``dt`` with the contacts that can happen now (see :meth:`_time_step_limits`):
+        warn once per time step and set of contacts; refuse a step that cannot resolve them."""
+        found = self._time_step_limits()
+        self.time_step_check = None if found is None else found.assess(dt)
+        check = self.time_step_check
+        if check is None or check.level == "ok":
+            return
+        if check.level == "error" and check_dt:
+            message = f"{check.message()} Or pass check_dt=False to run() to run anyway."
+            self.log("run refused: %s", message, level=logging.ERROR)
+            raise ConfigError(message)
+        if (dt, found) not in self._warned:
+            self._warned.add((dt, found))
+            self._warn(check.message(), TimeStepWarning)
+
+    def _time_step_limits(self) -> Limits | None:
+        """The shortest Rayleigh and contact times of the contacts that can happen: between the
+        species present (two particles of one) or being inserted, and of them with every
+        wall's material; cached by what they depend on."""
+        species = self.spec.species
+        types, radii = self._extract("type").astype(np.int64), self._extract("radius")
+        smallest: dict[int, float] = {}
+        counts: dict[int, int] = {}
+        for kind in np.unique(types):
+            if 1 <= kind <= len(species):
+                chosen = types == kind
+                smallest[int(kind)] = float(radii[chosen].min())
+                counts[int(kind)] = int(chosen.sum())
+        coming = {k for insert in self._insert_specs.values() for k in insert.species}
+        for kind in coming:
+            smallest[kind] = min(smallest.get(kind, math.inf), species[kind - 1].radius.min)
+        walls = {}
+        for wall in self._wall_specs.values():
+            mesh = next((m for m in self.spec.meshes if m.name == wall.mesh and m.material), None)
+            if mesh is not None:
+                walls[f"mesh {mesh.name!r}"] = mesh.material
+            else:
+                walls[f"walls of species {wall.species}'s material"] = species[wall.species - 1].material
+        key = (
+            tuple(sorted((k, r, counts.get(k, 0) > 1 or k in coming) for k, r in smallest.items())),
+            tuple(sorted(walls)),
+        )
+        if key not in self._limits:
+            bodies = {
+                k: Body(f"species {k}", species[k - 1].material, r, species[k - 1].density)
+                for k, r in smallest.items()
+            }
+            pairs = [
+                (bodies[a], bodies[b])
+                for a in bodies
+                for b in bodies
+                if a < b or (a == b and (counts.get(a, 0) > 1 or a in coming))
+            ]
+            pairs += [
+                (body, Body(name, material)) for body in bodies.values() for name, material in walls.items()
+            ]
+            materials = [s.material for s in species] + [m.material for m in self.spec.meshes if m.material]
+            self._limits[key] = limits(self.spec.model, pairs, characteristic_speed(materials))
+        return self._limits[key]
+
+    def _report_lost(self, lost: LostParticles, start: int, estimated: bool) -> None:
+        """Count the particles lost in the run from ``start``; warn about those not expected."""
+        self.last_lost = lost
+        if not lost.count:
+            return
+        self.lost += lost.count
+        expected = sum(n for place, n in lost.where.items() if place in self._outflow)
+        where = lost.places(self._outflow)
+        how = (
+            f" (as the {self.name} engine does not report lost particles, PyGran found them missing and "
+            "estimated where from where they were last seen)"
+            if estimated
+            else ""
+        )
+        if expected:
+            self.log(
+                "%d particles left through the expected outflow (%s) in the run from step %d to %d",
+                expected,
+                ", ".join(sorted(self._outflow)),
+                start,
+                self.step,
+            )
+        if expected == lost.count:
+            return
+        unexpected = lost.count - expected
+        message = (
+            f"{unexpected} particle{'s' if unexpected > 1 else ''} lost in the run from step {start} to "
+            f"{self.step}: "
+            f"{where}{how}; {self._lost_cause(lost)}. {self.lost} lost in all."
+        )
+        self._warn(message, LostParticlesWarning)
+
+    def _lost_cause(self, lost: LostParticles) -> str:
+        """The likely cause of ``lost``, from their speeds and the time-step check."""
+        check = self.time_step_check
+        step = (
+            f"the time step is probably too large: {check.times()}; use dt <= {check.limits.safe_dt:.2g} s"
+            if check is not None and check.level != "ok"
+            else None
+        )
+        box = self.spec.domain.lengths
+        fall = math.sqrt(2 * self.spec.gravity.magnitude * float(box.max())) if self.spec.gravity else 0.0
+        materials = [s.material for s in self.spec.species]
+        explained = max(self._speeds, fall, characteristic_speed(materials))
+        speed = lost.max_speed
+        fast = speed is not None and speed > FAST_FACTOR * explained
+        if fast or lost.where.get("non-finite") or (speed is None and step is not None):
+            seen = (
+                f"speeds up to {speed:.3g} m/s, over {FAST_FACTOR:g} times the {explained:.3g} m/s the "
+                "simulation explains"
+                if fast
+                else "non-finite positions or velocities"
+                if lost.where.get("non-finite")
+                else "no speeds known"
+            )
+            return f"{seen}: " + (
+                step
+                or "particles probably started overlapping (created on top of each other or with a lattice "
+                "spacing below a diameter) or inside a wall"
+            )
+        faces = sorted(place for place in lost.where if place in FACES and place not in self._outflow)
+        if faces:
+            at = f" at up to {speed:.3g} m/s" if speed is not None else ""
+            left = f"they left{at} through {', '.join(faces)}"
+            if step is not None:
+                return f"{left} (a contact too short to resolve lets particles pass through walls): {step}"
+            return (
+                f"{left}, where no wall holds them: add a wall inside the box, or declare an opening "
+                f"with expect_outflow({', '.join(map(repr, faces))})"
+            )
+        return step or "look for particles created outside the box or beyond a wall"
 
     def _set_step(self, step: int) -> None:
         self.step = step
@@ -593,9 +839,76 @@ class Engine(abc.ABC):
         """What must be the same on resume for a bitwise continuation (e.g. thread count)."""
         return {}
 
+    def _lost_since_last(self) -> LostParticles | None:
+        """Particles the solver lost (left a fixed boundary, became non-finite, were deleted)
+        since the last call. ``None``: this engine does not count them, and :meth:`run`
+        finds them by comparing the particles from one piece of the run to the next."""
+        return None
+
     def _remove(self, handle: Handle) -> None:
         """Delete the solver object behind ``handle``."""
         raise UnsupportedFeature(f"The {self.name} engine cannot remove a {handle.kind}")
 
     def _close(self) -> None:
         """Release solver resources; engines holding any override."""
+
+
+class _Watch:
+    """Lost particles of an engine that does not report them (see :meth:`Engine._lost_since_last`):
+    those gone since the last snapshot, placed at the face their last position and velocity
+    (and gravity) were heading for, and those still present whose position or velocity has
+    become non-finite, each counted once."""
+
+    def __init__(self, engine: Engine) -> None:
+        self.engine = engine
+        domain = engine.spec.domain
+        self.box = np.array(domain.box, float)
+        self.fixed = ~np.array(domain.periodic)
+        self.gravity = engine.spec.gravity.vector if engine.spec.gravity is not None else np.zeros(3)
+        self.ids, self.x, self.v = self._state()
+
+    def _state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        extract = self.engine._extract
+        return extract("id"), extract("x").reshape(-1, 3), extract("v").reshape(-1, 3)
+
+    def update(self, duration: float) -> LostParticles:
+        """What was lost in the last ``duration`` seconds; the state now becomes the snapshot."""
+        ids, x, v = self._state()
+        gone = ~np.isin(self.ids, ids)
+        where: dict[str, int] = {}
+        for place in self._faces(self.x[gone], self.v[gone], duration):
+            where[place] = where.get(place, 0) + 1
+        broken = ~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1))
+        fresh = [i for i in ids[broken].tolist() if i not in self.engine._broken]
+        self.engine._broken.update(fresh)
+        if fresh:
+            where["non-finite"] = where.get("non-finite", 0) + len(fresh)
+        speeds = np.linalg.norm(self.v[gone], axis=1)
+        speeds = speeds[np.isfinite(speeds)]
+        self.ids, self.x, self.v = ids, x, v
+        count = int(gone.sum()) + len(fresh)
+        return LostParticles(count, where, float(speeds.max()) if len(speeds) else None)
+
+    def _faces(self, x: np.ndarray, v: np.ndarray, duration: float) -> list[str]:
+        """The face each particle at ``x`` moving at ``v`` reaches first, moving as it did
+        (with gravity) for ``duration``: ``"non-finite"`` or ``"unknown"`` if none."""
+        places = []
+        heading = v * duration + 0.5 * self.gravity * duration**2
+        lo, hi = self.box[:, 0], self.box[:, 1]
+        for position, step in zip(x, heading):
+            if not (np.isfinite(position).all() and np.isfinite(step).all()):
+                places.append("non-finite")
+                continue
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bound = np.where(step > 0, hi, lo)
+                reach = np.where(self.fixed & (step != 0), (bound - position) / step, np.inf)
+            outside = self.fixed & ((position < lo) | (position > hi))
+            if outside.any():
+                axis = int(np.flatnonzero(outside)[0])
+                places.append("xyz"[axis] + ("-" if position[axis] < lo[axis] else "+"))
+            elif np.isfinite(reach).any():
+                axis = int(np.argmin(reach))
+                places.append("xyz"[axis] + ("+" if step[axis] > 0 else "-"))
+            else:
+                places.append("unknown")
+        return places
