@@ -227,8 +227,9 @@ def test_a_silent_worker_is_stopped_after_the_timeout(tmp_path, monkeypatch):
         monkeypatch.setenv("PYGRAN_YADE_TIMEOUT", "2")  # read at every answer
         process = sim.engine.worker.process
         os.kill(process.pid, signal.SIGSTOP)  # a hung worker: alive, never answering
+        # the run's first request (the time-step check reads the particles) is not answered
         with pytest.raises(
-            EngineError, match="did not answer within 2 s during run, so the worker was stopped"
+            EngineError, match="did not answer within 2 s during extract, so the worker was stopped"
         ):
             sim.run(10)
         assert process.poll() is not None

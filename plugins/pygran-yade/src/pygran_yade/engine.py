@@ -35,7 +35,9 @@ lengths along a periodic axis); meshes are facets from their STL file (scaled, r
 about the origin, translated). As everywhere in YADE, a sphere touching two facets across
 a shared edge has a contact with each. Mesh motion through ``RotationEngine``,
 ``TranslationEngine`` or ``HarmonicMotionEngine``. Particle ids are YADE body ids plus
-one. Forces include gravity, as LIGGGHTS reports them.
+one. Forces include gravity, as LIGGGHTS reports them. After each piece of a run the worker
+deletes the spheres that left a fixed boundary or whose position or velocity is no longer
+finite, and reports them by face and speed (:meth:`YadeEngine._lost_since_last`).
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ import numpy as np
 from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, ViscousSpec, WallSpec
-from pygran_core.simulation.engine import Handle
+from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot, mixing
 from pygran_core.simulation.specs import SimulationSpec
@@ -167,6 +169,7 @@ class YadeEngine(PlacingEngine):
         self._mesh_walls: dict[str, str] = {}  # mesh name -> wall label
         self._motions: dict[str, str] = {}  # motion label -> mesh name
         self._engines: set[str] = set()  # labels of YADE engines (motions, drags)
+        self._unreported = LostParticles()  # deleted by the worker since the last report
 
     # -- materials and contact model ------------------------------------------------------
 
@@ -357,18 +360,23 @@ class YadeEngine(PlacingEngine):
 
     # -- running and output ----------------------------------------------------------------
 
-    def run(self, nsteps: int, dt: float | None = None, *, progress: bool | None = None) -> None:
+    def run(
+        self, nsteps: int, dt: float | None = None, *, progress: bool | None = None, check_dt: bool = True
+    ) -> None:
         """As :meth:`Engine.run`; without any time step, a fifth of YADE's p-wave estimate
         (``utils.PWaveTimeStep``) for the particles present, logged."""
         if dt is None and self.dt is None:
             self.dt = 0.2 * float(self.worker.call("scalar", name="pwave_dt"))
             self.log("no time step given: using 0.2 x PWaveTimeStep = %g s", self.dt)
-        super().run(nsteps, dt, progress=progress)
+        super().run(nsteps, dt, progress=progress, check_dt=check_dt)
 
     def _advance(self, nsteps: int) -> None:
-        lost = self.worker.call("run", nsteps=nsteps, dt=self.dt)
-        if lost:
-            self.log("%d particles have left the fixed boundaries and were deleted", lost)
+        self._unreported += LostParticles(**self.worker.call("run", nsteps=nsteps, dt=self.dt))
+
+    def _lost_since_last(self) -> LostParticles:
+        """The spheres the worker deleted after each piece of a run (see ``Simulation.run``)."""
+        lost, self._unreported = self._unreported, LostParticles()
+        return lost
 
     def _extract(self, quantity: str) -> np.ndarray:
         return from_bytes(self.worker.call("extract", quantity=quantity))

@@ -82,7 +82,6 @@ class Simulation:
         self.bounds: np.ndarray | None = None  # fixed-boundary box; spheres leaving it are deleted
         self.drags: dict[str, dict] = {}  # label -> gamma, species, {radius: LinearDragEngine}
         self.engines: dict[str, list] = {}  # label -> the YADE engines it added
-        self.lost = 0
 
     # -- setup ----------------------------------------------------------------------------
 
@@ -238,26 +237,39 @@ class Simulation:
     # -- running and results ----------------------------------------------------------
 
     def run(self, nsteps, dt):
-        """Advance ``nsteps`` steps of ``dt``; deletes spheres that left a fixed boundary
-        (as LIGGGHTS does) and returns how many were lost so far."""
+        """Advance ``nsteps`` steps of ``dt``, then delete the spheres that left a fixed
+        boundary or whose position or velocity is no longer finite (LIGGGHTS deletes them
+        too); returns what was deleted (see :meth:`_drop_lost`)."""
         self.O.dt = dt
         if nsteps <= STEP_LOOP:
             for _ in range(nsteps):
                 self.O.step()
         else:
             self.O.run(int(nsteps), True)
-        self._drop_escaped()
-        return self.lost
+        return self._drop_lost()
 
-    def _drop_escaped(self):
+    def _drop_lost(self):
+        """Delete lost spheres; returns ``{"count", "where", "max_speed"}``: how many, how many
+        by place (a face such as ``"z-"``, below the lower z bound, or ``"non-finite"``) and
+        the largest speed of those that left through a face (``None`` if none did)."""
         fixed = [axis for axis in range(3) if not self.periodic[axis]]
-        gone = []
+        gone, where, speeds = [], {}, []
         for i in self.species:
-            pos = self.O.bodies[i].state.pos
-            if any(pos[a] < self.bounds[a, 0] or pos[a] > self.bounds[a, 1] for a in fixed):
-                gone.append(i)
+            state = self.O.bodies[i].state
+            pos, vel = [state.pos[a] for a in range(3)], [state.vel[a] for a in range(3)]
+            if not all(math.isfinite(c) for c in pos + vel):
+                place = "non-finite"
+            else:
+                low = [a for a in fixed if pos[a] < self.bounds[a, 0]]
+                high = [a for a in fixed if pos[a] > self.bounds[a, 1]]
+                if not low and not high:
+                    continue
+                place = "xyz"[low[0]] + "-" if low else "xyz"[high[0]] + "+"
+                speeds.append(math.sqrt(sum(c * c for c in vel)))
+            gone.append(i)
+            where[place] = where.get(place, 0) + 1
         self.erase(gone)
-        self.lost += len(gone)
+        return {"count": len(gone), "where": where, "max_speed": max(speeds) if speeds else None}
 
     def extract(self, quantity):
         """Per-sphere ``quantity`` ordered by id (forces include gravity, as in LIGGGHTS)."""
