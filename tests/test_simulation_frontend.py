@@ -13,6 +13,7 @@ from pygran_core.simulation import calls
 from pygran_core.simulation.dem import resolve_engine, resolve_model
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot
 from pygran_core.simulation.specs import (
+    ServoSpec,
     parse_boundary,
     parse_gravity,
     parse_radius,
@@ -177,6 +178,89 @@ def test_mesh_from_stl_with_liggghts_style_args(tmp_path, monkeypatch):
         spec(mesh={"m": {"file": str(tmp_path / "none.stl")}})
     with pytest.raises(ConfigError, match="Unknown mesh 'm' argument 'scal'. Did you mean 'scale'"):
         spec(mesh={"m": {"file": str(silo), "args": ("scal 2",)}})
+
+
+def _raw_points(name):
+    from pygran_core.io import open_trajectory
+
+    frame = open_trajectory(DATA / "meshes" / name, format="stl").read_frame(0)
+    return frame.arrays["points"][frame.arrays["cells"][:, :3]]
+
+
+def _turn(points, axis, degrees):
+    from pygran_core.simulation.specs import rotation_matrix
+
+    return points @ rotation_matrix(axis, degrees).T
+
+
+def test_mesh_args_apply_in_the_order_written():
+    side = str(DATA / "meshes" / "wall-2D-side.stl")
+    raw = _raw_points("wall-2D-side.stl")
+    move_first = spec(mesh={"w": {"file": side, "args": {"move": (0, 0, 1), "scale": 1e-3}}}).meshes[0]
+    scale_first = spec(mesh={"w": {"file": side, "args": {"scale": 1e-3, "move": (0, 0, 1)}}}).meshes[0]
+    np.testing.assert_allclose(move_first.triangles(), (raw + [0, 0, 1]) * 1e-3)
+    np.testing.assert_allclose(scale_first.triangles(), raw * 1e-3 + [0, 0, 1])
+    # the tuple form, and two rotations chained in one tuple as LIGGGHTS reads them
+    once = {"scale": 1e-3, "rotate": ("axis", 0, 1, 0, "angle", 90), "move": (0, 0, 2e-3)}
+    wall = spec(mesh={"w": {"file": side, "args": once}}).meshes[0]
+    np.testing.assert_allclose(wall.triangles(), _turn(raw * 1e-3, (0, 1, 0), 90) + [0, 0, 2e-3], atol=1e-15)
+    assert wall.rotate == ((0.0, 1.0, 0.0), 90.0)
+    chained = dict(once, rotate=("axis", 1, 0, 0, "angle", -90, "rotate", "axis", 0, 1, 0, "angle", 90))
+    expected = _turn(_turn(raw * 1e-3, (1, 0, 0), -90), (0, 1, 0), 90) + [0, 0, 2e-3]
+    np.testing.assert_allclose(
+        spec(mesh={"w": {"file": side, "args": chained}}).meshes[0].triangles(), expected, atol=1e-15
+    )
+    words = spec(mesh={"w": {"file": side, "args": ("move 0 0 1", "rotate axis 0 0 1 angle 30", "scale 2")}})
+    np.testing.assert_allclose(
+        words.meshes[0].triangles(), _turn(raw + [0, 0, 1], (0, 0, 1), 30) * 2, atol=1e-12
+    )
+
+
+def test_mesh_import_and_servo_keywords():
+    side = str(DATA / "meshes" / "wall-2D-side.stl")
+    assert spec(mesh={"w": {"file": side}}).meshes[0].wall is True
+    assert spec(mesh={"w": {"file": side, "import": False}}).meshes[0].wall is False
+    args = {
+        "scale": 9.8e-4,
+        "move": (0, 0, 6e-3),
+        "com": (0, 0, 0),
+        "axis": (0, 0, -2),
+        "vel_max": 10.0,
+        "ctrlPV": "force",
+        "target_val": 5.0,
+    }
+    servo = spec(mesh={"PID": {"file": side, "mtype": "mesh/surface/stress/servo", "args": args}}).meshes[0]
+    assert servo.servo == ServoSpec(
+        com=(0.0, 0.0, 0.0), control="force", axis=(0.0, 0.0, -1.0), target=5.0, vel_max=10.0
+    )
+    assert servo.scale == 9.8e-4 and servo.translate == (0.0, 0.0, 6e-3)
+    assert spec(mesh={"w": {"file": side, "mtype": "mesh/surface/stress"}}).meshes[0].servo is None
+    for mesh, message in (
+        ({"args": {"scale": 1e-3, "temperature": 300}}, "Unknown mesh 'w' argument 'temperature'"),
+        (
+            {"args": {"vel_max": 1.0}},
+            "'vel_max' is a servo keyword; it needs mtype='mesh/surface/stress/servo'",
+        ),
+        ({"args": {"move": "up"}}, "'move' takes 3 number"),
+        ({"args": {"move": (0, 0)}}, "'move' takes 3 number"),
+        ({"args": {"rotate": (0, 1, 0, 90)}}, "rotate is \\('axis', ax, ay, az, 'angle', degrees\\)"),
+        ({"args": {"scale": -1}}, "scale must be > 0"),
+        ({"args": {"scale": {1: 2}}}, "neither a keyword nor a number"),
+        ({"import": "no"}, "'import' is True"),
+        (
+            {"mtype": "mesh/surface/stress/servo", "args": {"com": (0, 0, 0)}},
+            "give ctrlPV, axis, target_val, vel_max",
+        ),
+        (
+            {"mtype": "mesh/surface/stress/servo", "args": dict(args, ctrlPV="speed")},
+            "Unknown mesh 'w' servo ctrlPV",
+        ),
+        ({"mtype": "mesh/surface/stress/servo", "args": dict(args, target_val=0)}, "must not be 0"),
+        ({"mtype": "mesh/surface/stress/servo", "args": dict(args, mode="auto")}, "'auto' needs ratio > 0"),
+        ({"file": 3}, "'file' must be a path"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            spec(mesh={"w": {"file": side, **mesh}})
 
 
 def test_step_counts_may_be_floats_truncated_as_liggghts_does():

@@ -8,6 +8,8 @@ are :class:`~pygran_core.errors.ConfigError` raised before the solver sees anyth
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -52,6 +54,31 @@ def resolve_model(model: Any) -> type[ContactModel]:
     )
 
 
+def require(engine: str, capability: str, what: str) -> None:
+    """Refuse, before the engine starts, what the installed engine ``engine`` lacks: the
+    :class:`~pygran_core.errors.UnsupportedFeature` of :meth:`Engine.require`, naming the
+    engines that can."""
+    declared = SimpleNamespace(name=engine, capabilities=registry.get_engine(engine).capabilities)
+    Engine.require(declared, capability, what)  # type: ignore[arg-type]
+
+
+def required_capabilities(params: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """``(capability, what)`` that the forms of ``params`` need of an engine, read before any
+    other check so that the answer does not depend on which other key is wrong."""
+    needed = []
+    species = params.get("species", ())
+    for entry in (
+        (species,) if isinstance(species, Mapping) else species if isinstance(species, Sequence) else ()
+    ):
+        if isinstance(entry, Mapping) and str(entry.get("style", "")).startswith("multisphere"):
+            needed.append(("multisphere", "multisphere particles"))
+    meshes = params.get("mesh")
+    for entry in meshes.values() if isinstance(meshes, Mapping) else ():
+        if isinstance(entry, Mapping) and entry.get("mtype") == "mesh/surface/stress/servo":
+            needed.append(("servo-walls", "servo walls (mesh/surface/stress/servo)"))
+    return needed
+
+
 class DEM:
     """A DEM simulation on one engine; a context manager that closes the engine.
 
@@ -59,8 +86,9 @@ class DEM:
     ``species``, ``mesh``, ``traj``, ``output``, ``restart``, ``dt``, ...), plus ``engine``,
     ``seed`` (every random choice derives from it), ``threads``/``nprocs`` and
     ``progress``. Other keys are the script's own (``'stages'``, ``'nsteps'``): kept in
-    :attr:`pargs` with everything else given, and named once in ``pygran.log``. Each method
-    returns what the engine created: a :class:`Handle` to pass to :meth:`remove`, a
+    :attr:`pargs` with everything else given, and named once in ``pygran.log``. Every mesh
+    is a wall from the start unless its entry says ``'import': False``. Each method returns
+    what the engine created: a :class:`Handle` to pass to :meth:`remove`, a
     :class:`Monitor`, a count or an array.
     """
 
@@ -68,17 +96,28 @@ class DEM:
         #: Every keyword given, the script's own keys included (PyGran 1.x's ``pargs``).
         self.pargs: dict[str, Any] = dict(params)
         engine_name = resolve_engine(params.pop("engine", None))
+        for capability, what in required_capabilities(params):
+            require(engine_name, capability, what)
         model = resolve_model(params.pop("model", DEFAULT_MODEL))
         self.spec: SimulationSpec = parse_simulation(params, engine_name, model)
         self._seeds = np.random.SeedSequence(self.spec.seed)
         factory = registry.get_engine(engine_name).factory
         self.engine: Engine = factory(self.spec)
-        if self.spec.user_keys:
-            self.engine.log(
-                "keys of the script's own, not simulation keywords (kept in DEM.pargs): %s",
-                ", ".join(map(repr, self.spec.user_keys)),
-            )
-        self._note(list(self.spec.notes))
+        #: The wall of each mesh that is one, and the species it was made with.
+        self._mesh_walls: dict[str, tuple[Handle, int]] = {}
+        try:
+            if self.spec.user_keys:
+                self.engine.log(
+                    "keys of the script's own, not simulation keywords (kept in DEM.pargs): %s",
+                    ", ".join(map(repr, self.spec.user_keys)),
+                )
+            self._note(list(self.spec.notes))
+            for mesh in self.spec.meshes:
+                if mesh.wall:
+                    self.setupWall(wtype="mesh", species=1, mesh=mesh.name)
+        except BaseException:
+            self.engine.close()
+            raise
 
     def _note(self, notes: list[str]) -> None:
         """Log what parsing changed in what the script gave (step counts truncated)."""
@@ -128,9 +167,23 @@ class DEM:
         peq: float | None = None,
         **kwargs: Any,
     ) -> Handle:
-        """A primitive wall (``plane='zplane', peq=0``, or a cylinder) or a mesh wall."""
+        """A primitive wall (``plane='zplane', peq=0``, or a cylinder) or a mesh wall. A mesh
+        that is a wall already gives its wall's handle (made anew for another species when
+        the mesh has no material of its own)."""
         request = {"wtype": wtype, "species": species, "plane": plane, "peq": peq, **kwargs}
-        return self.engine.setup_wall(calls.parse_wall(request, self.spec))
+        spec = calls.parse_wall(request, self.spec)
+        if spec.kind == "mesh" and spec.mesh in self._mesh_walls:
+            handle, made_with = self._mesh_walls[spec.mesh]
+            mesh = next(m for m in self.spec.meshes if m.name == spec.mesh)
+            if handle in self.engine.handles:
+                if mesh.material or made_with == spec.species:
+                    self.engine.log("mesh %r is a wall already: its handle is returned", spec.mesh)
+                    return handle
+                self.engine.remove(handle)
+        handle = self.engine.setup_wall(spec)
+        if spec.kind == "mesh":
+            self._mesh_walls[spec.mesh] = (handle, spec.species)
+        return handle
 
     def moveMesh(self, name: str, **kwargs: Any) -> Handle:  # noqa: N802
         """Move mesh ``name``: ``rotate=True`` (``axis``, ``origin``, ``period`` or ``omega``),
@@ -166,8 +219,17 @@ class DEM:
         self._note(notes)
         self.engine.run(steps, dt, progress=progress)
 
-    def remove(self, handle: Handle | Monitor) -> None:
-        """Remove an insertion, wall, mesh motion, force or monitor."""
+    def remove(self, handle: Handle | Monitor | str) -> None:
+        """Remove an insertion, wall, mesh motion, force or monitor; a mesh's name removes
+        its wall (PyGran 1.x's ``remove('hopper')``)."""
+        if isinstance(handle, str):
+            wall = self._mesh_walls.get(handle)
+            if wall is None or wall[0] not in self.engine.handles:
+                names = [m.name for m in self.spec.meshes]
+                raise ConfigError(
+                    f"remove({handle!r}): no mesh wall of that name; meshes: {', '.join(names) or 'none'}"
+                )
+            handle = wall[0]
         self.engine.remove(handle)
 
     def extractCoords(self) -> np.ndarray:  # noqa: N802

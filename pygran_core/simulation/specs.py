@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from pygran_core import params as materials
 from pygran_core.errors import ConfigError, unknown_key
@@ -308,8 +309,33 @@ def parse_species(value: Any, index: int) -> Species:
 
 
 @dataclass(frozen=True)
+class ServoSpec:
+    """A servo wall (``mtype='mesh/surface/stress/servo'``, LIGGGHTS' servo mesh module): the
+    mesh moves along ``axis`` (``control='force'``; rotates about it through ``com`` for
+    ``'torque'``) at up to ``vel_max`` m/s so that the force (N) or torque (N m) the particles
+    exert on it along the axis comes to ``target``. ``com`` is the reference point (its
+    centre of mass) in the placed mesh's frame. The controller is LIGGGHTS': PID with gains
+    ``kp``, ``ki``, ``kd`` (LIGGGHTS' defaults 0.01, 0, 0), or ``mode='auto'`` with ``ratio``.
+    """
+
+    com: Vector
+    control: str
+    axis: Vector
+    target: float
+    vel_max: float
+    kp: float = 0.01
+    ki: float = 0.0
+    kd: float = 0.0
+    mode: str = "pid"
+    ratio: float | None = None
+
+
+@dataclass(frozen=True)
 class MeshSpec:
-    """A triangle-mesh wall read from an STL file, placed by ``scale``, ``rotate``, ``translate``."""
+    """A triangle-mesh wall read from an STL file and placed: its points ``p`` become
+    ``scale * R p + translate``, ``R`` the rotation by ``rotate = (axis, angle in degrees)``
+    about the origin. ``wall``: a wall from the first run (PyGran 1.x's ``'import'``);
+    ``servo``: the servo settings of a ``mesh/surface/stress/servo`` mesh."""
 
     name: str
     file: Path
@@ -318,6 +344,8 @@ class MeshSpec:
     scale: float = 1.0
     rotate: tuple[Vector, float] | None = None  # (axis, angle in degrees)
     translate: Vector = (0.0, 0.0, 0.0)
+    wall: bool = True
+    servo: ServoSpec | None = None
 
     def triangles(self) -> np.ndarray:
         """The mesh's triangles ``(T, 3, 3)`` in place: scaled, rotated about the origin, then
@@ -327,76 +355,227 @@ class MeshSpec:
         frame = open_trajectory(self.file, format="stl", scale=self.scale).read_frame(0)
         points, cells = frame.arrays["points"], frame.arrays["cells"]
         if self.rotate is not None:
-            axis, degrees = self.rotate
-            k = np.asarray(axis, float) / np.linalg.norm(axis)
-            cross = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-            angle = math.radians(degrees)
-            rotation = np.eye(3) + math.sin(angle) * cross + (1 - math.cos(angle)) * cross @ cross
-            points = points @ rotation.T
+            points = points @ rotation_matrix(*self.rotate).T
         return points[cells[:, :3]] + np.asarray(self.translate)
 
 
-MESH_KEYS = ("file", "material", "mtype", "args", "scale", "rotate", "translate", "move", "import")
+MESH_KEYS = ("file", "material", "mtype", "args", "import", "scale", "rotate", "translate", "move")
 MESH_TYPES = ("mesh/surface", "mesh/surface/stress", "mesh/surface/stress/servo")
+#: The placement keywords of a mesh's ``args``, applied in the order written (LIGGGHTS'
+#: ``fix mesh/surface`` keywords): ``move dx dy dz``, ``scale s``, ``rotate axis ax ay az angle a``.
+PLACEMENT_KEYS = ("move", "scale", "rotate")
+#: The servo keywords of a ``mesh/surface/stress/servo`` mesh's ``args`` and how many values each takes.
+SERVO_KEYS = {
+    "com": 3,
+    "ctrlPV": 1,
+    "axis": 3,
+    "target_val": 1,
+    "vel_max": 1,
+    "kp": 1,
+    "ki": 1,
+    "kd": 1,
+    "mode": 1,
+    "ratio": 1,
+}
 
 
-def _mesh_args(args: Any, name: str) -> dict[str, Any]:
-    """Placement from ``args``: a dict, or LIGGGHTS words such as ``('scale 1e-3', 'move 0 0 1')``."""
+def rotation_matrix(axis: Sequence[float], degrees: float) -> np.ndarray:
+    """The right-handed rotation by ``degrees`` about ``axis`` (Rodrigues' formula)."""
+    k = np.asarray(axis, float) / np.linalg.norm(axis)
+    cross = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    angle = math.radians(degrees)
+    return np.eye(3) + math.sin(angle) * cross + (1 - math.cos(angle)) * cross @ cross
+
+
+def _words(args: Any, name: str) -> list[Any]:
+    """A mesh's ``args`` as one list of LIGGGHTS words, in the order written: a dict
+    (``{'scale': 1e-3, 'rotate': ('axis', 0, 1, 0, 'angle', 90), 'move': (0, 0, 1)}``),
+    strings (``('scale 1e-3', 'move 0 0 1')``) or a mix of strings and numbers."""
     if isinstance(args, Mapping):
-        return dict(args)
-    words = " ".join(args if not isinstance(args, str) else [args]).split()
-    found: dict[str, Any] = {}
+        items: list[Any] = []
+        for key, value in args.items():
+            items.append(key)
+            if isinstance(value, (str, bytes)) or not isinstance(value, Sequence):
+                value = [value]
+            for item in value:  # the top-level-rotate form (axis, angle) nests a vector
+                items.extend(item if isinstance(item, Sequence) and not isinstance(item, str) else [item])
+        args = items
+    elif isinstance(args, str) or not isinstance(args, Sequence):
+        args = [args]
+    words: list[Any] = []
+    for item in args:
+        if isinstance(item, str):
+            words.extend(item.split())
+        elif isinstance(item, Real) and not isinstance(item, bool):
+            words.append(item)
+        else:
+            raise ConfigError(
+                f"mesh {name!r} args: {item!r} is neither a keyword nor a number; give args as a dict "
+                "such as {'scale': 1e-3, 'move': (0, 0, 0.01)} or LIGGGHTS words ('scale 1e-3', ...)"
+            )
+    return words
+
+
+def _numbers(words: list[Any], start: int, count: int, name: str, key: str) -> tuple[float, ...]:
+    values = words[start : start + count]
+    try:
+        numbers = tuple(float(w) for w in values)
+    except (TypeError, ValueError):
+        numbers = ()
+    if len(numbers) != count or not all(math.isfinite(v) for v in numbers):
+        raise ConfigError(
+            f"mesh {name!r} args: {key!r} takes {count} number(s), got {values!r}"
+            + (" (LIGGGHTS' form: rotate axis ax ay az angle degrees)" if key == "rotate" else "")
+        )
+    return numbers
+
+
+def parse_placement(args: Any, name: str, servo: bool) -> tuple[list[tuple[Any, ...]], dict[str, Any]]:
+    """Read a mesh's ``args``: the placement steps ``('move', v)``, ``('scale', s)``,
+    ``('rotate', axis, degrees)`` in the order written, and the servo keywords (allowed
+    when ``servo``). Any other keyword is a :class:`ConfigError` naming it."""
+    words = _words(args, name)
+    known = PLACEMENT_KEYS + (tuple(SERVO_KEYS) if servo else ())
+    steps: list[tuple[Any, ...]] = []
+    servo_values: dict[str, Any] = {}
     i = 0
     while i < len(words):
         key = words[i]
-        if key not in ("scale", "move", "translate", "rotate"):
-            raise unknown_key(f"mesh {name!r} argument", key, ("scale", "move", "rotate"))
-        try:
-            if key == "scale":
-                found["scale"], i = float(words[i + 1]), i + 2
-            elif key in ("move", "translate"):
-                found["translate"], i = tuple(float(w) for w in words[i + 1 : i + 4]), i + 4
-            else:  # LIGGGHTS: rotate axis ax ay az angle a
-                found["rotate"], i = (
-                    (tuple(float(w) for w in words[i + 2 : i + 5]), float(words[i + 6])),
-                    i + 7,
+        if key == "translate":
+            key = "move"
+        if not isinstance(key, str) or key not in known:
+            if isinstance(key, str) and key in SERVO_KEYS:
+                raise ConfigError(
+                    f"mesh {name!r} args: {key!r} is a servo keyword; it needs "
+                    "mtype='mesh/surface/stress/servo'"
                 )
-        except (IndexError, ValueError):
-            raise ConfigError(f"mesh {name!r}: cannot read {key!r} from args {args!r}") from None
-    return found
+            raise unknown_key(f"mesh {name!r} argument", str(key), known)
+        if key == "move":
+            steps.append(("move", _numbers(words, i + 1, 3, name, key)))
+            i += 4
+        elif key == "scale":
+            (factor,) = _numbers(words, i + 1, 1, name, key)
+            if factor <= 0:
+                raise ConfigError(f"mesh {name!r} args: scale must be > 0, got {factor}")
+            steps.append(("scale", factor))
+            i += 2
+        elif key == "rotate":
+            if words[i + 1 : i + 2] != ["axis"] or words[i + 5 : i + 6] != ["angle"]:
+                raise ConfigError(
+                    f"mesh {name!r} args: rotate is ('axis', ax, ay, az, 'angle', degrees), got "
+                    f"{words[i + 1 : i + 7]!r}"
+                )
+            axis = _numbers(words, i + 2, 3, name, key)
+            if not any(axis):
+                raise ConfigError(f"mesh {name!r} args: the rotation axis must not be zero")
+            steps.append(("rotate", axis, _numbers(words, i + 6, 1, name, key)[0]))
+            i += 7
+        else:
+            count = SERVO_KEYS[key]
+            values = words[i + 1 : i + 1 + count]
+            if key not in ("ctrlPV", "mode"):
+                values = list(_numbers(words, i + 1, count, name, key))
+            elif len(values) != 1:
+                raise ConfigError(f"mesh {name!r} args: {key!r} takes one word")
+            servo_values[key] = values if count > 1 else values[0]
+            i += 1 + count
+    return steps, servo_values
+
+
+def compose(steps: list[tuple[Any, ...]]) -> tuple[float, tuple[Vector, float] | None, Vector]:
+    """``(scale, rotate, translate)`` equal to the placement ``steps`` applied in order: a
+    uniform scale commutes with rotations, so any order comes to ``p -> s R p + t``."""
+    scale, rotation, shift = 1.0, np.eye(3), np.zeros(3)
+    for step in steps:
+        if step[0] == "move":
+            shift = shift + np.asarray(step[1])
+        elif step[0] == "scale":
+            scale, shift = scale * step[1], shift * step[1]
+        else:
+            turn = rotation_matrix(step[1], step[2])
+            rotation, shift = turn @ rotation, turn @ shift
+    turns = [step for step in steps if step[0] == "rotate"]
+    if len(turns) == 1:  # as given, to the last digit
+        rotate: tuple[Vector, float] | None = (turns[0][1], turns[0][2])
+    else:
+        vector = Rotation.from_matrix(rotation).as_rotvec()
+        angle = float(np.linalg.norm(vector))
+        rotate = None if angle < 1e-12 else (tuple(float(v) for v in vector / angle), math.degrees(angle))  # type: ignore[assignment]
+    return scale, rotate, tuple(float(v) for v in shift)  # type: ignore[return-value]
+
+
+def parse_servo(values: Mapping[str, Any], name: str) -> ServoSpec:
+    """The servo settings of mesh ``name`` from its ``args`` (LIGGGHTS' keywords)."""
+    missing = [key for key in ("com", "ctrlPV", "axis", "target_val", "vel_max") if key not in values]
+    if missing:
+        raise ConfigError(
+            f"mesh {name!r} is a servo wall (mesh/surface/stress/servo): give {', '.join(missing)} in its "
+            "args, e.g. {'com': (0, 0, 0.01), 'ctrlPV': 'force', 'axis': (0, 0, -1), 'target_val': 5.0, "
+            "'vel_max': 0.1}"
+        )
+    axis = np.asarray(values["axis"], float)
+    if not np.linalg.norm(axis) > 0:
+        raise ConfigError(f"mesh {name!r}: the servo axis must not be zero")
+    target = values["target_val"]
+    if target == 0:
+        raise ConfigError(f"mesh {name!r}: the servo target_val (force or torque) must not be 0")
+    mode = one_of(values.get("mode", "pid"), f"mesh {name!r} servo mode", ("pid", "auto"))
+    gains = {k: values.get(k, ServoSpec.__dataclass_fields__[k].default) for k in ("kp", "ki", "kd")}
+    ratio = values.get("ratio")
+    if mode == "auto" and not (ratio is not None and ratio > 0):
+        raise ConfigError(f"mesh {name!r}: the servo mode 'auto' needs ratio > 0")
+    if mode == "pid" and (min(gains.values()) < 0 or not any(gains.values())):
+        raise ConfigError(f"mesh {name!r}: the servo gains kp, ki, kd must be >= 0, not all 0; got {gains}")
+    return ServoSpec(
+        com=tuple(values["com"]),  # type: ignore[arg-type]
+        control=one_of(values["ctrlPV"], f"mesh {name!r} servo ctrlPV", ("force", "torque")),
+        axis=tuple(float(a) for a in axis / np.linalg.norm(axis)),  # type: ignore[arg-type]
+        target=float(target),
+        vel_max=positive_float(values["vel_max"], f"mesh {name!r} servo vel_max"),
+        mode=mode,
+        ratio=ratio,
+        **gains,
+    )
 
 
 def parse_mesh(name: str, value: Any, base: Path) -> MeshSpec:
+    """A mesh of ``mesh={name: value}``: ``file``, ``material``, ``mtype``, ``args`` (placement
+    and servo keywords, see :func:`parse_placement`) and ``import`` (``False``: not a wall
+    until ``setupWall(wtype='mesh', mesh=name)``); ``scale``, ``rotate``, ``move`` may also
+    stand beside ``args``, applied after it."""
     if not isinstance(value, Mapping):
         raise ConfigError(f"mesh {name!r} must be a dict with keys such as 'file' and 'material'")
     check_keys(f"mesh {name!r} keyword", value, MESH_KEYS)
     if "file" not in value:
         raise ConfigError(f"mesh {name!r} needs 'file' (an STL file)")
+    if not isinstance(value["file"], (str, os.PathLike)):
+        raise ConfigError(f"mesh {name!r}: 'file' must be a path to an STL file, got {value['file']!r}")
     path = Path(value["file"])
     path = path if path.is_absolute() else base / path
     if not path.is_file():
         raise ConfigError(f"mesh {name!r}: file {path} does not exist")
-    placement = {
-        **_mesh_args(value.get("args", {}), name),
-        **{k: value[k] for k in ("scale", "rotate", "translate") if k in value},
-    }
-    if "move" in value:
-        placement["translate"] = value["move"]
-    rotate = placement.get("rotate")
-    if rotate is not None:
-        axis, angle = rotate
-        rotate = (
-            number_tuple(axis, f"mesh {name!r} rotate axis"),
-            finite_number(angle, f"mesh {name!r} rotate angle"),
+    mtype = one_of(value.get("mtype", "mesh/surface"), f"mesh {name!r} mtype", MESH_TYPES)
+    servo = mtype.endswith("/servo")
+    steps, servo_values = parse_placement(value.get("args", ()), name, servo)
+    for key in ("scale", "rotate", "translate", "move"):
+        if key in value:
+            steps += parse_placement({key: value[key]}, name, servo=False)[0]
+    scale, rotate, translate = compose(steps)
+    wall = value.get("import", True)
+    if not isinstance(wall, bool):
+        raise ConfigError(
+            f"mesh {name!r}: 'import' is True (a wall from the first run) or False, got {wall!r}"
         )
     return MeshSpec(
         name=name,
         file=path,
         material=materials.validate(value.get("material", {})) if "material" in value else {},
-        mtype=one_of(value.get("mtype", "mesh/surface"), f"mesh {name!r} mtype", MESH_TYPES),
-        scale=positive_float(placement.get("scale", 1.0), f"mesh {name!r} scale"),
+        mtype=mtype,
+        scale=scale,
         rotate=rotate,
-        translate=number_tuple(placement.get("translate", (0, 0, 0)), f"mesh {name!r} translate"),
+        translate=translate,
+        wall=wall,
+        servo=parse_servo(servo_values, name) if servo else None,
     )
 
 
