@@ -159,3 +159,41 @@ def test_events_split_the_run_and_monitors_sample(tmp_path):
     engine.run(40)
     assert len(monitor.values["step"]) == 4
     engine.close()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("id", "x", "radiuss"), r"unknown column\(s\) \['radiuss'\]. Did you mean 'radius'?"),
+        (
+            "id type x",
+            r"unknown column\(s\) \['i', 'd', ' ', 't', 'p', 'e'\]. A string was split into letters",
+        ),
+    ],
+)
+def test_unknown_trajectory_columns_are_refused(tmp_path, args, message):
+    with pytest.raises(ConfigError, match="traj args: " + message):
+        CountingEngine(tmp_path, traj={"pfile": "traj.dump", "args": args})
+
+
+def test_trajectory_frames_hold_the_selected_species_in_the_given_order(tmp_path):
+    columns = ("x", "type", "id", "vz")
+    with CountingEngine(tmp_path, traj={"pfile": None, "args": columns, "sel": 1}) as engine:
+        frame = engine._frame()
+        assert tuple(frame.arrays) == columns
+        np.testing.assert_array_equal(frame.arrays["type"], [1])  # of types 0 and 1
+        np.testing.assert_array_equal(frame.arrays["id"], [1])
+
+
+def test_set_refuses_ids_no_particle_has(tmp_path):
+    from pygran_core.simulation.calls import parse_set
+
+    with CountingEngine(
+        tmp_path, species=({"material": {"youngsModulus": 1e7, "density": 1e3}, "radius": 1e-3},)
+    ) as engine:
+        request = parse_set({"ids": (1, 99), "vel": (0, 0, 1)}, engine.spec)
+        with pytest.raises(
+            ConfigError, match=r"set/velocity ids: no particle has id 99 \(the simulation has 2"
+        ):
+            engine.set_properties(request)
+        assert engine._calls == []  # refused before anything was recorded

@@ -27,9 +27,11 @@ from pygran_core.errors import (
     ConfigError,
     EngineError,
     LostParticlesWarning,
+    PyGranError,
     ReadError,
     TimeStepWarning,
     UnsupportedFeature,
+    did_you_mean,
 )
 from pygran_core.simulation.checkpoint import (
     Checkpoint,
@@ -65,11 +67,23 @@ MODEL_CAPABILITY = {
 }
 #: Per-particle quantities ``extract`` knows, with their shape per particle.
 EXTRACTABLE = {"x": 3, "v": 3, "omega": 3, "f": 3, "torque": 3, "radius": 1, "mass": 1, "id": 1, "type": 1}
+#: Trajectory columns (``traj`` ``args``) of the quantities of :data:`EXTRACTABLE`.
+TRAJ_VECTORS = {
+    "x": ("x", "y", "z"),
+    "v": ("vx", "vy", "vz"),
+    "f": ("fx", "fy", "fz"),
+    "omega": ("omegax", "omegay", "omegaz"),
+    "torque": ("tqx", "tqy", "tqz"),
+}
+TRAJ_SCALARS = ("id", "type", "radius", "mass")
+TRAJ_COLUMNS = frozenset(TRAJ_SCALARS).union(*TRAJ_VECTORS.values())
 #: The faces of the domain, as lost particles and :meth:`Engine.expect_outflow` name them.
 FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
 #: Lost particles faster than this many times what the simulation explains (the
 #: characteristic velocity, the speeds given, a fall across the box) point to an instability.
 FAST_FACTOR = 10.0
+#: How deep (a fraction of the smaller radius) particles created at given positions may overlap.
+CREATE_OVERLAP_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -186,7 +200,12 @@ class Engine(abc.ABC):
         self._log_handler = logging.FileHandler(self.output / LOG_NAME, encoding="utf-8")
         self._log_handler.setFormatter(logging.Formatter(_LOG_FORMAT))
         self.log("%s engine opened, output in %s", self.name, self.output)
-        self._check_spec(spec)
+        try:
+            self._check_spec(spec)
+        except PyGranError as exc:
+            self._to_file(logging.ERROR, f"refused: {exc}")
+            self._log_handler.close()
+            raise
         #: ``[call, result]`` for every call that changed the simulation, in order.
         self._calls: list[list[Any]] = []
         self._resume: Checkpoint | None = None
@@ -219,6 +238,24 @@ class Engine(abc.ABC):
             self.require("mpi", "several MPI ranks (nSim, nprocs)")
         if spec.threads not in (None, 1):
             self.require("threads", "threads")
+        unknown = list(dict.fromkeys(c for c in spec.traj.args if c not in TRAJ_COLUMNS))
+        if unknown:
+            hint = (
+                " A string was split into letters: give a sequence of names such as ('id', 'x', 'y', 'z')."
+                if all(len(str(c)) <= 1 for c in spec.traj.args)
+                else did_you_mean(str(unknown[0]), TRAJ_COLUMNS)
+            )
+            known = ", ".join(sorted(TRAJ_COLUMNS))
+            raise ConfigError(f"traj args: unknown column(s) {unknown}.{hint} Known columns: {known}.")
+        for species in spec.species:
+            if species.style == "multisphere":
+                self.require("multisphere", "multisphere particles")
+            if species.radius.kind != "constant":
+                self.require("polydisperse", "size distributions")
+            if species.material.get("cohesionEnergyDensity", 0) > 0:
+                self.require("cohesion", "cohesion")
+            if species.material.get("coefficientRollingFriction", 0) > 0:
+                self.require("rolling-friction", "rolling friction")
 
     # -- common behaviour ------------------------------------------------------------
 
@@ -230,13 +267,15 @@ class Engine(abc.ABC):
         if self._logger.isEnabledFor(level):
             self._logger.handle(record)
 
-    def _warn(self, message: str, category: type[Warning]) -> None:
-        """Issue a warning at the user's line, recorded in ``pygran.log`` (not logged twice
-        on the console)."""
-        record = self._logger.makeRecord(
-            self._logger.name, logging.WARNING, __file__, 0, "%s", (message,), None
-        )
+    def _to_file(self, level: int, message: str) -> None:
+        """Record ``message`` in ``pygran.log`` only: what is also raised or warned, so that it
+        does not reach the console twice."""
+        record = self._logger.makeRecord(self._logger.name, level, __file__, 0, "%s", (message,), None)
         self._log_handler.handle(record)
+
+    def _warn(self, message: str, category: type[Warning]) -> None:
+        """Issue a warning at the user's line, recorded in ``pygran.log``."""
+        self._to_file(logging.WARNING, message)
         warnings.warn(message, category, stacklevel=_user_stacklevel())
 
     def require(self, capability: str, what: str | None = None) -> None:
@@ -308,8 +347,15 @@ class Engine(abc.ABC):
         return handle
 
     def create_particles(self, spec: CreateSpec) -> int:
-        """Create particles now; returns how many were created."""
+        """Create particles now; returns how many were created.
+
+        Particles created at given positions (``'single'``) must not overlap each other or
+        the particles present (by more than :data:`CREATE_OVERLAP_TOLERANCE` of the smaller
+        radius): they would repel at high speed.
+        """
         self._check_open()
+        if spec.style == "single" and not self.replaying:
+            self._check_clear(spec)
         recorded = self._journal(f"create {spec!r}")
         if self.replaying:
             return recorded
@@ -318,13 +364,62 @@ class Engine(abc.ABC):
         self.log("create %s: %d particles", spec, count)
         return count
 
+    def _check_clear(self, spec: CreateSpec) -> None:
+        """Refuse ``single`` positions that overlap each other or the particles present."""
+        from scipy.spatial import cKDTree
+
+        centres = spec.centres
+        radius = spec.radius or self.spec.species[spec.species - 1].radius.min
+        present, radii = self._extract("x").reshape(-1, 3), self._extract("radius")
+        finite = np.isfinite(present).all(axis=1)
+        present, radii = present[finite], radii[finite]
+        everything = np.vstack([present, centres])
+        sizes = np.concatenate([radii, np.full(len(centres), radius)])
+        reach = 2 * float(sizes.max())
+        pairs = cKDTree(everything).query_pairs(reach, output_type="ndarray")
+        pairs = pairs[pairs.max(axis=1) >= len(present)] if len(pairs) else pairs
+        if not len(pairs):
+            return
+        gap = np.linalg.norm(everything[pairs[:, 0]] - everything[pairs[:, 1]], axis=1)
+        overlap = sizes[pairs[:, 0]] + sizes[pairs[:, 1]] - gap
+        depth = overlap / np.minimum(sizes[pairs[:, 0]], sizes[pairs[:, 1]])
+        worst = int(np.argmax(depth))
+        if depth[worst] <= CREATE_OVERLAP_TOLERANCE:
+            return
+        a, b = sorted(pairs[worst])
+        other = (
+            f"the particle present at {tuple(np.round(everything[a], 12))}"
+            if a < len(present)
+            else f"the new one at {tuple(np.round(everything[a], 12))}"
+        )
+        pairs_in_all = int((depth > CREATE_OVERLAP_TOLERANCE).sum())
+        raise ConfigError(
+            f"createParticles position {tuple(np.round(everything[b], 12))} overlaps {other} by "
+            f"{100 * min(depth[worst], 2.0):.3g} % of the smaller radius ({pairs_in_all} overlapping "
+            "pairs in all): overlapping particles repel at high speed. Move the positions apart, at "
+            "least the sum of the radii."
+        )
+
     def set_properties(self, spec: SetSpec) -> int:
-        """Assign velocity, angular velocity and/or radius to the selected particles; returns how many."""
+        """Assign velocity, angular velocity and/or radius to the selected particles; returns how many.
+
+        ``ids`` that no particle has are a :class:`ConfigError`.
+        """
         self._check_open()
+        present = self._extract("id") if not self.replaying else np.zeros(0, np.int64)
+        if spec.ids is not None and not self.replaying:
+            missing = sorted(set(spec.ids) - set(present.tolist()))
+            if missing:
+                have = f"ids {present.min()} to {present.max()}" if len(present) else "no particles"
+                raise ConfigError(
+                    f"set/velocity ids: no particle has id {', '.join(map(str, missing[:10]))}"
+                    f"{' ...' if len(missing) > 10 else ''} "
+                    f"(the simulation has {len(present)} particles, {have})"
+                )
         recorded = self._journal(f"set {spec!r}")
         if self.replaying:
             return recorded
-        ids = spec.select(self._extract("id"), self._extract("type"), self._extract("x"))
+        ids = spec.select(present, self._extract("type"), self._extract("x"))
         if len(ids):
             self._assign(ids, spec)
         if spec.velocity is not None:
@@ -482,7 +577,7 @@ class Engine(abc.ABC):
             return
         if check.level == "error" and check_dt:
             message = f"{check.message()} Or pass check_dt=False to run() to run anyway."
-            self.log("run refused: %s", message, level=logging.ERROR)
+            self._to_file(logging.ERROR, f"run refused: {message}")
             raise ConfigError(message)
         if (dt, found) not in self._warned:
             self._warned.add((dt, found))
@@ -797,31 +892,28 @@ class Engine(abc.ABC):
         raise self._unsupported(f"the monitor quantity {quantity!r}")
 
     def _frame(self) -> Frame:
-        """The particles now, as a trajectory frame with the ``traj`` columns."""
+        """The particles now (those of species ``traj`` ``sel`` unless ``"all"``), as a
+        trajectory frame with the ``traj`` columns in their order."""
         from pygran_core.io import Frame
 
-        columns = {"id": "id", "type": "type", "radius": "radius", "mass": "mass"}
-        vectors = {
-            "x": ("x", "y", "z"),
-            "v": ("vx", "vy", "vz"),
-            "f": ("fx", "fy", "fz"),
-            "omega": ("omegax", "omegay", "omegaz"),
-            "torque": ("tqx", "tqy", "tqz"),
-        }
-        wanted = set(self.spec.traj.args)
+        traj = self.spec.traj
         arrays: dict[str, np.ndarray] = {}
-        for quantity, names in vectors.items():
-            if wanted & set(names):
+        for quantity, names in TRAJ_VECTORS.items():
+            if set(traj.args) & set(names):
                 values = self._extract(quantity)
-                arrays.update({n: values[:, i] for i, n in enumerate(names) if n in wanted})
-        for quantity, name in columns.items():
-            if name in wanted:
-                arrays[name] = self._extract(quantity)
-        order = [a for a in self.spec.traj.args if a in arrays]
+                arrays.update({n: values[:, i] for i, n in enumerate(names)})
+        for name in TRAJ_SCALARS:
+            if name in traj.args:
+                arrays[name] = self._extract(name)
+        chosen = slice(None) if traj.sel == "all" else self._extract("type") == traj.sel
         box = np.array(self.spec.domain.box, float)
         boundary = tuple(flag * 2 if len(flag) == 1 else flag for flag in self.spec.domain.boundary)
         return Frame(
-            {k: arrays[k] for k in order}, timestep=self.step, time=self.time, box=box, boundary=boundary
+            {name: arrays[name][chosen] for name in traj.args},
+            timestep=self.step,
+            time=self.time,
+            box=box,
+            boundary=boundary,
         )
 
     def _mesh_frame(self) -> Frame:
