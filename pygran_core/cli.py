@@ -157,17 +157,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    """Physics checks of an engine against closed forms, as a table; non-zero exit on a failure."""
+    """Physics checks of an engine against closed forms, as a table and a summary line;
+    non-zero exit when a check failed or none could run."""
     from pygran_core import validation
+    from pygran_core.simulation.dem import resolve_engine
 
+    engine = resolve_engine(args.engine)
     results = validation.run_validation(
-        args.engine,
+        engine,
         checks=args.check,
         output=args.output,
         progress=lambda name: print(f"checking {name} ...", file=sys.stderr),
     )
     print(validation.format_table(results))
-    return validation.exit_status(results)
+    status = validation.exit_status(results)
+    line = validation.summary(results, engine)
+    print(f"pygran: error: {line}" if status else line, file=sys.stderr if status else sys.stdout)
+    return status
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -21,10 +21,11 @@ packing      the settle benchmark with 6 x 6 x 10 spheres: bulk packing fraction
 ===========  ======================================================================  =========
 
 A model or feature the engine lacks makes its rows ``unsupported`` (the engine raised
-:class:`~pygran_core.errors.UnsupportedFeature`), which is not a failure; any other PyGran
-error in a simulation is a failed row whose notes say what happened.
+:class:`~pygran_core.errors.UnsupportedFeature`), which is not a failure unless no row could
+run at all; any other PyGran error in a simulation is a failed row whose notes say what
+happened.
 
-Use :func:`run_validation`, then :func:`format_table` and :func:`exit_status`. The scenario
+Use :func:`run_validation`, then :func:`format_table`, :func:`summary` and :func:`exit_status`. The scenario
 functions (:func:`wall_impact`, :func:`rolling_speed_ratio`, :func:`energy_drift`,
 :func:`settle`) return the measured numbers and are shared with the cross-engine tests.
 """
@@ -545,5 +546,21 @@ def format_table(results: Sequence[CheckResult]) -> str:
 
 
 def exit_status(results: Iterable[CheckResult]) -> int:
-    """1 if any check failed, else 0 (unsupported checks do not fail)."""
-    return int(any(r.passed is False for r in results))
+    """1 if any check failed or none could run (every row unsupported), else 0: an
+    unsupported check alone is not a failure."""
+    outcomes = [r.passed for r in results]
+    return int(False in outcomes or all(o is None for o in outcomes))
+
+
+def summary(results: Sequence[CheckResult], engine: str) -> str:
+    """One line on the rows: how many passed, failed and were unsupported, or that none ran."""
+    counts = {status: sum(r.status == status for r in results) for status in ("pass", "FAIL", "unsupported")}
+    if counts["unsupported"] == len(results):
+        return (
+            f"no check could run on the {engine} engine: all {len(results)} rows need a feature it lacks "
+            "(see the notes), so nothing was validated"
+        )
+    return (
+        f"{counts['pass']} passed, {counts['FAIL']} failed, {counts['unsupported']} unsupported "
+        f"on the {engine} engine"
+    )

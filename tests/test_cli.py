@@ -39,6 +39,7 @@ def test_validate_prints_a_table_and_exits_zero_when_every_check_passes():
     assert rows[0].split()[:4] == ["check", "expected", "obtained", "tolerance"]
     assert [r.split()[0:3] for r in rows[1:3]] == [["Hertz", "contact", "time"], ["Hertz", "max", "overlap"]]
     assert all(" pass" in r for r in rows[1:3])
+    assert rows[3] == "2 passed, 0 failed, 0 unsupported on the native engine"
 
 
 def test_validate_rejects_unknown_checks():

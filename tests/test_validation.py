@@ -88,15 +88,29 @@ def test_hertz_closed_forms_match_the_reference_model():
     )
 
 
-def test_an_engine_without_the_models_reports_unsupported_not_failed(with_plugins, tmp_path):
+def test_an_engine_without_the_models_reports_unsupported_and_fails_when_nothing_ran(with_plugins, tmp_path):
     with_plugins("pygran-toy")  # point masses: spring-dashpot only, no walls
     results = validation.run_validation("toy", checks=["restitution", "packing"], output=tmp_path)
     assert [r.passed for r in results] == [None] * 4
     assert all(r.unsupported and r.obtained is None for r in results)
     assert results[0].notes.startswith("The toy engine does not support plane walls")
     assert "does not support the HertzMindlin contact model" in results[1].notes
-    assert validation.exit_status(results) == 0
     assert validation.format_table(results).count(" unsupported ") == 4
+    assert validation.exit_status(results) == 1  # nothing was validated
+    assert validation.summary(results, "toy") == (
+        "no check could run on the toy engine: all 4 rows need a feature it lacks (see the notes), "
+        "so nothing was validated"
+    )
+
+
+def test_validate_command_fails_when_no_check_could_run(with_plugins, capsys):
+    from pygran_core.cli import main
+
+    with_plugins("pygran-toy")
+    assert main(["validate", "--engine", "toy", "--check", "restitution"]) == 1
+    out, err = capsys.readouterr()
+    assert out.count(" unsupported ") == 3
+    assert "pygran: error: no check could run on the toy engine: all 3 rows" in err
 
 
 def test_pass_fail_and_unsupported_rows():
@@ -109,6 +123,8 @@ def test_pass_fail_and_unsupported_rows():
     assert [r.passed for r in rows] == [True, False, False, None]
     assert [r.status for r in rows] == ["pass", "FAIL", "FAIL", "unsupported"]
     assert validation.exit_status(rows) == 1 and validation.exit_status(rows[::3]) == 0
+    assert validation.exit_status(rows[3:]) == 1 and validation.exit_status([]) == 1
+    assert validation.summary(rows, "x") == "1 passed, 2 failed, 1 unsupported on the x engine"
 
 
 def test_table_keeps_rows_on_one_line_and_long_notes_below():
