@@ -263,6 +263,73 @@ def test_mesh_import_and_servo_keywords():
             spec(mesh={"w": {"file": side, **mesh}})
 
 
+def test_mesh_motion_in_liggghts_move_mesh_forms():
+    s = spec(mesh={"impeller": {"file": str(DATA / "meshes" / "valve.stl"), "args": {"scale": 1e-3}}})
+    original = calls.parse_motion(
+        "impeller", {"rotate": ("origin", 1e-3, 0, 0), "axis": (0, 0, 2), "period": 5e-2}, s
+    )
+    assert (original.kind, original.origin, original.axis) == ("rotate", (1e-3, 0, 0), (0, 0, 1))
+    assert original.omega == pytest.approx(2 * math.pi / 5e-2)
+    words = calls.parse_motion("impeller", {"rotate": "origin 0.001 0 0 axis 0 0 1 period 0.05"}, s)
+    assert words == original
+    assert (
+        calls.parse_motion("impeller", {"rotate": True, "origin": (1e-3, 0, 0), "omega": -1.0}, s).omega == -1
+    )
+    wiggle = calls.parse_motion("impeller", {"wiggle": ("amplitude", 0, 0, 1e-4), "period": 0.01}, s)
+    assert (wiggle.amplitude, wiggle.period) == ((0, 0, 1e-4), 0.01)
+    assert (
+        calls.parse_motion("impeller", {"wiggle": True, "amplitude": (0, 0, 1e-4), "period": 0.01}, s)
+        == wiggle
+    )
+    # the original mixture demo: a plate tapped along z
+    viblin = calls.parse_motion(
+        "impeller",
+        {"viblin": ("axis", 0, 0, 1), "order": 1, "amplitude": 12.5e-6, "phase": 0, "period": 0.025},
+        s,
+    )
+    assert (viblin.axis, viblin.amplitudes, viblin.phases, viblin.periods) == (
+        (0, 0, 1),
+        (12.5e-6,),
+        (0,),
+        (0.025,),
+    )
+    vibrot = calls.parse_motion(
+        "impeller",
+        {
+            "vibrot": ("origin", 0, 0, 1e-3),
+            "axis": (1, 0, 0),
+            "order": 2,
+            "amplitude": (0.1, 0.05),
+            "phase": (0, 1),
+            "period": 0.1,
+        },
+        s,
+    )
+    assert (vibrot.origin, vibrot.amplitudes, vibrot.periods) == ((0, 0, 1e-3), (0.1, 0.05), (0.1, 0.1))
+    for kwargs, message in (
+        ({"rotate": ("origin", 0, 0, 0), "period": 0.1, "omega": 3}, "either period= \\(s\\) or omega="),
+        ({"rotate": ("origin", 0, 0), "period": 0.1}, "origin must be a sequence of 3"),
+        ({"rotate": ("origin", 0, 0, 0), "period": 0.1, "origin": (0, 0, 0)}, "'origin' is given twice"),
+        ({"rotate": (0, 0, 0), "period": 0.1}, "expected the forms"),
+        ({"rotate": ("origin", 0, 0, 0), "axes": (0, 0, 1), "period": 1}, "Did you mean 'axis'"),
+        (
+            {"wiggle": ("amplitude", 0, 0, 1), "period": 1, "axis": (0, 0, 1)},
+            "wiggle takes amplitude, period, not 'axis'",
+        ),
+        ({"linear": (0, 0, 1), "period": 1}, "takes no 'period'"),
+        (
+            {"viblin": ("axis", 0, 0, 1), "order": 2, "amplitude": 1e-5, "phase": 0, "period": 1},
+            "amplitude= with 2 value",
+        ),
+        ({"viblin": ("axis", 0, 0, 1), "order": 0.5, "amplitude": 1e-5, "phase": 0, "period": 1}, "order=n"),
+        ({"riggle": ("origin", 0, 0, 0)}, "Unknown moveMesh keyword 'riggle'"),
+        ({"linear": (0, 0, 1), "rotate": True, "period": 1}, "exactly one motion style"),
+        ({"rotate": ("origin", 0, None, 0), "period": 1}, "neither a keyword nor a number"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            calls.parse_motion("impeller", kwargs, s)
+
+
 def test_step_counts_may_be_floats_truncated_as_liggghts_does():
     s = spec(traj={"freq": 1e3}, restart=(5e3, "restart", "r.h5", False, None))
     assert (s.traj.freq, s.restart.freq, s.notes) == (1000, 5000, ())
@@ -382,7 +449,7 @@ def test_create_wall_motion_viscous_monitor_specs():
     assert calls.parse_motion("hopper", {"linear": (0, 0, -0.1)}, s).velocity == (0, 0, -0.1)
     with pytest.raises(ConfigError, match="Unknown mesh 'hoper'. Did you mean 'hopper'"):
         calls.parse_motion("hoper", {"linear": (0, 0, 1)}, s)
-    with pytest.raises(ConfigError, match="exactly one of"):
+    with pytest.raises(ConfigError, match="exactly one motion style"):
         calls.parse_motion("hopper", {}, s)
     assert calls.parse_viscous({"gamma": 0.1}, s).species == (1,)
     assert calls.parse_monitor({"quantities": "ke", "freq": 10}).quantities == ("ke",)

@@ -9,12 +9,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from numbers import Integral
+from numbers import Integral, Real
 from typing import Any
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, unknown_key
+from pygran_core.errors import ConfigError, did_you_mean, unknown_key
 from pygran_core.simulation.specs import (
     SimulationSpec,
     Vector,
@@ -379,9 +379,16 @@ def parse_wall(kwargs: Mapping[str, Any], spec: SimulationSpec) -> WallSpec:
 
 @dataclass(frozen=True)
 class MotionSpec:
-    """Rigid motion of a mesh: ``rotate`` about ``axis`` through ``origin`` with angular
-    speed ``omega`` (rad/s), ``linear`` at ``velocity``, or ``wiggle`` with ``amplitude``
-    (vector) and ``period`` (s)."""
+    """Rigid motion of a mesh, as LIGGGHTS' ``fix move/mesh`` styles, time ``t`` counted
+    from the ``moveMesh`` call:
+
+    - ``rotate`` about ``axis`` through ``origin`` at ``omega`` rad/s (right-handed);
+    - ``linear`` at ``velocity``;
+    - ``wiggle``: displacement ``amplitude * sin(2 pi t / period)`` (``amplitude`` a vector);
+    - ``viblin``: along the unit ``axis`` at the velocity
+      ``-sum_i amplitudes[i] * w_i * sin(w_i t + phases[i])``, ``w_i = 2 pi / periods[i]``;
+    - ``vibrot``: about ``axis`` through ``origin`` at that angular velocity (amplitudes in rad).
+    """
 
     mesh: str
     kind: str
@@ -391,46 +398,156 @@ class MotionSpec:
     velocity: Vector | None = None
     amplitude: Vector | None = None
     period: float | None = None
+    amplitudes: tuple[float, ...] = ()
+    phases: tuple[float, ...] = ()
+    periods: tuple[float, ...] = ()
+
+
+MOTION_STYLES = ("rotate", "linear", "wiggle", "viblin", "vibrot")
+#: The arguments of each style (``moveMesh`` keywords, or words inside the style's tuple).
+MOTION_ARGUMENTS = {
+    "rotate": ("origin", "axis", "period", "omega"),
+    "linear": (),
+    "wiggle": ("amplitude", "period"),
+    "viblin": ("axis", "order", "amplitude", "phase", "period"),
+    "vibrot": ("origin", "axis", "order", "amplitude", "phase", "period"),
+}
+FORMS = (
+    "rotate=('origin', x, y, z), axis=(ax, ay, az), period=s (or rotate=True, origin=..., omega=rad/s); "
+    "linear=(vx, vy, vz); wiggle=('amplitude', ax, ay, az), period=s; "
+    "viblin=('axis', ax, ay, az), order=n, amplitude=..., phase=..., period=...; "
+    "vibrot=('origin', x, y, z), axis=..., order=n, amplitude=..., phase=..., period=..."
+)
+
+
+def _motion_words(style: str, value: Any) -> dict[str, list[Any]]:
+    """The keyword/values pairs inside a style's value: ``('origin', 0, 0, 0)`` or LIGGGHTS
+    words such as ``'origin 0 0 0 axis 0 0 1 period 0.1'``; ``True`` holds none."""
+    if value is True:
+        return {}
+    items = value.split() if isinstance(value, str) else value
+    if not isinstance(items, Sequence) or not items or not isinstance(items[0], str) or _is_number(items[0]):
+        raise ConfigError(f"moveMesh {style}={value!r}: expected the forms {FORMS}")
+    words: dict[str, list[Any]] = {}
+    key = ""
+    for item in items:
+        if isinstance(item, str) and not _is_number(item):
+            key = item
+            if key in words:
+                raise ConfigError(f"moveMesh {style}: {key!r} is given twice in {value!r}")
+            words[key] = []
+        elif isinstance(item, Real) and not isinstance(item, bool) or isinstance(item, str):
+            words[key].append(float(item))
+        else:
+            raise ConfigError(f"moveMesh {style}: {item!r} in {value!r} is neither a keyword nor a number")
+    return words
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
 
 
 def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> MotionSpec:
+    """``moveMesh(name, ...)`` in LIGGGHTS' ``move/mesh`` terms (see :class:`MotionSpec`):
+    the style's keyword holds the style's first arguments (PyGran 1.x's
+    ``rotate=('origin', 0, 0, 0)``), the others follow as keywords (``axis=``, ``period=``)."""
     names = [m.name for m in spec.meshes]
     if mesh not in names:
         raise unknown_key("mesh", str(mesh), names)
     check_keys(
         "moveMesh keyword",
         kwargs,
-        ("rotate", "linear", "wiggle", "axis", "origin", "period", "omega", "velocity", "amplitude"),
+        MOTION_STYLES + ("origin", "axis", "period", "omega", "amplitude", "order", "phase"),
     )
-    kinds = [k for k in ("rotate", "linear", "wiggle") if kwargs.get(k)]
+    kinds = [k for k in MOTION_STYLES if k in kwargs and kwargs[k] is not False and kwargs[k] is not None]
     if len(kinds) != 1:
-        raise ConfigError("moveMesh needs exactly one of rotate=True, linear=(vx, vy, vz) or wiggle=True")
+        raise ConfigError(f"moveMesh needs exactly one motion style: {FORMS}")
     kind = kinds[0]
     if kind == "linear":
-        return MotionSpec(mesh, kind, velocity=number_tuple(kwargs["linear"], "linear velocity"))  # type: ignore[arg-type]
+        extra = [k for k in kwargs if k != "linear"]
+        if extra:
+            raise ConfigError(f"moveMesh(linear=(vx, vy, vz)) takes no {extra[0]!r}")
+        return MotionSpec(mesh, kind, velocity=number_tuple(kwargs["linear"], "moveMesh linear velocity"))  # type: ignore[arg-type]
+    given: dict[str, Any] = _motion_words(kind, kwargs[kind])
+    for key, value in kwargs.items():
+        if key == kind:
+            continue
+        if key in given:
+            raise ConfigError(f"moveMesh {kind}: {key!r} is given twice, inside {kind}= and as a keyword")
+        given[key] = value
+    allowed = MOTION_ARGUMENTS[kind]
+    for key in given:
+        if key not in allowed:
+            raise ConfigError(
+                f"moveMesh {kind} takes {', '.join(allowed)}, not {key!r}. The forms: {FORMS}"
+                + did_you_mean(key, allowed)
+            )
+
+    def vector(key: str, default: Any = None) -> Vector:
+        value = given.get(key, default)
+        if value is None:
+            raise ConfigError(f"moveMesh {kind} needs {key}=(x, y, z). The forms: {FORMS}")
+        return number_tuple(value, f"moveMesh {kind} {key}")  # type: ignore[return-value]
+
+    def direction(key: str, default: Any = None) -> Vector:
+        axis = np.array(vector(key, default))
+        if not np.linalg.norm(axis) > 0:
+            raise ConfigError(f"moveMesh {kind} {key} must not be zero")
+        return tuple(float(a) for a in axis / np.linalg.norm(axis))  # type: ignore[return-value]
+
+    def scalar(key: str) -> Any:
+        value = given.get(key)
+        if isinstance(value, Sequence) and not isinstance(value, str) and len(value) == 1:
+            value = value[0]
+        return value
+
     if kind == "wiggle":
         return MotionSpec(
             mesh,
             kind,
-            amplitude=number_tuple(kwargs.get("amplitude"), "amplitude"),  # type: ignore[arg-type]
-            period=positive_float(kwargs.get("period"), "period"),
+            amplitude=vector("amplitude"),
+            period=positive_float(scalar("period"), "moveMesh wiggle period"),
         )
-    if ("period" in kwargs) == ("omega" in kwargs):
-        raise ConfigError("moveMesh(rotate=True) needs either period= (s) or omega= (rad/s)")
-    omega = (
-        2 * math.pi / positive_float(kwargs["period"], "period")
-        if "period" in kwargs
-        else finite_number(kwargs["omega"], "omega")
-    )
-    axis = np.array(number_tuple(kwargs.get("axis", (0, 0, 1)), "axis"))
-    if not np.linalg.norm(axis) > 0:
-        raise ConfigError("moveMesh axis must not be zero")
+    if kind == "rotate":
+        if ("period" in given) == ("omega" in given):
+            raise ConfigError("moveMesh rotate needs either period= (s) or omega= (rad/s)")
+        omega = (
+            2 * math.pi / positive_float(scalar("period"), "moveMesh rotate period")
+            if "period" in given
+            else finite_number(scalar("omega"), "moveMesh rotate omega")
+        )
+        return MotionSpec(
+            mesh, kind, axis=direction("axis", (0, 0, 1)), origin=vector("origin", (0, 0, 0)), omega=omega
+        )
+    order = scalar("order")
+    if isinstance(order, bool) or not isinstance(order, Real) or order != int(order) or not 1 <= order <= 30:
+        raise ConfigError(f"moveMesh {kind} needs order=n, the number of harmonics (1 to 30), got {order!r}")
+    order = int(order)
+
+    def harmonics(key: str, positive: bool = False) -> tuple[float, ...]:
+        value = given.get(key)
+        values = [value] if isinstance(value, Real) else value
+        if key == "period" and isinstance(values, Sequence) and len(values) == 1:
+            values = list(values) * order  # one period for every harmonic
+        if isinstance(values, str) or not isinstance(values, Sequence) or len(values) != order:
+            raise ConfigError(
+                f"moveMesh {kind} needs {key}= with {order} value(s) (order={order}), got {value!r}"
+            )
+        check = positive_float if positive else finite_number
+        return tuple(check(v, f"moveMesh {kind} {key}") for v in values)
+
     return MotionSpec(
         mesh,
         kind,
-        axis=tuple(axis / np.linalg.norm(axis)),
-        origin=number_tuple(kwargs.get("origin", (0, 0, 0)), "origin"),  # type: ignore[arg-type]
-        omega=omega,
+        axis=direction("axis"),
+        origin=vector("origin", (0, 0, 0)) if kind == "vibrot" else (0.0, 0.0, 0.0),
+        amplitudes=harmonics("amplitude"),
+        phases=harmonics("phase"),
+        periods=harmonics("period", positive=True),
     )
 
 

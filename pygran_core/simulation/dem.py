@@ -186,9 +186,15 @@ class DEM:
         return handle
 
     def moveMesh(self, name: str, **kwargs: Any) -> Handle:  # noqa: N802
-        """Move mesh ``name``: ``rotate=True`` (``axis``, ``origin``, ``period`` or ``omega``),
-        ``linear=(vx, vy, vz)`` or ``wiggle=True`` (``amplitude``, ``period``)."""
-        return self.engine.move_mesh(calls.parse_motion(name, kwargs, self.spec))
+        """Move mesh ``name`` as LIGGGHTS' ``move/mesh`` styles (see :class:`~.calls.MotionSpec`):
+        ``rotate=('origin', x, y, z), axis=..., period=...`` (or ``rotate=True`` with
+        ``origin``, ``axis``, ``period`` or ``omega``), ``linear=(vx, vy, vz)``,
+        ``wiggle=('amplitude', ax, ay, az), period=...``, ``viblin=('axis', ax, ay, az),
+        order=n, amplitude=..., phase=..., period=...`` or ``vibrot=('origin', ...)`` likewise."""
+        spec = calls.parse_motion(name, kwargs, self.spec)
+        if spec.kind in ("viblin", "vibrot"):
+            self.engine.require("mesh-vibration", f"{spec.kind} mesh motion")
+        return self.engine.move_mesh(spec)
 
     # -- forces, monitors, raw commands ---------------------------------------------------
 
