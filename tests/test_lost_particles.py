@@ -47,14 +47,15 @@ def test_particles_falling_past_a_wall_outside_the_box_are_reported(engine, tmp_
             sim.run(8000)  # 80 ms: the top layer falls 3 cm, out of the 2 cm box
         (warning,) = caught
         text = str(warning.message)
-        fall = math.sqrt(2 * 9.81 * 0.018)  # the top layer's speed 18 mm below, at the box's floor
-        speed = sim.engine.last_lost.max_speed
         assert sim.engine.lost == count == 125 and sim.engine.last_lost.where == {"z-": 125}
-        # from the top layer's speed when it leaves (less one piece of the run: the last time
-        # PyGran saw it, on engines that do not report lost particles) to free fall for 80 ms
-        assert fall - 9.81 * 0.008 < speed < 9.81 * 0.08
         assert text.startswith("125 particles lost in the run from step 0 to 8000: 125 through z-")
-        assert f"they left at up to {speed:.3g} m/s through z-, where no wall holds them" in text
+        speed = sim.engine.last_lost.max_speed
+        if engine == "yade":  # reports the speed they left at: at least the top layer's after 18 mm
+            assert math.sqrt(2 * 9.81 * 0.018) < speed < 9.81 * 0.08
+            assert f"they left at up to {speed:.3g} m/s through z-, where no wall holds them" in text
+        else:  # found missing: where they were heading is known, their speed is not
+            assert speed is None and "does not report lost particles" in text
+            assert "they left through z-, where no wall holds them" in text
         assert "expect_outflow('z-')" in text and warning.filename == __file__
         assert text in (sim.output / "pygran.log").read_text()
         assert len(sim.extractCoords()) == 0
@@ -99,14 +100,15 @@ def test_particles_flying_out_of_a_walled_box_blame_the_time_step(engine, tmp_pa
     lost = sim.engine.last_lost
     given = max(np.linalg.norm(velocities, axis=1))
     assert lost.count == 64 and set(lost.where) <= {"x-", "x+", "y-", "y+", "z-", "z+"}
-    assert lost.max_speed > 10 * given
     assert [w.category for w in caught] == [TimeStepWarning, LostParticlesWarning]
     text = str(caught[1].message)
-    assert (
-        f"speeds up to {lost.max_speed:.3g} m/s, over 10 times the {given:.3g} m/s the simulation explains"
-        in text
-    )
-    assert "the time step is probably too large: dt = " in text and "1.0 times the contact time" in text
+    if engine == "yade":  # the speeds they left at
+        assert lost.max_speed > 10 * given
+        seen = f"speeds up to {lost.max_speed:.3g} m/s, over 10 times the {given:.3g} m/s the simulation"
+        assert f"{seen} explains: the time step is probably too large: dt = " in text
+    else:  # all found missing, none left to go by, so no speed: the faces, and the time-step check
+        assert "(a contact too short to resolve lets particles pass through walls): the time step is" in text
+    assert "1.0 times the contact time" in text
 
 
 class Vanishing(Engine):
@@ -146,22 +148,24 @@ class Vanishing(Engine):
 
 def test_an_engine_that_does_not_count_is_watched(tmp_path):
     x = [(0.5, 0.5, 0.5), (0.5, 0.9, 0.5), (0.5, 0.5, 0.9), (0.2, 0.5, 0.5), (0.5, 0.5, 0.5), (0.5, 0.5, 0.5)]
-    v = [(0, 0, 0), (0, 3.0, 0), (0, 0, 1.0), (-50.0, 0, 0), (0, 0, 0), (0, 0, 0)]
-    # piece 1 (0.1 s): 1 and 4 vanish without heading for a fixed face (4 moves along the
-    # periodic x axis), 2 heads out through y+, 3 through z+; piece 2: 5 turns non-finite
-    # and stays, 6 vanishes
+    v = [(0, 0, 0), (0, 3.0, 0), (0, 0, 1.0), (-50.0, 0, 0), (0, 0, 0), (40.0, 0, 0)]
+    # run 1 (0.1 s): 1 and 4 vanish without heading for a fixed face (4 moves along the
+    # periodic x axis), 2 heads out through y+, 3 through z+, and 6 is left far too fast;
+    # run 2: 5 turns non-finite and stays, 6 vanishes; run 3: nothing new
     losses = [([1, 2, 3, 4], []), ([6], [5]), ([], [])]
     with Vanishing(tmp_path, x, v, losses) as engine:
         engine.max_run_chunks = 1
         with pytest.warns(LostParticlesWarning) as caught:
             engine.run(10)
         assert engine.last_lost.where == {"unknown": 2, "y+": 1, "z+": 1}
-        assert engine.last_lost.max_speed == 50.0
-        assert "speeds up to 50 m/s, over 10 times the" in str(caught[0].message)
+        assert engine.last_lost.max_speed is None  # the speeds they left at are unknown
+        assert "speeds up to 40 m/s, over 10 times the 1 m/s the simulation explains" in str(
+            caught[0].message
+        )
         assert "does not report lost particles" in str(caught[0].message)
-        with pytest.warns(LostParticlesWarning):
+        with pytest.warns(LostParticlesWarning, match="1 became non-finite.*; non-finite positions"):
             engine.run(10)
-        assert engine.last_lost == LostParticles(2, {"unknown": 1, "non-finite": 1}, 0.0)
+        assert engine.last_lost == LostParticles(2, {"unknown": 1, "non-finite": 1})
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             engine.run(10)  # the non-finite particle is counted once

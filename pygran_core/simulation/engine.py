@@ -196,6 +196,8 @@ class Engine(abc.ABC):
         self._insert_specs: dict[int, InsertSpec] = {}  # by handle id: species that may appear
         self._speeds = 0.0  # the largest speed the script gave particles
         self._broken: set[int] = set()  # ids of non-finite particles counted by a _Watch
+        #: (species, smallest radius, more than one) of the particles present; None: read anew
+        self._present: tuple[tuple[int, float, bool], ...] | None = None
         self._logger = logging.getLogger(f"pygran.simulation.{self.name}")
         self._log_handler = logging.FileHandler(self.output / LOG_NAME, encoding="utf-8")
         self._log_handler.setFormatter(logging.Formatter(_LOG_FORMAT))
@@ -342,6 +344,7 @@ class Engine(abc.ABC):
             self.require("insert-by-rate", "insertion by rate")
         handle = self._call("insertion", self._insert, spec)
         self._insert_specs[handle.id] = spec
+        self._present = None
         spread = np.linalg.norm(spec.velocity.spread) * (3 if spec.velocity.kind == "gaussian" else 1)
         self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity.mean) + spread))
         return handle
@@ -360,6 +363,7 @@ class Engine(abc.ABC):
         if self.replaying:
             return recorded
         count = self._calls[-1][1] = self._create(spec)
+        self._present = None
         self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity)))
         self.log("create %s: %d particles", spec, count)
         return count
@@ -422,6 +426,7 @@ class Engine(abc.ABC):
         ids = spec.select(present, self._extract("type"), self._extract("x"))
         if len(ids):
             self._assign(ids, spec)
+            self._present = None
         if spec.velocity is not None:
             self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity)))
         self.log("set %s: %d particles", spec, len(ids))
@@ -464,6 +469,7 @@ class Engine(abc.ABC):
         self._journal(f"command {text}")
         self.log("command %s", text)
         self._command(text)
+        self._present = None
 
     def remove(self, handle: Handle) -> None:
         """Remove what ``handle`` refers to (an insertion, wall, mesh motion, force, monitor)."""
@@ -482,6 +488,7 @@ class Engine(abc.ABC):
         del self._handles[handle.id]
         self._wall_specs.pop(handle.id, None)
         self._insert_specs.pop(handle.id, None)
+        self._present = None
         self.log("remove %s %s", handle.kind, handle.label)
 
     # -- running -----------------------------------------------------------------------
@@ -541,12 +548,11 @@ class Engine(abc.ABC):
                 self._set_step(self.step + chunk)
                 bar.update(chunk)
                 self._on_event()
-                lost += (
-                    watch.update(chunk * self.dt)
-                    if watch is not None
-                    else self._lost_since_last() or LostParticles()
-                )
+                if watch is None:
+                    lost += self._lost_since_last() or LostParticles()
         assert self.step == end
+        if watch is not None:
+            lost = watch.finish()
         self._report_lost(lost, start, watch is not None)
 
     # -- the time step and lost particles ------------------------------------------------
@@ -586,17 +592,18 @@ class Engine(abc.ABC):
     def _time_step_limits(self) -> Limits | None:
         """The shortest Rayleigh and contact times of the contacts that can happen: between the
         species present (two particles of one) or being inserted, and of them with every
-        wall's material; cached by what they depend on."""
+        wall's material; cached by what they depend on. The particles present are read from
+        the engine only after a call or a run may have changed them (see :attr:`_present`)."""
         species = self.spec.species
-        types, radii = self._extract("type").astype(np.int64), self._extract("radius")
-        smallest: dict[int, float] = {}
-        counts: dict[int, int] = {}
-        for kind in np.unique(types):
-            if 1 <= kind <= len(species):
-                chosen = types == kind
-                smallest[int(kind)] = float(radii[chosen].min())
-                counts[int(kind)] = int(chosen.sum())
+        if self._present is None:
+            types, radii = self._extract("type").astype(np.int64), self._extract("radius")
+            kinds = [int(k) for k in np.unique(types) if 1 <= k <= len(species)]
+            self._present = tuple(
+                (k, float(radii[types == k].min()), int(np.count_nonzero(types == k)) > 1) for k in kinds
+            )
         coming = {k for insert in self._insert_specs.values() for k in insert.species}
+        smallest = {k: r for k, r, _ in self._present}
+        several = {k for k, _, many in self._present if many} | coming
         for kind in coming:
             smallest[kind] = min(smallest.get(kind, math.inf), species[kind - 1].radius.min)
         walls = {}
@@ -607,7 +614,7 @@ class Engine(abc.ABC):
             else:
                 walls[f"walls of species {wall.species}'s material"] = species[wall.species - 1].material
         key = (
-            tuple(sorted((k, r, counts.get(k, 0) > 1 or k in coming) for k, r in smallest.items())),
+            tuple(sorted((k, r, k in several) for k, r in smallest.items())),
             tuple(sorted(walls)),
         )
         if key not in self._limits:
@@ -616,10 +623,7 @@ class Engine(abc.ABC):
                 for k, r in smallest.items()
             }
             pairs = [
-                (bodies[a], bodies[b])
-                for a in bodies
-                for b in bodies
-                if a < b or (a == b and (counts.get(a, 0) > 1 or a in coming))
+                (bodies[a], bodies[b]) for a in bodies for b in bodies if a < b or (a == b and a in several)
             ]
             pairs += [
                 (body, Body(name, material)) for body in bodies.values() for name, material in walls.items()
@@ -634,6 +638,7 @@ class Engine(abc.ABC):
         if not lost.count:
             return
         self.lost += lost.count
+        self._present = None
         expected = sum(n for place, n in lost.where.items() if place in self._outflow)
         where = lost.places(self._outflow)
         how = (
@@ -661,7 +666,9 @@ class Engine(abc.ABC):
         self._warn(message, LostParticlesWarning)
 
     def _lost_cause(self, lost: LostParticles) -> str:
-        """The likely cause of ``lost``, from their speeds and the time-step check."""
+        """The likely cause of ``lost``: from their speeds and those of the particles left (an
+        instability throws both far faster than the simulation explains), non-finite values,
+        the time-step check, and the faces they left through."""
         check = self.time_step_check
         step = (
             f"the time step is probably too large: {check.times()}; use dt <= {check.limits.safe_dt:.2g} s"
@@ -672,16 +679,15 @@ class Engine(abc.ABC):
         fall = math.sqrt(2 * self.spec.gravity.magnitude * float(box.max())) if self.spec.gravity else 0.0
         materials = [s.material for s in self.spec.species]
         explained = max(self._speeds, fall, characteristic_speed(materials))
-        speed = lost.max_speed
-        fast = speed is not None and speed > FAST_FACTOR * explained
-        if fast or lost.where.get("non-finite") or (speed is None and step is not None):
+        remaining = np.linalg.norm(self._extract("v").reshape(-1, 3), axis=1)
+        fastest = max(lost.max_speed or 0.0, float(remaining[np.isfinite(remaining)].max(initial=0.0)))
+        fast = fastest > FAST_FACTOR * explained
+        if fast or lost.where.get("non-finite"):
             seen = (
-                f"speeds up to {speed:.3g} m/s, over {FAST_FACTOR:g} times the {explained:.3g} m/s the "
+                f"speeds up to {fastest:.3g} m/s, over {FAST_FACTOR:g} times the {explained:.3g} m/s the "
                 "simulation explains"
                 if fast
                 else "non-finite positions or velocities"
-                if lost.where.get("non-finite")
-                else "no speeds known"
             )
             return f"{seen}: " + (
                 step
@@ -690,12 +696,12 @@ class Engine(abc.ABC):
             )
         faces = sorted(place for place in lost.where if place in FACES and place not in self._outflow)
         if faces:
-            at = f" at up to {speed:.3g} m/s" if speed is not None else ""
-            left = f"they left{at} through {', '.join(faces)}"
+            at = f" at up to {lost.max_speed:.3g} m/s" if lost.max_speed is not None else ""
+            went = f"they left{at} through {', '.join(faces)}"
             if step is not None:
-                return f"{left} (a contact too short to resolve lets particles pass through walls): {step}"
+                return f"{went} (a contact too short to resolve lets particles pass through walls): {step}"
             return (
-                f"{left}, where no wall holds them: add a wall inside the box, or declare an opening "
+                f"{went}, where no wall holds them: add a wall inside the box, or declare an opening "
                 f"with expect_outflow({', '.join(map(repr, faces))})"
             )
         return step or "look for particles created outside the box or beyond a wall"
@@ -773,6 +779,7 @@ class Engine(abc.ABC):
         self.step, self.time, self.dt = checkpoint.step, checkpoint.time, checkpoint.dt
         self._clock = (int(checkpoint.state["clock"][0]), float(checkpoint.state["clock"][1]))
         self._restore_state(checkpoint.state)
+        self._present = None
         for handle_id, samples in checkpoint.monitors.items():
             monitor = self._monitors[handle_id]
             monitor.samples = [tuple(float(v) for v in row) for row in samples]
@@ -946,10 +953,10 @@ class Engine(abc.ABC):
 
 
 class _Watch:
-    """Lost particles of an engine that does not report them (see :meth:`Engine._lost_since_last`):
-    those gone since the last snapshot, placed at the face their last position and velocity
-    (and gravity) were heading for, and those still present whose position or velocity has
-    become non-finite, each counted once."""
+    """Lost particles of an engine that does not report them (see :meth:`Engine._lost_since_last`),
+    over one run: those gone by its end, placed at the face their position and velocity at
+    its start (and gravity) were heading for, and those still present whose position or
+    velocity has become non-finite, each counted once."""
 
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
@@ -957,33 +964,30 @@ class _Watch:
         self.box = np.array(domain.box, float)
         self.fixed = ~np.array(domain.periodic)
         self.gravity = engine.spec.gravity.vector if engine.spec.gravity is not None else np.zeros(3)
+        self.start = engine.time
         self.ids, self.x, self.v = self._state()
 
     def _state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         extract = self.engine._extract
         return extract("id"), extract("x").reshape(-1, 3), extract("v").reshape(-1, 3)
 
-    def update(self, duration: float) -> LostParticles:
-        """What was lost in the last ``duration`` seconds; the state now becomes the snapshot."""
+    def finish(self) -> LostParticles:
+        """What was lost since the start of the run."""
         ids, x, v = self._state()
         gone = ~np.isin(self.ids, ids)
         where: dict[str, int] = {}
-        for place in self._faces(self.x[gone], self.v[gone], duration):
+        for place in self._faces(self.x[gone], self.v[gone], self.engine.time - self.start):
             where[place] = where.get(place, 0) + 1
         broken = ~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1))
         fresh = [i for i in ids[broken].tolist() if i not in self.engine._broken]
         self.engine._broken.update(fresh)
         if fresh:
             where["non-finite"] = where.get("non-finite", 0) + len(fresh)
-        speeds = np.linalg.norm(self.v[gone], axis=1)
-        speeds = speeds[np.isfinite(speeds)]
-        self.ids, self.x, self.v = ids, x, v
-        count = int(gone.sum()) + len(fresh)
-        return LostParticles(count, where, float(speeds.max()) if len(speeds) else None)
+        return LostParticles(int(gone.sum()) + len(fresh), where)  # speeds when lost: unknown
 
     def _faces(self, x: np.ndarray, v: np.ndarray, duration: float) -> list[str]:
-        """The face each particle at ``x`` moving at ``v`` reaches first, moving as it did
-        (with gravity) for ``duration``: ``"non-finite"`` or ``"unknown"`` if none."""
+        """The face each particle at ``x`` moving at ``v`` reaches first, moving so (with
+        gravity) for ``duration``: ``"non-finite"`` or ``"unknown"`` if none."""
         places = []
         heading = v * duration + 0.5 * self.gravity * duration**2
         lo, hi = self.box[:, 0], self.box[:, 1]
