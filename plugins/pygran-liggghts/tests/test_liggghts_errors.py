@@ -1,5 +1,7 @@
-"""LIGGGHTS errors and crashes become EngineError with LIGGGHTS' message; the session goes on."""
+"""LIGGGHTS errors and crashes become EngineError with LIGGGHTS' message and source line, however
+LIGGGHTS stops (error->all, error->one on rank 0 or another rank, a signal); the session goes on."""
 
+import math
 import os
 import signal
 
@@ -56,7 +58,7 @@ def test_impossible_setup(tmp_path):
 def test_worker_crash(tmp_path):
     with make(tmp_path / "crash") as sim:
         os.kill(sim.engine._session.process.pid, signal.SIGKILL)
-        with pytest.raises(EngineError, match="signal 9"):
+        with pytest.raises(EngineError, match=r"ended by SIGKILL \(Killed\)"):
             sim.run(10)
     works(tmp_path / "after")
 
@@ -79,4 +81,45 @@ def test_worker_that_cannot_start(tmp_path, monkeypatch):
         sim.run(10, 1e-6)
     sim.close()
     monkeypatch.delenv(LIBRARY_ENV)
+    works(tmp_path / "after")
+
+
+def triangle(sim, corner):
+    """Three touching spheres at ``corner`` + (0..2 mm): the first has two neighbours."""
+    x, y, z = corner
+    for dx, dy in ((0.0, 0.0), (2e-3, 0.0), (1e-3, math.sqrt(3) * 1e-3)):
+        sim.createParticles(1, "single", x + dx, y + dy, z)
+
+
+@pytest.mark.parametrize(("nprocs", "rank"), [(1, 0), (2, 1)])
+def test_error_one_on_any_rank(tmp_path, nprocs, rank):
+    """error->one (then MPI_Abort) on the rank that has the spheres: in the upper corner of
+    the box, rank 1 of 2 whichever way LIGGGHTS splits it."""
+    with make(tmp_path / "one", nprocs=nprocs) as sim:
+        triangle(sim, (6.5e-3, 6.5e-3, 7e-3))
+        sim.command("neigh_modify page 100 one 1")  # at most one neighbour per sphere
+        message = (
+            rf"ERROR on proc {rank}: Neighbor list overflow, boost neigh_modify one \(.*neigh_gran\.cpp:\d+\)"
+        )
+        with pytest.raises(EngineError, match=message):
+            sim.run(10)
+    works(tmp_path / "after")
+
+
+def test_error_one_while_reading_a_command(tmp_path):
+    with make(tmp_path / "substitution") as sim:
+        with pytest.raises(
+            EngineError, match=r"ERROR on proc 0: Substitution for illegal variable \(.*input\.cpp:\d+\)"
+        ):
+            sim.command("print $Q")
+
+
+def test_signal_inside_liggghts(tmp_path):
+    """LIGGGHTS' shell command signals the worker while LIGGGHTS runs it."""
+    with make(tmp_path / "segv") as sim:
+        pid = sim.engine._session.process.pid
+        with pytest.raises(
+            EngineError, match=r"ended by SIGSEGV \(Segmentation fault\) in .*execute_command"
+        ):
+            sim.command(f"shell kill -SEGV {pid}")
     works(tmp_path / "after")

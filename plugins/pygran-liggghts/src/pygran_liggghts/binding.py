@@ -10,11 +10,13 @@ from __future__ import annotations
 import ctypes
 from collections.abc import Sequence
 from functools import cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pygran_liggghts.library import find_library
+from pygran_liggghts.screen import capture_screen
 
 #: PyGran quantity -> (LIGGGHTS per-atom array, columns, ctypes element type).
 ATOM_ARRAYS: dict[str, tuple[str, int, Any]] = {
@@ -69,10 +71,13 @@ class Liggghts:
     makes the same calls in the same order (SPMD), as LIGGGHTS requires.
 
     ``args`` are command-line arguments (``-screen``, ``-log``, ...). Any LIGGGHTS error ends
-    the process (LIGGGHTS calls ``exit``); run it in a worker to survive that.
+    the process (LIGGGHTS calls ``exit``); run it in a worker to survive that. With a
+    ``-screen`` file, every rank's screen is line-buffered (:func:`~.screen.capture_screen`),
+    so the message of an error is in the file (or rank file) when the process ends; ``echo``
+    also writes error lines to standard error, prefixed with it.
     """
 
-    def __init__(self, args: Sequence[str], comm: Any) -> None:
+    def __init__(self, args: Sequence[str], comm: Any, echo: str | None = None) -> None:
         from mpi4py import MPI
 
         self.comm = comm
@@ -83,6 +88,10 @@ class Liggghts:
         c_comm = comm_type.from_address(MPI._addressof(comm))
         self._handle = ctypes.c_void_p()
         self._lib.lammps_open(len(argv), c_argv, c_comm, ctypes.byref(self._handle))
+        self._screen = None
+        if "-screen" in args and args[args.index("-screen") + 1] != "none":
+            path = Path(args[args.index("-screen") + 1])
+            self._screen = capture_screen(self._handle.value, comm, path, echo)
 
     def command(self, line: str) -> None:
         """Execute one input line."""
@@ -151,8 +160,9 @@ class Liggghts:
     def close(self) -> None:
         """Delete the instance (MPI stays initialised; mpi4py finalises it at exit)."""
         if self._handle:
-            self._lib.lammps_close(self._handle)
+            self._lib.lammps_close(self._handle)  # closes the screen too
             self._handle = ctypes.c_void_p()
+            self._screen = None
 
     def __enter__(self) -> Liggghts:
         return self

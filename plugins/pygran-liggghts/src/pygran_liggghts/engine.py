@@ -142,7 +142,7 @@ class LiggghtsEngine(Engine):
             self._input = (self.output / INPUT_NAME).open("w") if self._root else None
             args = ["-screen", str(self.output / LOG_NAME), "-log", "none"]
             if comm is not None:
-                self._session = LocalSession(args, comm)
+                self._session = LocalSession(args, comm, str(self.output))
             else:
                 self._session = WorkerSession(
                     args, spec.nprocs or 1, self.output / LOG_NAME, self.output / WORKER_LOG_NAME

@@ -12,8 +12,10 @@ The worker starts in the background: the engine queues commands until it is :met
 from __future__ import annotations
 
 import os
+import re
 import select
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -33,10 +35,12 @@ EXIT_TIMEOUT = 30.0
 
 
 class LocalSession(Session):
-    """LIGGGHTS in this process on ``comm``; gathered arrays reach every rank."""
+    """LIGGGHTS in this process on ``comm``; gathered arrays reach every rank. A LIGGGHTS
+    error ends the MPI job: its message goes to standard error first, prefixed with ``name``
+    (the run's output directory), once (see :mod:`~.screen`)."""
 
-    def __init__(self, args: Sequence[str], comm: Any) -> None:
-        super().__init__(args, comm, root=None)
+    def __init__(self, args: Sequence[str], comm: Any, name: str) -> None:
+        super().__init__(args, comm, root=None, echo=f"LIGGGHTS stopped in {name}")
 
     def ready(self) -> bool:
         return True
@@ -48,15 +52,47 @@ class LocalSession(Session):
         return getattr(self, name)(*params)
 
 
-def error_message(*logs: Path) -> str | None:
-    """The last ``ERROR`` line LIGGGHTS wrote to any of ``logs``."""
-    found = None
-    for log in logs:
-        if log.is_file():
-            for line in log.read_text(errors="replace").splitlines():
-                if line.startswith("ERROR"):
-                    found = line.strip()
-    return found
+def error_message(log: Path, stderr: Path) -> str | None:
+    """LIGGGHTS' error: the last ``ERROR`` line in the screen file ``log``, else in a rank's
+    screen file, else in the job's output ``stderr``."""
+    ranks = sorted(log.parent.glob(f"{log.stem}.rank*{log.suffix}"))
+    for path in (log, *ranks, stderr):
+        if path.is_file():
+            found = [line.strip() for line in path.read_text(errors="replace").splitlines()]
+            found = [line for line in found if line.startswith("ERROR")]
+            if found:
+                return found[-1]
+    return None
+
+
+def signal_message(code: int, stderr: Path) -> str | None:
+    """How a worker ended by a signal: its name and, from the backtrace Open MPI prints, the
+    innermost LIGGGHTS function; ``None`` if it did not end by a signal."""
+    text = stderr.read_text(errors="replace") if stderr.is_file() else ""
+    number = -code if code < 0 else None
+    match = re.search(r"exited on signal (\d+)", text) or re.search(r"Signal: .*\((\d+)\)", text)
+    if number is None and match is not None:
+        number = int(match.group(1))
+    if number is None:
+        return None
+    try:
+        name = f"{signal.Signals(number).name} ({signal.strsignal(number)})"
+    except ValueError:
+        name = f"signal {number}"
+    frame = re.search(r"libliggghts[^(]*\(([^+)]+)", text)
+    where = f" in {demangle(frame.group(1))}" if frame else ""
+    return f"LIGGGHTS ended by {name}{where}"
+
+
+def demangle(symbol: str) -> str:
+    """A C++ symbol readable (``c++filt``, when installed)."""
+    tool = shutil.which("c++filt")
+    if tool is None:
+        return symbol
+    try:
+        return subprocess.run([tool, symbol], capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return symbol
 
 
 def _tail(path: Path, lines: int = 5) -> str:
@@ -142,20 +178,21 @@ class WorkerSession:
             raise self._failure("stopped") from None
 
     def _failure(self, what: str) -> EngineError:
-        """The worker died: an :class:`EngineError` with LIGGGHTS' own message."""
+        """The worker died: an :class:`EngineError` with LIGGGHTS' own message (and source
+        line), or the signal that ended it and where."""
         try:
             code = self.process.wait(EXIT_TIMEOUT)
         except subprocess.TimeoutExpired:
             self.process.kill()
             code = self.process.wait()
         self._cleanup()
-        message = error_message(self.log, self.stderr)
+        message = error_message(self.log, self.stderr) or signal_message(code, self.stderr)
         if message is None:
-            how = f"signal {-code}" if code < 0 else f"exit code {code}"
             message = (
-                f"no LIGGGHTS error message ({how}); last output:\n{_tail(self.log)}\n{_tail(self.stderr)}"
+                f"no LIGGGHTS error message (exit code {code}); last output:\n{_tail(self.log)}\n"
+                f"{_tail(self.stderr)}"
             )
-        return EngineError(f"LIGGGHTS {what}: {message} (log: {self.log})")
+        return EngineError(f"LIGGGHTS {what}: {message} (log: {self.log}, job output: {self.stderr})")
 
     def close(self) -> None:
         """Delete the instance and wait for the worker to exit."""

@@ -22,15 +22,16 @@ from typing import Any
 class Session:
     """The requests PyGran makes of one LIGGGHTS instance (see :class:`~.binding.Liggghts`).
 
-    ``root`` is the rank that receives gathered arrays (``None``: every rank).
+    ``root`` is the rank that receives gathered arrays (``None``: every rank); ``echo``
+    prefixes LIGGGHTS' error lines also written to standard error (``None``: not written).
     """
 
     requests = frozenset({"execute", "timestep", "natoms", "gather", "assign", "scalar", "close"})
 
-    def __init__(self, args: Sequence[str], comm: Any, root: int | None) -> None:
+    def __init__(self, args: Sequence[str], comm: Any, root: int | None, echo: str | None = None) -> None:
         from pygran_liggghts.binding import Liggghts
 
-        self.lmp = Liggghts(args, comm)
+        self.lmp = Liggghts(args, comm, echo)
         self.root = root
 
     def execute(self, lines: Sequence[str]) -> int:
