@@ -41,3 +41,17 @@ def test_unknown_names_suggest():
         units.factor("length", "si", "mcro")
     with pytest.raises(ConfigError, match="Unknown dimension 'lenght'. Did you mean 'length'"):
         units.factor("lenght", "si", "cgs")
+
+
+def test_unit_name_is_a_string_that_converts_when_called():
+    seen = []
+    name = units.UnitName("si", seen.append)
+    assert name == "si" and f"{name}" == "si" and name() == "si" and seen == []
+    assert name("nano") == "nano" and seen == ["nano"]
+    with pytest.raises(ConfigError, match="Unknown unit system 'mikro'. Did you mean 'micro'"):
+        name("mikro")
+    assert seen == ["nano"]
+    import pickle
+
+    restored = pickle.loads(pickle.dumps(name))
+    assert type(restored) is str and restored == "si"

@@ -119,6 +119,14 @@ def test_micro_units_rdf_and_coordination_on_the_last_frame(hopper):
         assert first.natoms == 1 and first.id[0] == rows[contact.i, 0]
     assert sys.Particles[neigh.overlaps.i].natoms == overlapping.sum()
 
+    chains = neigh.forceChain()  # Hertzian contact forces; chains of above-mean contacts
+    d, a, b = depth[overlapping] * 1e6, i[overlapping], j[overlapping]
+    hertz = np.sqrt(50.0 * 50.0 / 100.0) * d**1.5
+    assert chains.contacts.tolist() == np.column_stack((a, b)).tolist()
+    np.testing.assert_allclose(chains.forces, hertz, rtol=1e-6)
+    assert chains.strong.sum() == np.count_nonzero(hertz > hertz.mean())
+    assert all(len(chain) >= 3 for chain in chains.chains)
+
 
 def test_slicing_iteration_and_operators_of_the_manual(hopper):
     # Manual chapters 5 and 6.3, and the original package's test_particles_basic.py.
@@ -157,6 +165,13 @@ def test_slicing_iteration_and_operators_of_the_manual(hopper):
         Particles.x[0] = 1.0
     with pytest.raises(AttributeError, match="read-only"):
         Particles.x = np.zeros(natoms)
+
+    # manual 6.2: the copy constructor, by the class's own name or SubSystem
+    for CopySS in (analysis.Particles(Particles=Particles), analysis.SubSystem(SubSystem=Particles)):
+        assert len(CopySS) == natoms and list(CopySS.keys) == COLUMNS
+        np.testing.assert_array_equal(CopySS.vx, rows[:, 6])
+    NewSS = analysis.Particles(**{name: rows[:, k] for k, name in enumerate(COLUMNS)})
+    assert NewSS.natoms == natoms and NewSS.units == "si"
 
     moved = Particles.copy()
     moved.translate(value=(-moved.x.min(), -moved.y.min(), -moved.z.min()), attr=("x", "y", "z"))
