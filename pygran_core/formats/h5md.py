@@ -20,6 +20,9 @@ completed frame readable; ``particle_number`` is written last and sets the frame
 
 from __future__ import annotations
 
+import ctypes
+import functools
+import os
 from collections.abc import Sequence
 from importlib.metadata import version
 from pathlib import Path
@@ -50,6 +53,12 @@ SI_UNITS = {
     "time": "s",
 }
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+#: Metadata read attempts of an SWMR reader: HDF5 sleeps 1, 2, 4, ... ns between them, so
+#: 20 bound the wait to about a millisecond (its default of 100 is forever).
+SWMR_READ_ATTEMPTS = 20
+#: What h5py raises on a damaged file (HDF5's own errors are OSError, RuntimeError, KeyError
+#: or ValueError; an object of the wrong kind gives TypeError or IndexError).
+_DAMAGE = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError)
 _PARTICLE_CHUNK = 65536
 
 
@@ -257,67 +266,148 @@ def _edges(lengths: np.ndarray, tilt: Any, triclinic: bool) -> np.ndarray:
     return np.array([[lengths[0], 0, 0], [xy, lengths[1], 0], [xz, yz, lengths[2]]])
 
 
+def open_hdf5(path: Path) -> Any:
+    """``path`` opened for reading with h5py, or a :class:`ReadError`.
+
+    The file is opened without SWMR, which checks its superblock and its size. Only a file
+    that a writer left marked open (a writer killed before closing it, or one still writing)
+    is then opened in SWMR mode, with HDF5's metadata read attempts bounded: an SWMR reader
+    otherwise retries a damaged block with ever longer sleeps, which hangs on a truncated
+    or damaged file.
+    """
+    import h5py
+
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        if "already open for write" not in str(exc):
+            raise ReadError(f"{path}: not a readable HDF5 file: {exc}") from exc
+    library = _hdf5_library()
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    if library is None or library.H5Pset_metadata_read_attempts(fapl.id, SWMR_READ_ATTEMPTS) < 0:
+        raise ReadError(
+            f"{path}: the file is still marked open by its writer (killed, or still running), and "
+            "this platform's HDF5 cannot be read in SWMR mode safely; once no writer runs, clear "
+            f"the mark with `h5clear -s {path}`"
+        )
+    fapl.set_fclose_degree(h5py.h5f.CLOSE_STRONG)
+    try:
+        fid = h5py.h5f.open(os.fsencode(path), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, fapl=fapl)
+    except OSError as exc:
+        raise ReadError(f"{path}: not a readable HDF5 file (left open by its writer): {exc}") from exc
+    return h5py.File(fid)
+
+
+@functools.cache
+def _hdf5_library() -> ctypes.CDLL | None:
+    """The HDF5 library h5py runs on (found among the loaded libraries), for the one setting
+    h5py does not expose, or None where it cannot be found."""
+    import h5py  # noqa: F401 - loads the library
+
+    names: list[str] = []
+    try:
+        with open("/proc/self/maps") as maps:  # Linux
+            names = [
+                fields[5].strip() for fields in (line.split(None, 5) for line in maps) if len(fields) == 6
+            ]
+    except OSError:
+        try:  # macOS
+            dyld = ctypes.CDLL(None)
+            dyld._dyld_get_image_name.restype = ctypes.c_char_p
+            names = [dyld._dyld_get_image_name(i).decode() for i in range(dyld._dyld_image_count())]
+        except (OSError, AttributeError):
+            return None
+    for name in dict.fromkeys(n for n in names if "libhdf5" in Path(n).name and "hdf5_hl" not in n):
+        try:
+            library = ctypes.CDLL(name)
+            setter = library.H5Pset_metadata_read_attempts
+        except (OSError, AttributeError):
+            continue
+        setter.argtypes = [ctypes.c_int64, ctypes.c_uint]
+        setter.restype = ctypes.c_int
+        return library
+    return None
+
+
 class H5MDTrajectory(Trajectory):
     """Frames of one H5MD file's particle group (``group=None``: the only one there is)."""
 
     def __init__(self, paths: Sequence[PathLike], group: str | None = None) -> None:
-        import h5py
-
         if len(paths) != 1:
             raise UnsupportedFeature(f"H5MD reads one file at a time, got {len(paths)}")
         self.path = Path(paths[0])
-        try:
-            # swmr=True also opens a file whose writer was killed before closing it.
-            self._file = h5py.File(self.path, "r", swmr=True)
-        except OSError as exc:
-            raise ReadError(f"{self.path}: not a readable HDF5 file: {exc}") from exc
+        self._file = open_hdf5(self.path)
         try:
             self._index(group)
-        except (KeyError, ValueError, TypeError, OSError) as exc:
+        except ReadError:
             self._file.close()
-            raise ReadError(f"{self.path}: not an H5MD particle file: {exc}") from exc
+            raise
+        except _DAMAGE as exc:
+            self._file.close()
+            raise ReadError(f"{self.path}: not a readable H5MD particle file: {exc}") from exc
+
+    def _fail(self, message: str) -> ReadError:
+        return ReadError(f"{self.path}: {message}")
 
     def _index(self, group: str | None) -> None:
         import h5py
 
         particles = self._file.get("particles")
         if not isinstance(particles, h5py.Group) or not len(particles):
-            raise ReadError(f"{self.path}: no /particles group: not an H5MD trajectory")
+            raise self._fail("no /particles group: not an H5MD trajectory")
         names = list(particles)
         if group is None:
             if len(names) != 1:
-                raise ReadError(f"{self.path}: several particle groups {names}; pass group=...")
+                raise self._fail(f"several particle groups {names}; pass group=...")
             group = names[0]
-        if group not in particles:
-            raise ReadError(f"{self.path}: no particle group {group!r}; the file has {names}")
+        root = particles.get(group)
+        if not isinstance(root, h5py.Group):
+            raise self._fail(f"no particle group {group!r}; the file has {names}")
         self.group = group
-        root = particles[group]
-        self._elements: list[tuple[str, Any]] = [(name, obj) for name, obj in root.items() if name != "box"]
-        lengths = [len(obj["value"]) for _, obj in self._elements if isinstance(obj, h5py.Group)]
+        #: (name, dataset, time-dependent) of every element but the box
+        self._elements: list[tuple[str, Any, bool]] = []
+        clock = None
+        for name, obj in root.items():
+            if name == "box":
+                continue
+            if isinstance(obj, h5py.Group):
+                clock = obj if clock is None else clock
+                self._elements.append((name, self._dataset(obj, "value", 2, 3), True))
+            elif isinstance(obj, h5py.Dataset):
+                self._elements.append((name, obj, False))
+        if clock is None:
+            raise self._fail(f"particle group {group!r} has no time-dependent element")
+        self._step, self._time = self._dataset(clock, "step", 1, 1), self._dataset(clock, "time", 1, 1)
+        lengths = [len(d) for _, d, timed in self._elements if timed] + [len(self._step), len(self._time)]
         number = self._file.get(f"observables/{group}/particle_number")
-        self._number = number["value"] if number is not None else None
+        self._number = None if number is None else self._dataset(number, "value", 1, 1)
         if self._number is not None:
             lengths.append(len(self._number))
         box = root.get("box")
-        self._box = box
-        self._box_parts = {
-            n: box[n]
-            for n in ("edges", "pygran_bounds", "pygran_tilt")
-            if box is not None and isinstance(box.get(n), h5py.Group)
-        }
-        lengths += [len(g["value"]) for g in self._box_parts.values()]
-        clock = next((obj for _, obj in self._elements if isinstance(obj, h5py.Group)), None)
-        if clock is None:
-            raise ReadError(f"{self.path}: particle group {group!r} has no time-dependent element")
-        self._step, self._time = clock["step"], clock["time"]
-        lengths += [len(self._step), len(self._time)]
+        self._box_parts: dict[str, Any] = {}
+        if isinstance(box, h5py.Group):
+            for part, dims in (("edges", (2, 3)), ("pygran_bounds", (3, 3)), ("pygran_tilt", (2, 2))):
+                if isinstance(box.get(part), h5py.Group):
+                    self._box_parts[part] = self._dataset(box[part], "value", *dims)
+                    lengths.append(len(self._box_parts[part]))
         self._n = min(lengths)
         self._boundary: tuple[str, ...] | None = None
-        if box is not None and "pygran_boundary" in box.attrs:
-            self._boundary = tuple(str(box.attrs["pygran_boundary"]).split())
-        elif box is not None and "boundary" in box.attrs:
-            flags = [b.decode() if isinstance(b, bytes) else str(b) for b in box.attrs["boundary"]]
+        if isinstance(box, h5py.Group) and "pygran_boundary" in box.attrs:
+            self._boundary = tuple(_text(box.attrs["pygran_boundary"]).split())
+        elif isinstance(box, h5py.Group) and "boundary" in box.attrs:
+            flags = [_text(b) for b in np.ravel(box.attrs["boundary"])]
             self._boundary = tuple("pp" if b == "periodic" else "ff" for b in flags)
+
+    def _dataset(self, group: Any, name: str, min_ndim: int, max_ndim: int) -> Any:
+        """``group[name]``, which must be a numeric dataset of ``min_ndim`` to ``max_ndim`` axes."""
+        import h5py
+
+        found = group.get(name)
+        if not isinstance(found, h5py.Dataset):
+            raise self._fail(f"{group.name}/{name} is missing or not a dataset")
+        if not min_ndim <= found.ndim <= max_ndim or found.dtype.kind not in "biuf":
+            raise self._fail(f"{found.name} has shape {found.shape} and type {found.dtype}")
+        return found
 
     @property
     def n_frames(self) -> int:
@@ -329,41 +419,51 @@ class H5MDTrajectory(Trajectory):
     def _read_frame(self, index: int) -> Frame:
         try:
             return self._frame(index)
-        except (KeyError, ValueError, TypeError, OSError) as exc:
-            raise ReadError(f"{self.path}: frame {index}: {exc}") from exc
+        except ReadError:
+            raise
+        except _DAMAGE as exc:
+            raise self._fail(f"frame {index}: {exc}") from exc
 
     def _frame(self, index: int) -> Frame:
-        import h5py
-
         count = int(self._number[index]) if self._number is not None else None
-        arrays: dict[str, np.ndarray] = {}
-        for name, obj in self._elements:
-            dataset = obj["value"] if isinstance(obj, h5py.Group) else obj
-            data = dataset[index] if isinstance(obj, h5py.Group) else dataset[()]
+        rows: dict[str, np.ndarray] = {}
+        for name, dataset, timed in self._elements:
+            data = dataset[index] if timed else dataset[()]
+            if data.ndim == 0 or data.dtype.kind not in "biuf":
+                raise self._fail(f"frame {index}: element {name!r} has shape {data.shape}, type {data.dtype}")
             if count is None and name == "id":
                 count = int(np.count_nonzero(data >= 0))
-            data = data[:count] if count is not None else data
-            if name in VECTORS and data.ndim == 2 and data.shape[1] == 3:
+            rows[name] = data
+        arrays: dict[str, np.ndarray] = {}
+        for name, data in rows.items():
+            if count is not None:
+                if not 0 <= count <= len(data):
+                    raise self._fail(f"frame {index}: {count} particles, but {name!r} holds {len(data)}")
+                data = data[:count]
+            data = data.astype(np.int64 if data.dtype.kind in "biu" else np.float64)
+            if name in VECTORS and data.shape[1:] == (3,):
                 for j, column in enumerate(VECTORS[name]):
                     arrays[column] = np.ascontiguousarray(data[:, j])
             elif data.ndim == 2:
                 for j in range(data.shape[1]):
                     arrays[f"{name}[{j + 1}]"] = np.ascontiguousarray(data[:, j])
-            else:
+            elif data.ndim == 1:
                 arrays["type" if name == "species" else name] = data
-        if count is not None:
-            arrays = {k: v[:count] for k, v in arrays.items()}
+            else:
+                raise self._fail(f"frame {index}: element {name!r} has shape {data.shape}")
+        if len({len(v) for v in arrays.values()}) > 1:
+            raise self._fail(f"frame {index}: the elements hold different particle counts")
         box, attrs = None, {}
         if "pygran_bounds" in self._box_parts:
-            box = self._box_parts["pygran_bounds"]["value"][index]
+            box = np.asarray(self._box_parts["pygran_bounds"][index], dtype=np.float64).reshape(3, 2)
         elif "edges" in self._box_parts:
-            edges = self._box_parts["edges"]["value"][index]
-            lengths = np.diag(edges) if edges.ndim == 2 else edges
+            edges = np.asarray(self._box_parts["edges"][index], dtype=np.float64)
+            lengths = np.diag(edges.reshape(3, 3)) if edges.size == 9 else edges.reshape(3)
             box = np.column_stack([np.zeros(3), lengths])
         if box is not None and np.isnan(box).all():
             box = None
         if "pygran_tilt" in self._box_parts:
-            attrs["tilt"] = self._box_parts["pygran_tilt"]["value"][index]
+            attrs["tilt"] = np.asarray(self._box_parts["pygran_tilt"][index], dtype=np.float64).reshape(3)
         time = float(self._time[index])
         return Frame(
             arrays,
@@ -373,3 +473,7 @@ class H5MDTrajectory(Trajectory):
             boundary=self._boundary,
             attrs=attrs,
         )
+
+
+def _text(value: Any) -> str:
+    return value.decode("utf-8", "replace") if isinstance(value, bytes) else str(value)

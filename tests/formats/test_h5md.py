@@ -12,6 +12,7 @@ import pytest
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.testing import FormatConformance, assert_frames_equal, particle_frames
+from pygran_core.testing.formats import fuzz_read
 
 
 class TestH5MD(FormatConformance):
@@ -147,3 +148,44 @@ def test_not_h5md(tmp_path):
         f.create_group("particles")
     with pytest.raises(ReadError, match=r"other\.h5: no /particles group"):
         open_trajectory(tmp_path / "other.h5")
+
+
+def read_every_frame(path):
+    with open_trajectory(path) as trajectory:
+        return [trajectory[k] for k in range(len(trajectory))]
+
+
+def test_damaged_files_are_read_errors_not_hangs(tmp_path):
+    """A truncated file (the first 20 bytes of any PyGran .h5 used to hang the reader in SWMR
+    mode), and a killed writer's file truncated or with a damaged metadata byte (SWMR mode,
+    whose retries are bounded): each read in a child process with a time limit."""
+    closed = tmp_path / "closed.h5"
+    with open_writer(closed) as out:
+        for frame in particle_frames():
+            out.write_frame(frame)
+    killed = tmp_path / "killed.h5"
+    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(killed)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert [int(proc.stdout.readline()) for _ in range(3)] == [0, 1, 2]
+    finally:
+        proc.kill()
+        proc.wait()
+        proc.stdout.close()
+    with pytest.raises(OSError, match="already open for write"):
+        h5py.File(killed, "r")
+    data = killed.read_bytes()
+    damaged = {
+        "first-20-bytes": closed.read_bytes()[:20],
+        "half": closed.read_bytes()[: closed.stat().st_size // 2],
+        "killed-first-4000-bytes": data[:4000],
+        "killed-cut": data[:-100],
+        # a byte of the first object header after the superblock (its checksum fails)
+        "killed-header-byte": data[:60] + bytes([data[60] ^ 0xFF]) + data[61:],
+    }
+    for name, content in damaged.items():
+        (tmp_path / f"{name}.h5").write_bytes(content)
+    report = fuzz_read(read_every_frame, [tmp_path / f"{name}.h5" for name in damaged], timeout=20)
+    assert not report.failures and not report.clean, report
+    assert len(read_every_frame(killed)) >= 3  # the intact killed file, read in SWMR mode
+    with pytest.raises(ReadError, match=r"killed-cut\.h5: not a readable HDF5 file: .*truncated file"):
+        open_trajectory(tmp_path / "killed-cut.h5")
