@@ -11,6 +11,7 @@ from __future__ import annotations
 import gzip
 import io
 import re
+import zlib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +43,8 @@ SCALED = {
     "zsu": ("zu", 2),
 }
 _CHUNK = 1 << 24
+#: What reading a damaged or truncated file raises (gzip.BadGzipFile is an OSError).
+_STREAM_ERRORS = (OSError, EOFError, zlib.error)
 _FRAME_START = re.compile(rb"^(ITEM: TIME(?:STEP)?)[ \t\r]*$", re.MULTILINE)
 
 
@@ -82,7 +85,7 @@ def _read_chunk(handle: IO[bytes]) -> tuple[bytes, str | None]:
                 break
             parts.append(part)
             size += len(part)
-    except (EOFError, OSError, gzip.BadGzipFile) as exc:
+    except _STREAM_ERRORS as exc:
         return b"".join(parts), f"the compressed stream is damaged ({exc})"
     return b"".join(parts), None
 
@@ -131,7 +134,7 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
                 cut = max(len(buf) - keep, 0)
                 line += buf.count(b"\n", counted, cut)
                 base, buf, counted = base + cut, buf[cut:] + chunk, 0
-    except (OSError, EOFError, gzip.BadGzipFile) as exc:
+    except _STREAM_ERRORS as exc:
         raise ReadError(f"{path}: cannot read the file: {exc}") from exc
     ends = [*starts[1:], end]
     blocks = [_Block(file_index, s, e, ln) for s, e, ln in zip(starts, ends, lines)]
@@ -180,7 +183,8 @@ class DumpTrajectory(Trajectory):
             self._gz[1].close()
             self._gz = None
 
-    def _read_bytes(self, block: _Block) -> bytes:
+    def _read_bytes(self, index: int, block: _Block) -> bytes:
+        """The bytes of ``block`` (frame ``index``, or its start)."""
         path = self.paths[block.file]
         try:
             if path.name.lower().endswith(".gz"):
@@ -193,9 +197,9 @@ class DumpTrajectory(Trajectory):
             with open(path, "rb") as handle:
                 handle.seek(block.start)
                 return handle.read(block.end - block.start)
-        except (OSError, EOFError, gzip.BadGzipFile) as exc:
+        except _STREAM_ERRORS as exc:
             self.close()
-            raise ReadError(f"{path}: cannot read bytes {block.start}-{block.end}: {exc}") from exc
+            raise self._error(index, block.line, f"cannot read the frame: {exc}") from exc
 
     def _error(self, index: int, line: int, message: str) -> ReadError:
         block = self._blocks[index]
@@ -205,20 +209,21 @@ class DumpTrajectory(Trajectory):
         block = self._blocks[index]
         if block.problem is not None:
             raise self._error(index, block.line, block.problem)
-        data = self._read_bytes(block)
+        data = self._read_bytes(index, block)
         header = self._parse_header(index, data)
         table = self._parse_atoms(index, data, header)
         return self._build_frame(index, header, table)
 
     def read_header(self, index: int) -> dict[str, Any]:
         """Timestep, atom count, box and columns of frame ``index`` without parsing its atoms."""
-        block = self._blocks[index % self.n_frames]
+        index %= self.n_frames
+        block = self._blocks[index]
         if block.problem is not None:
             raise self._error(index, block.line, block.problem)
         head = self._read_bytes(
-            _Block(block.file, block.start, min(block.end, block.start + 65536), block.line)
+            index, _Block(block.file, block.start, min(block.end, block.start + 65536), block.line)
         )
-        header = self._parse_header(index % self.n_frames, head)
+        header = self._parse_header(index, head)
         return {
             "timestep": header.timestep,
             "natoms": header.natoms,

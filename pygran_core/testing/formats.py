@@ -10,14 +10,21 @@ A format's test module subclasses :class:`FormatConformance` once per case::
 A writable format is tested by writing :meth:`sample_frames` and reading them back; a
 read-only one overrides :meth:`make_sample` to create files with another tool and return
 the frames they hold. :meth:`bad_files` lists damaged files and how many leading frames
-must stay readable. Requires pytest.
+must stay readable. :func:`mutate` and :func:`fuzz_read` damage files at random and read
+each in a child process, for fuzz tests. Requires pytest.
 """
 
 from __future__ import annotations
 
+import os
 import random
+import resource
+import signal
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar, NoReturn
 
 import numpy as np
 import pytest
@@ -83,16 +90,14 @@ def assert_frames_equal(
             np.testing.assert_array_equal(actual.box, expected.box)
 
 
-def mutate(data: Any, original: bytes, alphabet: bytes) -> bytes:
+def mutate(rng: random.Random, original: bytes, alphabet: bytes) -> bytes:
     """``original`` with 1 to 4 random edits (a byte flipped, deleted or inserted from
-    ``alphabet``, or the rest cut), drawn with hypothesis' ``data``: input for fuzz tests."""
-    from hypothesis import strategies as st
-
+    ``alphabet``, or the rest cut), drawn from ``rng``: input for fuzz tests."""
     mutated = bytearray(original)
-    for _ in range(data.draw(st.integers(1, 4))):
-        where = data.draw(st.integers(0, len(mutated) - 1))
-        action = data.draw(st.sampled_from(["flip", "delete", "insert", "cut"]))
-        byte = data.draw(st.sampled_from(list(alphabet)))
+    for _ in range(rng.randint(1, 4)):
+        where = rng.randrange(len(mutated))
+        action = rng.choice(("flip", "delete", "insert", "cut"))
+        byte = rng.choice(alphabet)
         if action == "flip":
             mutated[where] = byte
         elif action == "delete":
@@ -104,6 +109,111 @@ def mutate(data: Any, original: bytes, alphabet: bytes) -> bytes:
         if not mutated:
             mutated = bytearray(b" ")
     return bytes(mutated)
+
+
+@dataclass
+class FuzzReport:
+    """What reading each damaged file gave: a clean read, a ReadError, or a failure (another
+    exception, a signal, a hang or a memory blow-up), by file."""
+
+    clean: list[Path] = field(default_factory=list)
+    read_errors: list[Path] = field(default_factory=list)
+    failures: dict[Path, str] = field(default_factory=dict)
+
+    def summary(self) -> str:
+        return f"{len(self.clean)} clean, {len(self.read_errors)} ReadError, {len(self.failures)} failures"
+
+
+_CLEAN, _READ_ERROR, _OTHER = 0, 3, 4
+
+
+def _child(read: Callable[[Path], object], path: Path, report: int, memory: int) -> NoReturn:
+    """In a forked child: read ``path``, write any error but ReadError to ``report``, exit."""
+    code = _OTHER
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        if memory:
+            resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
+        read(path)
+        code = _CLEAN
+    except ReadError:
+        code = _READ_ERROR
+    except BaseException as exc:  # noqa: BLE001 - every other outcome is what the test reports
+        os.write(report, f"{type(exc).__name__}: {exc}"[:2000].encode("utf-8", "replace"))
+    finally:
+        os._exit(code)
+
+
+def fuzz_read(
+    read: Callable[[Path], object],
+    paths: Sequence[Path],
+    timeout: float = 10.0,
+    workers: int = 2,
+    memory: int = 2 << 30,
+) -> FuzzReport:
+    """Read each file with ``read`` in a child process forked from this (already imported)
+    one, ``workers`` at a time: a child that raises anything but :class:`ReadError`, dies on
+    a signal, runs past ``timeout`` seconds (killed) or needs ``memory`` bytes more address
+    space than this process has is a failure. POSIX only (``os.fork``)."""
+    base = _address_space()
+    report = FuzzReport()
+    todo = list(paths)
+    running: dict[int, tuple[Path, float, int]] = {}
+    while todo or running:
+        while todo and len(running) < workers:
+            path = todo.pop(0)
+            read_end, write_end = os.pipe()
+            pid = os.fork()
+            if pid == 0:
+                os.close(read_end)
+                _child(read, path, write_end, base + memory if base and memory else 0)
+            os.close(write_end)
+            running[pid] = (path, time.monotonic() + timeout, read_end)
+        finished = []
+        for pid in running:
+            done, status = os.waitpid(pid, os.WNOHANG)
+            if done:
+                finished.append((pid, status))
+        if not finished:
+            now = time.monotonic()
+            for late, (path, deadline, _) in running.items():
+                if now > deadline and path not in report.failures:
+                    os.kill(late, signal.SIGKILL)
+                    report.failures[path] = f"hung: killed after {timeout} s"
+            time.sleep(0.0005)
+        for pid, status in finished:
+            path, _, pipe = running.pop(pid)
+            text = _drain(pipe)
+            if path in report.failures:
+                continue
+            if os.WIFSIGNALED(status):
+                report.failures[path] = f"killed by signal {signal.Signals(os.WTERMSIG(status)).name}"
+            elif os.WEXITSTATUS(status) == _CLEAN:
+                report.clean.append(path)
+            elif os.WEXITSTATUS(status) == _READ_ERROR:
+                report.read_errors.append(path)
+            else:
+                report.failures[path] = text or f"exit status {os.WEXITSTATUS(status)}"
+    return report
+
+
+def _drain(pipe: int) -> str:
+    chunks = []
+    while chunk := os.read(pipe, 65536):
+        chunks.append(chunk)
+    os.close(pipe)
+    return b"".join(chunks).decode("utf-8", "replace")
+
+
+def _address_space() -> int:
+    """This process's virtual memory size in bytes (0 where /proc is missing)."""
+    try:
+        with open("/proc/self/statm") as handle:
+            return int(handle.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    except OSError:
+        return 0
 
 
 def frame_size(frame: Frame) -> int:

@@ -8,9 +8,6 @@ import shutil
 import meshio
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-from pygran_readers.vtk import VTKTrajectory
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkUnstructuredGrid
@@ -23,7 +20,7 @@ from vtkmodules.vtkIOXML import (
 
 from pygran_core.errors import ReadError, UnsupportedFeature
 from pygran_core.io import Frame, open_trajectory, open_writer
-from pygran_core.testing.formats import FormatConformance, mutate, particle_frames
+from pygran_core.testing.formats import FormatConformance, particle_frames
 
 TRIANGLE, QUAD, VERTEX = 5, 9, 1
 
@@ -351,23 +348,6 @@ def test_error_names_file_frame_and_line(tmp_path):
     assert len(trajectory[0].arrays["x"]) == 3
     with pytest.raises(ReadError, match=r"a1\.vtk: frame 1, line 17: expected 3 float numbers"):
         trajectory[1]
-
-
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(data=st.data(), binary=st.booleans())
-def test_fuzz_mutated_legacy_vtk_raises_only_read_error(tmp_path, data, binary):
-    path = tmp_path / "fuzz.vtk"
-    if binary:
-        _VTKCase.binary = True
-    try:
-        _VTKCase().write(path, sample_meshes()[0])
-    finally:
-        _VTKCase.binary = False
-    path.write_bytes(mutate(data, path.read_bytes(), b"0123456789 .-e\nxP\x00\xff"))
-    try:
-        VTKTrajectory([path])[0]
-    except ReadError:
-        pass
 
 
 def polydata_of_every_section():
