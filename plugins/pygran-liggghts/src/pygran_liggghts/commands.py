@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
+import shutil
+import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -105,6 +108,10 @@ def size_classes(radius: RadiusDistribution) -> list[tuple[float, float]]:
     return [(float(r), float(w)) for r, w in zip(radii, weights)]
 
 
+#: Paths LIGGGHTS reads as they are; others are quoted or linked (:meth:`Commands.path`).
+PLAIN_PATH = re.compile(r"[\w./+,:=@%~-]+")
+
+
 #: LIGGGHTS refuses Young's moduli below this (SI) unless told ``soft_particles yes``.
 SOFT_LIMIT = 5e6
 #: ... and above this unless told ``hard_particles yes``.
@@ -117,6 +124,7 @@ class Commands:
     def __init__(self, spec: SimulationSpec) -> None:
         self.spec = spec
         self._counter = itertools.count(1)
+        self._links: Path | None = None  # the directory of links to awkward directories
         self.model = kernel(spec.model)
         #: The ``rolling_friction`` model (the model's ``rolling``, default the original's cdt).
         self.rolling_model = getattr(spec.model, "rolling", "cdt")
@@ -147,6 +155,38 @@ class Commands:
 
     def new_id(self, kind: str) -> str:
         return f"pg_{kind}{next(self._counter)}"
+
+    def path(self, path: Path) -> str:
+        """``path`` as a word of a LIGGGHTS input line: as it is when plain; in quotes when it
+        has spaces, ``#`` or one kind of quote; when it has ``$`` (which LIGGGHTS 3.8
+        substitutes even inside quotes) or both kinds of quote, through a symbolic link of a
+        plain name to its directory, in a private temporary directory removed by :meth:`close`.
+        """
+        text = str(path)
+        if PLAIN_PATH.fullmatch(text):
+            return text
+        if "$" in text or ('"' in text and "'" in text):
+            if "$" in path.name or ('"' in path.name and "'" in path.name):
+                raise ConfigError(
+                    f"LIGGGHTS cannot read the file name {path.name!r} ('$' or both kinds of quote): "
+                    "rename it"
+                )
+            if self._links is None:
+                self._links = Path(tempfile.mkdtemp(prefix="pygran-liggghts-paths-"))
+            link = self._links / f"dir{len(list(self._links.iterdir())) + 1}"
+            path.parent.mkdir(parents=True, exist_ok=True)  # LIGGGHTS makes folders, not through links
+            link.symlink_to(path.parent.absolute(), target_is_directory=True)
+            text = str(link / path.name)
+            if PLAIN_PATH.fullmatch(text):
+                return text
+        quote = '"' if '"' not in text else "'"
+        return f"{quote}{text}{quote}"
+
+    def close(self) -> None:
+        """Remove the links :meth:`path` made."""
+        if self._links is not None:
+            shutil.rmtree(self._links, ignore_errors=True)
+            self._links = None
 
     @property
     def granular(self) -> str:
@@ -185,7 +225,7 @@ class Commands:
                 f"create_box {len(self.materials)} pg_domain",
             ]
         else:
-            lines.append(f"read_restart {resume}")
+            lines.append(f"read_restart {self.path(resume)}")
         lines += [
             "communicate single vel yes",
             f"neighbor {fmt(spec.skin)} {spec.nns_type}",
@@ -211,7 +251,7 @@ class Commands:
             if any(mesh.translate):
                 placement += f" move {' '.join(fmt(t) for t in mesh.translate)}"
             lines.append(
-                f"fix {self.mesh_ids[mesh.name]} all {mesh.mtype} file {mesh.file} "
+                f"fix {self.mesh_ids[mesh.name]} all {mesh.mtype} file {self.path(mesh.file)} "
                 f"type {self.mesh_types[mesh.name]}{placement}"
             )
         return lines + self._dumps(append=resume is not None)
@@ -327,13 +367,17 @@ class Commands:
                     f"traj args {unknown} are not LIGGGHTS dump custom columns: {sorted(DUMP_COLUMNS)}"
                 )
             traj.pfile.parent.mkdir(parents=True, exist_ok=True)
-            lines.append(f"dump pg_dump {group} custom {traj.freq} {traj.pfile} {' '.join(traj.args)}")
+            lines.append(
+                f"dump pg_dump {group} custom {traj.freq} {self.path(traj.pfile)} {' '.join(traj.args)}"
+            )
             lines += [f"dump_modify pg_dump {arg}" for arg in traj.dump_modify]
             if append and "*" not in traj.pfile.name:
                 lines.append("dump_modify pg_dump append yes")
         if native_meshes(self.spec):
             traj.mfile.parent.mkdir(parents=True, exist_ok=True)
-            lines.append(f"dump pg_mesh_dump all mesh/vtk {traj.freq} {traj.mfile} {' '.join(traj.margs)}")
+            lines.append(
+                f"dump pg_mesh_dump all mesh/vtk {traj.freq} {self.path(traj.mfile)} {' '.join(traj.margs)}"
+            )
         return lines
 
     # -- calls -----------------------------------------------------------------------------

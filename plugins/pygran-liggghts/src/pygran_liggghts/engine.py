@@ -440,7 +440,9 @@ class LiggghtsEngine(Engine):
 
     def _state(self) -> dict[str, np.ndarray]:
         """LIGGGHTS writes its own restart file (atoms, fix states by id) beside the checkpoint."""
-        self._execute([f"write_restart {self.spec.restart.directory / self._restart_name()}"])
+        self._execute(
+            [f"write_restart {self.commands.path(self.spec.restart.directory / self._restart_name())}"]
+        )
         return {**super()._state(), RESTART_KEY: encode_text(self._restart_name())}
 
     def _checkpoint(self, path: Any) -> None:
@@ -489,3 +491,6 @@ class LiggghtsEngine(Engine):
         finally:
             if self._input is not None:
                 self._input.close()
+            commands = getattr(self, "commands", None)  # None if __init__ failed before it
+            if commands is not None:
+                commands.close()
