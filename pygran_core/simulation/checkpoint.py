@@ -3,7 +3,8 @@
 A checkpoint holds the clock (step, time, dt), the journal of the calls that led there (so
 a resumed script can be checked against the one that wrote it), the monitor samples so
 far, and the engine's own state as named numpy arrays (``Engine._state``). It is written
-to a temporary file and renamed, so a crash while writing leaves the previous one intact.
+to a temporary file and renamed, so a crash while writing leaves the previous one intact,
+with the SHA-256 digest of its contents, so a damaged one is refused rather than resumed.
 
 Names: ``fname`` with a ``*`` writes a file per checkpoint with the step in its place
 (``restart.*.h5`` -> ``restart.5000.h5``), as LIGGGHTS does; otherwise each checkpoint
@@ -12,6 +13,7 @@ replaces the last.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
@@ -25,7 +27,8 @@ from pygran_core.errors import ConfigError, ReadError
 from pygran_core.simulation.specs import RestartSpec
 
 FORMAT = "pygran-checkpoint"
-VERSION = 1
+#: 2: the ``digest`` attribute (SHA-256 of the contents) is written and checked
+VERSION = 2
 
 
 @dataclass
@@ -87,60 +90,163 @@ def latest_checkpoint(restart: RestartSpec) -> Path:
     return found[max(found)]
 
 
+def _stored(checkpoint: Checkpoint) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The attributes and datasets a checkpoint is stored as."""
+    attrs = {
+        "format": FORMAT,
+        "version": VERSION,
+        "engine": checkpoint.engine,
+        "step": int(checkpoint.step),
+        "time": float(checkpoint.time),
+        "dt": np.nan if checkpoint.dt is None else float(checkpoint.dt),
+    }
+    # datasets, not attributes: an attribute holds at most 64 KiB
+    datasets = {
+        "journal": encode_text(json.dumps(checkpoint.journal)),
+        "facts": encode_text(json.dumps(checkpoint.facts)),
+    }
+    datasets.update({f"monitors/{k}": np.asarray(v) for k, v in checkpoint.monitors.items()})
+    datasets.update({f"state/{k}": np.asarray(v) for k, v in checkpoint.state.items()})
+    return attrs, datasets
+
+
+def _digest(attrs: dict[str, Any], datasets: dict[str, np.ndarray]) -> str:
+    """SHA-256 of a stored checkpoint: every attribute, and every dataset's name, type, shape
+    and bytes, in name order."""
+    digest = hashlib.sha256(repr(sorted((k, repr(v)) for k, v in attrs.items())).encode())
+    for name in sorted(datasets):
+        value = np.ascontiguousarray(datasets[name])
+        digest.update(f"\0{name}\0{value.dtype.str}\0{value.shape}\0".encode())
+        digest.update(value.tobytes())
+    return digest.hexdigest()
+
+
 def write_checkpoint(path: Path, checkpoint: Checkpoint) -> None:
-    """Write ``checkpoint`` to ``path`` atomically (temporary file, then rename)."""
+    """Write ``checkpoint`` to ``path`` atomically (temporary file, then rename), with the
+    digest of its contents."""
     import h5py
 
+    attrs, datasets = _stored(checkpoint)
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial")
     with h5py.File(partial, "w") as f:
-        f.attrs["format"] = FORMAT
-        f.attrs["version"] = VERSION
-        f.attrs["engine"] = checkpoint.engine
-        f.attrs["step"] = checkpoint.step
-        f.attrs["time"] = checkpoint.time
-        f.attrs["dt"] = np.nan if checkpoint.dt is None else checkpoint.dt
-        # datasets, not attributes: an attribute holds at most 64 KiB
-        f.create_dataset("journal", data=encode_text(json.dumps(checkpoint.journal)))
-        f.create_dataset("facts", data=encode_text(json.dumps(checkpoint.facts)))
-        for position, samples in checkpoint.monitors.items():
-            f.create_dataset(f"monitors/{position}", data=samples)
-        for name, value in checkpoint.state.items():
-            f.create_dataset(f"state/{name}", data=value)
+        f.attrs.update(attrs)
+        f.attrs["digest"] = _digest(attrs, datasets)
+        for name, value in datasets.items():
+            f.create_dataset(name, data=value)
     os.replace(partial, path)
 
 
+_KINDS = {str: "text", int: "an integer", float: "a number"}
+#: What h5py, UTF-8 and JSON decoding raise on a damaged file.
+_DAMAGE = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError)
+
+
 def read_checkpoint(path: Path) -> Checkpoint:
-    """Read a checkpoint written by :func:`write_checkpoint`, with a clear error if it is not one."""
+    """Read a checkpoint written by :func:`write_checkpoint`.
+
+    Anything malformed is a :class:`ReadError`: a damaged or truncated file, contents that do
+    not match their digest, attributes of the wrong type, datasets that are not numeric or
+    whose shape is not what is stored, a journal or facts that are not UTF-8 JSON of the
+    expected shape, monitors that are not tables of samples. What the engine's state arrays
+    must hold is checked by the engine that restores them.
+    """
     import h5py
 
     try:
         with h5py.File(path, "r") as f:
-            if f.attrs.get("format") != FORMAT:
-                raise ReadError(f"{path}: not a PyGran checkpoint (no format={FORMAT!r} attribute)")
-            if int(f.attrs["version"]) > VERSION:
-                raise ReadError(
-                    f"{path}: checkpoint version {int(f.attrs['version'])} is newer than this "
-                    f"PyGran reads ({VERSION}); upgrade pygran-core"
-                )
-            state: dict[str, np.ndarray] = {}
+            return _read(path, f)
+    except _DAMAGE as exc:
+        raise ReadError(f"{path}: unreadable checkpoint ({type(exc).__name__}: {exc})") from None
 
-            def collect(name: str, item: Any) -> None:
-                if isinstance(item, h5py.Dataset):
-                    state[name] = item[()]
 
-            if "state" in f:
-                f["state"].visititems(collect)
-            dt = float(f.attrs["dt"])
-            return Checkpoint(
-                engine=str(f.attrs["engine"]),
-                step=int(f.attrs["step"]),
-                time=float(f.attrs["time"]),
-                dt=None if np.isnan(dt) else dt,
-                journal=json.loads(decode_text(f["journal"][()])),
-                monitors={int(k): v[()] for k, v in f.get("monitors", {}).items()},
-                state={k: np.asarray(v) for k, v in state.items()},
-                facts=json.loads(decode_text(f["facts"][()])),
-            )
-    except (OSError, KeyError) as exc:
-        raise ReadError(f"{path}: unreadable checkpoint ({exc})") from None
+def _read(path: Path, f: Any) -> Checkpoint:
+    import h5py
+
+    def fail(message: str) -> ReadError:
+        return ReadError(f"{path}: {message}")
+
+    def attr(name: str, kind: type) -> Any:
+        value = f.attrs.get(name)
+        value = value.decode() if isinstance(value, bytes) else value
+        value = value.item() if isinstance(value, np.generic) else value
+        if kind is str:
+            ok = isinstance(value, str)
+        else:
+            ok = isinstance(value, (int, float) if kind is float else int) and not isinstance(value, bool)
+        if not ok:
+            raise fail(f"attribute {name!r} is {value!r}, not {_KINDS[kind]}")
+        return kind(value)
+
+    if f.attrs.get("format") is None or attr("format", str) != FORMAT:
+        raise fail(f"not a PyGran checkpoint (no format={FORMAT!r} attribute)")
+    version = attr("version", int)
+    if version > VERSION:
+        raise fail(
+            f"checkpoint version {version} is newer than this PyGran reads ({VERSION}); upgrade pygran-core"
+        )
+    attrs = {
+        "format": FORMAT,
+        "version": version,
+        "engine": attr("engine", str),
+        "step": attr("step", int),
+        "time": attr("time", float),
+        "dt": attr("dt", float),
+    }
+    if attrs["step"] < 0 or not np.isfinite(attrs["time"]) or not (np.isnan(attrs["dt"]) or attrs["dt"] > 0):
+        raise fail(f"bad clock: step {attrs['step']}, time {attrs['time']}, dt {attrs['dt']}")
+    datasets: dict[str, np.ndarray] = {}
+
+    def collect(name: str, item: Any) -> None:
+        if isinstance(item, h5py.Dataset):
+            if item.dtype.kind not in "biuf":
+                raise fail(f"dataset {name!r} holds {item.dtype}, not numbers")
+            stored = item.id.get_storage_size()
+            if item.chunks is None and item.size and stored != item.size * item.dtype.itemsize:
+                raise fail(f"dataset {name!r} of shape {item.shape} has {stored} bytes stored")
+            datasets[name] = item[()]
+
+    f.visititems(collect)
+    if "digest" in f.attrs:
+        if attr("digest", str) != _digest(attrs, datasets):
+            raise fail("damaged checkpoint: its contents do not match the digest written with them")
+    elif version >= 2:
+        raise fail("damaged checkpoint: the digest of its contents is missing")
+    journal = _json(fail, datasets, "journal", list)
+    if not all(isinstance(c, list) and len(c) == 2 and isinstance(c[0], str) for c in journal):
+        raise fail("the journal is not a list of [call, result] pairs")
+    monitors: dict[int, np.ndarray] = {}
+    for name, value in datasets.items():
+        if name.startswith("monitors/"):
+            key = name.split("/", 1)[1]
+            if not key.isdigit() or value.ndim != 2 or value.shape[1] < 2:
+                raise fail(f"monitor {key!r} is not a table of samples (shape {value.shape})")
+            monitors[int(key)] = value.astype(np.float64)
+    state = {name[len("state/") :]: value for name, value in datasets.items() if name.startswith("state/")}
+    clock = state.get("clock")
+    if clock is None or clock.shape != (2,) or not np.isfinite(clock).all():
+        raise fail(f"the state has no clock of 2 finite numbers (found {clock!r})")
+    return Checkpoint(
+        engine=attrs["engine"],
+        step=attrs["step"],
+        time=attrs["time"],
+        dt=None if np.isnan(attrs["dt"]) else attrs["dt"],
+        journal=journal,
+        monitors=monitors,
+        state=state,
+        facts=_json(fail, datasets, "facts", dict),
+    )
+
+
+def _json(fail: Any, datasets: dict[str, np.ndarray], name: str, kind: type) -> Any:
+    """The JSON value of a text dataset, which must be a ``kind``."""
+    value = datasets.get(name)
+    if value is None or value.dtype != np.uint8 or value.ndim != 1:
+        raise fail(f"the {name} is missing or not UTF-8 bytes")
+    try:
+        decoded = json.loads(decode_text(value))
+    except ValueError as exc:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+        raise fail(f"the {name} is not UTF-8 JSON: {exc}") from None
+    if not isinstance(decoded, kind):
+        raise fail(f"the {name} is a {type(decoded).__name__}, not a {kind.__name__}")
+    return decoded
