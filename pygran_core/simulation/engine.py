@@ -149,6 +149,10 @@ def _user_stacklevel() -> int:
     return level
 
 
+def _point(x: np.ndarray) -> str:
+    return "(" + ", ".join(f"{float(c):.6g}" for c in x) + ")"
+
+
 def _shorten(text: str, width: int = 120) -> str:
     return "`" + (text if len(text) <= width else text[: width - 3] + "...") + "`"
 
@@ -198,6 +202,8 @@ class Engine(abc.ABC):
         self._broken: set[int] = set()  # ids of non-finite particles counted by a _Watch
         #: (species, smallest radius, more than one) of the particles present; None: read anew
         self._present: tuple[tuple[int, float, bool], ...] | None = None
+        #: Positions and radii of the particles present, kept between runs for createParticles
+        self._placed: tuple[np.ndarray, np.ndarray] | None = None
         self._logger = logging.getLogger(f"pygran.simulation.{self.name}")
         self._log_handler = logging.FileHandler(self.output / LOG_NAME, encoding="utf-8")
         self._log_handler.setFormatter(logging.Formatter(_LOG_FORMAT))
@@ -344,7 +350,7 @@ class Engine(abc.ABC):
             self.require("insert-by-rate", "insertion by rate")
         handle = self._call("insertion", self._insert, spec)
         self._insert_specs[handle.id] = spec
-        self._present = None
+        self._forget_particles()
         spread = np.linalg.norm(spec.velocity.spread) * (3 if spec.velocity.kind == "gaussian" else 1)
         self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity.mean) + spread))
         return handle
@@ -363,7 +369,13 @@ class Engine(abc.ABC):
         if self.replaying:
             return recorded
         count = self._calls[-1][1] = self._create(spec)
-        self._present = None
+        self._present = None  # _placed, used by the next createParticles, is extended below
+        if spec.style == "single" and self._placed is not None:
+            radius = spec.radius or self.spec.species[spec.species - 1].radius.min
+            x, r = self._placed
+            self._placed = (np.vstack([x, spec.centres]), np.append(r, np.full(len(spec.centres), radius)))
+        else:
+            self._placed = None
         self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity)))
         self.log("create %s: %d particles", spec, count)
         return count
@@ -374,34 +386,41 @@ class Engine(abc.ABC):
 
         centres = spec.centres
         radius = spec.radius or self.spec.species[spec.species - 1].radius.min
-        present, radii = self._extract("x").reshape(-1, 3), self._extract("radius")
-        finite = np.isfinite(present).all(axis=1)
-        present, radii = present[finite], radii[finite]
-        everything = np.vstack([present, centres])
-        sizes = np.concatenate([radii, np.full(len(centres), radius)])
-        reach = 2 * float(sizes.max())
-        pairs = cKDTree(everything).query_pairs(reach, output_type="ndarray")
-        pairs = pairs[pairs.max(axis=1) >= len(present)] if len(pairs) else pairs
-        if not len(pairs):
+        if self._placed is None:
+            x, r = self._extract("x").reshape(-1, 3), self._extract("radius")
+            finite = np.isfinite(x).all(axis=1)
+            self._placed = (x[finite], r[finite])
+        present, radii = self._placed
+        # every close pair: (index of the new centre, the other's centre, its radius, the gap)
+        found: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        if len(present):
+            reach = radius + float(radii.max())
+            if len(present) * len(centres) <= 1_000_000:
+                gaps = np.linalg.norm(present[None, :, :] - centres[:, None, :], axis=2)
+                new, old = np.nonzero(gaps < reach)
+                gap = gaps[new, old]
+            else:
+                near = cKDTree(centres).sparse_distance_matrix(cKDTree(present), reach, output_type="ndarray")
+                new, old, gap = near["i"], near["j"], near["v"]
+            found.append((new, present[old], radii[old], gap))
+        if len(centres) > 1:
+            among = cKDTree(centres).query_pairs(2 * radius, output_type="ndarray").reshape(-1, 2)
+            gap = np.linalg.norm(centres[among[:, 0]] - centres[among[:, 1]], axis=1)
+            found.append((among[:, 1], centres[among[:, 0]], np.full(len(among), radius), gap))
+        if not found:
             return
-        gap = np.linalg.norm(everything[pairs[:, 0]] - everything[pairs[:, 1]], axis=1)
-        overlap = sizes[pairs[:, 0]] + sizes[pairs[:, 1]] - gap
-        depth = overlap / np.minimum(sizes[pairs[:, 0]], sizes[pairs[:, 1]])
+        new, others, sizes, gap = (np.concatenate(parts) for parts in zip(*found))
+        depth = (sizes + radius - gap) / np.minimum(sizes, radius)
+        if not len(depth) or depth.max() <= CREATE_OVERLAP_TOLERANCE:
+            return
         worst = int(np.argmax(depth))
-        if depth[worst] <= CREATE_OVERLAP_TOLERANCE:
-            return
-        a, b = sorted(pairs[worst])
-        other = (
-            f"the particle present at {tuple(np.round(everything[a], 12))}"
-            if a < len(present)
-            else f"the new one at {tuple(np.round(everything[a], 12))}"
-        )
-        pairs_in_all = int((depth > CREATE_OVERLAP_TOLERANCE).sum())
+        kind = "the particle present" if worst < len(found[0][0]) and len(present) else "the new one"
         raise ConfigError(
-            f"createParticles position {tuple(np.round(everything[b], 12))} overlaps {other} by "
-            f"{100 * min(depth[worst], 2.0):.3g} % of the smaller radius ({pairs_in_all} overlapping "
-            "pairs in all): overlapping particles repel at high speed. Move the positions apart, at "
-            "least the sum of the radii."
+            f"createParticles position {_point(centres[new[worst]])} overlaps {kind} at "
+            f"{_point(others[worst])} by {100 * min(depth[worst], 2.0):.3g} % of the smaller "
+            f"radius ({int((depth > CREATE_OVERLAP_TOLERANCE).sum())} overlapping pairs in all): "
+            "overlapping particles repel at high speed. Move the positions apart, at least the sum of "
+            "the radii."
         )
 
     def set_properties(self, spec: SetSpec) -> int:
@@ -426,7 +445,7 @@ class Engine(abc.ABC):
         ids = spec.select(present, self._extract("type"), self._extract("x"))
         if len(ids):
             self._assign(ids, spec)
-            self._present = None
+            self._forget_particles()
         if spec.velocity is not None:
             self._speeds = max(self._speeds, float(np.linalg.norm(spec.velocity)))
         self.log("set %s: %d particles", spec, len(ids))
@@ -469,7 +488,7 @@ class Engine(abc.ABC):
         self._journal(f"command {text}")
         self.log("command %s", text)
         self._command(text)
-        self._present = None
+        self._forget_particles()
 
     def remove(self, handle: Handle) -> None:
         """Remove what ``handle`` refers to (an insertion, wall, mesh motion, force, monitor)."""
@@ -488,7 +507,7 @@ class Engine(abc.ABC):
         del self._handles[handle.id]
         self._wall_specs.pop(handle.id, None)
         self._insert_specs.pop(handle.id, None)
-        self._present = None
+        self._forget_particles()
         self.log("remove %s %s", handle.kind, handle.label)
 
     # -- running -----------------------------------------------------------------------
@@ -551,11 +570,17 @@ class Engine(abc.ABC):
                 if watch is None:
                     lost += self._lost_since_last() or LostParticles()
         assert self.step == end
+        self._placed = None  # the particles have moved
         if watch is not None:
             lost = watch.finish()
         self._report_lost(lost, start, watch is not None)
 
     # -- the time step and lost particles ------------------------------------------------
+
+    def _forget_particles(self) -> None:
+        """Read the particles present anew when next needed: a call or run may have changed them."""
+        self._present = None
+        self._placed = None
 
     def expect_outflow(self, *faces: str) -> None:
         """Declare that particles leave through these faces of the domain (``"z-"``: below the
@@ -638,7 +663,7 @@ class Engine(abc.ABC):
         if not lost.count:
             return
         self.lost += lost.count
-        self._present = None
+        self._forget_particles()
         expected = sum(n for place, n in lost.where.items() if place in self._outflow)
         where = lost.places(self._outflow)
         how = (
@@ -779,7 +804,7 @@ class Engine(abc.ABC):
         self.step, self.time, self.dt = checkpoint.step, checkpoint.time, checkpoint.dt
         self._clock = (int(checkpoint.state["clock"][0]), float(checkpoint.state["clock"][1]))
         self._restore_state(checkpoint.state)
-        self._present = None
+        self._forget_particles()
         for handle_id, samples in checkpoint.monitors.items():
             monitor = self._monitors[handle_id]
             monitor.samples = [tuple(float(v) for v in row) for row in samples]
