@@ -3,9 +3,12 @@
 An engine owns a solver. The base class owns the behaviour that must not differ between
 engines: the output directory (created, never ``chdir``-ed into), the log of every call in
 ``<output>/pygran.log``, capability checks that name the engines able to do what was asked,
-handle bookkeeping for ``remove``, and ``run``: the progress bar, step/time accounting and
-the schedule of trajectory frames, monitor samples and checkpoints, between which the
-solver runs without returning to Python. An engine implements the ``_underscored`` hooks.
+the checks that need the particles present (ids given to ``set``, overlapping created
+particles), handle bookkeeping for ``remove``, and ``run``: the time-step check
+(:mod:`~pygran_core.simulation.timestep`), the progress bar, step/time accounting, the
+schedule of trajectory frames, monitor samples and checkpoints, between which the solver
+runs without returning to Python, and the report of the particles lost in the run. An
+engine implements the ``_underscored`` hooks.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from pygran_core.errors import (
     TimeStepWarning,
     UnsupportedFeature,
     did_you_mean,
+    unknown_key,
 )
 from pygran_core.simulation.checkpoint import (
     Checkpoint,
@@ -476,8 +480,6 @@ class Engine(abc.ABC):
         """A per-particle quantity (see :data:`EXTRACTABLE`) as a numpy array ordered by id."""
         self._check_open()
         if quantity not in EXTRACTABLE:
-            from pygran_core.errors import unknown_key
-
             raise unknown_key("quantity", quantity, EXTRACTABLE)
         return self._extract(quantity)
 
@@ -588,8 +590,6 @@ class Engine(abc.ABC):
         faces to expect none again."""
         for face in faces:
             if face not in FACES:
-                from pygran_core.errors import unknown_key
-
                 raise unknown_key("outflow face", str(face), FACES)
             if self.spec.domain.periodic["xyz".index(face[0])]:
                 raise ConfigError(
