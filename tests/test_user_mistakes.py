@@ -168,6 +168,7 @@ CALL = [
     ),
     ("empty region", lambda s: s.insert(1, value=10, region=("sphere", 0, 0, 0, 0)), ConfigError, "region"),
     ("velocity type", lambda s: s.insert(1, value=10, vel_type="uniformm"), ConfigError, "'uniformm'"),
+    ("all_in as text", lambda s: s.insert(1, value=10, all_in="true"), ConfigError, "all_in"),
     ("createParticles style", lambda s: s.createParticles(1, "grid", 2e-3), ConfigError, "'grid'"),
     (
         "createParticles of all species",
