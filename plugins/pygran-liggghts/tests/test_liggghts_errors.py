@@ -123,3 +123,15 @@ def test_signal_inside_liggghts(tmp_path):
         ):
             sim.command(f"shell kill -SEGV {pid}")
     works(tmp_path / "after")
+
+
+def test_an_error_of_several_lines_is_kept_whole(tmp_path):
+    """LIGGGHTS explains some errors over several lines, ending with the source line."""
+    with make(tmp_path / "region") as sim:
+        sim.insert(species=1, value=10, region=("block", 0.001, 0.009, 0.001, 0.009, 0.004, 0.005))
+        with pytest.raises(
+            EngineError,
+            match=r"ERROR: Unable to calculate region volume\. .* \(a\) region volume is too small .* "
+            r"\(c\) region is 2d, but should be 3d \(\S*region\.cpp:\d+\)",
+        ):
+            sim.run(10)

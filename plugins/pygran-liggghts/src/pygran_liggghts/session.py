@@ -29,6 +29,10 @@ from typing import Any
 from pygran_core.errors import EngineError
 from pygran_liggghts.worker import Session
 
+#: The end of a LIGGGHTS error message: its source line, ``(./src/input.cpp:327)``.
+SOURCE_LINE = re.compile(r"\(\S+:\d+\)$")
+#: Lines an error message may span.
+MESSAGE_LINES = 10
 #: Seconds to wait for a worker to connect, and to exit after ``close``.
 START_TIMEOUT = 120.0
 EXIT_TIMEOUT = 30.0
@@ -53,15 +57,19 @@ class LocalSession(Session):
 
 
 def error_message(log: Path, stderr: Path) -> str | None:
-    """LIGGGHTS' error: the last ``ERROR`` line in the screen file ``log``, else in a rank's
-    screen file, else in the job's output ``stderr``."""
+    """LIGGGHTS' error: the last ``ERROR`` line, with the lines that continue it up to its
+    source line ``(file:line)``, in the screen file ``log``, else in a rank's screen file,
+    else in the job's output ``stderr``."""
     ranks = sorted(log.parent.glob(f"{log.stem}.rank*{log.suffix}"))
     for path in (log, *ranks, stderr):
-        if path.is_file():
-            found = [line.strip() for line in path.read_text(errors="replace").splitlines()]
-            found = [line for line in found if line.startswith("ERROR")]
-            if found:
-                return found[-1]
+        if not path.is_file():
+            continue
+        lines = [line.strip() for line in path.read_text(errors="replace").splitlines()]
+        starts = [i for i, line in enumerate(lines) if line.startswith("ERROR")]
+        if starts:
+            message = lines[starts[-1] : starts[-1] + MESSAGE_LINES]
+            ends = [i for i, line in enumerate(message) if SOURCE_LINE.search(line)]
+            return " ".join(message[: ends[0] + 1] if ends else message[:1])
     return None
 
 
