@@ -35,6 +35,7 @@ def test_hopper_flows_after_the_stopper_is_removed(tmp_path):
         progress=False,
     ) as sim:
         sim.setupWall(wtype="mesh", mesh="silo")
+        sim.engine.expect_outflow("z-")  # what leaves the hopper falls out of the box
         stopper = sim.setupWall(species=1, plane="zplane", peq=0.0)
         sim.insert(
             species=1, value=150, region=("cylinder", "z", 0, 0, 5.5e-4, 1.6e-3, 2.9e-3), vel=(0, 0, -0.2)
@@ -87,6 +88,7 @@ def test_hopper_and_rotating_impeller_are_walls_together(tmp_path):
         progress=False,
     ) as sim:
         sim.setupWall(wtype="mesh", mesh="silo")
+        sim.engine.expect_outflow("x-", "x+", "y-", "y+", "z-")  # flung off the impeller, or past it
         impeller = sim.setupWall(wtype="mesh", mesh="impeller")
         sim.moveMesh("impeller", rotate=True, axis=(0, 0, 1), origin=(0, 0, 0), omega=OMEGA)
         sim.insert(species=1, value=100, region=("cylinder", "z", 0, 0, 3.5e-4, 6e-4, 2e-3), vel=(0, 0, -0.2))

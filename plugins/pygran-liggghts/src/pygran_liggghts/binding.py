@@ -45,7 +45,11 @@ def _declare(lib: ctypes.CDLL, comm_type: type) -> ctypes.CDLL:
         "lammps_extract_global": ([handle, text], pointer),
         "lammps_extract_atom": ([handle, text], pointer),
         "lammps_extract_compute": ([handle, text, ctypes.c_int, ctypes.c_int], pointer),
-        "lammps_get_natoms": ([handle], ctypes.c_int),
+        "lammps_extract_fix": (
+            [handle, text, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_int],
+            pointer,
+        ),
+        "lammps_free": ([pointer], None),
     }
     for name, (argtypes, restype) in signatures.items():
         function = getattr(lib, name)
@@ -97,10 +101,6 @@ class Liggghts:
         """Execute one input line."""
         self._lib.lammps_command(self._handle, line.encode())
 
-    def natoms(self) -> int:
-        """Number of atoms over all ranks."""
-        return int(self._lib.lammps_get_natoms(self._handle))
-
     def timestep(self) -> int:
         """The current step number."""
         pointer = self._lib.lammps_extract_global(self._handle, b"ntimestep")
@@ -149,6 +149,22 @@ class Liggghts:
         """The largest atom id over all ranks (0 without atoms)."""
         tags = self.local("id")
         return int(self.comm.allreduce(int(tags.max()) if tags.size else 0, op=_max()))
+
+    def count(self) -> int:
+        """Number of atoms over all ranks, counted now (LIGGGHTS' own count is updated only
+        when it prints thermodynamic output)."""
+        return int(self.comm.allreduce(self._nlocal()))
+
+    def inserted(self, fixes: Sequence[str]) -> int:
+        """Particles inserted so far by the insertion fixes ``fixes`` (element 0 of their global
+        vector; a fix that does not exist counts 0)."""
+        total = 0
+        for fix in fixes:
+            pointer = self._lib.lammps_extract_fix(self._handle, fix.encode(), 0, 1, 0, 0)
+            if pointer:
+                total += int(ctypes.cast(pointer, ctypes.POINTER(ctypes.c_double))[0])
+                self._lib.lammps_free(pointer)
+        return total
 
     def compute_scalar(self, compute: str) -> float:
         """The global scalar of compute ``compute`` (evaluated now)."""

@@ -231,7 +231,7 @@ class Commands:
             f"neighbor {fmt(spec.skin)} {spec.nns_type}",
             "neigh_modify delay 0",
             "thermo_style custom step atoms ke",
-            "thermo_modify lost ignore norm no",
+            "thermo_modify lost warn norm no",  # counted by the worker, reported by the front end
             "compute_modify thermo_temp dynamic yes",
             *self._material_tables(),
             f"pair_style gran {self.granular}",

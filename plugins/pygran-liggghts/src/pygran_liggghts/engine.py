@@ -31,7 +31,7 @@ import numpy as np
 
 from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
 from pygran_core.simulation.checkpoint import decode_text, encode_text
-from pygran_core.simulation.engine import Engine
+from pygran_core.simulation.engine import Engine, LostParticles
 from pygran_liggghts.commands import Commands, fmt, native_meshes, native_particles
 from pygran_liggghts.session import LocalSession, WorkerSession, under_mpirun
 
@@ -129,6 +129,8 @@ class LiggghtsEngine(Engine):
         self._mesh_fix: str | None = None  # the one fix wall/gran of all mesh walls
         self._restart_file: Path | None = None  # of the last checkpoint
         self._replayed_once: set[str] = set()  # one-off insertions not redone on resume
+        self._insertions: set[str] = set()  # insertion fixes in LIGGGHTS, whose counts are read
+        self._unreported = LostParticles()  # lost particles not yet reported to the front end
         try:
             if spec.traj.mfile is not None and spec.meshes and spec.traj.mfile.suffix != ".vtk":
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
@@ -241,8 +243,35 @@ class LiggghtsEngine(Engine):
         # may skip its set-up (init, neighbour lists, forces): those of the last step hold
         pre = "pre no " if self._prepared and not lines else ""
         self._queue([*lines, f"run {nsteps} {pre}post no"])
-        self._flush()
+        self._max_id, count, x, v = self._ask("run", self._take(), sorted(self._insertions))
         self._prepared = True
+        if count:
+            self._unreported += self._lost_particles(count, x, v, nsteps * self.dt)
+
+    def _lost_particles(self, count: int, x: np.ndarray, v: np.ndarray, duration: float) -> LostParticles:
+        """``count`` particles lost in a run of ``duration``: those seen at its start (``x``,
+        ``v``) placed as the front end places them; the others, inserted during it, ``unknown``."""
+        from types import SimpleNamespace
+
+        from pygran_core.simulation.engine import _Watch
+
+        domain, gravity = self.spec.domain, self.spec.gravity
+        box = SimpleNamespace(
+            box=np.array(domain.box, float),
+            fixed=~np.array(domain.periodic),
+            gravity=gravity.vector if gravity is not None else np.zeros(3),
+        )
+        where: dict[str, int] = {}
+        for place in [*_Watch._faces(box, x, v, duration), *["unknown"] * (count - len(x))]:
+            where[place] = where.get(place, 0) + 1
+        self.log("%d particles lost in the last %d steps: %s", count, round(duration / self.dt), where)
+        return LostParticles(count, where)
+
+    def _lost_since_last(self) -> LostParticles:
+        """The particles LIGGGHTS lost since the last call, counted exactly in every run
+        (``thermo_modify lost warn`` keeps it going; see :meth:`~.worker.Session.run`)."""
+        lost, self._unreported = self._unreported, LostParticles()
+        return lost
 
     def _extract(self, quantity: str) -> np.ndarray:
         return self._request("gather", [quantity])[quantity]
@@ -264,6 +293,7 @@ class LiggghtsEngine(Engine):
             self._replayed_once.add(label)
             return label
         self._execute(lines)
+        self._insertions.add(label)
         return label
 
     def _create(self, spec: CreateSpec) -> int:
@@ -432,6 +462,7 @@ class LiggghtsEngine(Engine):
             self._execute([f"unfix {handle.label}"])
         self._walls.pop(handle.label, None)
         self._motions.pop(handle.label, None)
+        self._insertions.discard(handle.label)
 
     def _restart_name(self) -> str:
         """This step's LIGGGHTS restart file, named after the checkpoint's."""

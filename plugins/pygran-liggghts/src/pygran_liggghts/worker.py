@@ -26,7 +26,7 @@ class Session:
     prefixes LIGGGHTS' error lines also written to standard error (``None``: not written).
     """
 
-    requests = frozenset({"execute", "timestep", "natoms", "gather", "assign", "scalar", "close"})
+    requests = frozenset({"execute", "run", "timestep", "natoms", "gather", "assign", "scalar", "close"})
 
     def __init__(self, args: Sequence[str], comm: Any, root: int | None, echo: str | None = None) -> None:
         from pygran_liggghts.binding import Liggghts
@@ -40,11 +40,34 @@ class Session:
             self.lmp.command(line)
         return self.lmp.max_id()
 
+    def run(self, lines: Sequence[str], inserting: Sequence[str]) -> tuple[int, int, Any, Any]:
+        """Run ``lines``, the last a ``run`` command; ``inserting`` are the insertion fixes.
+
+        Returns the largest atom id afterwards and the particles lost during the run: their
+        number (those present at its start and gone at its end, and those inserted during it
+        and gone), and the positions and velocities at its start of those present then.
+        """
+        import numpy as np
+
+        for line in lines[:-1]:
+            self.lmp.command(line)
+        ids, x, v = (self.lmp.local(q) for q in ("id", "x", "v"))
+        count, inserted = self.lmp.count(), self.lmp.inserted(inserting)
+        self.lmp.command(lines[-1])
+        now = self.lmp.local("id")
+        lost = count + self.lmp.inserted(inserting) - inserted - self.lmp.count()
+        gone = ~np.isin(ids, now)  # gone from this rank: lost, or moved to another rank
+        parts = self.lmp.comm.allgather((ids[gone], x[gone], v[gone]))
+        candidates, x, v = (np.concatenate([part[i] for part in parts]) for i in range(3))
+        elsewhere = self.lmp.comm.allreduce(np.isin(candidates, now).astype(np.int8), op=_sum())
+        known = elsewhere == 0
+        return self.lmp.max_id(), max(lost, int(known.sum())), x[known], v[known]
+
     def timestep(self) -> int:
         return self.lmp.timestep()
 
     def natoms(self) -> int:
-        return self.lmp.natoms()
+        return self.lmp.count()
 
     def gather(self, quantities: Sequence[str]) -> Any:
         return self.lmp.gather(quantities, root=self.root)
@@ -57,6 +80,12 @@ class Session:
 
     def close(self) -> None:
         self.lmp.close()
+
+
+def _sum() -> Any:
+    from mpi4py import MPI
+
+    return MPI.SUM
 
 
 def main(argv: list[str]) -> None:
