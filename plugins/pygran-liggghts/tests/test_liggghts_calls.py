@@ -158,6 +158,7 @@ def test_viscous_drag_gives_terminal_velocity(tmp_path):
     with dem(tmp_path, gravity=(G, 0, 0, -1), species=species) as sim:
         sim.createParticles(1, "single", -0.005, 0.0, 0.025)
         sim.createParticles(2, "single", 0.005, 0.0, 0.025)
+        sim.engine.expect_outflow("z-")  # the sphere without drag falls out of the box
         sim.addViscous(gamma=gamma, scale=2, species=1)
         sim.run(round(tau / DT))
         v = sim.extractVelocities()[:, 2]
@@ -243,29 +244,32 @@ def test_run_chunks_with_pre_no_match_one_run(tmp_path):
 
 def test_particles_created_one_by_one_stream_to_liggghts(tmp_path):
     """Once the worker is up, every 1000 queued lines of particles created one by one go to
-    LIGGGHTS without waiting; their ``set atom`` lines are ranges."""
-    rng = np.random.default_rng(7)
-    centres = rng.uniform([-0.009, -0.009, 0.001], [0.009, 0.009, 0.029], (1200, 3))
+    LIGGGHTS without waiting; their ``set atom`` lines are ranges. (1100 sites of a lattice of
+    spacing 2.05 mm, in random order, so that no two spheres overlap.)"""
+    axes = [np.arange(-8.2e-3, 8.3e-3, 2.05e-3)] * 2 + [np.arange(1.025e-3, 0.029, 2.05e-3)]
+    sites = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    centres = np.random.default_rng(7).permutation(sites)[:1100]
     with dem(tmp_path) as sim:
         assert len(sim.extractIds()) == 0  # waits for the worker
         for k, centre in enumerate(centres):
-            sim.createParticles(1, "single", *centre, vel=(0, 0, -0.5) if k < 1100 else (0, 0, 0))
+            sim.createParticles(1, "single", *centre, vel=(0, 0, -0.5) if k < 1050 else (0, 0, 0))
         x, v, ids = sim.extractCoords(), sim.extractVelocities(), sim.extractIds()
         mass = sim.engine.extract("mass")
-    np.testing.assert_array_equal(ids, np.arange(1, 1201))
+    np.testing.assert_array_equal(ids, np.arange(1, 1101))
     np.testing.assert_array_equal(x, centres)
-    np.testing.assert_array_equal(v[:, 2], np.where(ids <= 1100, -0.5, 0.0))
+    np.testing.assert_array_equal(v[:, 2], np.where(ids <= 1050, -0.5, 0.0))
     np.testing.assert_allclose(mass, MASS, rtol=1e-12)
     sets = [line for line in (tmp_path / "in.pygran").read_text().splitlines() if line.startswith("set")]
     assert sets == [
         "set atom 1*1000 diameter 0.002 density 2500 vx 0 vy 0 vz -0.5",
-        "set atom 1001*1100 diameter 0.002 density 2500 vx 0 vy 0 vz -0.5",
-        "set atom 1101*1200 diameter 0.002 density 2500",
+        "set atom 1001*1050 diameter 0.002 density 2500 vx 0 vy 0 vz -0.5",
+        "set atom 1051*1100 diameter 0.002 density 2500",
     ]
 
 
 def test_create_many_single_particles_from_an_array(tmp_path):
-    positions = np.column_stack([np.linspace(-0.008, 0.008, 30), np.zeros(30), np.full(30, 0.01)])
+    grid = np.stack(np.meshgrid(np.linspace(-0.0075, 0.0075, 6), np.linspace(-0.005, 0.005, 5)), axis=-1)
+    positions = np.column_stack([grid.reshape(-1, 2), np.full(30, 0.01)])  # 2.5 mm apart
     with dem(tmp_path) as sim:
         assert sim.createParticles(1, "single", positions, vel=(0, 0, -0.5)) == 30
         np.testing.assert_array_equal(sim.extractIds(), np.arange(1, 31))

@@ -3,11 +3,13 @@ impacts of stiff materials agree with closed forms.
 
 - Settle: for each material of ``params.MATERIALS``, a sphere resting on the floor and a
   stack of two come to rest at the overlaps where the reference model's normal force
-  (Hertz plus SJKR cohesion) carries their weight, within 1 %.
+  (Hertz plus SJKR cohesion) carries their weight, within 1 % (plus delta / R between the
+  spheres, the order of the reference's SJKR area there).
 - Hertz: a glass sphere-sphere impact (after Chung & Ooi 2011, test 1) and an aluminium
   sphere on a rigid wall at 0.2 m/s (their test 2): maximum overlap within 1 % and contact
   time within 2 % of Hertz's closed forms.
-- Oblique impacts of glass on a wall in the sliding regime (their test 6): a contact that
+- Oblique impacts of glass on a wall in the sliding regime (their test 6, at incidences 1.5
+  and 4 times beyond the onset of sliding throughout): a contact that
   slides throughout takes a tangential impulse mu (1 + e) m v_n, so the tangential
   restitution is ``1 - mu (1 + e) v_n / v_t`` and the spin ``5 mu (1 + e) v_n / (2 R)``;
   both within 2 %.
@@ -29,6 +31,7 @@ from scipy.optimize import brentq
 
 from pygran_core import params
 from pygran_core.simulation.models import HertzMindlin
+from pygran_core.simulation.timestep import rayleigh_time
 from pygran_core.testing.solvers import require_solver
 from pygran_core.validation import (
     GRAVITY,
@@ -53,8 +56,11 @@ RIGID = 1e9
 
 
 def rest_overlap(model: HertzMindlin, load: float) -> float:
-    """The overlap at which the model's elastic force (with cohesion) carries ``load``."""
-    top = 10 * (load / model.effective_modulus / math.sqrt(model.effective_radius)) ** (2 / 3)
+    """The overlap at which the model's elastic force (with cohesion) carries ``load``: the
+    force less the load is negative at touch (cohesion pulls) and grows past it once."""
+    top = (load / model.effective_modulus / math.sqrt(model.effective_radius)) ** (2 / 3)
+    while float(model.normal_force(top, 0.0)) < load:
+        top *= 2
     return brentq(lambda delta: float(model.normal_force(delta, 0.0)) - load, 1e-30, top, xtol=1e-30)
 
 
@@ -89,7 +95,10 @@ def test_every_material_settles_at_its_hertz_overlap(tmp_path, name):
     contact = hertz_contact_time(
         sphere_mass(material, RADIUS), RADIUS, contact_modulus(material), material["characteristicVelocity"]
     )
-    dt = contact / 50
+    rayleigh = rayleigh_time(
+        RADIUS, material["density"], material["youngsModulus"], material["poissonsRatio"]
+    )
+    dt = min(contact / 50, rayleigh / 10)
     lone, bottom = rest_overlap(on_wall, weight), rest_overlap(on_wall, 2 * weight)
     top = rest_overlap(on_sphere, weight)
     decay = slowest_decay(sphere_mass(material, RADIUS), (on_wall, bottom), (on_sphere, top))
@@ -108,7 +117,9 @@ def test_every_material_settles_at_its_hertz_overlap(tmp_path, name):
     assert ("soft_particles yes" in text) == (material["youngsModulus"] < 5e6)
     assert RADIUS - z[0] == pytest.approx(lone, rel=0.01)
     assert RADIUS - z[1] == pytest.approx(bottom, rel=0.01)
-    assert 2 * RADIUS - (z[2] - z[1]) == pytest.approx(top, rel=0.01)
+    # the reference's SJKR area between spheres is LIGGGHTS' lens area to first order in
+    # delta / R only: with cohesion that dominates (``cohesive``) allow that much more
+    assert 2 * RADIUS - (z[2] - z[1]) == pytest.approx(top, rel=0.01 + top / RADIUS)
     assert np.abs(v).max() < 1e-2 * math.sqrt(GRAVITY[0] * lone)
 
 
@@ -197,15 +208,16 @@ def test_aluminium_sphere_on_a_rigid_wall(tmp_path):
     assert rebound.contact_time == pytest.approx(hertz_contact_time(m, radius, E, speed), rel=0.02)
 
 
-@pytest.mark.parametrize("angle", [50, 70])
-def test_oblique_glass_impact_in_the_sliding_regime(tmp_path, angle):
-    """Incidence angles (from the normal) above the rigid-body limit tan(theta) = 3.5 mu (1 + e)."""
+@pytest.mark.parametrize("beyond", [1.5, 4.0])
+def test_oblique_glass_impact_in_the_sliding_regime(tmp_path, beyond):
+    """Incidence angles (from the normal) with tan(theta) ``beyond`` times the rigid-body limit
+    3.5 mu (1 + e) of sliding throughout."""
     require_solver(find_library)
     glass = dict(params.glass, coefficientRollingFriction=0.0)  # Chung & Ooi have no rolling torque
     mu, e = glass["coefficientFriction"], glass["coefficientRestitution"]
-    assert math.tan(math.radians(angle)) > 3.5 * mu * (1 + e)
+    angle = math.atan(beyond * 3.5 * mu * (1 + e))
     radius, speed = RADIUS, 1.0
-    vt, vn = speed * math.sin(math.radians(angle)), speed * math.cos(math.radians(angle))
+    vt, vn = speed * math.sin(angle), speed * math.cos(angle)
     rebound = impact(tmp_path, glass, radius, (vt, 0.0, -vn), "wall")
     assert rebound.velocity[2] / vn == pytest.approx(e, rel=0.01)
     assert rebound.velocity[0] / vt == pytest.approx(1 - mu * (1 + e) * vn / vt, rel=0.02)
