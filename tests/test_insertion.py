@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from pygran_core.simulation.calls import Region
-from pygran_core.simulation.insertion import Obstacles, place_spheres, triangle_distance
+from pygran_core.simulation.insertion import Obstacles, insertion_steps, place_spheres, triangle_distance
 
 BLOCK = Region("block", (0.0, 0.01, 0.0, 0.01, 0.0, 0.01))
 
@@ -85,3 +85,20 @@ def test_triangle_distance_matches_dense_sampling():
     exact = triangle_distance(points, triangles)
     assert np.all(exact <= brute + 1e-12)
     np.testing.assert_allclose(exact, brute, atol=0.02)
+
+
+@pytest.mark.parametrize(
+    ("first", "freq", "start", "stop", "end", "steps"),
+    [
+        (0, 100, 0, 300, None, [0, 100, 200]),  # a run of 300 steps: none at its last step
+        (0, 100, 300, 400, None, [300]),  # the next run makes the one due at 300 as it starts
+        (50, 100, 0, 400, None, [50, 150, 250, 350]),  # an insert() between multiples of freq
+        (50, 100, 151, 400, None, [250, 350]),
+        (0, 100, 0, 1000, 250, [0, 100, 200]),  # by rate for a duration
+        (20, None, 0, 100, None, [20]),  # once
+        (20, None, 20, 20, None, []),
+        (20, None, 21, 100, None, []),
+    ],
+)
+def test_insertion_steps_follow_liggghts_rule(first, freq, start, stop, end, steps):
+    assert insertion_steps(first, freq, start, stop, end) == steps

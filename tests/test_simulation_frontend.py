@@ -418,9 +418,50 @@ def test_insert_spec():
         ({"value": 10, "species": 3}, "species 3 does not exist"),
         ({}, "give the amount"),
         ({"value": 10.5}, "whole number"),
-        ({"value": 0.8, "mech": "volumefraction_region"}, "above close packing"),
+        ({"value": 1.2, "mech": "volumefraction_region"}, "above 1: give a fraction"),
         ({"value": 1, "vel": (0, 0)}, "vel \\(constant\\) must be a sequence of 3"),
         ({"value": 1, "regoin": None}, "Did you mean 'region'"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            calls.parse_insert(bad, s, 1)
+
+
+def test_insert_in_the_original_forms():
+    s = spec()
+    as_string = calls.parse_insert(
+        {"value": 1.0, "mech": "volumefraction_region", "region": ("block", "0 1e-2 0 1e-2 0 5e-3")}, s, 1
+    )
+    nested = calls.parse_insert(
+        {"value": 1.0, "mech": "volumefraction_region", "region": ("block", (0, 1e-2, 0, 1e-2, 0, 5e-3))},
+        s,
+        1,
+    )
+    assert as_string.region == nested.region == calls.Region("block", (0, 1e-2, 0, 1e-2, 0, 5e-3))
+    assert as_string.value == 1.0 and as_string.requested == 1.0
+    notes = []
+    calls.parse_insert({"value": 0.9, "mech": "volumefraction_region"}, s, 1, notes)
+    assert notes and "the region gets what fits" in notes[0]
+    # PyGran 1.x by rate: a total and a rate per second
+    total = calls.parse_insert({"insert": "by_rate", "mech": "nparticles", "value": 500, "rate": 1e4}, s, 1)
+    assert (total.target, total.value, total.duration) == ("particlerate", 1e4, 0.05)
+    mass = calls.parse_insert({"insert": "by_rate", "mech": "mass", "value": 1e-3, "rate": 0.1}, s, 1)
+    assert (mass.target, mass.value, mass.duration) == ("massrate", 0.1, pytest.approx(0.01))
+    assert calls.parse_insert({"value": 5, "all_in": "no"}, s, 1).all_in is False
+    for bad, message in (
+        ({"value": 5, "args": {"orientation": "random"}}, "species 1 is a sphere, which has no orientation"),
+        ({"value": 5, "args": {"orient": "random"}}, "Did you mean 'orientation'"),
+        ({"value": 5, "args": "orientation random"}, "args must be a dict"),
+        ({"value": 5, "set_property": ("p", 1)}, "'set_property'.* is not supported"),
+        ({"value": 5, "all_in": "maybe"}, "all_in must be 'yes' or 'no'"),
+        ({"value": 5, "seed": "x"}, "seed must be a non-negative integer"),
+        ({"value": 5, "weights": 1}, "weights must be 1 fractions"),
+        ({"value": 5, "weights": ("a",)}, "insert weights must be a finite number"),
+        (
+            {"insert": "by_rate", "mech": "nparticles", "value": 500},
+            "give the total as value=... and the rate",
+        ),
+        ({"value": 5, "region": ("block", "0 1 0 1 0")}, "takes 6 values"),
+        ({"value": 5, "region": ("block", "a b c d e f")}, "block region must be a finite number"),
     ):
         with pytest.raises(ConfigError, match=message):
             calls.parse_insert(bad, s, 1)

@@ -94,6 +94,10 @@ def parse_region(value: Any, spec: SimulationSpec) -> Region:
         )
     kind = one_of(value[0], "region type", list(REGION_ARITY))
     args = tuple(value[1:])
+    if len(args) == 1 and isinstance(args[0], str):  # PyGran 1.x: ('block', '-1e-3 1e-3 ...')
+        args = tuple(float(word) if _is_number(word) else word for word in args[0].split())
+    elif len(args) == 1 and isinstance(args[0], Sequence):  # ('block', (xlo, xhi, ...))
+        args = tuple(args[0])
     if len(args) != REGION_ARITY[kind]:
         raise ConfigError(f"region {kind!r} takes {REGION_ARITY[kind]} values, got {len(args)}: {value!r}")
     if kind == "cylinder":
@@ -154,6 +158,8 @@ def parse_velocity(kind: Any, values: Any) -> VelocityDistribution:
 
 PACK_TARGETS = ("particles_in_region", "volumefraction_region", "mass_in_region")
 RATE_TARGETS = ("particlerate", "massrate")
+#: PyGran 1.x's totals of an insertion by rate (``mech``) and the rate each goes with.
+RATE_TOTALS = {"nparticles": "particlerate", "mass": "massrate"}
 
 
 @dataclass(frozen=True)
@@ -163,11 +169,19 @@ class InsertSpec:
     ``by_pack``: once (or every ``freq`` steps) until the region holds ``value`` particles,
     volume fraction or mass (``target``). ``by_rate``: ``value`` particles or kg per second
     (``target``), every ``freq`` steps, for ``duration`` seconds (``None``: until removed).
+    ``requested`` is the amount the script asked for: for ``particles_in_region`` it comes on
+    top of the particles in the region at the call (PyGran 1.x added them), so ``value`` is
+    their sum. A volume fraction may be up to 1: the region gets what fits.
+
+    Insertion ``k`` is due at step ``first + k * freq`` (see :func:`~.insertion.insertion_steps`)
+    and is made as the step after it starts: a run's last step inserts nothing, the next run
+    does so as it starts, as LIGGGHTS does. Multisphere species take an ``orientation``:
+    ``'random'``, ``'template'`` or ``('constant', q1, q2, q3, q4)``.
     """
 
     mechanism: str
     target: str
-    value: float
+    value: float = field(repr=False)
     species: tuple[int, ...]
     weights: tuple[float, ...]
     region: Region
@@ -177,6 +191,8 @@ class InsertSpec:
     duration: float | None = None
     all_in: bool = True
     seed: int = 0
+    requested: float | None = None
+    orientation: str | tuple[float, float, float, float] | None = None
 
 
 INSERT_KEYS = (
@@ -197,24 +213,81 @@ INSERT_KEYS = (
     "seed",
     "orientation",
     "set_property",
+    "args",
 )
+#: Random close packing of monodisperse spheres: a volume fraction above it cannot be reached.
+CLOSE_PACKING = 0.64
+
+
+def _flag(value: Any, name: str) -> bool:
+    if value in ("yes", True):
+        return True
+    if value in ("no", False):
+        return False
+    raise ConfigError(f"{name} must be 'yes' or 'no', got {value!r}")
+
+
+def parse_orientation(value: Any, species: Sequence[int], spec: SimulationSpec) -> Any:
+    """A multisphere insertion's orientation: ``'random'``, ``'template'`` or
+    ``('constant', q1, q2, q3, q4)`` (a unit quaternion); spheres take none."""
+    spheres = [k for k in species if spec.species[k - 1].style == "sphere"]
+    if spheres:
+        raise ConfigError(
+            f"insert orientation={value!r}: species {spheres[0]} is a sphere, which has no orientation; "
+            "leave orientation out (it applies to multisphere species)"
+        )
+    if value in ("random", "template"):
+        return value
+    if isinstance(value, str):
+        value = value.split()
+    if isinstance(value, Sequence) and len(value) == 5 and value[0] == "constant":
+        q = np.array(number_tuple(value[1:], "insert orientation quaternion", 4))
+        if not math.isclose(float(np.linalg.norm(q)), 1.0, rel_tol=1e-6):
+            raise ConfigError(f"insert orientation {value!r}: the quaternion must have length 1")
+        return tuple(float(v) for v in q)
+    raise ConfigError(
+        f"insert orientation must be 'random', 'template' or ('constant', q1, q2, q3, q4), got {value!r}"
+    )
 
 
 def parse_insert(
     kwargs: Mapping[str, Any], spec: SimulationSpec, seed: int, notes: list[str] | None = None
 ) -> InsertSpec:
+    """``insert(species, value, ...)`` (manual 4.2.1); ``args={'orientation': ...}`` is
+    PyGran 1.x's way to give multisphere keywords. ``value`` is the amount asked for: see
+    :class:`InsertSpec` for how ``particles_in_region`` adds to what is there."""
     check_keys("insert keyword", kwargs, INSERT_KEYS)
-    for unsupported in ("orientation", "set_property"):
-        if unsupported in kwargs:
-            raise ConfigError(f"insert: {unsupported!r} applies to multisphere/property fixes, not spheres")
+    args = kwargs.get("args", {})
+    if not isinstance(args, Mapping):
+        raise ConfigError(f"insert args must be a dict such as {{'orientation': 'random'}}, got {args!r}")
+    check_keys("insert args keyword", args, ("orientation",))
+    if "orientation" in args and "orientation" in kwargs:
+        raise ConfigError("insert: give orientation once, as orientation= or in args")
+    if "set_property" in kwargs:
+        raise ConfigError("insert: 'set_property' (a fix property/atom of LIGGGHTS) is not supported")
     mechanism = one_of(kwargs.get("insert", "by_pack"), "insert mechanism", ("by_pack", "by_rate"))
     species = parse_species_selection(kwargs.get("species", "all"), spec)
-    weights = tuple(kwargs.get("weights", [1.0 / len(species)] * len(species)))
+    weights = kwargs.get("weights", [1.0 / len(species)] * len(species))
+    if isinstance(weights, str) or not isinstance(weights, Sequence):
+        raise ConfigError(f"insert weights must be {len(species)} fractions summing to 1, got {weights!r}")
+    weights = tuple(finite_number(w, "insert weights") for w in weights)
     if len(weights) != len(species) or min(weights) < 0 or not math.isclose(sum(weights), 1.0, rel_tol=1e-6):
         raise ConfigError(f"insert weights {weights} must be {len(species)} fractions summing to 1")
+    duration = kwargs.get("duration")
     if mechanism == "by_pack":
         target = one_of(kwargs.get("mech", "particles_in_region"), "insert by_pack mech", PACK_TARGETS)
         value = kwargs.get("value")
+    elif kwargs.get("mech") in RATE_TOTALS:  # PyGran 1.x: mech='nparticles', value=N, rate=per second
+        if kwargs.get("rate") is None or kwargs.get("value") is None or duration is not None:
+            raise ConfigError(
+                f"insert by_rate with mech={kwargs['mech']!r}: give the total as value=... and the rate "
+                "as rate=... (per second), not duration"
+            )
+        target = one_of(
+            kwargs.get("rate_type", RATE_TOTALS[kwargs["mech"]]), "insert rate_type", RATE_TARGETS
+        )
+        value = positive_float(kwargs["rate"], "insert rate")
+        duration = positive_float(kwargs["value"], "insert value") / value
     else:
         target = one_of(
             kwargs.get("rate_type", kwargs.get("mech", "particlerate")), "insert rate_type", RATE_TARGETS
@@ -223,27 +296,38 @@ def parse_insert(
     if value is None:
         raise ConfigError(f"insert {mechanism}: give the amount as value=... (or rate=... for by_rate)")
     value = positive_float(value, "insert value")
-    if target == "volumefraction_region" and value >= 0.74:
-        raise ConfigError(
-            f"insert volume fraction {value} is above close packing (0.74); use <= 0.5 for random insertion"
-        )
+    if target == "volumefraction_region":
+        if value > 1:
+            raise ConfigError(
+                f"insert volumefraction_region {value} is above 1: give a fraction of the region"
+            )
+        if value > CLOSE_PACKING and notes is not None:
+            notes.append(
+                f"insert volume fraction {value:g} is above what spheres can fill (random close packing "
+                f"~{CLOSE_PACKING}): the region gets what fits"
+            )
     if target == "particles_in_region" and value != int(value):
         raise ConfigError(f"insert particles_in_region needs a whole number of particles, got {value}")
     freq = kwargs.get("freq", "once")
-    duration = kwargs.get("duration")
+    orientation = kwargs.get("orientation", args.get("orientation"))
+    chosen_seed = kwargs.get("seed", seed)
+    if isinstance(chosen_seed, bool) or not isinstance(chosen_seed, Integral) or chosen_seed < 0:
+        raise ConfigError(f"insert seed must be a non-negative integer, got {chosen_seed!r}")
     return InsertSpec(
         mechanism=mechanism,
         target=target,
         value=value,
         species=species,
-        weights=tuple(float(w) for w in weights),
+        weights=weights,
         region=parse_region(kwargs.get("region"), spec),
         velocity=parse_velocity(kwargs.get("vel_type", "constant"), kwargs.get("vel", (0, 0, 0))),
         omega=_omega(kwargs.get("omega", (0, 0, 0))),
         freq=None if freq == "once" else step_count(freq, "insert freq", notes),
         duration=None if duration is None else positive_float(duration, "insert duration"),
-        all_in=kwargs.get("all_in", "yes") in ("yes", True),
-        seed=int(kwargs.get("seed", seed)),
+        all_in=_flag(kwargs.get("all_in", "yes"), "insert all_in"),
+        seed=int(chosen_seed),
+        requested=value,
+        orientation=None if orientation is None else parse_orientation(orientation, species, spec),
     )
 
 
@@ -589,13 +673,15 @@ class MonitorSpec:
 def parse_monitor(kwargs: Mapping[str, Any], notes: list[str] | None = None) -> MonitorSpec:
     check_keys("monitor keyword", kwargs, ("quantities", "freq", "file", "name"))
     quantities = kwargs.get("quantities", ("ke",))
-    quantities = (quantities,) if isinstance(quantities, str) else tuple(quantities)
+    quantities = (quantities,) if isinstance(quantities, str) else quantities
+    if not isinstance(quantities, Sequence):
+        raise ConfigError(f"monitor quantities must be names such as ('ke', 'n'), got {quantities!r}")
     for quantity in quantities:
         one_of(quantity, "monitor quantity", MONITOR_QUANTITIES)
     return MonitorSpec(
-        quantities,
+        tuple(quantities),
         step_count(kwargs.get("freq", 100), "monitor freq", notes),
-        str(kwargs.get("file", kwargs.get("name", "monitor") + ".txt")),
+        str(kwargs.get("file", f"{kwargs.get('name', 'monitor')}.txt")),
     )
 
 

@@ -9,6 +9,7 @@ are :class:`~pygran_core.errors.ConfigError` raised before the solver sees anyth
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from types import SimpleNamespace
 from typing import Any
 
@@ -131,10 +132,20 @@ class DEM:
     # -- particles ---------------------------------------------------------------------
 
     def insert(self, species: Any = "all", value: Any = None, **kwargs: Any) -> Handle:
-        """Insert particles by pack or by rate into a region (manual 4.2.1); returns a handle."""
+        """Insert particles by pack or by rate into a region (manual 4.2.1); returns a handle.
+
+        ``value`` particles ``particles_in_region`` come on top of those in the region now
+        (two species inserted one after the other into one region give both), as PyGran 1.x
+        did; see :class:`~.calls.InsertSpec` for when insertions happen."""
         request = {"species": species, **kwargs} | ({} if value is None else {"value": value})
         notes: list[str] = []
-        handle = self.engine.insert(calls.parse_insert(request, self.spec, self._seed(), notes))
+        spec = calls.parse_insert(request, self.spec, self._seed(), notes)
+        if spec.mechanism == "by_pack" and spec.target == "particles_in_region":
+            present = int(np.count_nonzero(spec.region.contains(self.engine.extract("x").reshape(-1, 3))))
+            if present:
+                spec = replace(spec, value=spec.value + present)
+                notes.append(f"insert {spec.requested:g} particles on top of the {present} in the region")
+        handle = self.engine.insert(spec)
         self._note(notes)
         return handle
 

@@ -9,12 +9,13 @@ Python iteration per particle.
 from __future__ import annotations
 
 import abc
+import itertools
 import json
 import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -23,7 +24,7 @@ from pygran_core.errors import ConfigError
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
 from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine, Handle
-from pygran_core.simulation.specs import SimulationSpec
+from pygran_core.simulation.specs import SimulationSpec, positive_float, positive_int
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,11 @@ class Obstacles:
         for point, normal in zip(self.plane_points, self.plane_normals):
             ok &= np.abs((centres - point) @ normal) >= radii
         if len(self.triangles) and len(centres):
-            ok &= triangle_distance(centres, self.triangles) >= radii
+            reach = float(radii.max())
+            lo, hi = centres.min(axis=0) - reach, centres.max(axis=0) + reach
+            near = np.all((self.triangles.max(axis=1) >= lo) & (self.triangles.min(axis=1) <= hi), axis=1)
+            if near.any():  # the others are farther than any radius from every sphere
+                ok &= triangle_distance(centres, self.triangles[near]) >= radii
         return ok
 
 
@@ -77,6 +82,25 @@ def triangle_distance(points: np.ndarray, triangles: np.ndarray, batch: int = 25
     return best
 
 
+def insertion_steps(first: int, freq: int | None, start: int, stop: int, end: int | None = None) -> list[int]:
+    """The steps in ``[start, stop)`` at which insertions are due: ``first``, then every
+    ``freq`` steps (``None``: only ``first``), before ``end`` (``None``: no end).
+
+    The rule every engine follows (LIGGGHTS' ``fix insert``): an insertion due at step ``s``
+    is made as the simulation advances from ``s`` to ``s + 1``. A run from step ``a`` to
+    ``b`` therefore makes the insertions due in ``[a, b)``: the first as it starts, none at
+    its last step; one due at ``b`` is made as the next run starts. (The insertion due at
+    the step of the ``insert`` call itself is made at the call by the engines that place
+    particles, at the next run's start by LIGGGHTS: no time passes in between.)
+    """
+    if freq is None:
+        steps = [first] if start <= first < stop else []
+    else:
+        k = max(0, -(-(start - first) // freq))
+        steps = list(range(first + k * freq, stop, freq))
+    return [s for s in steps if end is None or s < end]
+
+
 def place_spheres(
     region: Region,
     radii: np.ndarray,
@@ -92,8 +116,8 @@ def place_spheres(
     Random sequential addition in batches, largest spheres first: candidates uniform in
     the region (whole spheres inside it when ``all_in``) are kept when they clear all
     placed spheres and every earlier candidate of their batch. Returns ``(index, centres)``:
-    the centres of ``radii[index]``, for as many as fit within ``attempts`` batches (the
-    caller compares the count with what it asked for).
+    the centres of ``radii[index]``, for as many as fit within ``attempts`` batches or until
+    a batch places none (the caller compares the count with what it asked for).
     """
     radii = np.asarray(radii, float)
     bounds = region.bounds()
@@ -108,9 +132,9 @@ def place_spheres(
         r = radii[pending[slots]]
         centres = rng.uniform(bounds[:, 0], bounds[:, 1], (len(slots), 3))
         ok = region.contains(centres, r if all_in else 0.0)
+        ok[ok] &= ~_clashes(centres[ok], r[ok], centres_placed, radii_placed)
         if obstacles is not None:
             ok[ok] &= obstacles.clear(centres[ok], r[ok])
-        ok[ok] &= ~_clashes(centres[ok], r[ok], centres_placed, radii_placed)
         keep = np.flatnonzero(ok)
         keep = keep[_clear_of_earlier(centres[keep], r[keep])]
         _, first = np.unique(slots[keep], return_index=True)
@@ -119,6 +143,8 @@ def place_spheres(
         radii_placed = np.append(radii_placed, r[keep])
         placed_index.append(pending[slots[keep]])
         pending = np.delete(pending, slots[keep])
+        if not len(keep):
+            break  # jammed: a batch of four candidates per sphere found no free place
     index = np.concatenate(placed_index) if placed_index else np.zeros(0, int)
     return index, centres_placed[n_existing:]
 
@@ -154,10 +180,10 @@ class PlacingEngine(Engine):
     such engine inserts and creates the same particles for the same request and seed.
 
     It implements ``insert`` (by pack, once or every ``freq`` steps; by rate, every ``freq``
-    steps or every :attr:`rate_interval` seconds) and ``createParticles`` (single, lattice,
-    random). A subclass adds the spheres to its solver in :meth:`_add_spheres`, says what
-    they must not overlap in :meth:`_obstacles`, and handles its other handles in
-    ``_remove`` (calling ``super()._remove`` for insertions).
+    steps or every :attr:`rate_interval` seconds) at the steps :func:`insertion_steps` gives,
+    and ``createParticles`` (single, lattice, random). A subclass adds the spheres to its
+    solver in :meth:`_add_spheres`, says what they must not overlap in :meth:`_obstacles`,
+    and handles its other handles in ``_remove`` (calling ``super()._remove`` for insertions).
     """
 
     #: Simulated seconds between insertions by rate when ``freq`` is not given.
@@ -172,6 +198,7 @@ class PlacingEngine(Engine):
             )
         self._schedules: dict[str, _Schedule] = {}
         self._insertions = 0
+        self._run_end: int | None = None  # the step the run under way ends at
 
     @abc.abstractmethod
     def _add_spheres(
@@ -226,15 +253,22 @@ class PlacingEngine(Engine):
             species, radii = species[:keep], radii[:keep]
         return species, radii
 
-    def _lacking(self, request: InsertSpec) -> float:
-        """How much the region lacks of a by-pack target."""
+    def _held(self, request: InsertSpec) -> float:
+        """How much of a by-pack target the region holds: particles, volume or mass."""
         inside = request.region.contains(self._extract("x"))
         if request.target == "particles_in_region":
-            return max(request.value - np.count_nonzero(inside), 0)
+            return float(np.count_nonzero(inside))
         if request.target == "volumefraction_region":
-            solid = (4 / 3 * math.pi * self._extract("radius")[inside] ** 3).sum()
-            return max(request.value * request.region.volume() - solid, 0.0)
-        return max(request.value - self._extract("mass")[inside].sum(), 0.0)
+            return float((4 / 3 * math.pi * self._extract("radius")[inside] ** 3).sum())
+        return float(self._extract("mass")[inside].sum())
+
+    def _lacking(self, schedule: _Schedule) -> float:
+        """How much the region lacks of a by-pack target."""
+        request = schedule.request
+        target = schedule.target * (
+            request.region.volume() if request.target == "volumefraction_region" else 1
+        )
+        return max(target - self._held(request), 0.0)
 
     # -- placing -----------------------------------------------------------------------
 
@@ -268,6 +302,12 @@ class PlacingEngine(Engine):
         self.log("insert at step %d: %d of %d particles", self.step, made, len(radii))
         if made < len(radii):
             self.log("region full: %d particles did not fit", len(radii) - made, level=logging.WARNING)
+        if request.target == "volumefraction_region":
+            self.log(
+                "volume fraction in the region: %.3g of the %.3g asked for",
+                self._held(request) / request.region.volume(),
+                request.value,
+            )
         return float(self._share(request, species, radii).sum())
 
     def _insert(self, request: InsertSpec) -> str:
@@ -275,31 +315,49 @@ class PlacingEngine(Engine):
         label = f"insert{self._insertions}"
         rng = np.random.default_rng(request.seed)
         if request.mechanism == "by_pack":
-            schedule = _Schedule(request, request.freq or 0, self.step, None, rng)
-            self._insert_now(schedule, self._lacking(request))
-            if request.freq:
-                schedule.next_step = self.step + request.freq
-                self._schedules[label] = schedule
-            return label
-        if self.dt is None:
-            raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
-        freq = request.freq or max(1, round(self.rate_interval / self.dt))
-        end = None if request.duration is None else self.step + round(request.duration / self.dt)
-        self._schedules[label] = _Schedule(request, freq, self.step, end, rng)
-        self._run_schedules()
+            freq, end = request.freq, None
+        else:
+            if self.dt is None:
+                raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
+            freq = request.freq or max(1, round(self.rate_interval / self.dt))
+            end = None if request.duration is None else self.step + round(request.duration / self.dt)
+        schedule = _Schedule(request, freq, self.step, end, rng, target=request.value)
+        self._schedules[label] = schedule
+        self._insert_due(label, schedule)  # due now: made at the call (see insertion_steps)
         return label
 
-    def _run_schedules(self) -> None:
+    def _insert_due(self, label: str, schedule: _Schedule, dt: float | None = None) -> None:
+        """Make the insertion due at this step (by rate: for the next ``freq`` steps of ``dt``,
+        else of the simulation's time step) and schedule the next, or end the schedule."""
+        request = schedule.request
+        if request.mechanism == "by_pack":
+            self._insert_now(schedule, self._lacking(schedule))
+        else:
+            schedule.owed += request.value * schedule.freq * (dt or self.dt)
+            schedule.owed -= self._insert_now(schedule, schedule.owed)
+        following = None if schedule.freq is None else schedule.next_step + schedule.freq
+        if following is None or (schedule.end_step is not None and following >= schedule.end_step):
+            del self._schedules[label]
+        else:
+            schedule.next_step = following
+
+    def _run_schedules(self, dt: float | None = None) -> None:
+        """Make the insertions due at this step, when a step follows (in a run, not at its end);
+        none while the script is replayed up to a checkpoint, which holds their outcome."""
+        if self._run_end is None or self.step >= self._run_end or self.replaying:
+            return
         for label, schedule in list(self._schedules.items()):
-            if schedule.end_step is not None and self.step >= schedule.end_step:
-                del self._schedules[label]
-            elif self.step == schedule.next_step:
-                if schedule.request.mechanism == "by_pack":
-                    self._insert_now(schedule, self._lacking(schedule.request))
-                else:
-                    schedule.owed += schedule.request.value * schedule.freq * self.dt
-                    schedule.owed -= self._insert_now(schedule, schedule.owed)
-                schedule.next_step = self.step + schedule.freq
+            if self.step == schedule.next_step:
+                self._insert_due(label, schedule, dt)
+
+    def run(self, nsteps: int, dt: float | None = None, **options: Any) -> None:
+        """:meth:`Engine.run`, making the insertions due at its first step as it starts."""
+        self._run_end = self.step + positive_int(nsteps, "nsteps")
+        try:
+            self._run_schedules(None if dt is None else positive_float(dt, "dt"))
+            super().run(nsteps, dt, **options)
+        finally:
+            self._run_end = None
 
     def _create(self, request: CreateSpec) -> int:
         species = self.spec.species[request.species - 1]
@@ -346,8 +404,18 @@ class PlacingEngine(Engine):
 
     # -- the engine's schedule ------------------------------------------------------------
 
-    def _frequencies(self) -> list[int]:
-        return super()._frequencies() + [s.freq for s in self._schedules.values() if s.freq]
+    def _chunks(self, nsteps: int) -> list[int]:
+        """The engine's pieces of a run, also split at every insertion due inside it."""
+        start = self.step
+        stops = set(itertools.accumulate(super()._chunks(nsteps), initial=start))
+        for schedule in self._schedules.values():
+            stops.update(
+                insertion_steps(
+                    schedule.next_step, schedule.freq, start + 1, start + nsteps, schedule.end_step
+                )
+            )
+        ordered = sorted(stops)
+        return [b - a for a, b in zip(ordered, ordered[1:])]
 
     def _on_event(self) -> None:
         self._run_schedules()
@@ -359,6 +427,7 @@ class PlacingEngine(Engine):
             end = -1 if schedule.end_step is None else schedule.end_step
             state[f"schedules/{label}/clock"] = np.array([schedule.next_step, end], np.int64)
             state[f"schedules/{label}/owed"] = np.array(schedule.owed)
+            state[f"schedules/{label}/target"] = np.array(schedule.target)
             state[f"schedules/{label}/rng"] = encode_text(json.dumps(schedule.rng.bit_generator.state))
         return state
 
@@ -372,6 +441,7 @@ class PlacingEngine(Engine):
             schedule.next_step, end = (int(v) for v in state[f"schedules/{label}/clock"])
             schedule.end_step = None if end < 0 else end
             schedule.owed = float(state[f"schedules/{label}/owed"])
+            schedule.target = float(state[f"schedules/{label}/target"])
             schedule.rng.bit_generator.state = json.loads(decode_text(state[f"schedules/{label}/rng"]))
 
     def _remove(self, handle: Handle) -> None:
@@ -382,11 +452,14 @@ class PlacingEngine(Engine):
 
 @dataclass
 class _Schedule:
-    """A repeated insertion: what, how often, until when, and how much is still owed."""
+    """An insertion: what, how often (``None``: once), the step the next is due, until when,
+    how much is still owed (by rate) and the region's target (by pack: ``request.value`` as
+    made at the call, kept in checkpoints)."""
 
     request: InsertSpec
-    freq: int
+    freq: int | None
     next_step: int
     end_step: int | None
     rng: np.random.Generator
     owed: float = 0.0
+    target: float = 0.0
