@@ -467,6 +467,53 @@ def test_insert_in_the_original_forms():
             calls.parse_insert(bad, s, 1)
 
 
+def test_monitor_the_original_way_averages_as_liggghts_fix_ave_time():
+    s = spec(species=({"material": MATERIAL, "radius": 5e-4}, {"material": MATERIAL, "radius": 5e-4}))
+    average = calls.parse_average(
+        {
+            "var": "ke",
+            "species": "all",
+            "name": "ensemble_ke",
+            "file": "ke.dat",
+            "nevery": 100,
+            "nrepeat": 10,
+            "nfreq": 1e3,
+        },
+        s,
+    )
+    assert (average.quantity, average.species, average.nfreq) == ("ke", (1, 2), 1000)
+    assert average.samples() == calls.MonitorSpec(("ke",), 100, "ensemble_ke-samples.txt")
+    steps = np.arange(0, 2501, 100)
+    values = steps.astype(float) ** 2
+    out, means = average.average(steps, values, since=0)
+    assert out.tolist() == [1000, 2000]  # 0 lacks the nine samples before it
+    assert means.tolist() == [
+        np.mean(np.arange(100, 1001, 100) ** 2.0),
+        np.mean(np.arange(1100, 2001, 100) ** 2.0),
+    ]
+    once = calls.parse_average({"var": "erotate/sphere", "nevery": 10, "nfreq": 30}, s)
+    assert (once.quantity, once.name, once.file, once.nrepeat) == (
+        "ke_rot",
+        "erotate_sphere",
+        "erotate_sphere.dat",
+        1,
+    )
+    assert once.average(np.arange(0, 100, 10), np.arange(10.0), since=0)[0].tolist() == [0, 30, 60, 90]
+    assert once.average(np.arange(0, 100, 10), np.arange(10.0), since=40)[0].tolist() == [60, 90]
+    for bad, message in (
+        ({"var": "ke", "nevery": 100, "nfreq": 150}, "nfreq must be a multiple of nevery"),
+        ({"var": "ke", "nevery": 100, "nrepeat": 20, "nfreq": 1000}, "nrepeat \\* nevery at most nfreq"),
+        ({"var": "pe"}, "Unknown monitor var 'pe'"),
+        ({"nevery": 10}, "needs var"),
+        ({"var": "ke", "species": 3}, "species 3 does not exist"),
+        ({"var": "ke", "name": "my ke"}, "name must be a word"),
+        ({"var": "ke", "nevery": 0}, "monitor nevery must be at least 1 step"),
+        ({"var": "ke", "freq": 10}, "Unknown monitor keyword 'freq'"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            calls.parse_average(bad, s)
+
+
 def test_create_wall_motion_viscous_monitor_specs():
     silo = DATA / "meshes" / "silo.stl"
     s = spec(mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}})

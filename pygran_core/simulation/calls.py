@@ -685,6 +685,82 @@ def parse_monitor(kwargs: Mapping[str, Any], notes: list[str] | None = None) -> 
     )
 
 
+#: PyGran 1.x's monitor ``var`` (a LIGGGHTS compute style) and the quantity it samples.
+AVERAGE_VARS = {"ke": "ke", "erotate/sphere": "ke_rot", "erotate": "ke_rot"}
+#: The keywords of PyGran 1.x's monitor, LIGGGHTS' ``compute`` + ``fix ave/time``.
+AVERAGE_KEYS = ("var", "species", "name", "file", "nevery", "nrepeat", "nfreq")
+
+
+@dataclass(frozen=True)
+class AverageSpec:
+    """PyGran 1.x's ``monitor(var='ke', species='all', name=..., file=..., nevery=,
+    nrepeat=, nfreq=)``: LIGGGHTS' ``compute <var>`` of the species' particles averaged as
+    ``fix ave/time nevery nrepeat nfreq``: on every step that is a multiple of ``nfreq``,
+    the mean of the ``nrepeat`` values sampled every ``nevery`` steps up to it, written to
+    ``file`` as LIGGGHTS does (``step value`` lines after two ``#`` lines)."""
+
+    quantity: str
+    var: str
+    species: tuple[int, ...]
+    name: str
+    file: str
+    nevery: int = 1
+    nrepeat: int = 1
+    nfreq: int = 1
+
+    def samples(self) -> MonitorSpec:
+        """The engine monitor this average reads: the quantity every ``nevery`` steps."""
+        return MonitorSpec((self.quantity,), self.nevery, f"{self.name}-samples.txt")
+
+    def average(self, steps: np.ndarray, values: np.ndarray, since: int) -> tuple[np.ndarray, np.ndarray]:
+        """The averages (steps, means) of the samples ``values`` taken at ``steps``, for the
+        output steps at or after ``since`` (the step the monitor began) whose samples are all there."""
+        sampled = dict(zip(steps.astype(np.int64).tolist(), values.tolist()))
+        span = (self.nrepeat - 1) * self.nevery
+        first = -(-(since + span) // self.nfreq) * self.nfreq
+        out_steps, means = [], []
+        for step in range(first, int(steps.max(initial=-1)) + 1, self.nfreq):
+            window = [sampled.get(s) for s in range(step - span, step + 1, self.nevery)]
+            if None not in window:
+                out_steps.append(step)
+                means.append(float(np.mean(window)))
+        return np.array(out_steps, np.int64), np.array(means, float)
+
+
+def parse_average(
+    kwargs: Mapping[str, Any], spec: SimulationSpec, notes: list[str] | None = None
+) -> AverageSpec:
+    """PyGran 1.x's monitor keywords (:data:`AVERAGE_KEYS`, its defaults ``nevery = nrepeat
+    = nfreq = 1``), checked as LIGGGHTS checks ``fix ave/time``."""
+    check_keys("monitor keyword", kwargs, AVERAGE_KEYS)
+    if "var" not in kwargs:
+        raise ConfigError(f"monitor(var=..., ...) needs var, one of {', '.join(AVERAGE_VARS)}")
+    var = kwargs["var"]
+    quantity = AVERAGE_VARS[one_of(var, "monitor var", list(AVERAGE_VARS))]
+    counts = {
+        key: step_count(kwargs.get(key, 1), f"monitor {key}", notes) for key in ("nevery", "nrepeat", "nfreq")
+    }
+    if counts["nfreq"] % counts["nevery"] or counts["nrepeat"] * counts["nevery"] > counts["nfreq"]:
+        raise ConfigError(
+            f"monitor nevery={counts['nevery']}, nrepeat={counts['nrepeat']}, nfreq={counts['nfreq']}: "
+            "nfreq must be a multiple of nevery and nrepeat * nevery at most nfreq (LIGGGHTS' fix ave/time)"
+        )
+    name = kwargs.get("name", str(var).replace("/", "_"))
+    if not isinstance(name, str) or not name or any(c in name for c in "/\\ "):
+        raise ConfigError(f"monitor name must be a word such as 'ensemble_ke', got {name!r}")
+    file = kwargs.get("file", f"{name}.dat")
+    if not isinstance(file, str) or not file:
+        raise ConfigError(f"monitor file must be a file name such as 'ke.dat', got {file!r}")
+    return AverageSpec(
+        quantity=quantity,
+        var=var,
+        species=parse_species_selection(kwargs.get("species", "all"), spec),
+        name=name,
+        file=file,
+        **counts,
+    )
+
+
 # -- assigning properties ----------------------------------------------------------------------
 
 

@@ -80,6 +80,29 @@ def required_capabilities(params: Mapping[str, Any]) -> list[tuple[str, str]]:
     return needed
 
 
+class AveragedMonitor:
+    """What PyGran 1.x's ``monitor(var=..., nevery=, nrepeat=, nfreq=)`` returns: the
+    LIGGGHTS ``fix ave/time`` averages (:class:`~.calls.AverageSpec`) of an engine monitor's
+    samples, in :attr:`values` and in :attr:`path`, which is rewritten after every run."""
+
+    def __init__(self, spec: calls.AverageSpec, samples: Monitor, path: Any, since: int) -> None:
+        self.spec, self.samples, self.path, self.since = spec, samples, path, since
+
+    @property
+    def values(self) -> dict[str, np.ndarray]:
+        """``{'step': output steps, var: averages}``."""
+        raw = self.samples.values
+        steps, means = self.spec.average(raw["step"], raw[self.spec.quantity], self.since)
+        return {"step": steps, self.spec.var: means}
+
+    def write(self) -> None:
+        """Write the averages as LIGGGHTS' ``fix ave/time ... file`` does."""
+        values = self.values
+        lines = [f"# Time-averaged data for fix {self.spec.name}", f"# TimeStep c_{self.spec.name}"]
+        lines += [f"{step} {float(mean)!r}" for step, mean in zip(values["step"], values[self.spec.var])]
+        self.path.write_text("\n".join(lines) + "\n")
+
+
 class DEM:
     """A DEM simulation on one engine; a context manager that closes the engine.
 
@@ -106,6 +129,7 @@ class DEM:
         self.engine: Engine = factory(self.spec)
         #: The wall of each mesh that is one, and the species it was made with.
         self._mesh_walls: dict[str, tuple[Handle, int]] = {}
+        self._averages: dict[str, AveragedMonitor] = {}
         try:
             if self.spec.user_keys:
                 self.engine.log(
@@ -215,12 +239,26 @@ class DEM:
 
     add_viscous = addViscous
 
-    def monitor(self, **kwargs: Any) -> Monitor:
-        """Sample ``quantities`` (``ke``, ``n``, ...) every ``freq`` steps into ``file`` and memory."""
+    def monitor(self, **kwargs: Any) -> Monitor | AveragedMonitor:
+        """Sample ``quantities`` (``ke``, ``n``, ...) every ``freq`` steps into ``file`` and memory;
+        or, PyGran 1.x's form, ``monitor(var='ke', species='all', name=..., file=...,
+        nevery=..., nrepeat=..., nfreq=...)``: LIGGGHTS' time averages (:class:`AveragedMonitor`)."""
         notes: list[str] = []
-        monitor = self.engine.monitor(calls.parse_monitor(kwargs, notes))
+        if not any(key in kwargs for key in calls.AVERAGE_KEYS if key not in ("name", "file")):
+            monitor = self.engine.monitor(calls.parse_monitor(kwargs, notes))
+            self._note(notes)
+            return monitor
+        spec = calls.parse_average(kwargs, self.spec, notes)
+        if set(spec.species) != {s.type for s in self.spec.species}:
+            self.engine.require("monitor-species", "monitors of some species only")
+        if spec.name in self._averages:
+            raise ConfigError(f"monitor name {spec.name!r} is taken: give each monitor its own name=")
+        averaged = AveragedMonitor(
+            spec, self.engine.monitor(spec.samples()), self.engine.output / spec.file, self.step
+        )
+        self._averages[spec.name] = averaged
         self._note(notes)
-        return monitor
+        return averaged
 
     def command(self, text: str) -> None:
         """Pass a solver-native command through (engines with ``raw-commands``)."""
@@ -234,11 +272,20 @@ class DEM:
         notes: list[str] = []
         steps = step_count(nsteps, "run nsteps", notes)
         self._note(notes)
-        self.engine.run(steps, dt, progress=progress)
+        try:
+            self.engine.run(steps, dt, progress=progress)
+        finally:
+            for averaged in self._averages.values():
+                averaged.write()
 
-    def remove(self, handle: Handle | Monitor | str) -> None:
+    def remove(self, handle: Handle | Monitor | AveragedMonitor | str) -> None:
         """Remove an insertion, wall, mesh motion, force or monitor; a mesh's name removes
         its wall (PyGran 1.x's ``remove('hopper')``)."""
+        if isinstance(handle, AveragedMonitor):
+            if self._averages.get(handle.spec.name) is not handle:
+                raise ConfigError(f"monitor {handle.spec.name!r} was already removed")
+            del self._averages[handle.spec.name]
+            handle = handle.samples
         if isinstance(handle, str):
             wall = self._mesh_walls.get(handle)
             if wall is None or wall[0] not in self.engine.handles:
