@@ -4,7 +4,8 @@
 per-call specs into LIGGGHTS 3.x commands. Ids of fixes, regions, groups and dumps are
 ``pg_<kind><n>`` with one counter per simulation, so the same calls always give the same
 input. Materials become ``fix property/global`` tables built with PyGran's shared mixing
-rules; paths are absolute, so the saved input reruns anywhere with the ``liggghts`` binary.
+rules; paths are absolute (quoted or linked where LIGGGHTS would misread them, see
+:meth:`Commands.path`), so the saved input reruns anywhere with the ``liggghts`` binary.
 """
 
 from __future__ import annotations
