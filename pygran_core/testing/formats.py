@@ -10,8 +10,9 @@ A format's test module subclasses :class:`FormatConformance` once per case::
 A writable format is tested by writing :meth:`sample_frames` and reading them back; a
 read-only one overrides :meth:`make_sample` to create files with another tool and return
 the frames they hold. :meth:`bad_files` lists damaged files and how many leading frames
-must stay readable. :func:`mutate` and :func:`fuzz_read` damage files at random and read
-each in a child process, for fuzz tests. Requires pytest.
+must stay readable. For fuzz tests, :func:`damaged_copies` damages files at random
+(:func:`mutate`) and :func:`fuzz_check` reads each in a child process (:func:`fuzz_read`).
+Requires pytest.
 """
 
 from __future__ import annotations
@@ -196,6 +197,66 @@ def fuzz_read(
                 report.read_errors.append(path)
             else:
                 report.failures[path] = text or f"exit status {os.WEXITSTATUS(status)}"
+    return report
+
+
+#: Every byte: the mutation alphabet of binary formats.
+BYTES = bytes(range(256))
+
+
+def damaged_copies(
+    directory: Path, name: str, bases: Sequence[tuple[str, bytes, bytes]], count: int = 320
+) -> list[Path]:
+    """``count`` files in ``directory``, each a base file (name suffix, content, mutation
+    alphabet; the bases taken in turn) damaged by :func:`mutate`, from a seed fixed by ``name``."""
+    rng = random.Random(f"pygran-fuzz-{name}")
+    paths = []
+    for k in range(count):
+        suffix, original, alphabet = bases[k % len(bases)]
+        path = directory / f"{name}-{k}{suffix}"
+        path.write_bytes(mutate(rng, original, alphabet))
+        paths.append(path)
+    return paths
+
+
+def read_every_frame(path: Path) -> None:
+    """What a user does with a file: open it and read every frame, each of which must be
+    valid (:func:`assert_valid_frame`): a damaged file that reads cleanly must still make sense."""
+    with open_trajectory(path) as trajectory:
+        for frame in trajectory:
+            assert_valid_frame(frame)
+
+
+def assert_valid_frame(frame: Frame) -> None:
+    """A mesh's cells index its points and its data fits them; a particle frame's columns
+    are 1-D numbers of one length."""
+    arrays = frame.arrays
+    if frame.attrs.get("kind") == "mesh":
+        points, cells = arrays["points"], arrays["cells"]
+        assert points.ndim == 2 and points.shape[1] == 3 and cells.ndim == 2
+        assert cells.size == 0 or (cells.max() < len(points) and cells.min() >= -1)
+        assert len(arrays["cell_types"]) == len(cells)
+        for name in frame.attrs["point_data"]:
+            assert len(arrays[name]) == len(points), name
+        for name in frame.attrs["cell_data"]:
+            assert len(arrays[name]) == len(cells), name
+    else:
+        assert len({len(v) for v in arrays.values()}) <= 1, {k: len(v) for k, v in arrays.items()}
+        for name, values in arrays.items():
+            assert values.ndim == 1 and values.dtype.kind in "iuf", (name, values.dtype)
+
+
+def fuzz_check(name: str, paths: Sequence[Path], read: Callable[[Path], object], good: Path) -> FuzzReport:
+    """Read at least 300 damaged files with :func:`fuzz_read` and fail on anything but a clean
+    read or a :class:`ReadError`; prints the counts. ``good`` (an intact file) is read here
+    first, so that the children inherit what reading imports and need not import it each."""
+    assert len(paths) >= 300, f"{len(paths)} files: a fuzz test reads at least 300"
+    read(good)
+    report = fuzz_read(read, paths)
+    print(f"\nfuzz {name}: {report.summary()}")
+    shown = "\n".join(f"{p.name}: {why}" for p, why in list(report.failures.items())[:10])
+    assert not report.failures, f"{len(report.failures)} of {len(paths)} files:\n{shown}"
+    assert report.read_errors, "no damaged file was refused: the damage does not reach the parser"
     return report
 
 

@@ -12,7 +12,7 @@ import pytest
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.testing import FormatConformance, assert_frames_equal, particle_frames
-from pygran_core.testing.formats import fuzz_read
+from pygran_core.testing.formats import fuzz_read, read_every_frame
 
 
 class TestH5MD(FormatConformance):
@@ -150,11 +150,6 @@ def test_not_h5md(tmp_path):
         open_trajectory(tmp_path / "other.h5")
 
 
-def read_every_frame(path):
-    with open_trajectory(path) as trajectory:
-        return [trajectory[k] for k in range(len(trajectory))]
-
-
 def test_damaged_files_are_read_errors_not_hangs(tmp_path):
     """A truncated file (the first 20 bytes of any PyGran .h5 used to hang the reader in SWMR
     mode), and a killed writer's file truncated or with a damaged metadata byte (SWMR mode,
@@ -186,6 +181,7 @@ def test_damaged_files_are_read_errors_not_hangs(tmp_path):
         (tmp_path / f"{name}.h5").write_bytes(content)
     report = fuzz_read(read_every_frame, [tmp_path / f"{name}.h5" for name in damaged], timeout=20)
     assert not report.failures and not report.clean, report
-    assert len(read_every_frame(killed)) >= 3  # the intact killed file, read in SWMR mode
+    assert len(open_trajectory(killed)) >= 3  # the intact killed file, read in SWMR mode
+    read_every_frame(killed)
     with pytest.raises(ReadError, match=r"killed-cut\.h5: not a readable HDF5 file: .*truncated file"):
         open_trajectory(tmp_path / "killed-cut.h5")

@@ -1,6 +1,6 @@
 """VTK: legacy files written by the vtk package (ASCII/binary, polydata/unstructured), XML
 .vtu and .vtp written by meshio and by vtk in each of its encodings, particles as points, the
-hopper mesh sequence, and damaged XML files."""
+hopper mesh sequence, damaged XML files, and fuzzing of every VTK format."""
 
 import re
 import shutil
@@ -20,7 +20,14 @@ from vtkmodules.vtkIOXML import (
 
 from pygran_core.errors import ReadError, UnsupportedFeature
 from pygran_core.io import Frame, open_trajectory, open_writer
-from pygran_core.testing.formats import FormatConformance, particle_frames
+from pygran_core.testing.formats import (
+    BYTES,
+    FormatConformance,
+    damaged_copies,
+    fuzz_check,
+    particle_frames,
+    read_every_frame,
+)
 
 TRIANGLE, QUAD, VERTEX = 5, 9, 1
 
@@ -470,3 +477,84 @@ def test_damaged_xml_is_a_read_error_naming_file_frame_and_line(tmp_path, old, n
     assert trajectory[0].arrays["cells"].tolist() == [[0, 1, 2]]
     with pytest.raises(ReadError, match=rf"a1\.vtu: frame 1, {re.escape(message)}"):
         trajectory[1]
+
+
+# -- fuzzing: legacy .vtk, XML .vtu (YADE's spheres files among them) and .vtp in each of
+# their encodings, damaged at random 320 times per format from a fixed seed, each read in a
+# child process with a time limit: every read gives a clean result or a ReadError (vtk's own
+# XML readers segfaulted, hung or took gigabytes on such files).
+
+FUZZ_TEXT = b'0123456789 .-+e\n<>="/_ xP'
+#: the vtk writer settings of each XML encoding
+ENCODINGS = {
+    "ascii": lambda w: w.SetDataModeToAscii(),
+    "inline": lambda w: (w.SetDataModeToBinary(), w.SetHeaderTypeToUInt64()),
+    "appended": lambda w: None,
+    "raw": lambda w: (w.SetDataModeToAppended(), w.EncodeAppendedDataOff()),
+    "raw-lzma": lambda w: (w.SetDataModeToAppended(), w.EncodeAppendedDataOff(), w.SetCompressorTypeToLZMA()),
+    "plain": lambda w: (w.SetDataModeToBinary(), w.SetCompressorTypeToNone()),
+}
+
+
+def written(path, writer, data, configure=lambda w: None):
+    writer.SetFileName(str(path))
+    writer.SetInputData(data)
+    configure(writer)
+    assert writer.Write() == 1
+    return path.read_bytes()
+
+
+def yade_spheres():
+    """A grid like YADE's VTKRecorder spheres: a vertex per sphere, float64 point data."""
+    rng = np.random.default_rng(2)
+    grid = vtkUnstructuredGrid()
+    points = vtkPoints()
+    points.SetData(numpy_to_vtk(rng.random((6, 3)).astype(np.float32), deep=True))
+    grid.SetPoints(points)
+    for i in range(6):
+        grid.InsertNextCell(VERTEX, 1, [i])
+    for name, values in (
+        ("radii", np.full(6, 0.004)),
+        ("id", np.arange(6.0)),
+        ("linVelVec", rng.random((6, 3))),
+    ):
+        array = numpy_to_vtk(values, deep=True)
+        array.SetName(name)
+        grid.GetPointData().AddArray(array)
+    return grid
+
+
+def test_fuzz_legacy_vtk(tmp_path, data_dir):
+    mesh = sample_meshes()[1]
+    bases = []
+    for binary in (False, True):
+        for writer, unstructured in ((vtkPolyDataWriter(), False), (vtkUnstructuredGridWriter(), True)):
+            if binary:
+                writer.SetFileTypeToBinary()
+            data = written(tmp_path / "base.vtk", writer, vtk_dataset(*mesh, unstructured))
+            bases.append((".vtk", data, BYTES if binary else FUZZ_TEXT))
+    hopper = data_dir / "liggghts-hopper" / "mesh30000.vtk"
+    bases += [(".vtk", hopper.read_bytes(), FUZZ_TEXT), (".vtk", LIGGGHTS_PARTICLES.encode(), FUZZ_TEXT)]
+    fuzz_check("vtk", damaged_copies(tmp_path, "vtk", bases), read_every_frame, hopper)
+
+
+def test_fuzz_xml_unstructured(tmp_path):
+    mesh = vtk_dataset(*sample_meshes()[1], unstructured=True)
+    bases = []
+    for name, configure in ENCODINGS.items():
+        data = written(tmp_path / f"{name}.vtu", vtkXMLUnstructuredGridWriter(), mesh, configure)
+        bases.append((".vtu", data, FUZZ_TEXT if name == "ascii" else BYTES))
+    for name in ("ascii", "appended"):
+        good = tmp_path / "fz_spheres.100.vtu"
+        data = written(good, vtkXMLUnstructuredGridWriter(), yade_spheres(), ENCODINGS[name])
+        bases.append(("_spheres.100.vtu", data, FUZZ_TEXT if name == "ascii" else BYTES))
+    fuzz_check("vtu", damaged_copies(tmp_path, "vtu", bases), read_every_frame, good)
+
+
+def test_fuzz_xml_polydata(tmp_path):
+    bases = []
+    for name, configure in ENCODINGS.items():
+        good = tmp_path / f"{name}.vtp"
+        data = written(good, vtkXMLPolyDataWriter(), polydata_of_every_section(), configure)
+        bases.append((".vtp", data, FUZZ_TEXT if name == "ascii" else BYTES))
+    fuzz_check("vtp", damaged_copies(tmp_path, "vtp", bases), read_every_frame, good)

@@ -163,6 +163,8 @@ class _Legacy:
         """Byte offset just past the ``count``-th whitespace-separated token from ``pos``."""
         if count == 0:
             return self.pos
+        if self.pos >= len(self.data):
+            raise self.fail(f"the file ends where a block of {count} numbers was expected")
         chunk = np.frombuffer(self.data, dtype=np.uint8, offset=self.pos)
         space = chunk <= 32
         ends = np.flatnonzero(~space & np.append(space[1:], True))
