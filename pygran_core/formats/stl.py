@@ -3,12 +3,13 @@
 A binary file is recognised by its size (84 bytes plus 50 per triangle, as its header
 says), whatever its first bytes; anything else must be ASCII (``solid`` ... ``endsolid``).
 Points shared by several triangles are merged (exact duplicates, in order of first
-appearance). Every defect is a :class:`~pygran_core.errors.ReadError` naming the file.
+appearance). Every defect is a :class:`~pygran_core.errors.ReadError` naming the file, the
+frame and, in an ASCII file, the line.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -31,24 +32,58 @@ def _binary_vertices(data: bytes) -> np.ndarray | None:
     return records["vertices"].astype(np.float64)
 
 
-def _ascii_vertices(data: bytes, path: Path) -> np.ndarray:
-    """The ``(T, 3, 3)`` vertices of an ASCII STL."""
+def _ascii_vertices(data: bytes, fail: Callable[[int, str], ReadError]) -> np.ndarray:
+    """The ``(T, 3, 3)`` finite vertices of an ASCII STL; ``fail(line, message)`` makes the error."""
     try:
         text = data.decode("ascii")
     except UnicodeDecodeError as exc:
-        raise ReadError(f"{path}: neither a binary STL (size) nor ASCII text: byte {exc.start}") from exc
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise fail(line, f"neither a binary STL (by its size) nor ASCII text: byte {exc.start}") from None
     tokens = np.array(text.lower().split())
     if tokens.size == 0 or tokens[0] != "solid":
-        raise ReadError(f"{path}: not an STL file: it does not start with 'solid' and its size is not binary")
+        raise fail(1, "not an STL file: it does not start with 'solid' and its size is not binary")
     starts = np.flatnonzero(tokens == "vertex")
     facets = int(np.count_nonzero(tokens == "facet"))
     if len(starts) != 3 * facets or (starts.size and starts[-1] + 3 >= tokens.size):
-        raise ReadError(f"{path}: {facets} facets but {len(starts)} vertices (3 per facet expected)")
+        raise fail(*_locate(text))
     try:
         values = tokens[starts[:, None] + np.arange(1, 4)].astype(np.float64)
-    except ValueError as exc:
-        raise ReadError(f"{path}: a vertex has a coordinate that is not a number: {exc}") from exc
+    except ValueError:
+        raise fail(*_locate(text)) from None
+    if not np.isfinite(values).all():
+        raise fail(*_locate(text))
     return values.reshape(-1, 3, 3)
+
+
+def _locate(text: str) -> tuple[int, str]:
+    """The line and the nature of the first defect of an ASCII STL (on the error path only)."""
+    vertices: int | None = None  # in the open facet
+    number = 0
+    for number, line in enumerate(text.splitlines(), 1):
+        words = line.lower().split()
+        if not words:
+            continue
+        if words[0] == "facet":
+            if vertices is not None:
+                return number, f"a facet starts inside another, after {vertices} vertices"
+            vertices = 0
+        elif words[0] == "vertex":
+            if vertices is None:
+                return number, "a vertex outside a facet"
+            try:
+                coordinates = [float(w) for w in words[1:]]
+            except ValueError:
+                return number, f"a vertex coordinate is not a number: {line.strip()[:60]!r}"
+            if len(coordinates) != 3 or not np.isfinite(coordinates).all():
+                return number, f"a vertex needs 3 finite coordinates: {line.strip()[:60]!r}"
+            vertices += 1
+        elif words[0] == "endfacet":
+            if vertices != 3:
+                return number, f"a facet has {vertices or 0} vertices, not 3"
+            vertices = None
+    if vertices is not None:
+        return number, "the file ends inside a facet"
+    return number, "facets and vertices do not match (3 vertices per facet)"
 
 
 class STLTrajectory(Trajectory):
@@ -64,17 +99,22 @@ class STLTrajectory(Trajectory):
 
     def _read_frame(self, index: int) -> Frame:
         path = self.paths[index]
+
+        def fail(line: int | None, message: str) -> ReadError:
+            return ReadError(f"{path}: frame {index}{'' if line is None else f', line {line}'}: {message}")
+
         try:
             data = path.read_bytes()
         except OSError as exc:
-            raise ReadError(f"{path}: frame {index}: cannot read: {exc}") from exc
+            raise fail(None, f"cannot read: {exc}") from exc
         vertices = _binary_vertices(data)
         if vertices is None:
-            vertices = _ascii_vertices(data, path)
+            vertices = _ascii_vertices(data, fail)
+        elif not np.isfinite(vertices).all():
+            triangle = int(np.flatnonzero(~np.isfinite(vertices).all(axis=(1, 2)))[0])
+            raise fail(None, f"binary triangle {triangle} has a coordinate that is not finite")
         if len(vertices) == 0:
-            raise ReadError(f"{path}: frame {index}: the file holds no triangle")
-        if not np.isfinite(vertices).all():
-            raise ReadError(f"{path}: frame {index}: a vertex coordinate is not finite")
+            raise fail(None, "the file holds no triangle")
         flat = vertices.reshape(-1, 3)
         unique, first, inverse = np.unique(flat, axis=0, return_index=True, return_inverse=True)
         order = np.argsort(first)  # merged points in order of first appearance

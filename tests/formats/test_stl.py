@@ -87,29 +87,56 @@ def test_binary_file_whose_header_starts_with_solid(tmp_path):
 
 
 BAD_ASCII = {
-    "no vertices": "solid x\nfacet normal 0 0 1\n outer loop\n endloop\nendfacet\nendsolid x\n",
-    "a word for a number": "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 oops\n"
-    "  vertex 0 1 0\n endloop\nendfacet\nendsolid x\n",
-    "cut after a keyword": "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 0\n"
-    "  vertex 1 0 0\n  vertex",
-    "not finite": "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 nan\n"
-    "  vertex 0 1 0\n endloop\nendfacet\nendsolid x\n",
-    "empty solid": "solid x\nendsolid x\n",
-    "not an stl": "hello world\n",
+    "no vertices": (
+        "solid x\nfacet normal 0 0 1\n outer loop\n endloop\nendfacet\nendsolid x\n",
+        "frame 0, line 5: a facet has 0 vertices, not 3",
+    ),
+    "a word for a number": (
+        "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 oops\n"
+        "  vertex 0 1 0\n endloop\nendfacet\nendsolid x\n",
+        "frame 0, line 5: a vertex coordinate is not a number: 'vertex 1 0 oops'",
+    ),
+    "cut after a keyword": (
+        "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex",
+        "frame 0, line 6: a vertex needs 3 finite coordinates: 'vertex'",
+    ),
+    "not finite": (
+        "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 nan\n"
+        "  vertex 0 1 0\n endloop\nendfacet\nendsolid x\n",
+        "frame 0, line 5: a vertex needs 3 finite coordinates: 'vertex 1 0 nan'",
+    ),
+    "not UTF-8": (
+        "solid x\nfacet normal 0 0 1\n outer loop\n  vertex 0 0 \xe9\n",
+        "frame 0, line 4: neither",
+    ),
+    "empty solid": ("solid x\nendsolid x\n", "frame 0: the file holds no triangle"),
+    "not an stl": ("hello world\n", "frame 0, line 1: not an STL file"),
 }
 
 
 @pytest.mark.parametrize("case", sorted(BAD_ASCII))
-def test_damaged_ascii_is_a_read_error_naming_the_file(tmp_path, case):
+def test_damaged_ascii_is_a_read_error_naming_file_frame_and_line(tmp_path, case):
+    text, message = BAD_ASCII[case]
     path = tmp_path / "bad.stl"
-    path.write_text(BAD_ASCII[case])
-    with pytest.raises(ReadError, match="bad.stl"):
+    path.write_bytes(text.encode("latin-1"))
+    with pytest.raises(ReadError) as info:
         open_trajectory(path, format="stl")[0]
+    assert str(info.value).startswith(f"{path}: {message}"), str(info.value)
 
 
 def test_truncated_binary_is_a_read_error(tmp_path):
     points, cells = triangles(4)
     write_stl(tmp_path / "a.stl", points, cells, binary=True)
     (tmp_path / "a.stl").write_bytes((tmp_path / "a.stl").read_bytes()[:-7])
-    with pytest.raises(ReadError, match="a.stl"):
+    with pytest.raises(ReadError, match=r"a\.stl: frame 0, line 1: neither a binary STL \(by its size\)"):
+        open_trajectory(tmp_path / "a.stl", format="stl")[0]
+
+
+def test_binary_with_a_coordinate_not_finite(tmp_path):
+    points, cells = triangles(4)
+    points[5, 1] = np.inf  # point 5 is a vertex of the last triangle only: [3, 4, 5]
+    write_stl(tmp_path / "a.stl", points, cells, binary=True)
+    with pytest.raises(
+        ReadError, match=r"a\.stl: frame 0: binary triangle 3 has a coordinate that is not finite"
+    ):
         open_trajectory(tmp_path / "a.stl", format="stl")[0]
