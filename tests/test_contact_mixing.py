@@ -43,7 +43,7 @@ def test_pair_rules_for_friction_restitution_and_cohesion():
 
 
 def test_pair_table_is_symmetric_and_matches_scalar_calls():
-    materials = [params.glass, params.steel, params.organic]
+    materials = [params.sodaLimeGlass, params.bearingSteel, params.microcrystallineCellulose]
     E = [m["youngsModulus"] for m in materials]
     nu = [m["poissonsRatio"] for m in materials]
     table = mixing.pair_table(mixing.effective_modulus, E, nu)
@@ -55,8 +55,8 @@ def test_pair_table_is_symmetric_and_matches_scalar_calls():
 
 
 def test_models_use_the_mixing_rules_for_a_partner_material():
-    glass = dict(params.glass, radius=1e-3)
-    steel_wall = dict(params.steel)
+    glass = dict(params.sodaLimeGlass, radius=1e-3)
+    steel_wall = dict(params.bearingSteel)
     model = HertzMindlin(material=glass, partner=steel_wall)
     expected = mixing.effective_modulus(GLASS_E, GLASS_NU, STEEL_E, STEEL_NU)
     assert model.effective_modulus == pytest.approx(expected)
