@@ -514,6 +514,94 @@ def test_monitor_the_original_way_averages_as_liggghts_fix_ave_time():
             calls.parse_average(bad, s)
 
 
+def test_multisphere_species_forms():
+    organic = params.organic
+    tablet = spec(
+        species=(
+            {
+                "material": organic,
+                "style": "multisphere/tablet",
+                "nspheres": 12,
+                "radius": 2e-2,
+                "length": 1e-1,
+            },
+        )
+    ).species[0]
+    assert (tablet.style, len(tablet.spheres), tablet.radius.max, tablet.density) == (
+        "multisphere",
+        12,
+        2e-2,
+        1000.0,
+    )
+    x = np.array([sphere[0] for sphere in tablet.spheres])
+    assert x.min() - 2e-2 == pytest.approx(-5e-2) and x.max() + 2e-2 == pytest.approx(5e-2)
+    np.testing.assert_allclose(np.diff(x), (1e-1 - 4e-2) / 11)
+    # PyGran 1.1 wrote the tablet as style 'multisphere'
+    old = spec(
+        species=(
+            {"material": organic, "style": "multisphere", "nspheres": 12, "radius": 2e-2, "length": 1e-1},
+        )
+    )
+    assert old.species[0].spheres == tablet.spheres
+
+    def dumbbell():
+        return [(-1e-3, 0, 0, 1e-3), (1e-3, 0, 0, 1e-3)]
+
+    clump = spec(species=({"material": organic, "style": "multisphere", "function": dumbbell},)).species[0]
+    assert clump.spheres == ((-1e-3, 0, 0, 1e-3), (1e-3, 0, 0, 1e-3)) and clump.radius.max == 1e-3
+    for entry, message in (
+        ({"style": "multisphere", "function": dumbbell, "radius": 1e-3}, "leave out radius"),
+        ({"style": "multisphere", "function": lambda r: [(0, 0, 0, r)]}, "must take no arguments"),
+        ({"style": "multisphere", "function": lambda: [(0, 0, 0)]}, "sphere 0 must be a sequence of 4"),
+        ({"style": "multisphere", "function": lambda: [(0, 0, 0, -1)]}, "needs r > 0"),
+        ({"style": "multisphere", "function": 3}, "must be a function"),
+        ({"style": "multisphere/tablet", "nspheres": 3, "radius": 1e-3}, "missing length"),
+        (
+            {"style": "multisphere/tablet", "nspheres": 3, "radius": 1e-3, "length": 1e-2},
+            "so that the spheres touch",
+        ),
+        (
+            {"style": "multisphere/tablet", "nspheres": 2.5, "radius": 1e-3, "length": 3e-3},
+            "nspheres must be a whole",
+        ),
+        ({"radius": 1e-3, "nspheres": 3}, "'nspheres' is for multisphere species"),
+        ({"style": "multisphere", "nsphere": 3}, "Did you mean 'nspheres'"),
+        ({"style": "ellipsoid", "radius": 1e-3}, "Unknown species 1 style 'ellipsoid'"),
+    ):
+        with pytest.raises(ConfigError, match=message):
+            spec(species=({"material": organic, **entry},))
+
+
+@pytest.mark.parametrize("other_mistake", [{}, {"gravty": (9.81, 0, 0, -1)}, {"box": "big"}, {"dt": -1}])
+def test_an_engine_without_multisphere_says_so_first(tmp_path, other_mistake):
+    species = (
+        {
+            "material": params.organic,
+            "style": "multisphere/tablet",
+            "nspheres": 4,
+            "radius": 1e-3,
+            "length": 6e-3,
+        },
+    )
+    message = "The native engine does not support multisphere particles \\(capability 'multisphere'\\)"
+    with pytest.raises(UnsupportedFeature, match=message):
+        simulation.DEM(
+            engine="native", **{**BASE, "species": species, "output": str(tmp_path), **other_mistake}
+        )
+    assert not any(tmp_path.iterdir())  # refused before anything started
+
+
+def test_servo_walls_are_refused_before_anything_else_until_an_engine_has_them(tmp_path):
+    side = str(DATA / "meshes" / "wall-2D-side.stl")
+    servo = {
+        "file": side,
+        "mtype": "mesh/surface/stress/servo",
+        "args": {"com": (0, 0, 0)},
+    }  # incomplete, too
+    with pytest.raises(UnsupportedFeature, match="servo walls .*capability 'servo-walls'"):
+        simulation.DEM(engine="native", **BASE, mesh={"plate": servo}, output=str(tmp_path))
+
+
 def test_create_wall_motion_viscous_monitor_specs():
     silo = DATA / "meshes" / "silo.stl"
     s = spec(mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}})

@@ -10,6 +10,7 @@ known one; numbers may be ints or floats everywhere.
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
 import time
@@ -20,7 +21,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from pygran_core import params as materials
 from pygran_core.errors import ConfigError, unknown_key
@@ -273,35 +273,108 @@ def parse_radius(value: Any) -> RadiusDistribution:
 
 @dataclass(frozen=True)
 class Species:
-    """A particle component: shape style, material, density and size distribution."""
+    """A particle component: shape style, material, density and size distribution.
+
+    ``style='multisphere'``: each particle is the rigid clump of ``spheres``, ``(x, y, z, r)``
+    in the particle's own frame; ``radius`` is then the largest sphere's radius.
+    """
 
     type: int
     material: Mapping[str, float]
     density: float
     radius: RadiusDistribution
     style: str = "sphere"
+    spheres: tuple[tuple[float, float, float, float], ...] = ()
 
 
 SPECIES_KEYS = ("style", "material", "density", "radius")
+#: The keys of multisphere species: a ``function`` giving the spheres, or a tablet.
+MULTISPHERE_KEYS = ("function", "nspheres", "length")
+SPECIES_STYLES = ("sphere", "multisphere", "multisphere/tablet")
+
+
+def tablet(nspheres: int, radius: float, length: float) -> tuple[tuple[float, float, float, float], ...]:
+    """A cylindrical tablet of ``length`` along x made of ``nspheres`` spheres of ``radius``,
+    evenly spaced and centred on the origin (PyGran 1.x's ``template_tablet``)."""
+    spacing = (length - 2 * radius) / (nspheres - 1)
+    return tuple((-length / 2 + radius + i * spacing, 0.0, 0.0, radius) for i in range(nspheres))
+
+
+def _multisphere(value: Mapping[str, Any], index: int, style: str) -> tuple[tuple[float, ...], ...]:
+    """The spheres of a multisphere species, from its ``function`` or its tablet keys."""
+    where = f"species {index} ({style})"
+    if "function" in value:
+        extra = [key for key in ("nspheres", "length", "radius") if key in value]
+        if style == "multisphere/tablet" or extra:
+            raise ConfigError(
+                f"{where}: 'function' gives the spheres; leave out {', '.join(extra) or 'the tablet style'}"
+            )
+        function = value["function"]
+        if not callable(function):
+            raise ConfigError(f"{where}: 'function' must be a function returning [(x, y, z, r), ...]")
+        try:
+            inspect.signature(function).bind()
+        except TypeError:
+            raise ConfigError(f"{where}: 'function' must take no arguments") from None
+        except ValueError:
+            pass  # a builtin without a signature: call it
+        spheres = function()
+        if isinstance(spheres, (str, bytes)) or not isinstance(spheres, Sequence) or not spheres:
+            raise ConfigError(f"{where}: 'function' must return a list of (x, y, z, r), got {spheres!r}")
+        clean = tuple(number_tuple(sphere, f"{where} sphere {k}", 4) for k, sphere in enumerate(spheres))
+        if min(r for *_, r in clean) <= 0:
+            raise ConfigError(f"{where}: every sphere of 'function' needs r > 0")
+        return clean
+    missing = [key for key in ("nspheres", "radius", "length") if key not in value]
+    if missing:
+        raise ConfigError(
+            f"{where}: give 'function' returning [(x, y, z, r), ...], or a tablet: nspheres, radius and "
+            f"length (missing {', '.join(missing)})"
+        )
+    count = value["nspheres"]
+    if isinstance(count, bool) or not isinstance(count, Integral) or count < 2:
+        raise ConfigError(f"{where}: nspheres must be a whole number >= 2, got {count!r}")
+    radius = positive_float(value["radius"], f"{where} radius")
+    length = positive_float(value["length"], f"{where} length")
+    if not 2 * radius < length <= 2 * radius * count:
+        raise ConfigError(
+            f"{where}: length must exceed one diameter ({2 * radius:g}) and be at most nspheres diameters "
+            f"({2 * radius * count:g}) so that the spheres touch; got {length:g}"
+        )
+    return tablet(int(count), radius, length)
 
 
 def parse_species(value: Any, index: int) -> Species:
     if not isinstance(value, Mapping):
         raise ConfigError(f"species {index} must be a dict with keys {SPECIES_KEYS}, got {value!r}")
-    check_keys(f"species {index} keyword", value, SPECIES_KEYS)
-    if "material" not in value or "radius" not in value:
-        raise ConfigError(f"species {index} needs 'material' and 'radius'")
+    style = one_of(value.get("style", "sphere"), f"species {index} style", SPECIES_STYLES)
+    known = SPECIES_KEYS if style == "sphere" else SPECIES_KEYS + MULTISPHERE_KEYS
+    for key in value:
+        if key not in known and key in MULTISPHERE_KEYS:
+            raise ConfigError(
+                f"species {index}: {key!r} is for multisphere species; add 'style': 'multisphere'"
+            )
+    check_keys(f"species {index} keyword", value, known)
+    if "material" not in value or (style == "sphere" and "radius" not in value):
+        raise ConfigError(
+            f"species {index} needs 'material'" + (" and 'radius'" if style == "sphere" else "")
+        )
     material = materials.validate(value["material"])
     density = value.get("density", material.get("density"))
     if density is None:
         raise ConfigError(f"species {index}: give 'density' or a material with 'density'")
-    style = one_of(value.get("style", "sphere"), f"species {index} style", ("sphere", "multisphere"))
+    if style == "sphere":
+        radius, spheres = parse_radius(value["radius"]), ()
+    else:
+        spheres = _multisphere(value, index, style)
+        radius = RadiusDistribution("constant", (max(r for *_, r in spheres),))
     return Species(
         index,
         material,
         positive_float(density, f"species {index} density"),
-        parse_radius(value["radius"]),
-        style,
+        radius,
+        "sphere" if style == "sphere" else "multisphere",
+        spheres,
     )
 
 
@@ -498,6 +571,8 @@ def compose(steps: list[tuple[Any, ...]]) -> tuple[float, tuple[Vector, float] |
     if len(turns) == 1:  # as given, to the last digit
         rotate: tuple[Vector, float] | None = (turns[0][1], turns[0][2])
     else:
+        from scipy.spatial.transform import Rotation  # loaded on first use: import pygran_core stays light
+
         vector = Rotation.from_matrix(rotation).as_rotvec()
         angle = float(np.linalg.norm(vector))
         rotate = None if angle < 1e-12 else (tuple(float(v) for v in vector / angle), math.degrees(angle))  # type: ignore[assignment]
