@@ -56,7 +56,7 @@ def test_iteration_visits_every_frame_from_the_first_and_repeats(traj):
     second = [(ts, system.frame, len(system.Particles)) for ts in system]
     assert first == second == [(100 * k, k, n) for k, n in enumerate(COUNTS)]
     assert system.frame == 0
-    assert [(k, system.Particles.timestep) for k in system.frames()] == [(k, 100 * k) for k in range(4)]
+    assert [(k, system.timestep) for k in system.frames()] == [(k, 100 * k) for k in range(4)]
 
 
 def test_skip_moves_to_the_first_frame_with_particles(traj):

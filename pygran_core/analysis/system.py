@@ -254,6 +254,7 @@ class System:
             self.goto(self._frame + 1)
         return self._frame
 
+    @property
     def timestep(self) -> int:
         """Timestep of the current frame: the first SubSystem's that has one, else the frame index."""
         for name in self._sources:
@@ -271,7 +272,7 @@ class System:
 
     def __iter__(self) -> Iterator[int]:
         for _ in self.frames():
-            yield self.timestep()
+            yield self.timestep
 
     def __repr__(self) -> str:
         where = f"frame {self._frame} of {self._n_frames}, units={self._units!r}"
