@@ -96,17 +96,12 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
         with _open_binary(path) as handle:
             head, problem = _read_chunk(handle)
             first_line = head.split(b"\n", 1)[0].rstrip()
-            if not first_line.startswith(b"ITEM:"):
-                return [
-                    _Block(
-                        file_index,
-                        0,
-                        len(head),
-                        1,
-                        "not a LAMMPS dump: the first line is "
-                        f"{first_line[:60].decode('latin-1')!r}, not an ITEM: line",
-                    )
-                ]
+            if not first_line.startswith(b"ITEM:") or (problem and b"\n" not in head):
+                reason = problem or (
+                    f"not a LAMMPS dump: the first line is {first_line[:60].decode('latin-1')!r}, "
+                    "not an ITEM: line"
+                )
+                return [_Block(file_index, 0, len(head), 1, reason)]
             # A frame starts at ITEM: TIME when present (LAMMPS writes it before the
             # timestep), else at ITEM: TIMESTEP; ITEM: UNITS appears in the first frame only.
             found = _FRAME_START.search(head)

@@ -99,6 +99,24 @@ def test_damaged_gzip_names_the_frame_and_line(tmp_path):
         trajectory[2]
 
 
+@pytest.mark.parametrize(
+    ("content", "reason"),
+    [
+        (b"ITEM: TIMESTEP\n0\n", "Not a gzipped file"),
+        (
+            gzip.compress(b"ITEM: TIMESTEP\n0\n", mtime=0)[:15],
+            "Compressed file ended before the end-of-stream",
+        ),
+    ],
+)
+def test_a_gzip_file_damaged_at_its_start(tmp_path, content, reason):
+    (tmp_path / "a.dump.gz").write_bytes(content)
+    with pytest.raises(
+        ReadError, match=rf"a\.dump\.gz: frame 0, line 1: the compressed stream is damaged \({reason}"
+    ):
+        open_trajectory(tmp_path / "a.dump.gz")[0]
+
+
 class TestDumpPerFrameFiles(TestDump):
     """Writing ``out*.dump`` gives one file per frame named by timestep, read back as a glob."""
 
