@@ -1,5 +1,6 @@
 """PyGran 1.x analysis scripts, as users wrote them from the manual (chapters 5 and 6) and the
-original package's own tests, run unchanged on the real LIGGGHTS hopper run.
+original package's own tests, run unchanged (``from PyGran import analysis``) on the real
+LIGGGHTS hopper run.
 
 Every expected number is computed here independently of PyGran: particle counts from the
 dump headers, neighbours and overlaps from the full distance matrix, the RDF from a
@@ -13,7 +14,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from pygran_core import analysis
+from PyGran import analysis
 from pygran_core.errors import ConfigError, PyGranError
 
 COUNTS = [0] + [571] * 20 + [568, 559, 551, 538, 519, 506, 486, 466, 445, 423]
@@ -214,7 +215,7 @@ def test_write_and_read_back(hopper, tmp_path):
 
 
 COARSE_GRAINED = """
-from pygran_core import analysis
+from PyGran import analysis
 
 class CoarseParticles(analysis.Particles):
     def __init__(self, **args):
@@ -293,7 +294,7 @@ def packing(types_of):
 )
 def test_imaging_a_mixture_slice_by_slice(tmp_path, name, types_of, intensity):
     # The original imaging workflow: slice each species into images, then measure segregation.
-    from pygran_core.analysis import imaging
+    from PyGran.analysis import imaging
 
     Particles = packing(types_of)
     resol = 0.2  # length per pixel: 10 pixels per diameter, one image per pixel of depth

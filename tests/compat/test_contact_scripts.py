@@ -1,7 +1,8 @@
 """PyGran 1.x contact-model scripts (manual chapter 3, Listings 3.2-3.4) run unchanged.
 
-The listings import ``PyGran.simulation as sim``; here ``pygran_core.simulation`` plays that
-role. Expected values come from closed forms: the damped linear oscillator, Hertz, JKR and
+The listings' own import, ``import PyGran.simulation as sim``, is used (the ``PyGran`` alias of
+``pygran_core``); Listing 3.4's ``sim.ThorntonNing`` is written ``sim.models.ThorntonNing``.
+Expected values come from closed forms: the damped linear oscillator, Hertz, JKR and
 Thornton's (1997) restitution with his published 1.56 constant.
 """
 
@@ -10,10 +11,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import PyGran.simulation as sim
 import pytest
 from numpy import arange, fabs
 
-from pygran_core import simulation as sim
 from pygran_core.errors import ConfigError
 
 powderX = {
