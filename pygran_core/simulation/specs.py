@@ -836,9 +836,29 @@ def split_keys(params: Mapping[str, Any]) -> tuple[str, ...]:
     return tuple(own)
 
 
+#: Environment variables an MPI launcher (mpirun, srun) sets in every process it starts.
+MPI_LAUNCH_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
+
+
+def launch_communicator() -> Any:
+    """``MPI.COMM_WORLD`` when this process is one of several an MPI launcher started and
+    mpi4py is installed, else ``None``."""
+    if not any(name in os.environ for name in MPI_LAUNCH_VARIABLES):
+        return None
+    try:
+        from mpi4py import MPI
+    except ImportError:
+        return None
+    return MPI.COMM_WORLD if MPI.COMM_WORLD.size > 1 else None
+
+
 def default_output(model: type) -> str:
-    """The manual's default output folder: the model's name and the time of day."""
-    return f"{model.__name__}-{time.strftime('%d%m%Y-%H%M%S')}"
+    """The manual's default output folder: the model's name and the time of day. Under
+    ``mpirun`` rank 0 reads the clock and every rank takes its name, so that all ranks (and
+    the ``nSim`` runs) write into one folder."""
+    comm = launch_communicator()
+    name = f"{model.__name__}-{time.strftime('%d%m%Y-%H%M%S')}" if comm is None or comm.rank == 0 else None
+    return name if comm is None else comm.bcast(name, root=0)
 
 
 def _per_run(value: Any, index: int, nsim: int, where: str) -> Any:
@@ -878,7 +898,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
     user_keys = split_keys(params)
     nsim = positive_int(params.get("nSim", 1), "nSim")
     if nsim > 1:
-        output = params.get("output", default_output(model))
+        output = params["output"] if "output" in params else default_output(model)
         runs = tuple(
             parse_simulation(run_params({**params, "output": output}, i, nsim) | {"nSim": 1}, engine, model)
             for i in range(nsim)
@@ -892,7 +912,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
         raise ConfigError(f"dim={dim!r}: only 3-D simulations are supported")
     units = one_of(params.get("units", "si"), "units", ("si",))
     cwd = Path(os.getcwd())
-    output = cwd / params.get("output", default_output(model))
+    output = cwd / (params["output"] if "output" in params else default_output(model))
     species_in = params.get("species", ())
     if isinstance(species_in, Mapping):
         species_in = (species_in,)

@@ -1,0 +1,62 @@
+"""PyGran 1.x's nSim under mpirun: every run lands in one output folder, named once."""
+
+import subprocess
+import sys
+import textwrap
+
+SCRIPT = """
+import os, time
+from PyGran import simulation, params
+
+rank = int(os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")))
+time.sleep(1.5 * rank)  # the ranks reach DEM() in different seconds of the clock
+
+material = params.stearicAcid
+material["cohesionEnergyDensity"] = 0.0
+material["coefficientFriction"] = [0.2, 0.7]  # one per run
+pDict = {
+    "engine": "liggghts",
+    "nSim": 2,
+    "box": (0, 0.01, 0, 0.01, 0, 0.01),
+    "gravity": (9.81, 0, 0, -1),
+    "dt": 1e-6,
+    "species": ({"material": material, "radius": 1e-3},),
+    "traj": {"pfile": None},
+    "stages": {"settle": 1e2},
+}
+sim = simulation.DEM(**pDict)
+sim.setupWall(species=1, plane="zplane", peq=0.0)
+sim.createParticles(1, "single", 0.005, 0.005, 0.002)
+sim.run(pDict["stages"]["settle"], pDict["dt"])
+print("run", sim.output.parent.name, sim.output.name, flush=True)
+sim.close()
+"""
+
+
+def test_nsim_runs_share_one_output_folder(tmp_path):
+    from pygran_liggghts.library import find_library
+    from pygran_liggghts.session import mpirun_prefix
+
+    from pygran_core.testing.solvers import require_solver
+
+    require_solver(find_library)
+    script = tmp_path / "study.py"
+    script.write_text(textwrap.dedent(SCRIPT))
+    done = subprocess.run(
+        [*mpirun_prefix(2), sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    folders = [p for p in tmp_path.iterdir() if p.is_dir()]
+    assert len(folders) == 1, folders
+    (study,) = folders
+    assert study.name.startswith("SpringDashpot-")
+    printed = sorted(line.split()[1:] for line in done.stdout.splitlines() if line.startswith("run "))
+    assert printed == [[study.name, "run0"], [study.name, "run1"]]
+    for run, friction in (("run0", "0.2"), ("run1", "0.7")):
+        assert (
+            f"coefficientFriction peratomtypepair 1 {friction}\n" in (study / run / "in.pygran").read_text()
+        )
