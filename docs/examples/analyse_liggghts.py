@@ -20,9 +20,9 @@ hopper = analysis.System(
 )
 print(f"{len(hopper)} frames")
 
-for frame in hopper:  # loads each frame on first use
+for step in hopper:  # loads each frame, yields its timestep
     P = hopper.Particles
-    print(f"frame {frame}: step {P.timestep}, {len(P)} particles, {hopper.Mesh.nCells()} wall cells")
+    print(f"frame {hopper.frame}: step {step}, {len(P)} particles, {hopper.Mesh.nCells()} wall cells")
 
 hopper.goto(-1)  # random access; negative counts from the end
 P = hopper.Particles
