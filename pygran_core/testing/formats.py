@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import os
 import random
-import resource
 import signal
 import time
 from collections.abc import Callable, Sequence
@@ -136,6 +135,8 @@ def _child(read: Callable[[Path], object], path: Path, report: int, memory: int)
         os.dup2(null, 1)
         os.dup2(null, 2)
         if memory:
+            import resource  # POSIX, as fork is
+
             resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
         read(path)
         code = _CLEAN
