@@ -2,8 +2,10 @@
 .vtu and .vtp written by meshio and by vtk in each of its encodings, particles as points, the
 hopper mesh sequence, damaged XML files, and fuzzing of every VTK format."""
 
+import base64
 import re
 import shutil
+import zlib
 
 import meshio
 import numpy as np
@@ -477,6 +479,24 @@ def test_damaged_xml_is_a_read_error_naming_file_frame_and_line(tmp_path, old, n
     assert trajectory[0].arrays["cells"].tolist() == [[0, 1, 2]]
     with pytest.raises(ReadError, match=rf"a1\.vtu: frame 1, {re.escape(message)}"):
         trajectory[1]
+
+
+def test_huge_consistent_counts_are_refused_without_allocating(tmp_path):
+    """2**58 points whose UInt64 compression header agrees (6.9e18 bytes), but whose one
+    block holds 10 bytes: refused after inflating what is there, nothing the size of the claim."""
+    n = 2**58
+    header = np.array([1, 24 * n, 0, 10], "<u8").tobytes()
+    data = (base64.b64encode(header) + base64.b64encode(zlib.compress(b"x" * 10)[:10])).decode()
+    (tmp_path / "huge.vtp").write_text(
+        '<VTKFile type="PolyData" header_type="UInt64" compressor="vtkZLibDataCompressor">\n'
+        f'<PolyData><Piece NumberOfPoints="{n}"><Points>\n'
+        f'<DataArray type="Float64" NumberOfComponents="3" format="binary">{data}</DataArray>\n'
+        "</Points></Piece></PolyData></VTKFile>\n"
+    )
+    with pytest.raises(
+        ReadError, match=r"huge\.vtp: frame 0, line 3: .* inflates to 10 bytes, not 6917529027641081856"
+    ):
+        open_trajectory(tmp_path / "huge.vtp")[0]
 
 
 # -- fuzzing: legacy .vtk, XML .vtu (YADE's spheres files among them) and .vtp in each of

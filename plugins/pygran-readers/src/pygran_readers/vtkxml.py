@@ -107,7 +107,6 @@ class _XMLFile:
                 self.root.line,
             )
         self.compressor = compressor
-        self._need = ""  # "<n> tuples of <k> <type> need", for the messages of the array being read
         appended = self.root.child("AppendedData")
         if appended is not None:
             encoding = appended.attrs.get("encoding", "raw")
@@ -203,21 +202,21 @@ class _XMLFile:
         if tuples is None and "NumberOfTuples" in node.attrs:
             tuples = self.count(node, "NumberOfTuples")
         expected = None if tuples is None else tuples * k
-        self._need = f"{tuples} tuples of {k} {node.attrs['type']} need"
+        need = f"{tuples} tuples of {k} {node.attrs['type']} need"  # for messages
         form = node.attrs.get("format", "ascii")
         if form == "ascii":
-            values = self._ascii(node, dtype, expected)
+            values = self._ascii(node, dtype, expected, need)
         elif form == "binary":
-            values = self._binary(
-                node, self._decode("".join(node.text).encode("latin-1"), node), 0, dtype, expected
-            )
+            data = self._decode("".join(node.text).encode("latin-1"), node)
+            values = self._binary(node, data, 0, dtype, expected, need)
         elif form == "appended":
             offset = self.count(node, "offset")
             if self.appended_base64:
                 end = next(e for e in self._ends if e > offset) if offset < len(self.appended) else offset
-                values = self._binary(node, self._decode(self.appended[offset:end], node), 0, dtype, expected)
+                data = self._decode(self.appended[offset:end], node)
+                values = self._binary(node, data, 0, dtype, expected, need)
             else:
-                values = self._binary(node, self.appended, offset, dtype, expected)
+                values = self._binary(node, self.appended, offset, dtype, expected, need)
         else:
             raise self.fail(f"array {name!r}: unknown format {form!r}", node.line)
         if len(values) % k:
@@ -227,11 +226,11 @@ class _XMLFile:
         values = values.astype(dtype.newbyteorder("="))
         return values.reshape(-1, k) if k > 1 else values
 
-    def _ascii(self, node: _Node, dtype: np.dtype, expected: int | None) -> np.ndarray:
+    def _ascii(self, node: _Node, dtype: np.dtype, expected: int | None, need: str) -> np.ndarray:
         tokens = "".join(node.text).split()
         name = node.attrs.get("Name", "unnamed")
         if expected is not None and len(tokens) != expected:
-            raise self.fail(f"array {name!r} holds {len(tokens)} values; {self._need} {expected}", node.line)
+            raise self.fail(f"array {name!r} holds {len(tokens)} values; {need} {expected}", node.line)
         try:
             if dtype.kind == "f":
                 return np.array(tokens, dtype=np.float64).astype(dtype)
@@ -258,8 +257,11 @@ class _XMLFile:
                 f"array {node.attrs.get('Name', 'unnamed')!r}: bad base64 ({exc})", node.line
             ) from None
 
-    def _binary(self, node: _Node, data: bytes, at: int, dtype: np.dtype, expected: int | None) -> np.ndarray:
-        """An array from binary data at ``at``: header (sizes), then raw or compressed bytes."""
+    def _binary(
+        self, node: _Node, data: bytes, at: int, dtype: np.dtype, expected: int | None, need: str
+    ) -> np.ndarray:
+        """An array from binary data at ``at``: header (sizes), then raw or compressed bytes;
+        ``expected`` values (if known) must be there, ``need`` says where they come from."""
         name = node.attrs.get("Name", "unnamed")
 
         def fail(message: str) -> ReadError:
@@ -275,7 +277,7 @@ class _XMLFile:
             (size,) = header(1, at)
             start = at + self.header.itemsize
             if expected is not None and size != expected * dtype.itemsize:
-                raise fail(f"its header says {size} bytes; {self._need} {expected * dtype.itemsize}")
+                raise fail(f"its header says {size} bytes; {need} {expected * dtype.itemsize}")
             if size % dtype.itemsize or start + size > len(data):
                 raise fail(f"the header says {size} bytes but {len(data) - start} are there")
             return np.frombuffer(data, dtype, size // dtype.itemsize, start)
@@ -287,7 +289,7 @@ class _XMLFile:
         if blocks and (block_size == 0 or last_size > block_size):
             raise fail(f"bad compression header: block size {block_size}, last block {last_size}")
         if expected is not None and total != expected * dtype.itemsize:
-            raise fail(f"its compression header says {total} bytes; {self._need} {expected * dtype.itemsize}")
+            raise fail(f"its compression header says {total} bytes; {need} {expected * dtype.itemsize}")
         if total % dtype.itemsize:
             raise fail(f"{total} bytes are not whole {dtype.name} values")
         start = at + (3 + blocks) * self.header.itemsize
@@ -311,7 +313,7 @@ class _XMLFile:
                 zl = zlib.decompressobj()
                 out = zl.decompress(block, size)
                 complete = zl.eof
-        except (zlib.error, lzma.LZMAError) as exc:
+        except (zlib.error, lzma.LZMAError, OverflowError) as exc:
             raise fail(f"a compressed block is damaged ({exc})") from None
         if len(out) != size or not complete:
             raise fail(f"a compressed block inflates to {len(out)} bytes, not {size}")
