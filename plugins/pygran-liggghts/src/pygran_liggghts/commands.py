@@ -33,7 +33,7 @@ from pygran_core.simulation.models import mixing
 from pygran_core.simulation.specs import RadiusDistribution, SimulationSpec
 
 #: PyGran contact model -> LIGGGHTS ``gran model``.
-MODELS = {"SpringDashpot": "hooke", "HertzMindlin": "hertz", "ThorntonNing": "thornton_ning"}
+MODELS = {"SpringDashpot": "hooke", "HertzMindlin": "hertz"}
 #: LIGGGHTS ``rolling_friction`` model -> the material keys it reads besides
 #: ``coefficientRollingFriction`` (``epsd3`` also reads the global ``coeffRollingStiffness``,
 #: which PyGran's materials do not carry).
@@ -193,7 +193,7 @@ class Commands:
     def granular(self) -> str:
         """The ``model ...`` arguments shared by ``pair_style gran`` and ``fix wall/gran``."""
         words = f"model {self.model} tangential history"
-        if self.cohesion and self.model != "thornton_ning":  # Thornton-Ning has JKR adhesion itself
+        if self.cohesion:
             words += " cohesion sjkr"
         if self.rolling:
             words += f" rolling_friction {self.rolling_model}"
@@ -258,28 +258,14 @@ class Commands:
         return lines + self._dumps(append=resume is not None)
 
     def _material_tables(self) -> list[str]:
-        """``fix property/global`` tables of the materials by atom type, pairs mixed by PyGran's rules.
-
-        Thornton-Ning: no viscous damping (``coefficientRestitution`` 1, as the reference
-        model), ``surfaceEnergy`` the work of adhesion ``2 Gamma`` of the pair (Gamma the
-        ``cohesionEnergyDensity``), and the yield as ``coefficientYieldRatio``, the contact
-        radius at yield over the particle radius: LIGGGHTS yields a contact when its radius
-        reaches that ratio times the radius of particle i. The ratio ``pi p_y / (2 E*)``
-        (E* of the species against its own material) makes a sphere on a wall of its own
-        material yield at ``yieldPress`` exactly, as the reference model; two equal spheres
-        (R* = r/2) then yield at twice ``yieldPress``.
-        """
-        thornton_ning = self.model == "thornton_ning"
-        required = ["youngsModulus", "poissonsRatio", "coefficientFriction"]
-        required.append("yieldPress" if thornton_ning else "coefficientRestitution")
+        """``fix property/global`` tables of the materials by atom type, pairs mixed by PyGran's rules."""
+        required = ["youngsModulus", "poissonsRatio", "coefficientFriction", "coefficientRestitution"]
         if self.model == "hooke":
             required.append("characteristicVelocity")
         if self.rolling:
             required += ROLLING[self.rolling_model]
         for index, material in enumerate(self.materials, start=1):
             missing = [key for key in required if key not in material]
-            if index > len(self.spec.species) and thornton_ning:
-                missing = [key for key in missing if key != "yieldPress"]  # walls never yield
             if missing:
                 raise ConfigError(f"LIGGGHTS needs {', '.join(missing)} in the material of atom type {index}")
 
@@ -297,9 +283,7 @@ class Commands:
             return f"fix pg_{name} all property/global {name} peratomtype " + " ".join(fmt(v) for v in values)
 
         E, nu = column("youngsModulus"), column("poissonsRatio")
-        restitution = np.ones((n, n))
-        if not thornton_ning:
-            restitution = mixing.pair_table(mixing.pair_restitution, column("coefficientRestitution"))
+        restitution = mixing.pair_table(mixing.pair_restitution, column("coefficientRestitution"))
         lines = [
             per_type("youngsModulus", E),
             per_type("poissonsRatio", nu),
@@ -308,18 +292,7 @@ class Commands:
                 "coefficientFriction", mixing.pair_table(mixing.pair_friction, column("coefficientFriction"))
             ),
         ]
-        if thornton_ning:
-            # a ratio above 1 (a contact wider than the sphere) is never reached: LIGGGHTS takes
-            # at most 1; types of walls only (never particle i) need a value, not a meaning
-            ratio = math.pi * column("yieldPress") / (2 * mixing.effective_modulus(E, nu, E, nu))
-            lines += [
-                per_type("coefficientYieldRatio", np.nan_to_num(np.minimum(ratio, 1.0), nan=1.0)),
-                table(
-                    "surfaceEnergy",
-                    2 * mixing.pair_table(mixing.pair_cohesion, column("cohesionEnergyDensity", 0.0)),
-                ),
-            ]
-        elif self.cohesion:
+        if self.cohesion:
             lines.append(
                 table(
                     "cohesionEnergyDensity",

@@ -21,7 +21,6 @@ into its arrays and only noted there in a comment. LIGGGHTS' screen output goes 
 
 from __future__ import annotations
 
-import logging
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -55,14 +54,6 @@ WORKER_LOG_NAME = "worker.log"
 RESTART_KEY = "liggghts/restart"
 #: Queued lines of particles created one by one that are sent on without waiting.
 STREAM_LINES = 1000
-#: How LIGGGHTS 3.8's thornton_ning differs from the reference model (logged when it is used).
-THORNTON_NING_NOTE = (
-    "LIGGGHTS' thornton_ning loads as the ThorntonNing model (yield at the same contact radius, "
-    "JKR adhesion), but unloads with the stiffness of the unflattened contact and ends an adhesive "
-    "contact at zero overlap: strongly plastic impacts rebound slower than the model's (5-8 % at "
-    "restitution 0.3-0.6), strongly adhesive ones faster; between equal spheres the yield pressure "
-    "is twice yieldPress (LIGGGHTS scales the yield contact radius with the sphere's radius)"
-)
 
 
 def mpi_placement(spec: SimulationSpec) -> tuple[Any, SimulationSpec]:
@@ -91,7 +82,6 @@ class LiggghtsEngine(Engine):
             "polydisperse",
             "spring-dashpot",
             "hertz-mindlin",
-            "thornton-ning",
             "cohesion",
             "rolling-friction",
             "insert-by-rate",
@@ -137,8 +127,6 @@ class LiggghtsEngine(Engine):
             if comm is not None and spec.nprocs not in (None, comm.size):
                 raise ConfigError(f"nprocs={spec.nprocs} differs from the {comm.size} MPI ranks of this run")
             self.commands = Commands(spec)
-            if self.commands.model == "thornton_ning":
-                self.log(THORNTON_NING_NOTE, level=logging.WARNING)
             resume = self._resume_file()
             self._root = comm is None or comm.rank == 0
             self._input = (self.output / INPUT_NAME).open("w") if self._root else None
