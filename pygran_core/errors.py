@@ -35,6 +35,14 @@ class EngineError(PyGranError):
     """The solver behind an engine reported an error or died."""
 
 
+class SelectionError(PyGranError, IndexError):
+    """A selection (index, slice, list, mask) or frame that does not fit the analysed object."""
+
+
+class AttributeProblem(PyGranError, AttributeError):
+    """An attribute of an analysed object that does not exist, or one that is read-only."""
+
+
 class PyGranWarning(UserWarning):
     """Base class of PyGran's warnings: something ran, but probably not as the user meant."""
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core import units as _units
-from pygran_core.errors import ConfigError, PyGranError, did_you_mean
+from pygran_core.errors import AttributeProblem, ConfigError, SelectionError, did_you_mean
 
 Selection = int | slice | Sequence[int] | np.ndarray
 
@@ -40,14 +40,6 @@ DIMENSIONS: dict[str, str] = {
     "density": "density",
     "time": "time",
 }
-
-
-class SelectionError(PyGranError, IndexError):
-    """A selection (index, slice, list, mask) or frame that does not fit the object."""
-
-
-class AttributeProblem(PyGranError, AttributeError):
-    """An attribute that does not exist, or one that is read-only."""
 
 
 class Keys(tuple[str, ...]):

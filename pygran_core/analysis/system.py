@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 
 from pygran_core import units as _units
-from pygran_core.analysis.subsystem import SelectionError, SubSystem
-from pygran_core.errors import ConfigError, did_you_mean
+from pygran_core.analysis.subsystem import SubSystem
+from pygran_core.errors import ConfigError, SelectionError, did_you_mean
 from pygran_core.io import Trajectory, open_trajectory
 
 PathLike = str | os.PathLike[str]
