@@ -4,7 +4,7 @@ A checkpoint holds the clock (step, time, dt), the journal of the calls that led
 a resumed script can be checked against the one that wrote it), the monitor samples so
 far, and the engine's own state as named numpy arrays (``Engine._state``). It is written
 to a temporary file and renamed, so a crash while writing leaves the previous one intact,
-with the SHA-256 digest of its contents, so a damaged one is refused rather than resumed.
+and sealed with the SHA-256 of its bytes, so a damaged one is refused rather than resumed.
 
 Names: ``fname`` with a ``*`` writes a file per checkpoint with the step in its place
 (``restart.*.h5`` -> ``restart.5000.h5``), as LIGGGHTS does; otherwise each checkpoint
@@ -24,10 +24,11 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ConfigError, ReadError
+from pygran_core.formats.h5md import HDF5_SIGNATURE
 from pygran_core.simulation.specs import RestartSpec
 
 FORMAT = "pygran-checkpoint"
-#: 2: the ``digest`` attribute (SHA-256 of the contents) is written and checked
+#: 2: sealed with the SHA-256 of its bytes (in the HDF5 user block)
 VERSION = 2
 
 
@@ -90,77 +91,86 @@ def latest_checkpoint(restart: RestartSpec) -> Path:
     return found[max(found)]
 
 
-def _stored(checkpoint: Checkpoint) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """The attributes and datasets a checkpoint is stored as."""
-    attrs = {
-        "format": FORMAT,
-        "version": VERSION,
-        "engine": checkpoint.engine,
-        "step": int(checkpoint.step),
-        "time": float(checkpoint.time),
-        "dt": np.nan if checkpoint.dt is None else float(checkpoint.dt),
-    }
-    # datasets, not attributes: an attribute holds at most 64 KiB
-    datasets = {
-        "journal": encode_text(json.dumps(checkpoint.journal)),
-        "facts": encode_text(json.dumps(checkpoint.facts)),
-    }
-    datasets.update({f"monitors/{k}": np.asarray(v) for k, v in checkpoint.monitors.items()})
-    datasets.update({f"state/{k}": np.asarray(v) for k, v in checkpoint.state.items()})
-    return attrs, datasets
-
-
-def _digest(attrs: dict[str, Any], datasets: dict[str, np.ndarray]) -> str:
-    """SHA-256 of a stored checkpoint: every attribute, and every dataset's name, type, shape
-    and bytes, in name order."""
-    digest = hashlib.sha256(repr(sorted((k, repr(v)) for k, v in attrs.items())).encode())
-    for name in sorted(datasets):
-        value = np.ascontiguousarray(datasets[name])
-        digest.update(f"\0{name}\0{value.dtype.str}\0{value.shape}\0".encode())
-        digest.update(value.tobytes())
-    return digest.hexdigest()
-
-
 def write_checkpoint(path: Path, checkpoint: Checkpoint) -> None:
-    """Write ``checkpoint`` to ``path`` atomically (temporary file, then rename), with the
-    digest of its contents."""
+    """Write ``checkpoint`` to ``path`` atomically (temporary file, then rename), sealed with
+    the SHA-256 of its bytes."""
     import h5py
 
-    attrs, datasets = _stored(checkpoint)
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial")
-    with h5py.File(partial, "w") as f:
-        f.attrs.update(attrs)
-        f.attrs["digest"] = _digest(attrs, datasets)
-        for name, value in datasets.items():
-            f.create_dataset(name, data=value)
+    with h5py.File(partial, "w", userblock_size=_SEAL_SIZE) as f:
+        f.attrs["format"] = FORMAT
+        f.attrs["version"] = VERSION
+        f.attrs["engine"] = checkpoint.engine
+        f.attrs["step"] = checkpoint.step
+        f.attrs["time"] = checkpoint.time
+        f.attrs["dt"] = np.nan if checkpoint.dt is None else checkpoint.dt
+        # datasets, not attributes: an attribute holds at most 64 KiB
+        f.create_dataset("journal", data=encode_text(json.dumps(checkpoint.journal)))
+        f.create_dataset("facts", data=encode_text(json.dumps(checkpoint.facts)))
+        for position, samples in checkpoint.monitors.items():
+            f.create_dataset(f"monitors/{position}", data=samples)
+        for name, value in checkpoint.state.items():
+            f.create_dataset(f"state/{name}", data=value)
+    with open(partial, "r+b") as handle:
+        seal = _SEAL + _sha256(handle).encode() + b"\n"
+        handle.seek(0)
+        handle.write(seal.ljust(_SEAL_SIZE, b"\0"))
     os.replace(partial, path)
 
 
+#: The HDF5 user block that starts a checkpoint: this text and the SHA-256 of every byte
+#: after the block, checked before HDF5 reads anything (a damaged HDF5 file can crash or
+#: hang libhdf5 itself: its default metadata carries no checksum).
+_SEAL, _SEAL_SIZE = b"PyGran checkpoint sha256 ", 512
 _KINDS = {str: "text", int: "an integer", float: "a number"}
 #: What h5py, UTF-8 and JSON decoding raise on a damaged file.
 _DAMAGE = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError)
 
 
+def _sha256(handle: Any) -> str:
+    """The SHA-256 of an open file's bytes after its user block."""
+    digest = hashlib.sha256()
+    handle.seek(_SEAL_SIZE)
+    while chunk := handle.read(1 << 20):
+        digest.update(chunk)
+    return digest.hexdigest()
+
+
 def read_checkpoint(path: Path) -> Checkpoint:
     """Read a checkpoint written by :func:`write_checkpoint`.
 
-    Anything malformed is a :class:`ReadError`: a damaged or truncated file, contents that do
-    not match their digest, attributes of the wrong type, datasets that are not numeric or
-    whose shape is not what is stored, a journal or facts that are not UTF-8 JSON of the
-    expected shape, monitors that are not tables of samples. What the engine's state arrays
-    must hold is checked by the engine that restores them.
+    Anything malformed is a :class:`ReadError`: bytes that do not match the checkpoint's
+    seal (checked before HDF5 reads the file), a file that is not HDF5, attributes of the
+    wrong type, datasets that are not numeric or whose shape is not what is stored, a journal
+    or facts that are not UTF-8 JSON of the expected shape, monitors that are not tables of
+    samples. What the engine's state arrays must hold is checked by the engine restoring them.
     """
     import h5py
 
     try:
+        with open(path, "rb") as handle:
+            head = handle.read(_SEAL_SIZE + 8)
+            sealed = head.startswith(_SEAL)
+            if sealed and head[len(_SEAL) : len(_SEAL) + 65] != _sha256(handle).encode() + b"\n":
+                raise ReadError(
+                    f"{path}: damaged checkpoint: its bytes do not match the SHA-256 it was sealed with"
+                )
+        if not sealed and not head.startswith(HDF5_SIGNATURE):
+            raise ReadError(
+                f"{path}: unreadable checkpoint: not a PyGran checkpoint, or its first bytes are damaged"
+            )
         with h5py.File(path, "r") as f:
-            return _read(path, f)
+            checkpoint, version = _read(path, f)
     except _DAMAGE as exc:
         raise ReadError(f"{path}: unreadable checkpoint ({type(exc).__name__}: {exc})") from None
+    if version >= 2 and not sealed:
+        raise ReadError(f"{path}: damaged checkpoint: version {version} without its seal")
+    return checkpoint
 
 
-def _read(path: Path, f: Any) -> Checkpoint:
+def _read(path: Path, f: Any) -> tuple[Checkpoint, int]:
+    """The checkpoint in an open file, checked, and its format version."""
     import h5py
 
     def fail(message: str) -> ReadError:
@@ -185,16 +195,9 @@ def _read(path: Path, f: Any) -> Checkpoint:
         raise fail(
             f"checkpoint version {version} is newer than this PyGran reads ({VERSION}); upgrade pygran-core"
         )
-    attrs = {
-        "format": FORMAT,
-        "version": version,
-        "engine": attr("engine", str),
-        "step": attr("step", int),
-        "time": attr("time", float),
-        "dt": attr("dt", float),
-    }
-    if attrs["step"] < 0 or not np.isfinite(attrs["time"]) or not (np.isnan(attrs["dt"]) or attrs["dt"] > 0):
-        raise fail(f"bad clock: step {attrs['step']}, time {attrs['time']}, dt {attrs['dt']}")
+    step, time, dt = attr("step", int), attr("time", float), attr("dt", float)
+    if step < 0 or not np.isfinite(time) or not (np.isnan(dt) or dt > 0):
+        raise fail(f"bad clock: step {step}, time {time}, dt {dt}")
     datasets: dict[str, np.ndarray] = {}
 
     def collect(name: str, item: Any) -> None:
@@ -207,11 +210,6 @@ def _read(path: Path, f: Any) -> Checkpoint:
             datasets[name] = item[()]
 
     f.visititems(collect)
-    if "digest" in f.attrs:
-        if attr("digest", str) != _digest(attrs, datasets):
-            raise fail("damaged checkpoint: its contents do not match the digest written with them")
-    elif version >= 2:
-        raise fail("damaged checkpoint: the digest of its contents is missing")
     journal = _json(fail, datasets, "journal", list)
     if not all(isinstance(c, list) and len(c) == 2 and isinstance(c[0], str) for c in journal):
         raise fail("the journal is not a list of [call, result] pairs")
@@ -226,16 +224,17 @@ def _read(path: Path, f: Any) -> Checkpoint:
     clock = state.get("clock")
     if clock is None or clock.shape != (2,) or not np.isfinite(clock).all():
         raise fail(f"the state has no clock of 2 finite numbers (found {clock!r})")
-    return Checkpoint(
-        engine=attrs["engine"],
-        step=attrs["step"],
-        time=attrs["time"],
-        dt=None if np.isnan(attrs["dt"]) else attrs["dt"],
+    checkpoint = Checkpoint(
+        engine=attr("engine", str),
+        step=step,
+        time=time,
+        dt=None if np.isnan(dt) else dt,
         journal=journal,
         monitors=monitors,
         state=state,
         facts=_json(fail, datasets, "facts", dict),
     )
+    return checkpoint, version
 
 
 def _json(fail: Any, datasets: dict[str, np.ndarray], name: str, kind: type) -> Any:
