@@ -794,6 +794,9 @@ class Engine(abc.ABC):
         """Continue from the checkpoint being resumed: the engine's state, the clock, the
         monitors, and the trajectory files cut back to the checkpoint's step."""
         checkpoint, self._resume = self._resume, None
+        unknown = sorted(set(checkpoint.monitors) - set(self._monitors))
+        if unknown:
+            raise ReadError(f"{self._resume_path}: monitors {unknown} are not among the script's monitors")
         if checkpoint.facts != self._facts():
             self.log(
                 "resuming with %s where the checkpoint had %s: the run continues, but not bitwise",
@@ -985,10 +988,6 @@ class _Watch:
 
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
-        domain = engine.spec.domain
-        self.box = np.array(domain.box, float)
-        self.fixed = ~np.array(domain.periodic)
-        self.gravity = engine.spec.gravity.vector if engine.spec.gravity is not None else np.zeros(3)
         self.start = engine.time
         self.ids, self.x, self.v = self._state()
 
@@ -1001,7 +1000,7 @@ class _Watch:
         ids, x, v = self._state()
         gone = ~np.isin(self.ids, ids)
         where: dict[str, int] = {}
-        for place in self._faces(self.x[gone], self.v[gone], self.engine.time - self.start):
+        for place in exit_faces(self.engine.spec, self.x[gone], self.v[gone], self.engine.time - self.start):
             where[place] = where.get(place, 0) + 1
         broken = ~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1))
         fresh = [i for i in ids[broken].tolist() if i not in self.engine._broken]
@@ -1010,26 +1009,29 @@ class _Watch:
             where["non-finite"] = where.get("non-finite", 0) + len(fresh)
         return LostParticles(int(gone.sum()) + len(fresh), where)  # speeds when lost: unknown
 
-    def _faces(self, x: np.ndarray, v: np.ndarray, duration: float) -> list[str]:
-        """The face each particle at ``x`` moving at ``v`` reaches first, moving so (with
-        gravity) for ``duration``: ``"non-finite"`` or ``"unknown"`` if none."""
-        places = []
-        heading = v * duration + 0.5 * self.gravity * duration**2
-        lo, hi = self.box[:, 0], self.box[:, 1]
-        for position, step in zip(x, heading):
-            if not (np.isfinite(position).all() and np.isfinite(step).all()):
-                places.append("non-finite")
-                continue
-            with np.errstate(divide="ignore", invalid="ignore"):
-                bound = np.where(step > 0, hi, lo)
-                reach = np.where(self.fixed & (step != 0), (bound - position) / step, np.inf)
-            outside = self.fixed & ((position < lo) | (position > hi))
-            if outside.any():
-                axis = int(np.flatnonzero(outside)[0])
-                places.append("xyz"[axis] + ("-" if position[axis] < lo[axis] else "+"))
-            elif np.isfinite(reach).any():
-                axis = int(np.argmin(reach))
-                places.append("xyz"[axis] + ("+" if step[axis] > 0 else "-"))
-            else:
-                places.append("unknown")
-        return places
+
+def exit_faces(spec: SimulationSpec, x: np.ndarray, v: np.ndarray, duration: float) -> list[str]:
+    """The face of the box (``"z-"``, ...) each particle at ``x`` moving at ``v`` reaches first
+    when it moves so, with gravity, for ``duration``; ``"non-finite"`` or ``"unknown"`` if none."""
+    box = np.array(spec.domain.box, float)
+    fixed = ~np.array(spec.domain.periodic)
+    gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
+    lo, hi = box[:, 0], box[:, 1]
+    places = []
+    for position, step in zip(x, v * duration + 0.5 * gravity * duration**2):
+        if not (np.isfinite(position).all() and np.isfinite(step).all()):
+            places.append("non-finite")
+            continue
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bound = np.where(step > 0, hi, lo)
+            reach = np.where(fixed & (step != 0), (bound - position) / step, np.inf)
+        outside = fixed & ((position < lo) | (position > hi))
+        if outside.any():
+            axis = int(np.flatnonzero(outside)[0])
+            places.append("xyz"[axis] + ("-" if position[axis] < lo[axis] else "+"))
+        elif np.isfinite(reach).any():
+            axis = int(np.argmin(reach))
+            places.append("xyz"[axis] + ("+" if step[axis] > 0 else "-"))
+        else:
+            places.append("unknown")
+    return places

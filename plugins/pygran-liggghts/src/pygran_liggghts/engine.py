@@ -30,7 +30,7 @@ import numpy as np
 
 from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
 from pygran_core.simulation.checkpoint import decode_text, encode_text
-from pygran_core.simulation.engine import Engine, LostParticles
+from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
 from pygran_liggghts.commands import Commands, fmt, native_meshes, native_particles
 from pygran_liggghts.session import LocalSession, WorkerSession, under_mpirun
 
@@ -239,18 +239,8 @@ class LiggghtsEngine(Engine):
     def _lost_particles(self, count: int, x: np.ndarray, v: np.ndarray, duration: float) -> LostParticles:
         """``count`` particles lost in a run of ``duration``: those seen at its start (``x``,
         ``v``) placed as the front end places them; the others, inserted during it, ``unknown``."""
-        from types import SimpleNamespace
-
-        from pygran_core.simulation.engine import _Watch
-
-        domain, gravity = self.spec.domain, self.spec.gravity
-        box = SimpleNamespace(
-            box=np.array(domain.box, float),
-            fixed=~np.array(domain.periodic),
-            gravity=gravity.vector if gravity is not None else np.zeros(3),
-        )
         where: dict[str, int] = {}
-        for place in [*_Watch._faces(box, x, v, duration), *["unknown"] * (count - len(x))]:
+        for place in [*exit_faces(self.spec, x, v, duration), *["unknown"] * (count - len(x))]:
             where[place] = where.get(place, 0) + 1
         self.log("%d particles lost in the last %d steps: %s", count, round(duration / self.dt), where)
         return LostParticles(count, where)
