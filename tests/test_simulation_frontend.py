@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from pygran_core import params, registry, simulation
-from pygran_core.errors import ConfigError, PluginNotFound, UnsupportedFeature
+from pygran_core.errors import ConfigError, PluginNotFound, PyGranError, UnsupportedFeature
 from pygran_core.simulation import calls
 from pygran_core.simulation.dem import resolve_engine, resolve_model
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot
 from pygran_core.simulation.specs import (
+    SIMULATION_KEYS,
     ServoSpec,
     parse_boundary,
     parse_gravity,
@@ -640,6 +641,8 @@ def test_engine_resolution():
     assert resolve_engine(None) == "native"
     with pytest.raises(PluginNotFound, match="Did you mean 'liggghts'"):
         resolve_engine("ligghts")
+    with pytest.raises(ConfigError, match="engine must be an engine's name"):
+        resolve_engine(["native"])
 
 
 def test_model_resolution():
@@ -699,3 +702,87 @@ def test_set_spec_selects_by_species_region_and_ids():
     ):
         with pytest.raises(ConfigError, match=message):
             calls.parse_set(bad, s)
+
+
+BAD_VALUES = [
+    None,
+    "x",
+    "1e5",
+    -1,
+    0,
+    1.5,
+    math.nan,
+    math.inf,
+    (),
+    (1,),
+    [1, 2, 3],
+    {"a": 1},
+    {1: 2},
+    object(),
+]
+BAD_VALUES += [True, (None, None, None), ("a", "b", "c"), np.array([1.0, 2.0]), b"x", 10**30]
+SERVO = {"com": (0, 0, 0), "ctrlPV": "force", "axis": (0, 0, 1), "target_val": 1, "vel_max": 1}
+MULTISPHERE = {"material": MATERIAL, "style": "multisphere", "nspheres": 3, "radius": 1e-3, "length": 4e-3}
+
+
+def _forms():
+    """Every keyword of the forms PyGran parses, to be given each bad value in turn."""
+    square = str(DATA / "meshes" / "square.stl")
+    mesh = spec(mesh={"m": {"file": square}})
+    yield from (("simulation", key, lambda v, k=key: spec(**{k: v})) for key in SIMULATION_KEYS)
+    for key in ("style", "material", "density", "radius", "function", "nspheres", "length"):
+        yield "species", key, lambda v, k=key: spec(species=({"material": MATERIAL, "radius": 5e-4, k: v},))
+        yield "multisphere", key, lambda v, k=key: spec(species=(dict(MULTISPHERE, **{k: v}),))
+    for key in ("file", "material", "mtype", "args", "import", "scale", "rotate", "move"):
+        yield "mesh", key, lambda v, k=key: spec(mesh={"m": {"file": square, k: v}})
+    servo = {"file": square, "mtype": "mesh/surface/stress/servo"}
+    for key in ("move", "scale", "rotate", *SERVO, "kp", "mode", "ratio"):
+        yield "mesh args", key, lambda v, k=key: spec(mesh={"m": dict(servo, args=dict(SERVO, **{k: v}))})
+    for key in ("freq", "dir", "pfile", "mfile", "sel", "style", "args", "margs"):
+        yield "traj", key, lambda v, k=key: spec(traj={k: v})
+    for key in calls.INSERT_KEYS:
+        yield "insert", key, lambda v, k=key: calls.parse_insert({"value": 5, k: v}, mesh, 1)
+        yield (
+            "insert by rate",
+            key,
+            lambda v, k=key: calls.parse_insert({"insert": "by_rate", "rate": 5, k: v}, mesh, 1),
+        )
+    motions = (
+        {"rotate": ("origin", 0, 0, 0), "period": 1},
+        {"viblin": ("axis", 0, 0, 1), "order": 1, "amplitude": 1},
+    )
+    for key in (*calls.MOTION_STYLES, "origin", "axis", "period", "omega", "amplitude", "order", "phase"):
+        for motion in motions:
+            yield (
+                "moveMesh",
+                key,
+                lambda v, k=key, m=motion: calls.parse_motion("m", {"phase": 0, **m, k: v}, mesh),
+            )
+    yield "moveMesh", "name", lambda v: calls.parse_motion(v, {"linear": (0, 0, 1)}, mesh)
+    for key in calls.AVERAGE_KEYS:
+        yield "old monitor", key, lambda v, k=key: calls.parse_average({"var": "ke", k: v}, mesh)
+    for key in ("quantities", "freq", "file", "name"):
+        yield "monitor", key, lambda v, k=key: calls.parse_monitor({k: v})
+    for key in ("wtype", "species", "plane", "peq", "axis", "centre", "radius", "mesh"):
+        yield "setupWall", key, lambda v, k=key: calls.parse_wall({"plane": "zplane", "peq": 0, k: v}, mesh)
+    for key in ("gamma", "species", "scale"):
+        yield "addViscous", key, lambda v, k=key: calls.parse_viscous({"gamma": 1, k: v}, mesh)
+    for key in ("vel", "omega", "radius", "region", "spacing", "seed"):
+        yield "createParticles", key, lambda v, k=key: calls.parse_create(1, "random", (5,), {k: v}, mesh, 1)
+    for key in ("species", "region", "ids", "vel", "omega", "radius"):
+        yield "set", key, lambda v, k=key: calls.parse_set({"vel": (0, 0, 0), k: v}, mesh)
+
+
+def test_any_mistake_is_a_pygran_error():
+    """Every keyword given every kind of wrong value: a PyGranError or nothing, never a bare
+    TypeError, ValueError or MemoryError from inside."""
+    failures = []
+    for form, key, parse in _forms():
+        for value in BAD_VALUES:
+            try:
+                parse(value)
+            except PyGranError:
+                pass
+            except Exception as exc:  # noqa: BLE001 - any other exception is the defect tested for
+                failures.append(f"{form} {key}={value!r}: {type(exc).__name__}: {exc}")
+    assert not failures, "\n".join(failures[:20])

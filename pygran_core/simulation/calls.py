@@ -86,7 +86,7 @@ REGION_ARITY = {"block": 6, "cylinder": 6, "sphere": 4}
 
 def parse_region(value: Any, spec: SimulationSpec) -> Region:
     """``('block', xlo, ...)`` and friends; ``None`` or ``'sim_box'`` is the whole box."""
-    if value is None or value == "sim_box":
+    if value is None or isinstance(value, str) and value == "sim_box":
         return Region("block", tuple(v for pair in spec.domain.box for v in pair))
     if isinstance(value, str) or not isinstance(value, Sequence) or not value:
         raise ConfigError(
@@ -121,11 +121,15 @@ def parse_species_selection(value: Any, spec: SimulationSpec) -> tuple[int, ...]
     known = tuple(s.type for s in spec.species)
     if not known:
         raise ConfigError("No species defined: pass species=({'material': ..., 'radius': ...},) to DEM")
-    if value == "all":
+    if isinstance(value, str) and value == "all":
         return known
-    chosen = (value,) if isinstance(value, Integral) else tuple(value)
+    chosen = (value,) if isinstance(value, Integral) else value
+    if isinstance(chosen, str) or not isinstance(chosen, Sequence) or not chosen:
+        raise ConfigError(
+            f"species must be 'all', a species number or numbers; defined: {known}, got {value!r}"
+        )
     for item in chosen:
-        if isinstance(item, bool) or item not in known:
+        if isinstance(item, bool) or not isinstance(item, Integral) or item not in known:
             raise ConfigError(f"species {item!r} does not exist; defined species: {known} or 'all'")
     return tuple(int(i) for i in chosen)
 
@@ -219,10 +223,16 @@ INSERT_KEYS = (
 CLOSE_PACKING = 0.64
 
 
+def _seed(value: Any, call: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, Integral) or value < 0:
+        raise ConfigError(f"{call} seed must be a non-negative integer, got {value!r}")
+    return int(value)
+
+
 def _flag(value: Any, name: str) -> bool:
-    if value in ("yes", True):
+    if value is True or isinstance(value, str) and value == "yes":
         return True
-    if value in ("no", False):
+    if value is False or isinstance(value, str) and value == "no":
         return False
     raise ConfigError(f"{name} must be 'yes' or 'no', got {value!r}")
 
@@ -277,7 +287,7 @@ def parse_insert(
     if mechanism == "by_pack":
         target = one_of(kwargs.get("mech", "particles_in_region"), "insert by_pack mech", PACK_TARGETS)
         value = kwargs.get("value")
-    elif kwargs.get("mech") in RATE_TOTALS:  # PyGran 1.x: mech='nparticles', value=N, rate=per second
+    elif isinstance(kwargs.get("mech"), str) and kwargs["mech"] in RATE_TOTALS:  # PyGran 1.x: a total
         if kwargs.get("rate") is None or kwargs.get("value") is None or duration is not None:
             raise ConfigError(
                 f"insert by_rate with mech={kwargs['mech']!r}: give the total as value=... and the rate "
@@ -310,9 +320,6 @@ def parse_insert(
         raise ConfigError(f"insert particles_in_region needs a whole number of particles, got {value}")
     freq = kwargs.get("freq", "once")
     orientation = kwargs.get("orientation", args.get("orientation"))
-    chosen_seed = kwargs.get("seed", seed)
-    if isinstance(chosen_seed, bool) or not isinstance(chosen_seed, Integral) or chosen_seed < 0:
-        raise ConfigError(f"insert seed must be a non-negative integer, got {chosen_seed!r}")
     return InsertSpec(
         mechanism=mechanism,
         target=target,
@@ -322,10 +329,10 @@ def parse_insert(
         region=parse_region(kwargs.get("region"), spec),
         velocity=parse_velocity(kwargs.get("vel_type", "constant"), kwargs.get("vel", (0, 0, 0))),
         omega=_omega(kwargs.get("omega", (0, 0, 0))),
-        freq=None if freq == "once" else step_count(freq, "insert freq", notes),
+        freq=None if isinstance(freq, str) and freq == "once" else step_count(freq, "insert freq", notes),
         duration=None if duration is None else positive_float(duration, "insert duration"),
         all_in=_flag(kwargs.get("all_in", "yes"), "insert all_in"),
-        seed=int(chosen_seed),
+        seed=_seed(kwargs.get("seed", seed), "insert"),
         requested=value,
         orientation=None if orientation is None else parse_orientation(orientation, species, spec),
     )
@@ -379,7 +386,7 @@ def parse_create(
         "velocity": number_tuple(kwargs.get("vel", (0, 0, 0)), "vel"),
         "omega": _omega(kwargs.get("omega", (0, 0, 0))),
         "radius": None if kwargs.get("radius") is None else positive_float(kwargs["radius"], "radius"),
-        "seed": int(kwargs.get("seed", seed)),
+        "seed": _seed(kwargs.get("seed", seed), "createParticles"),
     }
     if style == "single":
         if len(args) == 1 and np.ndim(args[0]) == 2:
@@ -436,7 +443,7 @@ def parse_wall(kwargs: Mapping[str, Any], spec: SimulationSpec) -> WallSpec:
     if wtype == "mesh":
         names = [m.name for m in spec.meshes]
         name = kwargs.get("mesh", names[0] if len(names) == 1 else None)
-        if name not in names:
+        if not isinstance(name, str) or name not in names:
             raise (
                 unknown_key("mesh", str(name), names)
                 if names
@@ -447,7 +454,8 @@ def parse_wall(kwargs: Mapping[str, Any], spec: SimulationSpec) -> WallSpec:
         return WallSpec("mesh", species, mesh=name)
     plane = kwargs.get("plane")
     if plane is not None:
-        plane = {"planex": "xplane", "planey": "yplane", "planez": "zplane"}.get(plane, plane)
+        if isinstance(plane, str):
+            plane = {"planex": "xplane", "planey": "yplane", "planez": "zplane"}.get(plane, plane)
         plane = one_of(plane, "plane", ("xplane", "yplane", "zplane"))
         if kwargs.get("peq") is None:
             raise ConfigError(f"setupWall(plane={plane!r}) needs peq, the plane's coordinate")
@@ -540,7 +548,7 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
     the style's keyword holds the style's first arguments (PyGran 1.x's
     ``rotate=('origin', 0, 0, 0)``), the others follow as keywords (``axis=``, ``period=``)."""
     names = [m.name for m in spec.meshes]
-    if mesh not in names:
+    if not isinstance(mesh, str) or mesh not in names:
         raise unknown_key("mesh", str(mesh), names)
     check_keys(
         "moveMesh keyword",
@@ -608,7 +616,7 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
             mesh, kind, axis=direction("axis", (0, 0, 1)), origin=vector("origin", (0, 0, 0)), omega=omega
         )
     order = scalar("order")
-    if isinstance(order, bool) or not isinstance(order, Real) or order != int(order) or not 1 <= order <= 30:
+    if isinstance(order, bool) or not isinstance(order, Real) or order not in range(1, 31):
         raise ConfigError(f"moveMesh {kind} needs order=n, the number of harmonics (1 to 30), got {order!r}")
     order = int(order)
 
@@ -801,8 +809,13 @@ def parse_set(kwargs: Mapping[str, Any], spec: SimulationSpec) -> SetSpec:
         )
     ids = kwargs.get("ids")
     if ids is not None:
-        ids = (ids,) if isinstance(ids, Integral) else tuple(ids)
-        if not ids or any(isinstance(i, bool) or not isinstance(i, Integral) or i < 1 for i in ids):
+        ids = (ids,) if isinstance(ids, Integral) else ids
+        if (
+            isinstance(ids, str)
+            or not isinstance(ids, Sequence)
+            or not ids
+            or any(isinstance(i, bool) or not isinstance(i, Integral) or i < 1 for i in ids)
+        ):
             raise ConfigError(f"ids must be particle ids (1, 2, ...), got {kwargs['ids']!r}")
     return SetSpec(
         species=None if kwargs.get("species") is None else parse_species_selection(kwargs["species"], spec),

@@ -30,6 +30,8 @@ def resolve_engine(name: str | None) -> str:
     """The engine to use: ``name``, else ``native`` if installed, else the only one installed."""
     installed = registry.available("engine")
     if name is not None:
+        if not isinstance(name, str):
+            raise ConfigError(f"engine must be an engine's name such as 'native', got {name!r}")
         registry.lookup("engine", name)
         return name
     if DEFAULT_ENGINE in installed:

@@ -54,8 +54,8 @@ def step_count(value: Any, name: str, notes: list[str] | None = None) -> int:
 
 
 def positive_float(value: Any, name: str) -> float:
-    """``value`` (int or float) as a float > 0, or a :class:`ConfigError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, Real) or not value > 0:
+    """``value`` (int or float) as a finite float > 0, or a :class:`ConfigError` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, Real) or not 0 < value < math.inf:
         raise ConfigError(f"{name} must be a positive number, got {value!r}")
     return float(value)
 
@@ -73,15 +73,29 @@ def number_tuple(value: Any, name: str, size: int = 3) -> tuple[float, ...]:
 
 
 def one_of(value: Any, name: str, choices: Sequence[str]) -> str:
-    if value not in choices:
+    if not isinstance(value, str) or value not in choices:
         raise unknown_key(f"{name}", str(value), choices)
+    return value
+
+
+def words(value: Any, name: str) -> tuple[str, ...]:
+    """``value`` as a tuple of strings (one string is one word)."""
+    value = (value,) if isinstance(value, str) else value
+    if not isinstance(value, Sequence) or not all(isinstance(v, str) for v in value):
+        raise ConfigError(f"{name} must be a sequence of words such as ('id', 'x'), got {value!r}")
+    return tuple(value)
+
+
+def file_name(value: Any, name: str) -> str | os.PathLike[str]:
+    if not isinstance(value, (str, os.PathLike)) or not str(value):
+        raise ConfigError(f"{name} must be a file or folder name, got {value!r}")
     return value
 
 
 def check_keys(kind: str, given: Mapping[str, Any], known: Sequence[str]) -> None:
     for key in given:
         if key not in known:
-            raise unknown_key(kind, key, known)
+            raise unknown_key(kind, str(key), known)
 
 
 def edits(a: str, b: str) -> int:
@@ -291,6 +305,8 @@ SPECIES_KEYS = ("style", "material", "density", "radius")
 #: The keys of multisphere species: a ``function`` giving the spheres, or a tablet.
 MULTISPHERE_KEYS = ("function", "nspheres", "length")
 SPECIES_STYLES = ("sphere", "multisphere", "multisphere/tablet")
+#: The most spheres a multisphere tablet may have.
+MAX_SPHERES = 1000
 
 
 def tablet(nspheres: int, radius: float, length: float) -> tuple[tuple[float, float, float, float], ...]:
@@ -332,8 +348,8 @@ def _multisphere(value: Mapping[str, Any], index: int, style: str) -> tuple[tupl
             f"length (missing {', '.join(missing)})"
         )
     count = value["nspheres"]
-    if isinstance(count, bool) or not isinstance(count, Integral) or count < 2:
-        raise ConfigError(f"{where}: nspheres must be a whole number >= 2, got {count!r}")
+    if isinstance(count, bool) or not isinstance(count, Integral) or not 2 <= count <= MAX_SPHERES:
+        raise ConfigError(f"{where}: nspheres must be a whole number from 2 to {MAX_SPHERES}, got {count!r}")
     radius = positive_float(value["radius"], f"{where} radius")
     length = positive_float(value["length"], f"{where} length")
     if not 2 * radius < length <= 2 * radius * count:
@@ -680,22 +696,23 @@ def parse_traj(value: Any, output: Path, dump_modify: Any, notes: list[str] | No
     if not isinstance(value, Mapping):
         raise ConfigError(f"traj must be a dict with keys {TRAJ_KEYS}, got {value!r}")
     check_keys("traj keyword", value, TRAJ_KEYS)
-    directory = output / value.get("dir", "")
+    directory = output / file_name(value.get("dir", "."), "traj dir")
     files = {}
     for key, default in (("pfile", "traj.dump"), ("mfile", None)):
         name = value.get(key, default)
-        files[key] = None if name is None else directory / name
+        files[key] = None if name is None else directory / file_name(name, f"traj {key}")
     sel = value.get("sel", "all")
-    if sel != "all" and (isinstance(sel, bool) or not isinstance(sel, Integral) or sel < 1):
+    if not (isinstance(sel, str) and sel == "all") and (
+        isinstance(sel, bool) or not isinstance(sel, Integral) or sel < 1
+    ):
         raise ConfigError(f"traj sel must be 'all' or a species number (1, 2, ...), got {sel!r}")
-    dump_modify = () if dump_modify is None else tuple(str(d) for d in dump_modify)
     return TrajectorySpec(
         freq=step_count(value.get("freq", 1000), "traj freq", notes),
         sel=sel,
         style=one_of(value.get("style", "custom"), "traj style", ("custom", "custom/vtk", "atom")),
-        args=tuple(value.get("args", TrajectorySpec.args)),
-        margs=tuple(value.get("margs", TrajectorySpec.margs)),
-        dump_modify=dump_modify,
+        args=words(value.get("args", TrajectorySpec.args), "traj args"),
+        margs=words(value.get("margs", TrajectorySpec.margs), "traj margs"),
+        dump_modify=() if dump_modify is None else words(dump_modify, "dump_modify"),
         **files,
     )
 
@@ -725,13 +742,15 @@ def parse_restart(value: Any, output: Path, notes: list[str] | None = None) -> R
             f"restart must be (freq, dir, fname, resume, lastfile), a dict or an int: {value!r}"
         )
     freq, directory, fname, resume, lastfile = (*value, *([None] * (5 - len(value))))
-    directory = output / (directory or "restart")
+    directory = output / file_name(directory or "restart", "restart dir")
+    if resume not in (None, True, False):
+        raise ConfigError(f"restart resume must be True or False, got {resume!r}")
     return RestartSpec(
         freq=step_count(freq, "restart freq", notes),
         directory=directory,
-        fname=fname or "restart.h5",
+        fname=str(file_name(fname or "restart.h5", "restart fname")),
         resume=bool(resume),
-        lastfile=None if lastfile in (None, "None") else directory / lastfile,
+        lastfile=None if lastfile in (None, "None") else directory / file_name(lastfile, "restart lastfile"),
     )
 
 
@@ -836,6 +855,8 @@ def split_keys(params: Mapping[str, Any]) -> tuple[str, ...]:
     return tuple(own)
 
 
+#: The most runs ``nSim`` may ask for.
+MAX_NSIM = 10000
 #: Environment variables an MPI launcher (mpirun, srun) sets in every process it starts.
 MPI_LAUNCH_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
 
@@ -897,6 +918,8 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
     """
     user_keys = split_keys(params)
     nsim = positive_int(params.get("nSim", 1), "nSim")
+    if nsim > MAX_NSIM:
+        raise ConfigError(f"nSim={nsim}: at most {MAX_NSIM} runs, one per group of MPI ranks")
     if nsim > 1:
         output = params["output"] if "output" in params else default_output(model)
         runs = tuple(
@@ -908,15 +931,20 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
     if "box" not in params:
         raise ConfigError("box is required: (xmin, xmax, ymin, ymax, zmin, zmax) in metres")
     dim = params.get("dim", 3)
-    if dim != 3:
+    if isinstance(dim, bool) or not isinstance(dim, Integral) or dim != 3:
         raise ConfigError(f"dim={dim!r}: only 3-D simulations are supported")
     units = one_of(params.get("units", "si"), "units", ("si",))
     cwd = Path(os.getcwd())
-    output = cwd / (params["output"] if "output" in params else default_output(model))
+    output = cwd / file_name(params["output"] if "output" in params else default_output(model), "output")
     species_in = params.get("species", ())
     if isinstance(species_in, Mapping):
         species_in = (species_in,)
-    meshes_in = params.get("mesh", {}) or {}
+    if isinstance(species_in, str) or not isinstance(species_in, Sequence):
+        raise ConfigError(
+            f"species must be a tuple of dicts ({{'material': ..., 'radius': ...}}, ...), got {species_in!r}"
+        )
+    meshes_in = params.get("mesh", {})
+    meshes_in = {} if meshes_in is None else meshes_in
     if not isinstance(meshes_in, Mapping):
         raise ConfigError("mesh must be a dict of {name: {'file': ..., 'material': ...}}")
     seed = params.get("seed", 12345)
