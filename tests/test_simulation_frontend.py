@@ -676,6 +676,9 @@ def test_dem_on_a_third_party_engine(with_plugins, tmp_path):
         assert sim.step == 20 and sim.time == pytest.approx(2e-3)
         sim.run(50 / 3)  # LIGGGHTS truncates: 16 steps
         assert sim.step == 36
+        sim.expect_outflow("z-")
+        sim.run(4, check_dt=False)
+        assert sim.step == 40
         with pytest.raises(UnsupportedFeature, match="toy engine does not support plane walls"):
             sim.setupWall(species=1, plane="zplane", peq=0.0)
     with simulation.DEM(**{**kwargs, "output": str(tmp_path / "p")}) as again:
@@ -684,6 +687,7 @@ def test_dem_on_a_third_party_engine(with_plugins, tmp_path):
     assert "create CreateSpec(species=1, style='single'" in log and "run 20 steps" in log
     assert log.count("'stages'") == 1 and "keys of the script's own" in log
     assert f"run nsteps {50 / 3!r} truncated to 16 steps" in log and "run 20 steps" in log
+    assert "outflow expected through z-" in log
 
 
 def test_set_spec_selects_by_species_region_and_ids():

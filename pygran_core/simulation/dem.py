@@ -268,17 +268,26 @@ class DEM:
 
     # -- running and results ------------------------------------------------------------------
 
-    def run(self, nsteps: float, dt: float | None = None, *, progress: bool | None = None) -> None:
+    def run(
+        self, nsteps: float, dt: float | None = None, *, progress: bool | None = None, check_dt: bool = True
+    ) -> None:
         """Advance ``nsteps`` steps of ``dt`` (default: the ``dt`` given to DEM). A float
-        ``nsteps`` (``1e5``, ``nsteps / 3``) is truncated to whole steps as LIGGGHTS does."""
+        ``nsteps`` (``1e5``, ``nsteps / 3``) is truncated to whole steps as LIGGGHTS does.
+        ``check_dt=False`` runs a time step too long for the contacts anyway (see
+        :meth:`Engine.run`)."""
         notes: list[str] = []
         steps = step_count(nsteps, "run nsteps", notes)
         self._note(notes)
         try:
-            self.engine.run(steps, dt, progress=progress)
+            self.engine.run(steps, dt, progress=progress, check_dt=check_dt)
         finally:
             for averaged in self._averages.values():
                 averaged.write()
+
+    def expect_outflow(self, *faces: str) -> None:
+        """Declare the faces of the box particles leave through (``"z-"``, ...): their loss is
+        logged, not warned (see :meth:`Engine.expect_outflow`)."""
+        self.engine.expect_outflow(*faces)
 
     def remove(self, handle: Handle | Monitor | AveragedMonitor | str) -> None:
         """Remove an insertion, wall, mesh motion, force or monitor; a mesh's name removes
