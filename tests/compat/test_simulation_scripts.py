@@ -270,3 +270,31 @@ def test_meshes_are_walls_from_the_start_unless_not_imported(engine, tmp_path):
         sim.createParticles(1, "single", 0.0, 0.0, 1.5e-3)
         sim.run(1.5e4)
         assert sim.extractCoords()[1, 2] == pytest.approx(on_plate, abs=1e-6)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_mesh_turns_about_the_origin_given(engine, tmp_path):
+    """moveMesh(name, rotate=('origin', x, y, z), axis=..., period=...): a quarter turn about
+    a vertical axis 1 mm off the plate's centre."""
+    require(engine)
+    from PyGran.params import organic
+
+    params = {
+        "engine": engine,
+        "box": (-4e-3, 4e-3, -4e-3, 4e-3, -1e-3, 1e-3),
+        "species": ({"material": organic, "radius": 1e-4},),
+        "mesh": {"plate": {"file": str(MESHES / "square.stl"), "args": {"move": (0, 0, -3), "scale": 1e-3}}},
+        "traj": {"pfile": None, "mfile": "plate*.vtk", "freq": 1e3},
+        "dt": 1e-5,
+        "output": str(tmp_path / "out"),
+    }
+    with simulation.DEM(**params) as sim:
+        sim.moveMesh("plate", rotate=("origin", 1e-3, 0, 0), axis=(0, 0, 1), period=4e-2)
+        sim.run(1e3)
+    system = analysis.System(Mesh=str(tmp_path / "out" / "plate*.vtk"))
+    frames = [np.array(system.Mesh.points) for _ in system]
+    system.close()
+    start, turned = frames[0], frames[-1]
+    quarter = (start - [1e-3, 0, 0]) @ np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]]).T + [1e-3, 0, 0]
+    np.testing.assert_allclose(turned, quarter, atol=1e-8)
+    assert np.abs(turned[:, 0].mean() - start[:, 0].mean()) > 5e-4  # not about the plate's centre
