@@ -14,7 +14,12 @@ def test_toy_engine_reader_writer_found_by_name(with_plugins, tmp_path):
     with_plugins("pygran-toy")
     provided = registry.lookup("engine", "toy")
     assert (provided.distribution, provided.version, provided.plugin) == ("pygran-toy", "0.0.1", "toy")
-    species = ({"material": dict(params.glass, coefficientRollingFriction=0.0), "radius": 1e-3},)
+    species = (
+        {
+            "material": dict(params.glass, coefficientRollingFriction=0.0, cohesionEnergyDensity=0.0),
+            "radius": 1e-3,
+        },
+    )
     with simulation.DEM(
         engine="toy",
         box=(-1, 1, -1, 1, 0, 2),

@@ -152,7 +152,7 @@ def test_wiggling_mesh_follows_the_sine(tmp_path):
 
 
 def test_unsupported_and_wrong_calls_are_clear(tmp_path):
-    mesh = {"hopper": {"file": str(SILO), "args": ("scale 1e-3",)}}
+    mesh = {"hopper": {"file": str(SILO), "args": ("scale 1e-3",), "import": False}}
     with dem(tmp_path, mesh=mesh) as sim:
         with pytest.raises(
             ConfigError, match="not a wall yet: call setupWall\\(wtype='mesh', mesh='hopper'\\)"
