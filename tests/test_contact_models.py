@@ -474,3 +474,37 @@ def test_adhesive_forces_are_finite_and_vanish_before_first_touch(material, gamm
         model = model_class(material=material)
         assert np.isfinite(model.normal_force(overlap, 1.0, history * material["radius"]))
         assert model.normal_force(-abs(overlap), 1.0) == 0
+
+
+def test_configured_models_keep_their_options_and_engines_without_them_refuse(tmp_path):
+    from pygran_core import params, simulation
+    from pygran_core.errors import UnsupportedFeature
+    from pygran_core.simulation.dem import resolve_model
+    from pygran_core.simulation.models import HertzMindlin
+
+    epsd2 = HertzMindlin.configure(rolling="epsd2")
+    assert (epsd2.__name__, epsd2.rolling, HertzMindlin.rolling) == (
+        "HertzMindlin[rolling=epsd2]",
+        "epsd2",
+        "cdt",
+    )
+    assert HertzMindlin.configure(rolling="cdt") is HertzMindlin
+    assert epsd2(material=dict(params.glass, radius=1e-3)).rolling == "epsd2"
+    instance = HertzMindlin(material=dict(params.glass, radius=1e-3), rolling="epsd", limitForce=True)
+    resolved = resolve_model(instance)
+    assert (resolved.__name__, resolved.rolling, resolved.limit_force) == (
+        "HertzMindlin[rolling=epsd,limitForce=True]",
+        "epsd",
+        True,
+    )
+    with pytest.raises(ConfigError, match="Did you mean 'epsd2'"):
+        HertzMindlin.configure(rolling="epsd22")
+    with pytest.raises(UnsupportedFeature, match=r"HertzMindlin\[rolling=epsd2\]"):
+        simulation.DEM(
+            engine="native",
+            model=epsd2,
+            box=(0, 1e-2, 0, 1e-2, 0, 1e-2),
+            species=({"material": params.organic, "radius": 5e-4},),
+            output=str(tmp_path / "out"),
+            progress=False,
+        )

@@ -46,14 +46,17 @@ def resolve_engine(name: str | None) -> str:
 
 
 def resolve_model(model: Any) -> type[ContactModel]:
-    """A contact model class from a class or a registered model name."""
+    """A contact model class from a class, a registered model name, or an instance (whose
+    ``rolling`` and ``limitForce`` options are kept: :meth:`ContactModel.configure`)."""
     if isinstance(model, str):
         return registry.get_model(model).model
     if isinstance(model, type) and issubclass(model, ContactModel):
         return model
+    if isinstance(model, ContactModel):
+        return type(model).configure(rolling=model.rolling, limitForce=model.limit_force)
     raise ConfigError(
-        "model must be a contact model class such as simulation.models.HertzMindlin, or its name; "
-        f"got {model!r}"
+        "model must be a contact model class such as simulation.models.HertzMindlin, its name, "
+        f"or an instance such as HertzMindlin(material, rolling='epsd2'); got {model!r}"
     )
 
 

@@ -101,21 +101,35 @@ class ContactModel(abc.ABC):
     required: ClassVar[tuple[str, ...]] = ("youngsModulus", "poissonsRatio", "radius")
     #: The rolling-resistance model, a key of :data:`ROLLING_MODELS`.
     rolling: str = "cdt"
+    #: Whether the normal force is kept from turning attractive (``limitForce``).
+    limit_force: bool = False
+
+    @classmethod
+    def configure(cls, *, rolling: str | None = None, limitForce: bool | None = None) -> type[ContactModel]:
+        """This model with other defaults, for ``DEM(model=...)``: e.g.
+        ``HertzMindlin.configure(rolling='epsd2')``. The subclass is named after its options
+        (``HertzMindlin[rolling=epsd2]``), so an engine without them refuses it by name."""
+        rolling = cls.rolling if rolling is None else _checked_rolling(rolling)
+        limit_force = cls.limit_force if limitForce is None else _checked_limit_force(limitForce)
+        if (rolling, limit_force) == (cls.rolling, cls.limit_force):
+            return cls
+        options = [f"rolling={rolling}"] * (rolling != "cdt") + ["limitForce=True"] * limit_force
+        name = f"{cls.__name__}[{','.join(options)}]" if options else cls.__name__
+        attributes = {"rolling": rolling, "limit_force": limit_force, "__doc__": cls.__doc__}
+        return type(name, (cls,), {**attributes, "__module__": cls.__module__})
 
     def __init__(
         self,
         material: Mapping[str, float],
         *,
         partner: Mapping[str, float] | None = None,
-        limitForce: bool = False,
-        rolling: str = "cdt",
+        limitForce: bool | None = None,
+        rolling: str | None = None,
     ) -> None:
-        if not isinstance(limitForce, (bool, np.bool_)):
-            raise ConfigError(f"limitForce must be True or False, got {limitForce!r}")
-        self.limit_force = bool(limitForce)
-        if not isinstance(rolling, str) or rolling not in ROLLING_MODELS:
-            raise unknown_key("rolling-friction model (rolling=)", str(rolling), ROLLING_MODELS)
-        self.rolling = rolling
+        if limitForce is not None:
+            self.limit_force = _checked_limit_force(limitForce)
+        if rolling is not None:
+            self.rolling = _checked_rolling(rolling)
         mine = params.validate(material, allow=("radius", "mass"))
         theirs = {} if partner is None else params.validate(partner, allow=("radius", "mass"))
         missing = [key for key in self.required if key not in mine]
@@ -337,3 +351,15 @@ def _sphere_mass(material: Mapping[str, float]) -> float:
     if "density" not in material:
         raise ConfigError("A sphere needs 'density' or 'mass'.")
     return 4.0 / 3.0 * math.pi * material["radius"] ** 3 * material["density"]
+
+
+def _checked_rolling(rolling: object) -> str:
+    if not isinstance(rolling, str) or rolling not in ROLLING_MODELS:
+        raise unknown_key("rolling-friction model (rolling=)", str(rolling), ROLLING_MODELS)
+    return rolling
+
+
+def _checked_limit_force(limit_force: object) -> bool:
+    if not isinstance(limit_force, (bool, np.bool_)):
+        raise ConfigError(f"limitForce must be True or False, got {limit_force!r}")
+    return bool(limit_force)

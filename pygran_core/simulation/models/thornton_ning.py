@@ -70,8 +70,8 @@ class ThorntonNing(ContactModel):
         material: Mapping[str, float],
         *,
         partner: Mapping[str, float] | None = None,
-        limitForce: bool = False,
-        rolling: str = "cdt",
+        limitForce: bool | None = None,
+        rolling: str | None = None,
     ) -> None:
         super().__init__(material, partner=partner, limitForce=limitForce, rolling=rolling)
         if self.limit_force and self.cohesion > 0:

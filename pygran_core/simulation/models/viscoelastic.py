@@ -41,8 +41,8 @@ class _Viscoelastic(ContactModel):
         material: Mapping[str, float],
         *,
         partner: Mapping[str, float] | None = None,
-        limitForce: bool = False,
-        rolling: str = "cdt",
+        limitForce: bool | None = None,
+        rolling: str | None = None,
     ) -> None:
         super().__init__(material, partner=partner, limitForce=limitForce, rolling=rolling)
         e = self.restitution_coefficient
@@ -93,8 +93,8 @@ class SpringDashpot(_Viscoelastic):
         material: Mapping[str, float],
         *,
         partner: Mapping[str, float] | None = None,
-        limitForce: bool = False,
-        rolling: str = "cdt",
+        limitForce: bool | None = None,
+        rolling: str | None = None,
     ) -> None:
         super().__init__(material, partner=partner, limitForce=limitForce, rolling=rolling)
         R, E, m = self.effective_radius, self.effective_modulus, self.effective_mass
