@@ -13,7 +13,7 @@ tomography or any other source.
 Array convention: an image is indexed ``[i, j]`` with ``i`` along the image's width (its x)
 and ``j`` along its height (its y), as PIL's pixel access; a stack adds the image number as
 the last axis. ``flip=True`` reads ``[row, column]`` instead (images written by MATLAB).
-Images are written and read with Pillow (``pip install pillow``).
+Images are written and read with Pillow (``pip install pillow``, or the ``plot`` extra).
 """
 
 from __future__ import annotations
