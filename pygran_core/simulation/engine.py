@@ -14,6 +14,8 @@ engine implements the ``_underscored`` hooks.
 from __future__ import annotations
 
 import abc
+import dataclasses
+import hashlib
 import itertools
 import logging
 import math
@@ -315,7 +317,7 @@ class Engine(abc.ABC):
 
     def _call(self, kind: str, hook: Any, spec: Any) -> Handle:
         self._check_open()
-        self._journal(f"{kind} {spec!r}")
+        self._journal(f"{kind} {spec!r}", spec)
         self.log("%s %s", kind, spec)
         return self._new_handle(kind, hook(spec))
 
@@ -324,9 +326,13 @@ class Engine(abc.ABC):
         """Whether the script is being replayed up to the checkpoint it resumes from."""
         return self._resume is not None
 
-    def _journal(self, call: str) -> Any:
-        """Record a call that changes the simulation. While :attr:`replaying`, check it is the
-        call the checkpoint's script made at this point and return that call's result."""
+    def _journal(self, call: str, spec: Any = None) -> Any:
+        """Record a call that changes the simulation: its text, and for a call with a spec a
+        digest of every argument (``repr`` shortens arrays of over 1,000 values). While
+        :attr:`replaying`, check it is the call the checkpoint's script made at this point and
+        return that call's result."""
+        if spec is not None:
+            call = f"{call} #{content_digest(spec)}"
         index = len(self._calls)
         self._calls.append([call, None])
         if self._resume is None:
@@ -369,7 +375,7 @@ class Engine(abc.ABC):
         self._check_open()
         if spec.style == "single" and not self.replaying:
             self._check_clear(spec)
-        recorded = self._journal(f"create {spec!r}")
+        recorded = self._journal(f"create {spec!r}", spec)
         if self.replaying:
             return recorded
         count = self._calls[-1][1] = self._create(spec)
@@ -443,7 +449,7 @@ class Engine(abc.ABC):
                     f"{' ...' if len(missing) > 10 else ''} "
                     f"(the simulation has {len(present)} particles, {have})"
                 )
-        recorded = self._journal(f"set {spec!r}")
+        recorded = self._journal(f"set {spec!r}", spec)
         if self.replaying:
             return recorded
         ids = spec.select(present, self._extract("type"), self._extract("x"))
@@ -1035,3 +1041,37 @@ def exit_faces(spec: SimulationSpec, x: np.ndarray, v: np.ndarray, duration: flo
         else:
             places.append("unknown")
     return places
+
+
+def content_digest(value: Any) -> str:
+    """A SHA-256 digest (16 hex digits) of ``value``'s full content: dataclass fields (those
+    shown in its ``repr``), mappings, sequences and numpy arrays (dtype, shape and bytes) all
+    the way down; ``repr`` of the rest."""
+    digest = hashlib.sha256()
+
+    def feed(item: Any) -> None:
+        if isinstance(item, np.ndarray):
+            digest.update(f"array {item.dtype.str} {item.shape}:".encode())
+            digest.update(np.ascontiguousarray(item).tobytes())
+        elif dataclasses.is_dataclass(item) and not isinstance(item, type):
+            digest.update(f"{type(item).__qualname__}(".encode())
+            for field in dataclasses.fields(item):
+                if not field.repr:
+                    continue  # derived from the simulation's state at the call, not an argument
+                digest.update(f"{field.name}=".encode())
+                feed(getattr(item, field.name))
+            digest.update(b")")
+        elif isinstance(item, Mapping):
+            digest.update(f"{{{len(item)}:".encode())
+            for key, entry in item.items():
+                feed(key)
+                feed(entry)
+        elif isinstance(item, (list, tuple)):
+            digest.update(f"[{len(item)}:".encode())
+            for entry in item:
+                feed(entry)
+        else:
+            digest.update(f"{type(item).__name__}:{item!r};".encode())
+
+    feed(value)
+    return digest.hexdigest()[:16]

@@ -235,3 +235,33 @@ def test_a_long_journal_fits_in_the_checkpoint(tmp_path):
     first = script(False)
     assert len(read_checkpoint(tmp_path / "restart" / "restart.h5").journal) == 3001
     np.testing.assert_array_equal(script(True), first)
+
+
+def test_resume_compares_created_arrays_by_content(tmp_path):
+    """Two createParticles arrays of 3,000 values that differ only in the middle print alike
+    (numpy shortens them), yet resuming the other script is refused."""
+
+    def script(offset: float, resume: bool) -> None:
+        centres = np.stack(np.meshgrid(*[np.arange(10) * 2.5e-4 + 1.25e-4] * 3, indexing="ij"), -1)
+        centres = centres.reshape(-1, 3)
+        centres[500, 2] += offset
+        with simulation.DEM(
+            engine="native",
+            model=HertzMindlin,
+            box=(0, 2.5e-3, 0, 2.5e-3, 0, 2.5e-3),
+            dt=1e-6,
+            output=str(tmp_path / "out"),
+            progress=False,
+            species=({"material": SOFT, "radius": 1e-4},),
+            traj={"pfile": None},
+            restart=(100, "restart", "restart.*.h5", resume),
+            threads=1,
+        ) as sim:
+            sim.createParticles(1, "single", centres)
+            sim.run(200)
+
+    script(0.0, resume=False)
+    assert "..." in np.array2string(np.zeros((1000, 3)))  # what a repr-based check compared
+    with pytest.raises(ConfigError, match="is not the one that wrote"):
+        script(1e-5, resume=True)
+    script(0.0, resume=True)  # the same script resumes
