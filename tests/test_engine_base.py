@@ -165,15 +165,19 @@ def test_events_split_the_run_and_monitors_sample(tmp_path):
     ("args", "message"),
     [
         (("id", "x", "radiuss"), r"unknown column\(s\) \['radiuss'\]. Did you mean 'radius'?"),
-        (
-            "id type x",
-            r"unknown column\(s\) \['i', 'd', ' ', 't', 'p', 'e'\]. A string was split into letters",
-        ),
+        ("id type radiuss", r"unknown column\(s\) \['radiuss'\]. Did you mean 'radius'?"),
+        (list("id"), r"unknown column\(s\) \['i', 'd'\]. A string was split into letters"),
     ],
 )
 def test_unknown_trajectory_columns_are_refused(tmp_path, args, message):
     with pytest.raises(ConfigError, match="traj args: " + message):
         CountingEngine(tmp_path, traj={"pfile": "traj.dump", "args": args})
+
+
+def test_trajectory_columns_as_one_string_as_liggghts_takes_them(tmp_path):
+    engine = CountingEngine(tmp_path, traj={"pfile": "traj.dump", "args": "id type  x y z"})
+    assert engine.spec.traj.args == ("id", "type", "x", "y", "z")
+    engine.close()
 
 
 def test_trajectory_frames_hold_the_selected_species_in_the_given_order(tmp_path):

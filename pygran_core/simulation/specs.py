@@ -86,6 +86,12 @@ def words(value: Any, name: str) -> tuple[str, ...]:
     return tuple(value)
 
 
+def columns(value: Any, name: str) -> tuple[str, ...]:
+    """Column names as a sequence, or as LIGGGHTS' ``dump custom`` takes them: one string of
+    names separated by spaces (``'id type x y z'``)."""
+    return words(value.split() if isinstance(value, str) else value, name)
+
+
 def file_name(value: Any, name: str) -> str | os.PathLike[str]:
     if not isinstance(value, (str, os.PathLike)) or not str(value):
         raise ConfigError(f"{name} must be a file or folder name, got {value!r}")
@@ -710,8 +716,8 @@ def parse_traj(value: Any, output: Path, dump_modify: Any, notes: list[str] | No
         freq=step_count(value.get("freq", 1000), "traj freq", notes),
         sel=sel,
         style=one_of(value.get("style", "custom"), "traj style", ("custom", "custom/vtk", "atom")),
-        args=words(value.get("args", TrajectorySpec.args), "traj args"),
-        margs=words(value.get("margs", TrajectorySpec.margs), "traj margs"),
+        args=columns(value.get("args", TrajectorySpec.args), "traj args"),
+        margs=columns(value.get("margs", TrajectorySpec.margs), "traj margs"),
         dump_modify=() if dump_modify is None else words(dump_modify, "dump_modify"),
         **files,
     )
