@@ -296,8 +296,9 @@ class EngineConformance:
         assert declared, f"the {self.engine} engine declares no contact model"
         return declared[0]
 
-    def dt(self, radius: float = RADIUS, *materials: Mapping[str, float]) -> float:
-        return safe_dt(self.model, materials or (MATERIAL,), radius)
+    def dt(self, radius: float = RADIUS) -> float:
+        """The safe time step (:func:`safe_dt`) for spheres of :data:`MATERIAL` of ``radius``."""
+        return safe_dt(self.model, (MATERIAL,), radius)
 
     def dem(self, output: Path, radius: float = RADIUS, **keywords: Any) -> DEM:
         """A simulation on this engine writing to ``output``: one species of :data:`MATERIAL`
@@ -322,8 +323,8 @@ class EngineConformance:
         """One simulation without gravity, each ``createParticles`` form in its own part of the
         box: what each created (or raised), the particles after 200 steps, the engine's name
         and capabilities, and what calls raise once it is closed."""
-        self = cls()
-        dt = self.dt(0.8 * RADIUS)
+        suite = cls()
+        dt = suite.dt(0.8 * RADIUS)
         output = tmp_path_factory.mktemp("created")
         forms: dict[str, tuple[Any, ...]] = {
             "single": (
@@ -346,9 +347,9 @@ class EngineConformance:
             return made, np.setdiff1d(sim.extractIds(), before)
 
         try:
-            sim = self.dem(output, dt=dt)
+            sim = suite.dem(output, dt=dt)
         except Exception as exc:  # noqa: BLE001 - every test of the scenario reads it
-            return {key: Outcome(error=exc) for key in ("engine", *forms, "run", "closed")}
+            return {key: Outcome(error=exc) for key in ("engine", *forms, "start", "run", "closed")}
         results = {"engine": Outcome((sim.engine.name, sim.engine.capabilities))}
         with sim:
             for form in forms:
@@ -604,10 +605,10 @@ class EngineConformance:
     def mesh_motions(cls, tmp_path_factory, data_dir) -> dict[str, Outcome]:
         """A sphere seated in the silo, then each ``moveMesh`` style in turn (each motion
         removed before the next): what each did to the sphere, or what it raised."""
-        self = cls()
+        suite = cls()
         radius, period = 5e-4, MOTION_PERIOD
         box = (-1.5e-3, 1.5e-3, -1.5e-3, 1.5e-3, -4e-3, 4e-3)
-        dt = self.dt(radius)
+        dt = suite.dt(radius)
         quarter = round(period / 4 / dt)
         results: dict[str, Outcome] = {}
 
@@ -654,11 +655,11 @@ class EngineConformance:
             ),
         }
         try:
-            sim = self.dem(
+            sim = suite.dem(
                 tmp_path_factory.mktemp("motions"),
                 radius,
                 box=box,
-                mesh=self.silo(data_dir),
+                mesh=suite.silo(data_dir),
                 gravity=GRAVITY,
                 dt=dt,
             )
@@ -668,7 +669,7 @@ class EngineConformance:
             outcome = attempt(lambda: sim.setupWall(wtype="mesh", mesh="silo"))
             if outcome.error is not None:
                 return {style: outcome for style in phases}
-            sim.createParticles(1, "single", 0.0, 0.0, self.seat(sim, radius))
+            sim.createParticles(1, "single", 0.0, 0.0, suite.seat(sim, radius))
             sim.run(quarter)
             for style, (kwargs, measure) in phases.items():
                 try:
