@@ -989,8 +989,8 @@ class EngineConformance:
             assert sim.createParticles(1, "single", 0.0, 0.0, 0.0) == 1
             sim.run(1000)
             x, t, mass = sim.extractCoords(), sim.time, sim.engine.extract("mass")
-        assert len(x) == 1 and x[0, 2] == pytest.approx(-0.5 * G * t**2, rel=1e-3)
-        assert mass[0] == pytest.approx(2 * sphere_mass(MATERIAL, RADIUS), rel=1e-9)
+        assert len(x) == 1 and x[0, 2] == pytest.approx(-0.5 * G * t**2, rel=1e-3), x
+        assert mass[0] == pytest.approx(2 * sphere_mass(MATERIAL, RADIUS), rel=1e-9), mass
 
     def test_raw_commands(self, tmp_path):
         """The engine's native command (:attr:`raw_command`) reaches the solver."""
