@@ -10,6 +10,11 @@ openmp = {"extra_compile_args": ["-O3", "-fno-math-errno", "-fopenmp"], "extra_l
 extensions = [
     Extension("pygran_native._kernels", ["src/pygran_native/_kernels.pyx"], **openmp),
     Extension(
+        "pygran_native._accel",
+        ["src/pygran_native/_accel.pyx"],
+        **openmp | {"extra_compile_args": [*openmp["extra_compile_args"], "-ffp-contract=off"]},
+    ),
+    Extension(
         "pygran_native._solver",
         ["src/pygran_native/_solver.pyx"],
         include_dirs=[numpy.get_include()],
