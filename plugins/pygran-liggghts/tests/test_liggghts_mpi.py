@@ -98,3 +98,33 @@ def test_errors_under_mpirun_are_printed_once(tmp_path, kind, nsim):
     run = output / "run1" if nsim > 1 else output
     lines = re.findall(rf"LIGGGHTS stopped in {re.escape(str(run))}: {message}", done.stderr)
     assert len(lines) == 1 and done.stderr.count("LIGGGHTS stopped") == 1, done.stderr
+
+
+LOSING = """
+from pygran_core import simulation
+from pygran_core.validation import SOFT
+
+with simulation.DEM(engine="liggghts", model="HertzMindlin", box=(0, 0.01, 0, 0.01, 0, 0.01),
+                    gravity=(9.81, 0, 0, -1), dt=1e-5, output=OUTPUT, progress=False,
+                    species=({"material": SOFT, "radius": 5e-4},)) as sim:
+    for x in (0.002, 0.008):
+        sim.createParticles(1, "single", x, 0.005, 0.001)
+    sim.run(2000)  # 2 cm of free fall: both leave through the floor of the box
+    print("left", len(sim.extractIds()), flush=True)
+"""
+
+
+def test_lost_particles_reported_once_under_mpirun(tmp_path):
+    """One simulation on two ranks: the warning about the particles it lost, and every line of
+    pygran.log, come from rank 0 only."""
+    require_solver(find_library)
+    script = tmp_path / "lose.py"
+    script.write_text(LOSING.replace("OUTPUT", repr(str(tmp_path / "out"))))
+    done = subprocess.run(
+        [*mpirun_prefix(2), sys.executable, str(script)], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.count("left 0") == 2
+    assert done.stderr.count("LostParticlesWarning: 2 particles lost") == 1, done.stderr
+    log = (tmp_path / "out" / "pygran.log").read_text()
+    assert log.count("engine opened") == 1 and log.count("particles lost") == 2, log  # logged, warned

@@ -21,6 +21,7 @@ into its arrays and only noted there in a comment. LIGGGHTS' screen output goes 
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -31,8 +32,9 @@ import numpy as np
 from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
 from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
+from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, launch_communicator
 from pygran_liggghts.commands import Commands, fmt, native_meshes, native_particles
-from pygran_liggghts.session import LocalSession, WorkerSession, under_mpirun
+from pygran_liggghts.session import LocalSession, WorkerSession
 
 if TYPE_CHECKING:
     from pygran_core.simulation.calls import (
@@ -56,11 +58,21 @@ RESTART_KEY = "liggghts/restart"
 STREAM_LINES = 1000
 
 
-def mpi_placement(spec: SimulationSpec) -> tuple[Any, SimulationSpec]:
-    """Under ``mpirun``: this rank's communicator and simulation (one of ``nSim`` runs)."""
-    from mpi4py import MPI
+def launch_world() -> Any:
+    """``MPI.COMM_WORLD`` when an MPI launcher started this process, else ``None``: the core's
+    :func:`~pygran_core.simulation.specs.launch_communicator`, and also for a single rank
+    (``mpirun -np 1``), from which no worker job can be started."""
+    world = launch_communicator()
+    if world is None and any(name in os.environ for name in MPI_LAUNCH_VARIABLES):
+        from mpi4py import MPI
 
-    world = MPI.COMM_WORLD
+        world = MPI.COMM_WORLD
+    return world
+
+
+def mpi_placement(world: Any, spec: SimulationSpec) -> tuple[Any, SimulationSpec]:
+    """Under ``mpirun`` (``world`` its ranks): this rank's communicator and simulation (one of
+    ``nSim`` runs)."""
     if world.size < spec.nsim:
         raise ConfigError(f"nSim={spec.nsim} needs at least {spec.nsim} MPI ranks; got {world.size}")
     if spec.nsim == 1:
@@ -95,13 +107,16 @@ class LiggghtsEngine(Engine):
 
     def __init__(self, spec: SimulationSpec) -> None:
         comm = None
-        if under_mpirun():
-            comm, spec = mpi_placement(spec)
+        world = launch_world()
+        if world is not None:
+            comm, spec = mpi_placement(world, spec)
         elif spec.nsim > 1:
             raise ConfigError(
                 f"nSim={spec.nsim} runs one simulation per group of ranks: start the script "
                 f"with mpirun -np {spec.nsim} (or more)"
             )
+        #: Whether this process writes the simulation's files and messages (rank 0 of its group)
+        self._root = comm is None or comm.rank == 0
         super().__init__(spec)
         self._failure: EngineError | None = None
         self._session: Any = None
@@ -128,7 +143,6 @@ class LiggghtsEngine(Engine):
                 raise ConfigError(f"nprocs={spec.nprocs} differs from the {comm.size} MPI ranks of this run")
             self.commands = Commands(spec)
             resume = self._resume_file()
-            self._root = comm is None or comm.rank == 0
             self._input = (self.output / INPUT_NAME).open("w") if self._root else None
             args = ["-screen", str(self.output / LOG_NAME), "-log", "none"]
             if comm is not None:
@@ -141,6 +155,20 @@ class LiggghtsEngine(Engine):
         except BaseException:
             self.close()
             raise
+
+    # -- messages: once per simulation, from rank 0 of its group ---------------------------
+
+    def log(self, message: str, *args: Any, level: int = logging.INFO) -> None:
+        if self._root:
+            super().log(message, *args, level=level)
+
+    def _to_file(self, level: int, message: str) -> None:
+        if self._root:
+            super()._to_file(level, message)
+
+    def _warn(self, message: str, category: type[Warning]) -> None:
+        if self._root:
+            super()._warn(message, category)
 
     # -- talking to LIGGGHTS ---------------------------------------------------------------
 

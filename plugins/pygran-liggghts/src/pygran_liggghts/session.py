@@ -231,8 +231,3 @@ def mpirun_prefix(nprocs: int) -> list[str]:
     if nprocs > (os.cpu_count() or 1):
         command.append("--oversubscribe")
     return command
-
-
-def under_mpirun() -> bool:
-    """Whether this process was started by an MPI launcher."""
-    return any(key in os.environ for key in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"))
