@@ -8,10 +8,22 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pygran_core.analysis import Particles, equilibrium  # noqa: E402
+from pygran_core.analysis import Particles, _neighbors, equilibrium  # noqa: E402
 from pygran_core.errors import ConfigError  # noqa: E402
+from pygran_core.testing.solvers import in_ci  # noqa: E402
 
 R = 0.5
+
+
+@pytest.fixture(params=["compiled", "numpy"])
+def pair_search(request, monkeypatch):
+    """Each test runs on pygran-native's compiled sweep (required under CI) and on the numpy path."""
+    if request.param == "numpy":
+        monkeypatch.setattr(_neighbors, "_accel", None)
+    elif _neighbors._accel is None:
+        message = "pygran-native's compiled kernels are not built (pip install -e plugins/pygran-native)"
+        pytest.fail(message) if in_ci() else pytest.skip(message)
+    return request.param
 
 
 def make(positions, radius=R, **extra):
@@ -36,6 +48,7 @@ def fcc(cells, periodic):
     return make(positions, **box)
 
 
+@pytest.mark.usefixtures("pair_search")
 def test_fcc_in_contact_has_coordination_twelve():
     periodic = equilibrium.Neighbors(fcc(4, periodic=True))
     np.testing.assert_array_equal(periodic.coon, 12)
@@ -163,3 +176,54 @@ def test_force_chain_finds_a_loaded_column_and_plots_it():
     assert result.ax is ax and len(ax.collections) == 1 and len(ax.collections[0].get_segments()) == 4
     plt.close(fig)
     assert neighbors.forceChain(min_size=6).chains == []
+
+
+def brute_force_squared_distances(positions, lengths):
+    """d² of every ordered pair: minimum image along periodic axes (``lengths > 0``)."""
+    delta = positions[None, :, :] - positions[:, None, :]
+    periodic = lengths > 0
+    delta[..., periodic] -= lengths[periodic] * np.round(delta[..., periodic] / lengths[periodic])
+    return (delta**2).sum(axis=-1)
+
+
+@pytest.mark.parametrize(
+    "boundary, lengths",
+    [
+        (("ff", "ff", "ff"), (6.0, 5.0, 4.0)),
+        (("pp", "pp", "pp"), (6.0, 5.0, 4.0)),
+        (("pp", "ff", "pp"), (3.0, 5.0, 7.5)),
+        (("ff", "pp", "ff"), (6.0, 2.5, 4.0)),
+        (("pp", "pp", "pp"), (1.6, 2.5, 7.0)),  # under two reaches (2 x 1.0) along x and y
+    ],
+)
+def test_pairs_distances_and_coordination_match_a_brute_force_search(pair_search, boundary, lengths):
+    rng = np.random.default_rng(7)
+    lengths = np.array(lengths)
+    positions = rng.random((700, 3)) * lengths
+    positions[:50] = np.round(positions[:50] * 4) / 4  # on a grid: ties, exact contacts
+    radii = rng.uniform(0.1, 0.5, 700)
+    particles = make(positions, radius=radii, box=np.column_stack(([0, 0, 0], lengths)), boundary=boundary)
+    periodic = np.array([flag == "pp" for flag in boundary])
+    wrapped = np.where(periodic, positions % lengths, positions)  # grid points at L wrap to 0
+    distance = np.sqrt(brute_force_squared_distances(wrapped, np.where(periodic, lengths, 0.0)))
+    i, j = np.triu_indices(len(positions), 1)
+    for cutoff in (None, 1.3):
+        neighbors = equilibrium.Neighbors(particles, cutoff)
+        touch = radii[i] + radii[j]
+        chosen = distance[i, j] <= (touch * (1 + equilibrium.CONTACT_TOLERANCE) if cutoff is None else cutoff)
+        assert chosen.sum() > 100
+        np.testing.assert_array_equal(neighbors.pairs, np.column_stack((i, j))[chosen])
+        np.testing.assert_array_equal(neighbors.distances, distance[i, j][chosen])
+        expected = np.bincount(np.concatenate((i[chosen], j[chosen])), minlength=len(positions))
+        np.testing.assert_array_equal(neighbors.coon, expected)
+        overlapping = touch - distance[i, j] > touch * equilibrium.CONTACT_TOLERANCE
+        np.testing.assert_array_equal(neighbors.overlaps.i, i[overlapping])
+        np.testing.assert_array_equal(neighbors.overlaps.d, (touch - distance[i, j])[overlapping])
+
+
+def test_positions_outside_a_periodic_box_are_wrapped(pair_search):
+    box = {"box": [[-1, 1], [-1, 1], [-1, 1]], "boundary": ("pp", "pp", "pp")}
+    particles = make([[-1.1, 0, 0], [0.85, 0, 0], [1.0, 0.9, 0.5], [-3.0, 0.9, 0.5]], **box)
+    neighbors = equilibrium.Neighbors(particles)
+    np.testing.assert_array_equal(neighbors.pairs, [[0, 1], [2, 3]])
+    np.testing.assert_allclose(neighbors.distances, [0.05, 0.0], atol=1e-12)

@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from pygran_core.analysis import Particles
+from pygran_core.analysis import Particles, _neighbors
 from pygran_core.errors import ConfigError
+from pygran_core.testing.solvers import in_ci
 
 R = 0.5
 NN = 2 * R  # nearest-neighbour distance of the lattices below (spheres in contact)
@@ -48,6 +49,49 @@ def uniform_ball(n, radius, seed=0):
 # -- RDF -------------------------------------------------------------------------------------
 
 
+@pytest.fixture(params=["compiled", "numpy"])
+def pair_search(request, monkeypatch):
+    """Each test runs on pygran-native's compiled sweep (required under CI) and on the numpy path."""
+    if request.param == "numpy":
+        monkeypatch.setattr(_neighbors, "_accel", None)
+    elif _neighbors._accel is None:
+        message = "pygran-native's compiled kernels are not built (pip install -e plugins/pygran-native)"
+        pytest.fail(message) if in_ci() else pytest.skip(message)
+    return request.param
+
+
+@pytest.mark.parametrize(
+    "boundary",
+    [("pp", "pp", "pp"), ("pp", "ff", "pp"), ("ff", "ff", "ff")],
+)
+def test_rdf_counts_every_pair_like_a_brute_force_count(pair_search, boundary):
+    """On a grid of step 0.25 with dr = 0.25 many distances fall exactly on bin edges: a pair
+    counts in bin k when edges[k]² < d² <= edges[k+1]²."""
+    rng = np.random.default_rng(3)
+    lengths = np.array([6.0, 5.0, 7.0])
+    positions = np.vstack((rng.random((900, 3)) * lengths, np.round(rng.random((300, 3)) * lengths * 4) / 4))
+    periodic = np.array([flag == "pp" for flag in boundary])
+    positions = np.where(periodic, positions % lengths, positions)
+    particles = make(positions, box=np.column_stack(([0, 0, 0], lengths)), boundary=boundary)
+    rdf = particles.computeRDF(dr=0.25, rMax=1.5)
+    # brute force: reference particles at least rMax from the open faces of the particles' extent
+    lower, upper = positions.min(axis=0), positions.max(axis=0)
+    inside = (((positions >= lower + 1.5) & (positions <= upper - 1.5)) | periodic).all(axis=1)
+    np.testing.assert_array_equal(rdf.references, np.flatnonzero(inside))
+    delta = positions[None, :, :] - positions[inside][:, None, :]
+    delta[..., periodic] -= lengths[periodic] * np.round(delta[..., periodic] / lengths[periodic])
+    squared = (delta**2).sum(axis=-1)
+    edges = np.linspace(0, 1.5, 7)
+    counts = np.bincount(np.searchsorted(edges**2, squared[squared > 0]), minlength=8)[1:7]
+    volume = np.prod(np.where(periodic, lengths, upper - lower))
+    shells = 4 / 3 * np.pi * np.diff(edges**3)
+    norm = inside.sum() * (len(positions) - 1) / volume * shells
+    np.testing.assert_array_equal(np.rint(rdf.g * norm), counts)
+    np.testing.assert_allclose(rdf.g * norm, counts, rtol=1e-12)
+    assert counts.min() > 50
+
+
+@pytest.mark.usefixtures("pair_search")
 def test_rdf_of_an_ideal_gas_is_one_periodic_and_open():
     rng = np.random.default_rng(1)
     points = rng.random((20000, 3))
@@ -61,6 +105,7 @@ def test_rdf_of_an_ideal_gas_is_one_periodic_and_open():
     np.testing.assert_allclose(g[3:], 1.0, atol=0.06)
 
 
+@pytest.mark.usefixtures("pair_search")
 def test_rdf_of_fcc_peaks_at_the_lattice_shells_and_integrates_to_twelve():
     particles = fcc(5)
     rdf = particles.computeRDF(dr=0.005, rMax=2.4)

@@ -1,8 +1,8 @@
 """Neighbour analysis of one configuration: contacts, overlaps, coordination, force chains.
 
-Pairs come from scipy's cKDTree (compiled); everything after is vectorised numpy, so there is
-no Python loop over particles or pairs. Periodic boundaries (``boundary`` flags ``p`` with a
-``box``) use minimum-image distances.
+Pairs come from the cell list of :mod:`._neighbors` (compiled when pygran-native is
+installed); everything after is vectorised numpy, so there is no Python loop over particles or
+pairs. Periodic boundaries (``boundary`` flags ``p`` with a ``box``) use minimum-image distances.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
+from pygran_core.analysis import _neighbors
 from pygran_core.analysis.particles import Particles
 from pygran_core.errors import ConfigError
 
@@ -132,22 +132,22 @@ class Neighbors:
         self.particles = particles
         self.cutoff = cutoff
         radii = particles._radii() if len(particles) else np.zeros(0)
-        data, boxsize = particles._tree_data() if len(particles) else (np.zeros((0, 3)), None)
+        data, lengths = particles._wrapped() if len(particles) else (np.zeros((0, 3)), np.zeros(3))
         reach = max(2 * radii.max(initial=0.0), cutoff or 0.0) * (1 + CONTACT_TOLERANCE)
-        pairs = cKDTree(data, boxsize=boxsize).query_pairs(reach, output_type="ndarray") if reach else None
-        pairs = np.zeros((0, 2), dtype=np.intp) if pairs is None else pairs.astype(np.intp)
-        pairs = pairs[np.argsort(pairs[:, 0] * len(particles) + pairs[:, 1])]
-        delta = data[pairs[:, 1]] - data[pairs[:, 0]]
-        if boxsize is not None:
-            periodic = boxsize > 0
-            delta[:, periodic] -= boxsize[periodic] * np.round(delta[:, periodic] / boxsize[periodic])
+        pairs = (
+            _neighbors.pairs(_neighbors.cell_list(data, lengths, reach)) if reach else np.zeros((0, 2), int)
+        )
+        delta = np.empty((len(pairs), 3))
+        for axis, length in enumerate(lengths):  # minimum image along periodic axes
+            column = np.take(data[:, axis], pairs[:, 1]) - np.take(data[:, axis], pairs[:, 0])
+            delta[:, axis] = column - length * np.round(column / length) if length > 0 else column
         distance = np.sqrt((delta**2).sum(axis=1))
         touch = radii[pairs[:, 0]] + radii[pairs[:, 1]]
         self._overlap = touch - distance
         self._touching = distance <= touch * (1 + CONTACT_TOLERANCE)
         self._overlapping = self._overlap > touch * CONTACT_TOLERANCE
         chosen = self._touching if cutoff is None else distance <= cutoff
-        self._all_pairs, self._delta = pairs, delta
+        self._all_pairs = pairs
         self._pairs, self._distances = pairs[chosen], distance[chosen]
 
     @property

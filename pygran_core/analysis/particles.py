@@ -1,7 +1,8 @@
 """Particles: a SubSystem of spheres (LIGGGHTS columns) and the granular statistics on them.
 
-All statistics are vectorised with numpy or run in scipy's compiled cKDTree; none loops over
-particles in Python. Lengths are in the object's ``units``; angles in degrees.
+All statistics are vectorised with numpy (pair searches in the cell list of
+:mod:`._neighbors`, compiled when pygran-native is installed); none loops over particles in
+Python. Lengths are in the object's ``units``; angles in degrees.
 """
 
 from __future__ import annotations
@@ -9,9 +10,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from pygran_core.analysis import mixing
+from pygran_core.analysis import _neighbors, mixing
 from pygran_core.analysis.subsystem import SubSystem
 from pygran_core.errors import ConfigError, unknown_key
 
@@ -56,15 +56,19 @@ class Particles(SubSystem):
         periodic = np.array([str(flag).startswith("p") for flag in boundary][:3], dtype=bool)
         return box[:, 0], box[:, 1] - box[:, 0], periodic
 
-    def _tree_data(self) -> tuple[np.ndarray, np.ndarray | None]:
-        """Positions ready for a cKDTree and its ``boxsize`` (None unless some axis is periodic)."""
+    def _wrapped(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions moved into ``[0, L)`` along periodic axes, and the box lengths along
+        them (0 along the others): the input of :func:`._neighbors.cell_list`."""
         positions = self.positions
         lower, length, periodic = self._periodic()
         if not periodic.any():
-            return positions, None
-        shifted = positions - np.where(periodic, lower, 0.0)
-        shifted[:, periodic] %= length[periodic]
-        return shifted, np.where(periodic, length, 0.0)
+            return positions, np.zeros(3)
+        for axis in np.flatnonzero(periodic):
+            column = positions[:, axis]
+            np.subtract(column, lower[axis], out=column)
+            np.remainder(column, length[axis], out=column)
+            column[column == length[axis]] = 0.0  # a tiny negative value wraps to L
+        return positions, np.where(periodic, length, 0.0)
 
     def _extent(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper corners of the region the spheres occupy (centres +- radius)."""
@@ -85,16 +89,17 @@ class Particles(SubSystem):
         serve as centres, which removes edge effects. The number density is
         ``(N - 1) / V`` with ``V`` the periodic box lengths times the bounding extents, so an
         ideal gas gives g = 1. ``rMax`` defaults to half the smallest periodic length or a
-        quarter of the smallest non-periodic extent. Pair counting runs in cKDTree.
+        quarter of the smallest non-periodic extent. A pair counts in bin ``k`` when
+        ``edges[k]² < d² <= edges[k+1]²`` (``d²`` of the minimum image).
         """
         if len(self) < 2:
             raise ConfigError(
                 f"computeRDF needs at least two particles; this {type(self).__name__} has {len(self)}"
             )
-        data, boxsize = self._tree_data()
-        periodic = np.zeros(3, dtype=bool) if boxsize is None else boxsize > 0
+        data, lengths = self._wrapped()
+        periodic = lengths > 0
         lower = np.where(periodic, 0.0, data.min(axis=0))
-        length = np.where(periodic, 0.0 if boxsize is None else boxsize, data.max(axis=0) - lower)
+        length = np.where(periodic, lengths, data.max(axis=0) - lower)
         limit = np.where(periodic, length / 2, length / 4)
         rMax = float(limit.min() if rMax is None else rMax)
         if rMax <= 0 or (periodic & (rMax > length / 2)).any():
@@ -103,16 +108,15 @@ class Particles(SubSystem):
             )
         nbins = max(1, int(round(rMax / (dr or rMax / 100))))
         edges = np.linspace(0.0, rMax, nbins + 1)
-        inside = ((data >= lower + rMax) & (data <= lower + length - rMax)) | periodic
-        references = np.flatnonzero(inside.all(axis=1))
+        inside = (((data >= lower + rMax) & (data <= lower + length - rMax)) | periodic).all(axis=1)
+        references = np.flatnonzero(inside)
         if references.size == 0:
             raise ConfigError(
                 f"computeRDF: no particle lies at least rMax={rMax:g} from every non-periodic face of the "
                 f"region {lower} + {length}; choose a smaller rMax"
             )
-        tree = cKDTree(data, boxsize=boxsize)
-        ref_tree = cKDTree(data[references], boxsize=boxsize)
-        counts = ref_tree.count_neighbors(tree, edges, cumulative=False)[1:]
+        cells = _neighbors.cell_list(data, lengths, rMax)
+        counts = _neighbors.histogram(cells, edges, None if references.size == len(self) else inside)
         volume = np.prod(np.where(periodic | (length > 0), length, 1.0))
         shells = 4.0 / 3.0 * np.pi * np.diff(edges**3)
         g = counts / (references.size * (len(self) - 1) / volume * shells)
