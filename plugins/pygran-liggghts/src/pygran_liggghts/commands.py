@@ -113,6 +113,9 @@ def size_classes(radius: RadiusDistribution) -> list[tuple[float, float]]:
 PLAIN_PATH = re.compile(r"[\w./+,:=@%~-]+")
 
 
+#: Every region's ``volume_limit`` (m^3): LIGGGHTS' default, 1e-10, refuses to insert into
+#: regions smaller than a 0.47 mm cube; this is the original PyGran's.
+VOLUME_LIMIT = 1e-20
 #: LIGGGHTS refuses Young's moduli below this (SI) unless told ``soft_particles yes``.
 SOFT_LIMIT = 5e6
 #: ... and above this unless told ``hard_particles yes``.
@@ -222,7 +225,7 @@ class Commands:
             bounds = " ".join(fmt(v) for lo_hi in spec.domain.box for v in lo_hi)
             lines += [
                 f"boundary {' '.join(spec.domain.boundary)}",
-                f"region pg_domain block {bounds} units box",
+                f"region pg_domain block {bounds} units box volume_limit {fmt(VOLUME_LIMIT)}",
                 f"create_box {len(self.materials)} pg_domain",
             ]
         else:
@@ -359,7 +362,7 @@ class Commands:
     def region(self, region: Region) -> tuple[str, str]:
         rid = self.new_id("region")
         args = " ".join(a if isinstance(a, str) else fmt(a) for a in region.args)
-        return rid, f"region {rid} {region.kind} {args} units box"
+        return rid, f"region {rid} {region.kind} {args} units box volume_limit {fmt(VOLUME_LIMIT)}"
 
     def _templates(
         self, species: Sequence[int], weights: Sequence[float], seed: int
