@@ -24,12 +24,13 @@ from __future__ import annotations
 import logging
 import os
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
+from pygran_core.errors import ConfigError, EngineError, PyGranWarning, UnsupportedFeature
 from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, launch_communicator
@@ -54,6 +55,8 @@ LOG_NAME = "liggghts.log"
 WORKER_LOG_NAME = "worker.log"
 #: The checkpoint entry naming LIGGGHTS' own restart file.
 RESTART_KEY = "liggghts/restart"
+#: Checkpoint entries ``<TARGET_KEY>/<k>``: the target of the k-th insert call (by pack).
+TARGET_KEY = "liggghts/targets"
 #: Queued lines of particles created one by one that are sent on without waiting.
 STREAM_LINES = 1000
 
@@ -135,6 +138,13 @@ class LiggghtsEngine(Engine):
         self._restart_file: Path | None = None  # of the last checkpoint
         self._replayed_once: set[str] = set()  # one-off insertions not redone on resume
         self._insertions: set[str] = set()  # insertion fixes in LIGGGHTS, whose counts are read
+        #: By-pack insertions LIGGGHTS has not made yet (it makes them as the next run starts)
+        self._unplaced: dict[str, InsertSpec] = {}
+        #: label -> (the insert call's number, the target given to LIGGGHTS) of each by-pack
+        #: insertion present: checkpoints keep the targets, which a resumed script's replayed
+        #: calls would otherwise count anew from the restart's particles
+        self._targets: dict[str, tuple[int, float]] = {}
+        self._insert_calls = 0
         self._unreported = LostParticles()  # lost particles not yet reported to the front end
         try:
             if spec.traj.mfile is not None and spec.meshes and spec.traj.mfile.suffix != ".vtk":
@@ -259,6 +269,7 @@ class LiggghtsEngine(Engine):
         # may skip its set-up (init, neighbour lists, forces): those of the last step hold
         pre = "pre no " if self._prepared and not lines else ""
         self._queue([*lines, f"run {nsteps} {pre}post no"])
+        self._unplaced.clear()  # LIGGGHTS makes them as this run starts
         self._max_id, count, x, v = self._ask("run", self._take(), sorted(self._insertions))
         self._prepared = True
         if count:
@@ -292,6 +303,10 @@ class LiggghtsEngine(Engine):
         return super()._scalar(quantity)
 
     def _insert(self, spec: InsertSpec) -> str:
+        number = self._insert_calls
+        self._insert_calls += 1
+        if spec.mechanism == "by_pack":
+            spec = self._pack_target(number, spec)
         label, lines = self.commands.insert(spec, self.dt)
         if self.replaying and spec.mechanism == "by_pack" and not spec.freq:
             # done before the checkpoint: its particles are in the restart file, and a new
@@ -300,7 +315,41 @@ class LiggghtsEngine(Engine):
             return label
         self._execute(lines)
         self._insertions.add(label)
+        if spec.mechanism == "by_pack":
+            self._targets[label] = (number, spec.value)
+            if not self.replaying:
+                self._unplaced[label] = spec
         return label
+
+    def _pack_target(self, number: int, spec: InsertSpec) -> InsertSpec:
+        """``spec`` with the target of insert call ``number``: while a resumed script is
+        replayed, the one its checkpoint kept; else, for a number of particles, also counting
+        those that earlier by-pack insertions into the same region will place as the next run
+        starts (LIGGGHTS inserts then; the placing engines at the call, whose counts the front
+        end adds)."""
+        if self.replaying:
+            kept = self._resume.state.get(f"{TARGET_KEY}/{number}")
+            return spec if kept is None else replace(spec, value=float(kept))
+        if spec.target != "particles_in_region":
+            return spec
+        earlier = [other for other in self._unplaced.values() if other.region == spec.region]
+        waiting = sum(int(other.requested or 0) for other in earlier if other.target == spec.target)
+        uncounted = sorted({other.target for other in earlier if other.target != spec.target})
+        if uncounted:
+            self._warn(
+                f"insert: the particles an earlier insert() of {' and '.join(uncounted)} into this "
+                "region makes as the next run starts cannot be counted now; LIGGGHTS counts them "
+                "against this insertion's target, which may then place fewer than asked: run at least "
+                "one step between the two insert() calls",
+                PyGranWarning,
+            )
+        if waiting:
+            self.log(
+                "insert: %d particles of earlier insert() calls into this region, made as the next run "
+                "starts, counted as present",
+                waiting,
+            )
+        return replace(spec, value=spec.value + waiting)
 
     def _create(self, spec: CreateSpec) -> int:
         species = self.spec.species[spec.species - 1]
@@ -469,6 +518,8 @@ class LiggghtsEngine(Engine):
         self._walls.pop(handle.label, None)
         self._motions.pop(handle.label, None)
         self._insertions.discard(handle.label)
+        self._unplaced.pop(handle.label, None)
+        self._targets.pop(handle.label, None)
 
     def _restart_name(self) -> str:
         """This step's LIGGGHTS restart file, named after the checkpoint's."""
@@ -480,7 +531,8 @@ class LiggghtsEngine(Engine):
         self._execute(
             [f"write_restart {self.commands.path(self.spec.restart.directory / self._restart_name())}"]
         )
-        return {**super()._state(), RESTART_KEY: encode_text(self._restart_name())}
+        targets = {f"{TARGET_KEY}/{number}": np.array(value) for number, value in self._targets.values()}
+        return {**super()._state(), RESTART_KEY: encode_text(self._restart_name()), **targets}
 
     def _checkpoint(self, path: Any) -> None:
         previous = self._restart_file

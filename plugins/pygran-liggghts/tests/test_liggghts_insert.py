@@ -1,0 +1,104 @@
+"""insert() on real LIGGGHTS as on the placing engines: small regions, two insertions into one
+region before a run, and the target of a repeated insertion kept across a resume."""
+
+import shutil
+
+import numpy as np
+import pytest
+from pygran_liggghts.library import find_library
+
+from pygran_core import simulation
+from pygran_core.errors import PyGranWarning
+from pygran_core.testing.solvers import require_solver
+from pygran_core.validation import SOFT as MATERIAL
+
+
+def dem(output, **params):
+    require_solver(find_library)
+    settings = {
+        "engine": "liggghts",
+        "model": "HertzMindlin",
+        "box": (-0.006, 0.006, -0.006, 0.006, -0.005, 0.03),
+        "boundary": ("p", "p", "f"),
+        "gravity": (9.81, 0, 0, -1),
+        "dt": 1e-5,
+        "output": str(output),
+        "species": ({"material": MATERIAL, "radius": 5e-4}, {"material": MATERIAL, "radius": 5e-4}),
+        "traj": {"pfile": None},
+        "progress": False,
+    }
+    return simulation.DEM(**settings | params)
+
+
+def test_a_region_smaller_than_liggghts_default_volume_limit(tmp_path):
+    """A 0.4 mm cube (6.4e-11 m^3, below LIGGGHTS' default volume_limit of 1e-10) takes its
+    particles: every region is given the original PyGran's volume_limit 1e-20."""
+    region = ("block", 3e-4, 7e-4, 3e-4, 7e-4, 3e-4, 7e-4)
+    with dem(
+        tmp_path, box=(0, 1e-3, 0, 1e-3, 0, 1e-3), dt=5e-7, species=({"material": MATERIAL, "radius": 4e-5},)
+    ) as sim:
+        sim.insert(species=1, value=10, region=region)
+        sim.run(10)
+        x = sim.extractCoords()
+    assert len(x) == 10
+    assert np.all((x > 3e-4 + 4e-5 - 1e-6) & (x < 7e-4 - 4e-5 + 1e-6))
+    assert "volume_limit 1e-20" in (tmp_path / "in.pygran").read_text()
+
+
+def test_two_insertions_into_one_region_before_a_run_both_insert(tmp_path):
+    """insert(value=N) adds N to what the region holds, also when the particles of the insert
+    call before it are only made as the next run starts (LIGGGHTS), as the placing engines do."""
+    region = ("block", -0.005, 0.005, -0.005, 0.005, 0.005, 0.025)
+    with dem(tmp_path) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=0.0)
+        sim.insert(species=1, value=100, region=region)
+        sim.insert(species=2, value=100, region=region)
+        sim.run(10)
+        types = sim.engine.extract("type")
+        sim.insert(species=1, value=30, region=region)  # 200 present now: 230 after the next run
+        sim.run(10)
+        after = sim.engine.extract("type")
+    assert np.bincount(types).tolist() == [0, 100, 100]
+    assert np.bincount(after).tolist() == [0, 130, 100]
+
+
+def repeated(output, restart):
+    """20 particles shot down through a region that a repeated insertion then tops up to 10
+    every 1000 steps (they leave it within 300 steps). The second insert call comes when the
+    region is empty: its target is 10, whatever the region holds when a resume replays it."""
+    region = ("block", -0.005, 0.005, -0.005, 0.005, 0.02, 0.024)
+    with dem(output, restart=restart) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=0.0)
+        sim.insert(species=1, value=20, region=region, vel=(0, 0, -1))
+        sim.run(1000)
+        sim.insert(species=1, value=10, region=region, vel=(0, 0, -1), freq=1000)
+        sim.run(3000)
+        return len(sim.extractIds())
+
+
+def test_a_repeated_insertion_keeps_its_target_when_resumed(tmp_path):
+    """Insertions at steps 1000, 2000 and 3000 add 10 each. Resumed from the checkpoint of step
+    2100, while the region holds the 10 particles of step 2000, the replayed insert call keeps
+    its target of 10 (counted anew, it would be 20 and the insertion of step 3000 would add 20)."""
+    straight = tmp_path / "straight"
+    assert repeated(straight, (700, "restart", "restart.*.h5")) == 50
+    resumed = tmp_path / "resumed"
+    shutil.copytree(straight, resumed)
+    assert repeated(resumed, (700, "restart", "restart.*.h5", True, "restart.2100.h5")) == 50
+    log = (resumed / "pygran.log").read_text()
+    assert "resumed from" in log and "restart.2100.h5" in log
+
+
+def test_an_earlier_volume_fraction_waiting_for_the_run_is_named(tmp_path):
+    """What an insertion of a volume fraction will place as the next run starts is not known
+    at the call: a second insertion of a number of particles into that region says so."""
+    region = ("block", -0.005, 0.005, -0.005, 0.005, 0.005, 0.025)
+    with dem(tmp_path) as sim:
+        sim.insert(species=1, value=0.02, mech="volumefraction_region", region=region)
+        with pytest.warns(PyGranWarning, match="volumefraction_region into this region .* run at least one"):
+            sim.insert(species=2, value=10, region=region)
+        sim.run(10)
+        sim.insert(species=2, value=10, region=region)
+        sim.run(10)
+        types = sim.engine.extract("type")
+    assert np.bincount(types, minlength=3)[2] == 10  # none at the first run, 10 at the second
