@@ -328,9 +328,11 @@ def parse_table(const uint8_t[::1] text, Py_ssize_t ncols, Py_ssize_t nrows):
     has another number of fields, a field is not a plain decimal number (nan, inf, hex ...),
     a line ends in a lone carriage return or there are more rows: the caller then parses with
     numpy.loadtxt, which gives the same values or says what is wrong."""
-    table = np.empty((ncols, max(nrows, 1)))
+    cdef Py_ssize_t size = text.shape[0], row = 0, column
+    # a row takes at least 2 * ncols - 1 bytes: a header's atom count cannot inflate the table
+    table = np.empty((ncols, max(min(nrows, size // (2 * ncols - 1) + 1), 1)))
     cdef double[:, ::1] out = table
-    cdef Py_ssize_t size = text.shape[0], row = 0, column, stride = out.shape[1]
+    cdef Py_ssize_t stride = out.shape[1]
     cdef const uint8_t* p = &text[0] if size else NULL
     cdef const uint8_t* end = p + size
     cdef double* cell = &out[0, 0]
@@ -347,7 +349,7 @@ def parse_table(const uint8_t[::1] text, Py_ssize_t ncols, Py_ssize_t nrows):
                     bad = p + 1 == end or p[1] != 10
                     p += 1
                     break
-                if column == ncols or row == nrows:
+                if column == ncols or row == nrows or row == stride:
                     bad = True
                     break
                 p = _number(p, end, cell + column * stride + row)
