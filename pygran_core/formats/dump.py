@@ -2,8 +2,10 @@
 
 Opening scans each file once for the line that starts every frame (normally
 ``ITEM: TIMESTEP``) and keeps only byte offsets and line numbers. ``read_frame(i)`` seeks,
-reads the frame's bytes in one call and parses the atom block with numpy's C text parser,
-so there is no Python loop per line or per field.
+reads the frame's bytes in one call and parses the atom block in one pass into a
+column-major table: with pygran-native's compiled parser when it is installed, else (and for
+anything that parser does not accept) with ``numpy.loadtxt``. Both round every number
+correctly, so they give the same values; there is no Python loop per line or per field.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from pygran_core._compiled import kernels as _accel
 from pygran_core.errors import ReadError, UnsupportedFeature, did_you_mean
 from pygran_core.io import Frame, PathLike, Trajectory, TrajectoryWriter
 
@@ -46,6 +49,7 @@ _CHUNK = 1 << 24
 #: What reading a damaged or truncated file raises (gzip.BadGzipFile is an OSError).
 _STREAM_ERRORS = (OSError, EOFError, zlib.error)
 _FRAME_START = re.compile(rb"^(ITEM: TIME(?:STEP)?)[ \t\r]*$", re.MULTILINE)
+_NOT_BLANK = re.compile(rb"\S")
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,11 @@ def _read_chunk(handle: IO[bytes]) -> tuple[bytes, str | None]:
     return b"".join(parts), None
 
 
+def _newlines(buf: bytes, start: int, stop: int) -> int:
+    """``buf.count(b"\\n", start, stop)``, counted by numpy (several times faster)."""
+    return int(np.count_nonzero(np.frombuffer(buf, np.uint8, max(stop - start, 0), start) == 10))
+
+
 def _scan(path: Path, file_index: int) -> list[_Block]:
     """Blocks of one file: every frame starts with the same line as the file's first line."""
     try:
@@ -116,7 +125,7 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
                     if after in (b"\n", b"\r", b" ", b"\t") and skip:
                         skip -= 1
                     elif after in (b"\n", b"\r", b" ", b"\t"):
-                        line += buf.count(b"\n", counted, pos + 1)
+                        line += _newlines(buf, counted, pos + 1)
                         counted = pos + 1
                         starts.append(base + pos + 1)
                         lines.append(line)
@@ -127,7 +136,7 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
                     break
                 keep = len(marker)
                 cut = max(len(buf) - keep, 0)
-                line += buf.count(b"\n", counted, cut)
+                line += _newlines(buf, counted, cut)
                 base, buf, counted = base + cut, buf[cut:] + chunk, 0
     except _STREAM_ERRORS as exc:
         raise ReadError(f"{path}: cannot read the file: {exc}") from exc
@@ -309,21 +318,15 @@ class DumpTrajectory(Trajectory):
 
     def _parse_atoms(self, index: int, data: bytes, header: _Header) -> np.ndarray:
         assert header.columns is not None and header.natoms is not None
-        body = data[header.body :]
+        body = memoryview(data)[header.body :]
         ncols, natoms = len(header.columns), header.natoms
         if natoms == 0:
-            if body.strip():
+            if _NOT_BLANK.search(body):
                 raise self._error(index, header.body_line, "the header says 0 atoms but rows follow")
             return np.empty((0, ncols))
-        if not body.strip():
-            table = np.empty((0, ncols))
-        else:
-            try:
-                table = np.loadtxt(
-                    io.BytesIO(body), dtype=np.float64, comments=None, ndmin=2, encoding="latin-1"
-                )
-            except ValueError as exc:
-                raise self._locate(index, body, header, str(exc)) from None
+        table = None if _accel is None else _accel.parse_table(body, ncols, natoms)
+        if table is None:
+            table = self._loadtxt(index, body, header)
         if table.shape[1] != ncols:
             raise self._error(
                 index,
@@ -342,6 +345,18 @@ class DumpTrajectory(Trajectory):
                 f"{reason}: ITEM: NUMBER OF ATOMS says {natoms} but {table.shape[0]} rows follow",
             )
         return table
+
+    def _loadtxt(self, index: int, body: memoryview, header: _Header) -> np.ndarray:
+        """The atom rows parsed by numpy.loadtxt, column-major; a ReadError names the bad row."""
+        assert header.columns is not None
+        if not _NOT_BLANK.search(body):
+            return np.empty((0, len(header.columns)))
+        text = bytes(body)
+        try:
+            table = np.loadtxt(io.BytesIO(text), dtype=np.float64, comments=None, ndmin=2, encoding="latin-1")
+        except ValueError as exc:
+            raise self._locate(index, text, header, str(exc)) from None
+        return np.asfortranarray(table)
 
     def _file_end(self, index: int) -> int:
         file = self._blocks[index].file

@@ -7,11 +7,24 @@ import numpy as np
 import pytest
 
 from pygran_core.errors import ReadError
+from pygran_core.formats import dump
 from pygran_core.formats.dump import DumpTrajectory, format_frame
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.testing.formats import FormatConformance, assert_frames_equal, particle_frames
+from pygran_core.testing.solvers import in_ci
 
 HEADER = "ITEM: TIMESTEP\n{step}\nITEM: NUMBER OF ATOMS\n{n}\nITEM: BOX BOUNDS pp pp ff\n0 1\n0 2\n0 3\n"
+
+
+@pytest.fixture(params=["compiled", "numpy"])
+def table_parser(request, monkeypatch):
+    """Each test runs on pygran-native's compiled parser (required under CI) and on numpy.loadtxt."""
+    if request.param == "numpy":
+        monkeypatch.setattr(dump, "_accel", None)
+    elif dump._accel is None:
+        message = "pygran-native's compiled kernels are not built (pip install -e plugins/pygran-native)"
+        pytest.fail(message) if in_ci() else pytest.skip(message)
+    return request.param
 
 
 def dump_text(rows_per_frame, columns="id type x y z", step=100):
@@ -231,7 +244,7 @@ def test_triclinic_written_back(tmp_path):
         ("bad-int", r"bad-int\.dump: frame 2, line 33: integer column 'id' holds 1\.5"),
     ],
 )
-def test_error_names_file_frame_and_line(tmp_path, case, message):
+def test_error_names_file_frame_and_line(table_parser, tmp_path, case, message):
     good = dump_text([3, 2])
     text = {
         "truncated": good + dump_text([4])[:-12],
@@ -263,3 +276,43 @@ def test_glob_with_an_empty_last_file(tmp_path):
     assert len(trajectory[0].arrays["id"]) == 2
     with pytest.raises(ReadError, match=r"p10\.dump: frame 1, line 1: not a LAMMPS dump"):
         trajectory[1]
+
+
+ROWS = [
+    ["1", "1", "0.1", "-0.0", "1e-5", "+.5", "5."],
+    [
+        "2",
+        "2",
+        "1.7976931348623157e308",
+        "4.9e-324",
+        "2.2250738585072014e-308",
+        "0.30000000000000004",
+        "-1e400",
+    ],
+    ["3", "1", "1E+22", "1e23", "9007199254740993", "0.000844828", "-7.4806e-05"],
+    ["4", "2", "123456789012345678901234567890", "-0.1234567890123456789", "1e-400", "0012.50", "7"],
+    ["5", "1", "0.1000000000000000055511151231257827", "-2.5E-0003", "6.02214076e23", "1.5e+10", "-0"],
+]
+
+
+@pytest.mark.parametrize("suffix", [".dump", ".dump.gz"])
+@pytest.mark.parametrize("odd", ["", "nan", "inf"])
+def test_numbers_are_read_as_python_reads_them(table_parser, tmp_path, suffix, odd):
+    """Every value is the double nearest its text (Python's float()), bit for bit: shortest
+    reprs, 17+ significant digits, subnormals, overflow, signed zeros; tabs, CRLF line ends and
+    blank lines; nan and inf (which the compiled parser leaves to numpy.loadtxt)."""
+    rows = [row[:6] + [odd] if odd and k == 2 else row for k, row in enumerate(ROWS)]
+    body = "\r\n".join("\t ".join(row) for row in rows) + "\r\n\n"
+    text = HEADER.format(step=0, n=len(rows)) + "ITEM: ATOMS id type x y z radius vx\n\n" + body
+    path = tmp_path / f"numbers{suffix}"
+    path.write_bytes(gzip.compress(text.encode()) if suffix.endswith(".gz") else text.encode())
+    frame = open_trajectory(path)[0]
+    if table_parser == "compiled":  # it parses these itself, and leaves nan and inf to numpy.loadtxt
+        assert (dump._accel.parse_table(body.encode(), 7, len(rows)) is None) == bool(odd)
+    for column, name in enumerate("id type x y z radius vx".split()):
+        expected = np.array([float(row[column]) for row in rows])
+        kind = np.int64 if name in ("id", "type") else np.float64
+        assert frame.arrays[name].dtype == kind
+        np.testing.assert_array_equal(
+            frame.arrays[name].astype(np.float64).view(np.int64), expected.view(np.int64)
+        )
