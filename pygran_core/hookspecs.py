@@ -32,6 +32,8 @@ CAPABILITIES = frozenset(
     {
         "mesh-walls",  # triangle-mesh walls from STL
         "moving-mesh",  # translating / rotating / wiggling mesh walls
+        "mesh-vibration",  # moveMesh viblin and vibrot
+        "servo-walls",  # mesh/surface/stress/servo meshes
         "primitive-walls",  # analytic planes and cylinders
         "periodic",  # periodic boundaries
         "polydisperse",  # size distributions within a species
@@ -46,6 +48,7 @@ CAPABILITIES = frozenset(
         "threads",  # shared-memory parallelism within one process
         "restart",  # checkpoint and resume
         "raw-commands",  # pass solver-native commands through
+        "monitor-species",  # monitor(var=..., species=...) of some species only
     }
 )
 
