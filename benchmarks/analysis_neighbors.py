@@ -2,21 +2,29 @@
 
 A periodic box of random spheres at packing fraction 0.3 (about 2 neighbours each within
 contact). PyGran's ``Particles.computeRDF`` and ``equilibrium.Neighbors(...).coon`` are
-timed against a straightforward scipy cKDTree implementation (``query_pairs`` then
-``np.histogram`` / ``np.bincount``) and, when importable, freud. Run as
-``python benchmarks/analysis_neighbors.py [N ...]``; install freud only in a throwaway venv
-(``pip install freud-analysis``).
+timed as installed (with the compiled sweep of pygran-native when it is importable) and on
+the core's pure numpy path, against a straightforward scipy cKDTree implementation
+(``query_pairs`` then ``np.histogram`` / ``np.bincount``) and freud. The contenders run in
+turn within each repetition (best of ``--repeats``), so a busy machine slows them alike; the
+script prints each time and the ratios (other time / PyGran time: above 1, PyGran is faster).
+
+freud is a benchmark dependency, not a dependency of PyGran: ``pip install freud-analysis``
+into the environment that runs this script (it is left out when not importable).
+
+    python benchmarks/analysis_neighbors.py [N ...] [--repeats 3]
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
+import contextlib
 import time
+from collections.abc import Callable, Iterator
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pygran_core.analysis import Particles, equilibrium
+from pygran_core.analysis import Particles, _neighbors, equilibrium
 
 RADIUS = 0.5
 PHI = 0.3
@@ -50,68 +58,105 @@ def baseline_coon(positions: np.ndarray, length: float) -> np.ndarray:
     return np.bincount(pairs.ravel(), minlength=len(positions))
 
 
-def timed(function, repeat: int = 3) -> tuple[float, object]:
-    best, result = np.inf, None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = function()
-        best = min(best, time.perf_counter() - start)
-    return best, result
-
-
-def freud_functions(positions: np.ndarray, length: float, r_max: float):
+def freud_functions(positions: np.ndarray, length: float, r_max: float) -> dict[str, Callable[[], object]]:
     try:
         import freud
     except ImportError:
-        return None
+        return {}
     box = freud.box.Box.cube(length)
     centred = positions - length / 2
 
-    def rdf():
+    def rdf() -> np.ndarray:
         return freud.density.RDF(bins=NBINS, r_max=r_max).compute((box, centred)).rdf
 
-    def coon():
+    def coon() -> np.ndarray:
         query = freud.locality.AABBQuery(box, centred)
         bonds = query.query(centred, {"r_max": 2 * RADIUS, "exclude_ii": True}).toNeighborList()
         return np.bincount(bonds.query_point_indices, minlength=len(positions))
 
-    return rdf, coon
+    return {"rdf": rdf, "coon": coon}
 
 
-def bench(n: int) -> None:
+@contextlib.contextmanager
+def numpy_path() -> Iterator[None]:
+    """The core without pygran-native's compiled sweep."""
+    kernels, _neighbors._accel = _neighbors._accel, None
+    try:
+        yield
+    finally:
+        _neighbors._accel = kernels
+
+
+def bench(n: int, repeats: int, names: list[str]) -> None:
     particles = system(n)
     positions = particles.positions
     length = float(np.asarray(particles.box)[0, 1])
     r_max = 5 * RADIUS
-    repeat = 3 if n <= 200_000 else 1
     ours = {
         "rdf": lambda: particles.computeRDF(dr=r_max / NBINS, rMax=r_max).g,
-        "coon": lambda: equilibrium.Neighbors(particles).coon,
+        "coon": lambda: np.asarray(equilibrium.Neighbors(particles).coon),
     }
-    base = {
+
+    def pure(task: str) -> Callable[[], object]:
+        def run() -> object:
+            with numpy_path():
+                return ours[task]()
+
+        return run
+
+    others = {
         "rdf": lambda: baseline_rdf(positions, length, r_max),
         "coon": lambda: baseline_coon(positions, length),
     }
-    freud_pair = freud_functions(positions, length, r_max)
-    others = dict(zip(("rdf", "coon"), freud_pair)) if freud_pair else {}
+    freud = freud_functions(positions, length, r_max)
     for task in ("rdf", "coon"):
-        t_ours, mine = timed(ours[task], repeat)
-        t_base, reference = timed(base[task], repeat)
-        assert np.allclose(mine, reference, rtol=1e-6, atol=1e-9), f"{task} differs from the baseline"
-        line = f"{n:>9} {task:>6} {t_ours:9.3f} {t_base:9.3f} {t_base / t_ours:6.2f}"
-        if task in others:
-            t_freud, theirs = timed(others[task], repeat)
-            assert np.allclose(mine, theirs, rtol=1e-3, atol=1e-3), f"{task} differs from freud"
-            line += f" {t_freud:8.3f} {t_freud / t_ours:6.2f}"
+        contenders = {"pygran": ours[task], "numpy": pure(task), "scipy": others[task]}
+        if task in freud:
+            contenders["freud"] = freud[task]
+        best = dict.fromkeys(contenders, np.inf)
+        results: dict[str, object] = {}
+        for _ in range(repeats):  # interleaved: every contender once per round
+            for name, function in contenders.items():
+                start = time.perf_counter()
+                results[name] = function()
+                best[name] = min(best[name], time.perf_counter() - start)
+        assert np.array_equal(results["pygran"], results["numpy"]), f"{task}: compiled and numpy paths differ"
+        assert np.allclose(results["pygran"], results["scipy"], rtol=1e-6, atol=1e-9), (
+            f"{task} differs from scipy"
+        )
+        if "freud" in results:
+            assert np.allclose(results["pygran"], results["freud"], rtol=1e-3, atol=1e-3), (
+                f"{task} differs from freud"
+            )
+        line = f"{n:>9} {task:>6}" + "".join(f" {best.get(name, np.nan):9.3f}" for name in names)
+        line += "".join(
+            f" {best.get(other, np.nan) / best[mine]:8.2f}"
+            for mine, other in (
+                ("pygran", "scipy"),
+                ("pygran", "freud"),
+                ("numpy", "scipy"),
+                ("numpy", "freud"),
+            )
+        )
         print(line, flush=True)
 
 
-def main(sizes: list[int]) -> None:
-    print(f"{'N':>9} {'task':>6} {'pygran s':>9} {'scipy s':>9} {'ratio':>6} {'freud s':>8} {'ratio':>6}")
-    for n in sizes:
-        bench(n)
-    print("ratio = other time / PyGran time (above 1: PyGran is faster)")
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("sizes", nargs="*", type=float, default=[1e5, 1e6])
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    kernels = (
+        "pygran-native's compiled sweep" if _neighbors._accel is not None else "numpy (no pygran-native)"
+    )
+    print(f"pygran: as installed, {kernels}; numpy: the core's pure numpy path; best of {args.repeats}")
+    names = ["pygran", "numpy", "scipy", "freud"]
+    header = f"{'N':>9} {'task':>6}" + "".join(f" {name + ' s':>9}" for name in names)
+    print(header + "".join(f" {label:>8}" for label in ("sci/pg", "freud/pg", "sci/np", "freud/np")))
+    for n in args.sizes:
+        bench(int(n), args.repeats, names)
+    print("ratios: other time / PyGran time (above 1: PyGran is faster); pg = as installed, np = numpy path")
 
 
 if __name__ == "__main__":
-    main([int(float(a)) for a in sys.argv[1:]] or [100_000, 1_000_000])
+    main()
