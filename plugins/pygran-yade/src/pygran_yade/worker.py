@@ -196,8 +196,10 @@ class Simulation:
                 ids=ids, velocity=speed, translationAxis=vector(v / speed if speed else (1, 0, 0))
             )
         else:  # displacement A sin(2 pi (t - t0) / T), starting now
+            # YADE sets the velocity -A w sin(w t + fi) (w = 2 pi f): with fi = -pi/2 - w t0
+            # that is A w cos(w (t - t0)), the derivative of the displacement above
             f = 1.0 / params["period"]
-            phase = math.pi / 2 - 2 * math.pi * f * self.O.time
+            phase = -math.pi / 2 - 2 * math.pi * f * self.O.time
             engine = y.HarmonicMotionEngine(
                 ids=ids, A=vector(params["amplitude"]), f=vector((f, f, f)), fi=vector((phase,) * 3)
             )
