@@ -213,6 +213,18 @@ def test_unsupported_requests_are_refused(tmp_path):
         _dem(tmp_path, SpringDashpot, species=spread)
 
 
+def test_run_without_a_time_step_takes_a_fifth_of_the_p_wave_time_step(tmp_path):
+    with _dem(tmp_path, HertzMindlin, dt=None) as sim:
+        sim.createParticles(1, "single", 0.0, 0.0, 0.0, vel=(0.1, 0.0, 0.0))
+        sim.run(10)
+        dt, t, x = sim.engine.dt, sim.time, sim.extractCoords()[0, 0]
+    # YADE's utils.PWaveTimeStep: the smallest r / sqrt(E / rho) of the spheres
+    expected = 0.2 * R / math.sqrt(MATERIAL["youngsModulus"] / MATERIAL["density"])
+    assert dt == pytest.approx(expected, rel=1e-9)
+    assert t == pytest.approx(10 * expected, rel=1e-12) and x == pytest.approx(0.1 * t, rel=1e-9)
+    assert "0.2 x PWaveTimeStep" in (tmp_path / "out" / "pygran.log").read_text()
+
+
 def test_worker_is_killed_on_close(tmp_path):
     sim = _dem(tmp_path, HertzMindlin)
     process = sim.engine.worker.process

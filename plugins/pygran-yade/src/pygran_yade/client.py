@@ -71,15 +71,17 @@ class Worker:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def call(self, name: str, **kwargs: Any) -> Any:
-        """Run the worker's ``Simulation.<name>(**kwargs)``; YADE errors raise :class:`EngineError`."""
+    def call(self, method: str, /, **kwargs: Any) -> Any:
+        """Run the worker's ``Simulation.<method>(**kwargs)``; YADE errors raise :class:`EngineError`.
+
+        ``method`` is positional-only, so that any keyword (``name=`` too) reaches the worker."""
         if not self.alive:
             raise EngineError(f"The YADE worker is gone ({self._exit_reason()}); create a new simulation")
         try:
-            write_message(self._out, (name, kwargs))
+            write_message(self._out, (method, kwargs))
         except BrokenPipeError:
             pass  # the worker died: _receive says how
-        return self._receive(name)
+        return self._receive(method)
 
     def _receive(self, what: str) -> Any:
         timeout = float(os.environ.get(TIMEOUT_ENV, DEFAULT_TIMEOUT))

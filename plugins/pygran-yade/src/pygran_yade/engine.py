@@ -366,7 +366,7 @@ class YadeEngine(PlacingEngine):
         """As :meth:`Engine.run`; without any time step, a fifth of YADE's p-wave estimate
         (``utils.PWaveTimeStep``) for the particles present, logged."""
         if dt is None and self.dt is None:
-            self.dt = 0.2 * float(self.worker.call("scalar", name="pwave_dt"))
+            self.dt = 0.2 * float(self.worker.call("scalar", quantity="pwave_dt"))
             self.log("no time step given: using 0.2 x PWaveTimeStep = %g s", self.dt)
         super().run(nsteps, dt, progress=progress, check_dt=check_dt)
 
@@ -383,7 +383,7 @@ class YadeEngine(PlacingEngine):
 
     def _scalar(self, quantity: str) -> float:
         if quantity == "contacts":
-            return float(self.worker.call("scalar", name="contacts"))
+            return float(self.worker.call("scalar", quantity="contacts"))
         if quantity == "ke_rot":
             omega = self._extract("omega")
             inertia = 0.4 * self._extract("mass") * self._extract("radius") ** 2

@@ -308,12 +308,13 @@ class Simulation:
             values = values.astype(float).reshape(-1, 3)
         return to_bytes(values)
 
-    def scalar(self, name):
-        if name == "contacts":
+    def scalar(self, quantity):
+        """``contacts`` (real interactions) or ``pwave_dt`` (``utils.PWaveTimeStep``)."""
+        if quantity == "contacts":
             return sum(1 for i in self.O.interactions if i.isReal)
-        if name == "pwave_dt":
+        if quantity == "pwave_dt":
             return self.utils.PWaveTimeStep()
-        raise ValueError(f"unknown scalar {name!r}")
+        raise ValueError(f"unknown scalar {quantity!r}")
 
     def command(self, text):
         """Execute YADE Python ``text`` with ``from yade import *`` in scope."""
@@ -335,9 +336,9 @@ def main() -> None:
         message = read_message(requests)
         if message is None or message[0] == "close":
             return
-        name, kwargs = message
+        method, kwargs = message
         try:
-            result = getattr(simulation, name)(**kwargs)
+            result = getattr(simulation, method)(**kwargs)
             write_message(answers, ("ok", result))
         except Exception as exc:  # noqa: BLE001 - every YADE error goes back to the adapter
             write_message(answers, ("error", f"{type(exc).__name__}: {exc}"))
