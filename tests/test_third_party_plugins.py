@@ -59,7 +59,7 @@ def test_capability_error_names_engines_that_can(with_plugins, tmp_path):
     with_plugins("pygran-toy")
     able = [name for name in registry.engines_with("restart") if name != "toy"]
     with simulation.DEM(engine="toy", box=(0, 1, 0, 1, 0, 1), output=str(tmp_path), progress=False) as sim:
-        sim.engine.require("multisphere")
+        sim.engine.require("spring-dashpot")
         with pytest.raises(UnsupportedFeature) as info:
             sim.engine.require("restart")
     expected = f"Engines that can: {', '.join(able)}." if able else "No installed engine can."
