@@ -8,6 +8,7 @@ import pytest
 from pygran_core import io, params, registry, simulation
 from pygran_core.errors import PluginError, PluginNotFound
 from pygran_core.registry import PluginLoadWarning
+from pygran_core.simulation.models import SpringDashpot
 
 
 def test_toy_engine_reader_writer_found_by_name(with_plugins, tmp_path):
@@ -99,3 +100,49 @@ def test_failing_plugin_is_an_error_when_strict(with_plugins, monkeypatch):
     with_plugins("pygran-broken")
     with pytest.raises(PluginError, match="pygran-broken 0.0.1 failed to import.*PYGRAN_STRICT_PLUGINS"):
         registry.plugins()
+
+
+def oblique_collision(tmp_path, friction):
+    """Two organic spheres (r = 1 mm) meeting head-on at 0.1 m/s each, their paths half a
+    diameter apart, on the toy engine: masses, positions, velocities and spins after it."""
+    material = dict(params.organic, coefficientFriction=friction)
+    sphere = dict(material, radius=1e-3)
+    dt = SpringDashpot(material=sphere, partner=sphere).contactTime() / 100
+    with simulation.DEM(
+        engine="toy",
+        model=SpringDashpot,
+        box=(-5e-3, 5e-3, -5e-3, 5e-3, -5e-3, 5e-3),
+        species=({"material": material, "radius": 1e-3},),
+        output=str(tmp_path / f"mu{friction}"),
+        dt=dt,
+        traj={"pfile": None},
+        progress=False,
+    ) as sim:
+        sim.createParticles(1, "single", -1.5e-3, -0.5e-3, 0.0, vel=(0.1, 0.0, 0.0))
+        sim.createParticles(1, "single", 1.5e-3, 0.5e-3, 0.0, vel=(-0.1, 0.0, 0.0))
+        sim.run(round(0.01 / dt))  # they touch after 6.3 ms
+        return sim.engine.extract("mass"), sim.extractCoords(), sim.extractVelocities(), sim.extractOmegas()
+
+
+def test_toy_engine_contacts_have_friction(with_plugins, tmp_path):
+    """The toy's spring-dashpot contact: momentum kept; without friction no spin; with it both
+    spheres spin the same way, from a tangential impulse within the Coulomb limit, and the
+    angular momentum is kept to within the overlap over the radius (the torque's lever is R)."""
+    with_plugins("pygran-toy")
+    mass, x, v, w = oblique_collision(tmp_path, 0.0)
+    np.testing.assert_allclose(v.sum(axis=0), 0.0, atol=1e-15)
+    np.testing.assert_array_equal(w, 0.0)
+    assert np.all(v[:, 1] * [1, -1] < -0.01), v  # deflected apart
+
+    mass, x, v, w = oblique_collision(tmp_path, 0.5)
+    assert mass == pytest.approx(4 / 3 * np.pi * 1e-9 * params.organic["density"], rel=1e-12)
+    np.testing.assert_allclose(v.sum(axis=0), 0.0, atol=1e-15)
+    np.testing.assert_allclose(w[:, :2], 0.0, atol=1e-12)
+    assert w[0, 2] > 0 and w[1, 2] == pytest.approx(w[0, 2], rel=1e-9), w
+    normal = np.array([np.sqrt(3) / 2, 0.5, 0.0])  # from the first to the second at contact
+    normal_impulse = mass[0] * np.dot([0.1, 0.0, 0.0] - v[0], normal)
+    tangential_impulse = 0.4 * mass[0] * 1e-3 * w[0, 2]  # I w / R
+    assert 0 < tangential_impulse <= 0.5 * normal_impulse, (tangential_impulse, normal_impulse)
+    spin = 0.4 * mass * 1e-6 * w[:, 2]
+    momentum = np.sum(mass * np.cross(x, v)[:, 2]) + spin.sum()
+    assert momentum == pytest.approx(2 * mass[0] * 0.1 * 0.5e-3, rel=0.01)
