@@ -73,7 +73,7 @@ def cell_list(points: np.ndarray, lengths: np.ndarray, reach: float) -> CellList
     # compiled sweep is fastest with m = 1 too (its cell table stays in the CPU's cache)
     small_box = (periodic & (lengths < 2 * reach)).any()
     m = 1 if small_box or _accel is not None else _cells_per_reach(n, extent, reach)
-    shape = np.maximum(np.floor(extent * m / (reach * (1 + _MARGIN))), 1).astype(np.int64)
+    shape = np.clip(np.floor(extent * m / (reach * (1 + _MARGIN))), 1, 1 << 20).astype(np.int64)
     while np.prod(shape) > 8 * n + (1 << 20):  # sparse points: coarser cells
         shape[np.argmax(shape)] //= 2
     cell = np.empty((3, n), dtype=np.int64)
