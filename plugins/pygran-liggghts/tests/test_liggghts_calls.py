@@ -126,6 +126,46 @@ def test_mesh_moves_linearly_and_wiggles(tmp_path):
     assert frames[2][:, 2] - frames[0][:, 2] == pytest.approx(amplitude, rel=2e-3)  # a quarter period
 
 
+def test_mesh_vibrates_linearly_and_rotationally(tmp_path):
+    """viblin moves the plate along its axis by sum_i a_i (cos(w_i t + p_i) - cos(p_i)),
+    w_i = 2 pi / T_i (LIGGGHTS integrates the velocity -sum_i a_i w_i sin(w_i t + p_i) to first
+    order in dt); vibrot turns it about its axis through origin by that angle."""
+    amplitudes, phases, periods = (1e-4, 5e-5), (0.0, 1.0), (0.01, 0.004)
+
+    def shift(t, scale=1.0):
+        return sum(
+            scale * a * (math.cos(2 * math.pi / T * t + p) - math.cos(p))
+            for a, p, T in zip(amplitudes, phases, periods)
+        )
+
+    frames = _plate_motion(
+        tmp_path / "viblin",
+        viblin=("axis", 0, 0, 2),
+        order=2,
+        amplitude=amplitudes,
+        phase=phases,
+        period=periods,
+    )
+    bound = sum(a * 2 * math.pi / T for a, T in zip(amplitudes, periods)) * DT  # first order in dt
+    for k, points in enumerate(frames):
+        np.testing.assert_allclose(points, frames[0] + [0, 0, shift(250 * k * DT)], atol=bound + VTK)
+    # a quarter period of the first harmonic and 5/8 of the second: 1.16e-4 m down
+    assert frames[1][0, 2] - frames[0][0, 2] == pytest.approx(shift(250 * DT), rel=0.02)
+    radians = 1e3  # amplitudes in radians here: 0.1 and 0.05
+    frames = _plate_motion(
+        tmp_path / "vibrot",
+        vibrot=("origin", 0, 0, 0),
+        axis=(0, 0, 1),
+        order=2,
+        amplitude=tuple(a * radians for a in amplitudes),
+        phase=phases,
+        period=periods,
+    )
+    for k, points in enumerate(frames):
+        angle = shift(250 * k * DT, radians)
+        np.testing.assert_allclose(points, _rotated(frames[0], angle), atol=bound * radians * 5e-3 + VTK)
+
+
 def test_h5_trajectory_reads_back(tmp_path):
     """.h5 frames go through PyGran's H5MD writer; free fall is exact under velocity Verlet."""
     out = tmp_path / "h5"

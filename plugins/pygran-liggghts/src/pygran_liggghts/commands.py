@@ -457,6 +457,17 @@ class Commands:
             how = "linear " + " ".join(fmt(v) for v in spec.velocity)
         elif spec.kind == "wiggle":
             how = f"wiggle amplitude {' '.join(fmt(a) for a in spec.amplitude)} period {fmt(spec.period)}"
+        elif spec.kind in ("viblin", "vibrot"):
+            # LIGGGHTS 3.8 reads one period per harmonic (and warns, wrongly, that the periods
+            # after the first are ignored)
+            axis = " ".join(fmt(a) for a in spec.axis)
+            head = f"viblin axis {axis}"
+            if spec.kind == "vibrot":
+                head = f"vibrot origin {' '.join(fmt(o) for o in spec.origin)} axis {axis}"
+            how = (
+                f"{head} order {len(spec.amplitudes)} amplitude {' '.join(map(fmt, spec.amplitudes))} "
+                f"phase {' '.join(map(fmt, spec.phases))} period {' '.join(map(fmt, spec.periods))}"
+            )
         else:
             if spec.omega == 0:
                 raise ConfigError("moveMesh(rotate=True) with omega=0 does not move the mesh")

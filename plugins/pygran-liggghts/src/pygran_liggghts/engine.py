@@ -92,6 +92,7 @@ class LiggghtsEngine(Engine):
         {
             "mesh-walls",
             "moving-mesh",
+            "mesh-vibration",
             "primitive-walls",
             "periodic",
             "polydisperse",
