@@ -166,6 +166,17 @@ class Liggghts:
                 self._lib.lammps_free(pointer)
         return total
 
+    def fix_vector(self, fix: str, count: int) -> list[float]:
+        """The first ``count`` elements of fix ``fix``'s global vector (evaluated now)."""
+        values = []
+        for index in range(count):
+            pointer = self._lib.lammps_extract_fix(self._handle, fix.encode(), 0, 1, index, 0)
+            if not pointer:
+                raise KeyError(f"LIGGGHTS has no fix {fix!r} with a global vector")
+            values.append(float(ctypes.cast(pointer, ctypes.POINTER(ctypes.c_double))[0]))
+            self._lib.lammps_free(pointer)
+        return values
+
     def compute_scalar(self, compute: str) -> float:
         """The global scalar of compute ``compute`` (evaluated now)."""
         pointer = self._lib.lammps_extract_compute(self._handle, compute.encode(), 0, 0)

@@ -30,7 +30,7 @@ from pygran_core.simulation.calls import (
     WallSpec,
 )
 from pygran_core.simulation.models import mixing
-from pygran_core.simulation.specs import RadiusDistribution, SimulationSpec
+from pygran_core.simulation.specs import RadiusDistribution, ServoSpec, SimulationSpec
 
 #: PyGran contact model -> LIGGGHTS ``gran model``.
 MODELS = {"SpringDashpot": "hooke", "HertzMindlin": "hertz"}
@@ -256,7 +256,7 @@ class Commands:
                 placement += f" move {' '.join(fmt(t) for t in mesh.translate)}"
             lines.append(
                 f"fix {self.mesh_ids[mesh.name]} all {mesh.mtype} file {self.path(mesh.file)} "
-                f"type {self.mesh_types[mesh.name]}{placement}"
+                f"type {self.mesh_types[mesh.name]}{placement}{servo_words(mesh.servo)}"
             )
         return lines + self._dumps(append=resume is not None)
 
@@ -486,6 +486,19 @@ class Commands:
             lines.append(f"group {group} type {' '.join(str(s) for s in spec.species)}")
         lines.append(f"fix {vid} {group} viscous {fmt(spec.gamma * spec.scale)}")
         return vid, lines
+
+
+def servo_words(servo: ServoSpec | None) -> str:
+    """The servo keywords of a ``mesh/surface/stress/servo`` mesh (``''`` for other meshes)."""
+    if servo is None:
+        return ""
+    words = (
+        f" com {' '.join(map(fmt, servo.com))} ctrlPV {servo.control} axis {' '.join(map(fmt, servo.axis))} "
+        f"target_val {fmt(servo.target)} vel_max {fmt(servo.vel_max)}"
+    )
+    if servo.mode == "auto":
+        return f"{words} mode auto ratio {fmt(servo.ratio)}"
+    return f"{words} kp {fmt(servo.kp)} ki {fmt(servo.ki)} kd {fmt(servo.kd)}"
 
 
 def native_particles(spec: SimulationSpec) -> bool:

@@ -93,6 +93,7 @@ class LiggghtsEngine(Engine):
             "mesh-walls",
             "moving-mesh",
             "mesh-vibration",
+            "servo-walls",
             "primitive-walls",
             "periodic",
             "polydisperse",
@@ -162,6 +163,8 @@ class LiggghtsEngine(Engine):
                 self._session = WorkerSession(
                     args, spec.nprocs or 1, self.output / LOG_NAME, self.output / WORKER_LOG_NAME
                 )
+            if spec.dt is not None:
+                self._check_servo_speeds(spec.dt)
             self._execute(self.commands.setup(resume))
         except BaseException:
             self.close()
@@ -261,14 +264,35 @@ class LiggghtsEngine(Engine):
 
     # -- engine hooks ------------------------------------------------------------------------
 
+    def _check_servo_speeds(self, dt: float) -> None:
+        """LIGGGHTS' limit on servo walls: ``vel_max`` below half the neighbour skin per step."""
+        limit = self.spec.skin / (2 * dt)
+        for mesh in self.spec.meshes:
+            if mesh.servo is not None and not mesh.servo.vel_max < limit:
+                raise ConfigError(
+                    f"mesh {mesh.name!r}: servo vel_max {mesh.servo.vel_max:g} m/s must be below "
+                    f"skin / (2 dt) = {limit:g} m/s (LIGGGHTS moves a servo wall at most half the "
+                    "neighbour skin per step): lower vel_max or dt, or raise nns_skin"
+                )
+
     def _advance(self, nsteps: int) -> None:
+        self._check_servo_speeds(self.dt)
+        idle = [m.name for m in self.spec.meshes if m.servo and m.name not in self._mesh_walls.values()]
+        if idle:
+            raise ConfigError(
+                f"servo mesh {idle[0]!r} must be a wall while the simulation runs (LIGGGHTS moves it by "
+                f"the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
+            )
         lines = []
         if self.dt != self._timestep:
             lines.append(f"timestep {fmt(self.dt)}")
             self._timestep = self.dt
         # pre no: nothing changed since the last run (no command in between), so LIGGGHTS
-        # may skip its set-up (init, neighbour lists, forces): those of the last step hold
-        pre = "pre no " if self._prepared and not lines else ""
+        # may skip its set-up (init, neighbour lists, forces): those of the last step hold;
+        # except with a servo wall in mode auto, whose speed in contact LIGGGHTS derives at
+        # init from the smallest particle present
+        auto = any(mesh.servo and mesh.servo.mode == "auto" for mesh in self.spec.meshes)
+        pre = "pre no " if self._prepared and not lines and not auto else ""
         self._queue([*lines, f"run {nsteps} {pre}post no"])
         self._unplaced.clear()  # LIGGGHTS makes them as this run starts
         self._max_id, count, x, v = self._ask("run", self._take(), sorted(self._insertions))
@@ -494,10 +518,28 @@ class LiggghtsEngine(Engine):
         return lines
 
     def _move_mesh(self, spec: MotionSpec) -> str:
+        if any(mesh.servo for mesh in self.spec.meshes if mesh.name == spec.mesh):
+            raise ConfigError(
+                f"mesh {spec.mesh!r} is a servo wall, which its controller moves: LIGGGHTS cannot "
+                "move it with moveMesh too"
+            )
         label, lines = self.commands.motion(spec)
         self._execute(lines)
         self._motions[label] = spec.mesh
         return label
+
+    def mesh_force(self, name: str) -> np.ndarray:
+        """The force (N, x y z) the particles exert on mesh ``name`` now, as LIGGGHTS sums it
+        over the mesh (``mtype`` ``mesh/surface/stress`` or ``mesh/surface/stress/servo``)."""
+        self._check_open()
+        mesh = next((m for m in self.spec.meshes if m.name == name), None)
+        if mesh is None or mesh.mtype == "mesh/surface":
+            stress = [m.name for m in self.spec.meshes if m.mtype != "mesh/surface"]
+            raise ConfigError(
+                f"mesh_force({name!r}): LIGGGHTS sums the force on meshes of mtype mesh/surface/stress or "
+                f"mesh/surface/stress/servo; such meshes here: {stress or 'none'}"
+            )
+        return np.array(self._request("fix_vector", self.commands.mesh_ids[name], 3))
 
     def _viscous(self, spec: ViscousSpec) -> str:
         label, lines = self.commands.viscous(spec)

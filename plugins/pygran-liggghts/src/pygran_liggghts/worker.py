@@ -26,7 +26,9 @@ class Session:
     prefixes LIGGGHTS' error lines also written to standard error (``None``: not written).
     """
 
-    requests = frozenset({"execute", "run", "timestep", "natoms", "gather", "assign", "scalar", "close"})
+    requests = frozenset(
+        {"execute", "run", "timestep", "natoms", "gather", "assign", "scalar", "fix_vector", "close"}
+    )
 
     def __init__(self, args: Sequence[str], comm: Any, root: int | None, echo: str | None = None) -> None:
         from pygran_liggghts.binding import Liggghts
@@ -77,6 +79,9 @@ class Session:
 
     def scalar(self, compute: str) -> float:
         return self.lmp.compute_scalar(compute)
+
+    def fix_vector(self, fix: str, count: int) -> list[float]:
+        return self.lmp.fix_vector(fix, count)
 
     def close(self) -> None:
         self.lmp.close()
