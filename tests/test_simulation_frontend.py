@@ -24,6 +24,8 @@ from pygran_core.simulation.specs import (
 DATA = Path(__file__).resolve().parent / "data"
 MATERIAL = dict(params.glass, cohesionEnergyDensity=0.0)  # the toy engine has no cohesion
 BASE = {"box": (0, 1e-2, 0, 1e-2, 0, 2e-2), "species": ({"material": MATERIAL, "radius": 5e-4},)}
+#: A box around the test meshes however they are placed (a mesh outside the box is refused).
+MESH_BOX = (-5, 5, -5, 5, -5, 5)
 
 
 def spec(**overrides):
@@ -158,6 +160,7 @@ def test_restart_forms(tmp_path, monkeypatch):
 def test_mesh_from_stl_with_liggghts_style_args(tmp_path, monkeypatch):
     silo = DATA / "meshes" / "silo.stl"
     mesh = spec(
+        box=MESH_BOX,
         mesh={
             "hopper": {
                 "file": str(silo),
@@ -165,7 +168,7 @@ def test_mesh_from_stl_with_liggghts_style_args(tmp_path, monkeypatch):
                 "material": MATERIAL,
                 "args": ("scale 1e-3", "move 0 0 0.01", "rotate axis 0 0 1 angle 90"),
             }
-        }
+        },
     ).meshes[0]
     assert (mesh.name, mesh.scale, mesh.translate, mesh.rotate) == (
         "hopper",
@@ -173,12 +176,12 @@ def test_mesh_from_stl_with_liggghts_style_args(tmp_path, monkeypatch):
         (0, 0, 0.01),
         ((0, 0, 1), 90.0),
     )
-    as_dict = spec(mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}}).meshes[0]
+    as_dict = spec(box=MESH_BOX, mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}}).meshes[0]
     assert as_dict.scale == 1e-3 and as_dict.mtype == "mesh/surface"
     with pytest.raises(ConfigError, match="does not exist"):
-        spec(mesh={"m": {"file": str(tmp_path / "none.stl")}})
+        spec(box=MESH_BOX, mesh={"m": {"file": str(tmp_path / "none.stl")}})
     with pytest.raises(ConfigError, match="Unknown mesh 'm' argument 'scal'. Did you mean 'scale'"):
-        spec(mesh={"m": {"file": str(silo), "args": ("scal 2",)}})
+        spec(box=MESH_BOX, mesh={"m": {"file": str(silo), "args": ("scal 2",)}})
 
 
 def _raw_points(name):
@@ -197,21 +200,30 @@ def _turn(points, axis, degrees):
 def test_mesh_args_apply_in_the_order_written():
     side = str(DATA / "meshes" / "wall-2D-side.stl")
     raw = _raw_points("wall-2D-side.stl")
-    move_first = spec(mesh={"w": {"file": side, "args": {"move": (0, 0, 1), "scale": 1e-3}}}).meshes[0]
-    scale_first = spec(mesh={"w": {"file": side, "args": {"scale": 1e-3, "move": (0, 0, 1)}}}).meshes[0]
+    move_first = spec(
+        box=MESH_BOX, mesh={"w": {"file": side, "args": {"move": (0, 0, 1), "scale": 1e-3}}}
+    ).meshes[0]
+    scale_first = spec(
+        box=MESH_BOX, mesh={"w": {"file": side, "args": {"scale": 1e-3, "move": (0, 0, 1)}}}
+    ).meshes[0]
     np.testing.assert_allclose(move_first.triangles(), (raw + [0, 0, 1]) * 1e-3)
     np.testing.assert_allclose(scale_first.triangles(), raw * 1e-3 + [0, 0, 1])
     # the tuple form, and two rotations chained in one tuple as LIGGGHTS reads them
     once = {"scale": 1e-3, "rotate": ("axis", 0, 1, 0, "angle", 90), "move": (0, 0, 2e-3)}
-    wall = spec(mesh={"w": {"file": side, "args": once}}).meshes[0]
+    wall = spec(box=MESH_BOX, mesh={"w": {"file": side, "args": once}}).meshes[0]
     np.testing.assert_allclose(wall.triangles(), _turn(raw * 1e-3, (0, 1, 0), 90) + [0, 0, 2e-3], atol=1e-15)
     assert wall.rotate == ((0.0, 1.0, 0.0), 90.0)
     chained = dict(once, rotate=("axis", 1, 0, 0, "angle", -90, "rotate", "axis", 0, 1, 0, "angle", 90))
     expected = _turn(_turn(raw * 1e-3, (1, 0, 0), -90), (0, 1, 0), 90) + [0, 0, 2e-3]
     np.testing.assert_allclose(
-        spec(mesh={"w": {"file": side, "args": chained}}).meshes[0].triangles(), expected, atol=1e-15
+        spec(box=MESH_BOX, mesh={"w": {"file": side, "args": chained}}).meshes[0].triangles(),
+        expected,
+        atol=1e-15,
     )
-    words = spec(mesh={"w": {"file": side, "args": ("move 0 0 1", "rotate axis 0 0 1 angle 30", "scale 2")}})
+    words = spec(
+        box=MESH_BOX,
+        mesh={"w": {"file": side, "args": ("move 0 0 1", "rotate axis 0 0 1 angle 30", "scale 2")}},
+    )
     np.testing.assert_allclose(
         words.meshes[0].triangles(), _turn(raw + [0, 0, 1], (0, 0, 1), 30) * 2, atol=1e-12
     )
@@ -219,8 +231,8 @@ def test_mesh_args_apply_in_the_order_written():
 
 def test_mesh_import_and_servo_keywords():
     side = str(DATA / "meshes" / "wall-2D-side.stl")
-    assert spec(mesh={"w": {"file": side}}).meshes[0].wall is True
-    assert spec(mesh={"w": {"file": side, "import": False}}).meshes[0].wall is False
+    assert spec(box=MESH_BOX, mesh={"w": {"file": side}}).meshes[0].wall is True
+    assert spec(box=MESH_BOX, mesh={"w": {"file": side, "import": False}}).meshes[0].wall is False
     args = {
         "scale": 9.8e-4,
         "move": (0, 0, 6e-3),
@@ -230,12 +242,16 @@ def test_mesh_import_and_servo_keywords():
         "ctrlPV": "force",
         "target_val": 5.0,
     }
-    servo = spec(mesh={"PID": {"file": side, "mtype": "mesh/surface/stress/servo", "args": args}}).meshes[0]
+    servo = spec(
+        box=MESH_BOX, mesh={"PID": {"file": side, "mtype": "mesh/surface/stress/servo", "args": args}}
+    ).meshes[0]
     assert servo.servo == ServoSpec(
         com=(0.0, 0.0, 0.0), control="force", axis=(0.0, 0.0, -1.0), target=5.0, vel_max=10.0
     )
     assert servo.scale == 9.8e-4 and servo.translate == (0.0, 0.0, 6e-3)
-    assert spec(mesh={"w": {"file": side, "mtype": "mesh/surface/stress"}}).meshes[0].servo is None
+    assert (
+        spec(box=MESH_BOX, mesh={"w": {"file": side, "mtype": "mesh/surface/stress"}}).meshes[0].servo is None
+    )
     for mesh, message in (
         ({"args": {"scale": 1e-3, "temperature": 300}}, "Unknown mesh 'w' argument 'temperature'"),
         (
@@ -261,11 +277,13 @@ def test_mesh_import_and_servo_keywords():
         ({"file": 3}, "'file' must be a path"),
     ):
         with pytest.raises(ConfigError, match=message):
-            spec(mesh={"w": {"file": side, **mesh}})
+            spec(box=MESH_BOX, mesh={"w": {"file": side, **mesh}})
 
 
 def test_mesh_motion_in_liggghts_move_mesh_forms():
-    s = spec(mesh={"impeller": {"file": str(DATA / "meshes" / "valve.stl"), "args": {"scale": 1e-3}}})
+    s = spec(
+        box=MESH_BOX, mesh={"impeller": {"file": str(DATA / "meshes" / "valve.stl"), "args": {"scale": 1e-3}}}
+    )
     original = calls.parse_motion(
         "impeller", {"rotate": ("origin", 1e-3, 0, 0), "axis": (0, 0, 2), "period": 5e-2}, s
     )
@@ -605,7 +623,7 @@ def test_servo_walls_are_refused_before_anything_else_until_an_engine_has_them(t
 
 def test_create_wall_motion_viscous_monitor_specs():
     silo = DATA / "meshes" / "silo.stl"
-    s = spec(mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}})
+    s = spec(box=MESH_BOX, mesh={"hopper": {"file": str(silo), "args": {"scale": 1e-3}}})
     single = calls.parse_create(1, "single", (0, 0, 1e-2), {"vel": (0, 0, -0.1), "omega": (1, 0, 0)}, s, 3)
     assert single.position == (0, 0, 0.01) and single.velocity == (0, 0, -0.1) and single.omega == (1, 0, 0)
     with pytest.raises(
@@ -613,7 +631,10 @@ def test_create_wall_motion_viscous_monitor_specs():
         match=r"x, y, z\) or \(species, .single., positions\) with an \(N, 3\) array: got \(0, 0\)",
     ):
         calls.parse_create(1, "single", (0, 0), {}, s, 3)
-    assert calls.parse_create(1, "random", (50,), {"region": ("block", 0, 1, 0, 1, 0, 1)}, s, 3).count == 50
+    assert (
+        calls.parse_create(1, "random", (50,), {"region": ("block", 0, 1e-2, 0, 1e-2, 0, 1e-2)}, s, 3).count
+        == 50
+    )
     assert (
         calls.parse_wall({"wtype": "primitive", "species": 1, "plane": "planez", "peq": 0}, s).plane
         == "zplane"
@@ -732,16 +753,20 @@ MULTISPHERE = {"material": MATERIAL, "style": "multisphere", "nspheres": 3, "rad
 def _forms():
     """Every keyword of the forms PyGran parses, to be given each bad value in turn."""
     square = str(DATA / "meshes" / "square.stl")
-    mesh = spec(mesh={"m": {"file": square}})
+    mesh = spec(box=MESH_BOX, mesh={"m": {"file": square}})
     yield from (("simulation", key, lambda v, k=key: spec(**{k: v})) for key in SIMULATION_KEYS)
     for key in ("style", "material", "density", "radius", "function", "nspheres", "length"):
         yield "species", key, lambda v, k=key: spec(species=({"material": MATERIAL, "radius": 5e-4, k: v},))
         yield "multisphere", key, lambda v, k=key: spec(species=(dict(MULTISPHERE, **{k: v}),))
     for key in ("file", "material", "mtype", "args", "import", "scale", "rotate", "move"):
-        yield "mesh", key, lambda v, k=key: spec(mesh={"m": {"file": square, k: v}})
+        yield "mesh", key, lambda v, k=key: spec(box=MESH_BOX, mesh={"m": {"file": square, k: v}})
     servo = {"file": square, "mtype": "mesh/surface/stress/servo"}
     for key in ("move", "scale", "rotate", *SERVO, "kp", "mode", "ratio"):
-        yield "mesh args", key, lambda v, k=key: spec(mesh={"m": dict(servo, args=dict(SERVO, **{k: v}))})
+        yield (
+            "mesh args",
+            key,
+            lambda v, k=key: spec(box=MESH_BOX, mesh={"m": dict(servo, args=dict(SERVO, **{k: v}))}),
+        )
     for key in ("freq", "dir", "pfile", "mfile", "sel", "style", "args", "margs"):
         yield "traj", key, lambda v, k=key: spec(traj={k: v})
     for key in calls.INSERT_KEYS:

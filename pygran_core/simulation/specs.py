@@ -676,12 +676,58 @@ def parse_mesh(name: str, value: Any, base: Path) -> MeshSpec:
     )
 
 
+#: How far (a fraction of the box's longest side) a point may lie beyond a face of the box and
+#: still count as on it: rounding in the script's arithmetic, not a mistake.
+BOX_TOLERANCE = 1e-9
+#: A mesh this many times larger than the box is probably in other units (millimetres).
+UNIT_MISMATCH = 10.0
+
+
+def check_mesh_in_box(mesh: MeshSpec, domain: Domain) -> None:
+    """Refuse a mesh with triangles outside the box: those whose centre lies beyond a face that
+    is not shrink-wrapped. LIGGGHTS stops on such a mesh (its elements belong to the part of
+    the domain holding their centre); the other engines would keep a wall no particle reaches.
+    A mesh much larger than the box is probably in millimetres: the message says so."""
+    triangles = mesh.triangles()
+    centres = triangles.mean(axis=1)
+    box = np.array(domain.box, float)
+    lengths = box[:, 1] - box[:, 0]
+    tol = BOX_TOLERANCE * float(lengths.max())
+    lower = np.array([flag[0] not in "sm" for flag in domain.boundary])
+    upper = np.array([flag[-1] not in "sm" for flag in domain.boundary])
+    outside = np.any((lower & (centres < box[:, 0] - tol)) | (upper & (centres > box[:, 1] + tol)), axis=1)
+    count = int(outside.sum())
+    if not count:
+        return
+    points = triangles.reshape(-1, 3)
+    size = float(np.max(points.max(axis=0) - points.min(axis=0)))
+    if size > UNIT_MISMATCH * float(lengths.max()):
+        hint = (
+            f"the mesh is {size / float(lengths.max()):.3g} times the box's longest side: if its file is "
+            f"in millimetres, add 'scale': 1e-3 to mesh {mesh.name!r}"
+        )
+    else:
+        hint = "move it into the box with 'move': (dx, dy, dz), scale it with 'scale', or enlarge the box"
+    span = ", ".join(
+        f"{axis} {lo:.4g} to {hi:.4g}"
+        for axis, lo, hi in zip("xyz", centres.min(axis=0), centres.max(axis=0))
+    )
+    box_text = ", ".join(f"{axis} {lo:g} to {hi:g}" for axis, (lo, hi) in zip("xyz", domain.box))
+    raise ConfigError(
+        f"mesh {mesh.name!r}: {count} of its {len(triangles)} triangles lie outside the box (triangle "
+        f"centres {span}; box {box_text}), where no particle reaches them and LIGGGHTS stops: {hint}"
+    )
+
+
 @dataclass(frozen=True)
 class TrajectorySpec:
     """Trajectory output: particle file ``pfile`` and mesh file ``mfile`` every ``freq`` steps.
 
     The file extension picks the writer (``.dump``, ``.h5``, ``.vtk``); ``None`` writes nothing.
-    ``sel`` is ``"all"`` or a species number; ``args`` the particle columns.
+    ``sel`` is ``"all"`` or a species number; ``args`` the particle columns. ``style``
+    ``'custom/vtk'`` goes with a ``.vtk`` pfile; ``style='atom'``, ``margs`` (the columns of
+    LIGGGHTS' mesh dump) and ``dump_modify`` are LIGGGHTS' own: engines without the capability
+    ``liggghts-dump`` refuse them when they differ from the defaults.
     """
 
     freq: int = 1000
@@ -712,10 +758,17 @@ def parse_traj(value: Any, output: Path, dump_modify: Any, notes: list[str] | No
         isinstance(sel, bool) or not isinstance(sel, Integral) or sel < 1
     ):
         raise ConfigError(f"traj sel must be 'all' or a species number (1, 2, ...), got {sel!r}")
+    style = one_of(value.get("style", "custom"), "traj style", ("custom", "custom/vtk", "atom"))
+    if style == "custom/vtk" and (files["pfile"] is None or not str(files["pfile"]).endswith(".vtk")):
+        raise ConfigError(
+            f"traj style 'custom/vtk' writes legacy VTK files, but pfile is "
+            f"{value.get('pfile', 'traj.dump')!r}: give pfile a name ending in .vtk (the file's extension "
+            "picks the format)"
+        )
     return TrajectorySpec(
         freq=step_count(value.get("freq", 1000), "traj freq", notes),
         sel=sel,
-        style=one_of(value.get("style", "custom"), "traj style", ("custom", "custom/vtk", "atom")),
+        style=style,
         args=columns(value.get("args", TrajectorySpec.args), "traj args"),
         margs=columns(value.get("margs", TrajectorySpec.margs), "traj margs"),
         dump_modify=() if dump_modify is None else words(dump_modify, "dump_modify"),
@@ -960,7 +1013,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
     notes: list[str] = []
     traj = parse_traj(params.get("traj"), output, params.get("dump_modify"), notes)
     restart = parse_restart(params.get("restart"), output, notes)
-    return SimulationSpec(
+    spec = SimulationSpec(
         engine=engine,
         model=model,
         output=output,
@@ -982,3 +1035,6 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
         user_keys=user_keys,
         notes=tuple(notes),
     )
+    for mesh in spec.meshes:
+        check_mesh_in_box(mesh, spec.domain)
+    return spec
