@@ -16,6 +16,7 @@ import numpy as np
 
 from pygran_core.errors import ConfigError, did_you_mean, unknown_key
 from pygran_core.simulation.specs import (
+    BOX_TOLERANCE,
     SimulationSpec,
     Vector,
     check_keys,
@@ -37,6 +38,11 @@ class Region:
 
     kind: str
     args: tuple[Any, ...]
+
+    def __str__(self) -> str:
+        """As a script gives it: ``('block', 0, 0.01, 0, 0.01, 0, 0.02)``."""
+        words = [repr(a) if isinstance(a, str) else f"{a:g}" for a in (self.kind, *self.args)]
+        return f"({', '.join(words)})"
 
     def bounds(self) -> np.ndarray:
         """Axis-aligned bounding box, shape (3, 2)."""
@@ -82,6 +88,64 @@ class Region:
 
 
 REGION_ARITY = {"block": 6, "cylinder": 6, "sphere": 4}
+
+
+def _face_flag(spec: SimulationSpec, axis: int, side: int) -> str:
+    """The boundary flag of the lower (``side`` 0) or upper (1) face of ``axis``."""
+    flag = spec.domain.boundary[axis]
+    return flag[0] if side == 0 else flag[-1]
+
+
+def _limits(spec: SimulationSpec) -> tuple[np.ndarray, float]:
+    box = np.array(spec.domain.box, float)
+    return box, BOX_TOLERANCE * float(np.max(box[:, 1] - box[:, 0]))
+
+
+def _box_text(spec: SimulationSpec) -> str:
+    return ", ".join(f"{axis} {lo:g} to {hi:g}" for axis, (lo, hi) in zip("xyz", spec.domain.box))
+
+
+def check_region_in_box(region: Region, spec: SimulationSpec, call: str) -> None:
+    """Refuse a region of ``call`` (``insert``, ``createParticles``) reaching beyond a face of the
+    box that is not shrink-wrapped: beyond a fixed face the particles placed there are lost at
+    once (LIGGGHTS refuses such an insertion region); beyond a periodic face they would be wrapped
+    onto places no overlap check looked at."""
+    box, tol = _limits(spec)
+    bounds = region.bounds()
+    for axis in range(3):
+        for side, beyond in (
+            (0, bounds[axis, 0] < box[axis, 0] - tol),
+            (1, bounds[axis, 1] > box[axis, 1] + tol),
+        ):
+            flag = _face_flag(spec, axis, side)
+            if not beyond or flag in ("s", "m"):
+                continue
+            face = "periodic" if flag == "p" else "fixed"
+            raise ConfigError(
+                f"{call} region {region} reaches {'xyz'[axis]} = "
+                f"{bounds[axis, side]:g}, beyond the box's {face} {'xyz'[axis]}{'-+'[side]} face at "
+                f"{box[axis, side]:g} (box: {_box_text(spec)}): keep the region inside the box"
+                + (", or make that face shrink-wrapped (boundary 's')" if flag == "f" else "")
+            )
+
+
+def check_points_in_box(points: np.ndarray, spec: SimulationSpec, what: str) -> None:
+    """Refuse centres outside the box, on any axis (LIGGGHTS' ``create_atoms single`` creates
+    nothing there, and a fixed face loses them)."""
+    box, tol = _limits(spec)
+    outside = np.any((points < box[:, 0] - tol) | (points > box[:, 1] + tol), axis=1)
+    if outside.any():
+        first = points[np.flatnonzero(outside)[0]]
+        where = ", ".join(f"{v:g}" for v in first)
+        raise ConfigError(
+            f"{what} ({where}) is outside the box ({_box_text(spec)})"
+            + (
+                f", as are {int(outside.sum()) - 1} more of the {len(points)} positions"
+                if outside.sum() > 1
+                else ""
+            )
+            + ": give positions inside the box, or a larger box"
+        )
 
 
 def parse_region(value: Any, spec: SimulationSpec) -> Region:
@@ -326,7 +390,7 @@ def parse_insert(
         value=value,
         species=species,
         weights=weights,
-        region=parse_region(kwargs.get("region"), spec),
+        region=_region_in_box(kwargs.get("region"), spec, "insert"),
         velocity=parse_velocity(kwargs.get("vel_type", "constant"), kwargs.get("vel", (0, 0, 0))),
         omega=_omega(kwargs.get("omega", (0, 0, 0))),
         freq=None if isinstance(freq, str) and freq == "once" else step_count(freq, "insert freq", notes),
@@ -336,6 +400,14 @@ def parse_insert(
         requested=value,
         orientation=None if orientation is None else parse_orientation(orientation, species, spec),
     )
+
+
+def _region_in_box(value: Any, spec: SimulationSpec, call: str) -> Region:
+    """The region of an ``insert`` or ``createParticles`` call, inside the box (see
+    :func:`check_region_in_box`)."""
+    region = parse_region(value, spec)
+    check_region_in_box(region, spec, call)
+    return region
 
 
 def _omega(value: Any) -> Vector:
@@ -351,8 +423,9 @@ def _omega(value: Any) -> Vector:
 @dataclass(frozen=True)
 class CreateSpec:
     """Particles of one species: ``single`` at ``position`` (or one at each row of the
-    ``(N, 3)`` array ``positions``), a ``lattice`` of spacing ``spacing`` filling ``region``,
-    or ``random``: ``count`` placed without overlap in ``region``."""
+    ``(N, 3)`` array ``positions``), a ``lattice`` of spacing ``spacing`` filling ``region``
+    (its sites, from :func:`lattice_sites`, in ``positions``), or ``random``: ``count`` placed
+    without overlap in ``region``."""
 
     species: int
     style: str
@@ -368,8 +441,16 @@ class CreateSpec:
 
     @property
     def centres(self) -> np.ndarray:
-        """The ``single`` style's centres as an ``(N, 3)`` array."""
+        """The centres of the ``single`` and ``lattice`` styles as an ``(N, 3)`` array."""
         return self.positions if self.positions is not None else np.array([self.position], float)
+
+
+def lattice_sites(region: Region, spacing: float, radius: float) -> np.ndarray:
+    """The sites of a simple cubic lattice of ``spacing`` in ``region`` where a sphere of
+    ``radius`` lies wholly inside it: from each lower bound plus half a spacing, ``(N, 3)``."""
+    axes = [np.arange(lo + spacing / 2, hi, spacing) for lo, hi in region.bounds()]
+    sites = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return sites[region.contains(sites, radius)]
 
 
 def parse_create(
@@ -396,6 +477,7 @@ def parse_create(
                     "createParticles(species, 'single', positions): positions must be a non-empty "
                     f"(N, 3) array of finite coordinates, got shape {positions.shape}"
                 )
+            check_points_in_box(positions, spec, "createParticles position")
             positions.flags.writeable = False
             return CreateSpec(positions=positions, **common)  # type: ignore[arg-type]
         if len(args) != 3:
@@ -403,13 +485,32 @@ def parse_create(
                 "createParticles(species, 'single', x, y, z) or (species, 'single', positions) with "
                 f"an (N, 3) array: got {args!r}"
             )
-        return CreateSpec(position=number_tuple(args, "position"), **common)  # type: ignore[arg-type]
-    region = parse_region(kwargs.get("region"), spec)
+        position = number_tuple(args, "position")
+        check_points_in_box(np.array([position]), spec, "createParticles position")
+        return CreateSpec(position=position, **common)  # type: ignore[arg-type]
+    region = _region_in_box(kwargs.get("region"), spec, "createParticles")
     if style == "lattice":
         spacing = kwargs.get("spacing", args[0] if args else None)
         if spacing is None:
             raise ConfigError("createParticles(species, 'lattice', spacing, region=...): give the spacing")
-        return CreateSpec(region=region, spacing=positive_float(spacing, "spacing"), **common)  # type: ignore[arg-type]
+        spacing = positive_float(spacing, "spacing")
+        sizes = spec.species[chosen - 1].radius
+        largest = common["radius"] or sizes.max
+        if spacing < 2 * largest and not math.isclose(spacing, 2 * largest):
+            raise ConfigError(
+                f"createParticles lattice spacing {spacing:g} is below one diameter ({2 * largest:g}) of "
+                f"the particles of species {chosen}: neighbours would overlap and fly apart. Give a "
+                f"spacing of at least {2 * largest:g}"
+            )
+        sites = lattice_sites(region, spacing, common["radius"] or sizes.mean)
+        if not len(sites):
+            raise ConfigError(
+                f"createParticles lattice: no site of spacing {spacing:g} in the region "
+                f"{region} has room for a whole particle of species {chosen}; "
+                "give a larger region or a smaller spacing"
+            )
+        sites.flags.writeable = False
+        return CreateSpec(region=region, spacing=spacing, positions=sites, **common)  # type: ignore[arg-type]
     if len(args) != 1:
         raise ConfigError("createParticles(species, 'random', count, region=...): give the count")
     return CreateSpec(region=region, count=positive_int(args[0], "count"), **common)  # type: ignore[arg-type]
@@ -432,6 +533,23 @@ class WallSpec:
     centre: tuple[float, float] | None = None
     radius: float | None = None
     mesh: str | None = None
+
+
+def check_plane_in_box(plane: str, peq: float, spec: SimulationSpec) -> None:
+    """Refuse a plane wall outside the box, unless the face it lies beyond is shrink-wrapped:
+    beyond a fixed face it holds nothing (the particles are lost before they reach it), beyond
+    a periodic one no particle ever reaches it. A plane on a face of the box is a wall there."""
+    axis = "xyz".index(plane[0])
+    box, tol = _limits(spec)
+    lo, hi = box[axis]
+    side = 0 if peq < lo - tol else 1 if peq > hi + tol else None
+    if side is None or _face_flag(spec, axis, side) in ("s", "m"):
+        return
+    raise ConfigError(
+        f"setupWall(plane={plane!r}, peq={peq:g}): peq is outside the box, whose {plane[0]} runs from "
+        f"{lo:g} to {hi:g}; particles never reach the wall. Give peq from {lo:g} to {hi:g} (a wall on a "
+        "face of the box is at its bound)"
+    )
 
 
 def parse_wall(kwargs: Mapping[str, Any], spec: SimulationSpec) -> WallSpec:
@@ -459,7 +577,9 @@ def parse_wall(kwargs: Mapping[str, Any], spec: SimulationSpec) -> WallSpec:
         plane = one_of(plane, "plane", ("xplane", "yplane", "zplane"))
         if kwargs.get("peq") is None:
             raise ConfigError(f"setupWall(plane={plane!r}) needs peq, the plane's coordinate")
-        return WallSpec("plane", species, plane=plane, peq=finite_number(kwargs["peq"], "peq"))
+        peq = finite_number(kwargs["peq"], "peq")
+        check_plane_in_box(plane, peq, spec)
+        return WallSpec("plane", species, plane=plane, peq=peq)
     if kwargs.get("radius") is not None:
         axis = one_of(kwargs.get("axis", "z"), "cylinder axis", ("x", "y", "z"))
         centre = number_tuple(kwargs.get("centre", (0, 0)), "centre", 2)

@@ -368,12 +368,12 @@ class Engine(abc.ABC):
     def create_particles(self, spec: CreateSpec) -> int:
         """Create particles now; returns how many were created.
 
-        Particles created at given positions (``'single'``) must not overlap each other or
-        the particles present (by more than :data:`CREATE_OVERLAP_TOLERANCE` of the smaller
-        radius): they would repel at high speed.
+        Particles created at given positions (``'single'``) or on a lattice must not overlap
+        each other or the particles present (by more than :data:`CREATE_OVERLAP_TOLERANCE` of
+        the smaller radius): they would repel at high speed.
         """
         self._check_open()
-        if spec.style == "single" and not self.replaying:
+        if spec.style in ("single", "lattice") and not self.replaying:
             self._check_clear(spec)
         recorded = self._journal(f"create {spec!r}", spec)
         if self.replaying:
@@ -391,7 +391,8 @@ class Engine(abc.ABC):
         return count
 
     def _check_clear(self, spec: CreateSpec) -> None:
-        """Refuse ``single`` positions that overlap each other or the particles present."""
+        """Refuse ``single`` positions or lattice sites that overlap each other or the particles
+        present."""
         from scipy.spatial import cKDTree
 
         centres = spec.centres

@@ -370,13 +370,8 @@ class PlacingEngine(Engine):
                 else species.radius.sample(len(centres), rng)
             )
         elif request.style == "lattice":
-            axes = [
-                np.arange(lo + request.spacing / 2, hi, request.spacing) for lo, hi in request.region.bounds()
-            ]
-            centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+            centres = request.centres
             radii = np.full(len(centres), request.radius or species.radius.mean)
-            inside = request.region.contains(centres, radii)
-            centres, radii = centres[inside], radii[inside]
         else:
             radii = (
                 np.full(request.count, request.radius)
