@@ -55,6 +55,10 @@ class LostParticlesWarning(PyGranWarning):
     """Particles left the domain, became non-finite or were deleted during a run."""
 
 
+class InsertionWarning(PyGranWarning):
+    """An insertion placed fewer particles than it was asked for: its region is full."""
+
+
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """Return ``" Did you mean 'x'?"`` for the closest choice, or an empty string."""
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)

@@ -20,7 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pygran_core.errors import ConfigError
+from pygran_core.errors import ConfigError, InsertionWarning
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
 from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine, Handle
@@ -301,7 +301,20 @@ class PlacingEngine(Engine):
         )
         self.log("insert at step %d: %d of %d particles", self.step, made, len(radii))
         if made < len(radii):
-            self.log("region full: %d particles did not fit", len(radii) - made, level=logging.WARNING)
+            message = (
+                f"insertion at step {self.step}: {made} of {len(radii)} particles inserted, the region "
+                f"{request.region} is full (no free place for the other "
+                f"{len(radii) - made})"
+            )
+            if schedule.warned:
+                self._to_file(logging.WARNING, message)
+            else:
+                schedule.warned = True
+                self._warn(
+                    f"{message}: give a larger region or fewer particles. Further shortfalls of this "
+                    "insertion are logged in pygran.log only.",
+                    InsertionWarning,
+                )
         if request.target == "volumefraction_region":
             self.log(
                 "volume fraction in the region: %.3g of the %.3g asked for",
@@ -448,8 +461,8 @@ class PlacingEngine(Engine):
 @dataclass
 class _Schedule:
     """An insertion: what, how often (``None``: once), the step the next is due, until when,
-    how much is still owed (by rate) and the region's target (by pack: ``request.value`` as
-    made at the call, kept in checkpoints)."""
+    how much is still owed (by rate), the region's target (by pack: ``request.value`` as
+    made at the call, kept in checkpoints) and whether a full region was warned about."""
 
     request: InsertSpec
     freq: int | None
@@ -458,3 +471,4 @@ class _Schedule:
     rng: np.random.Generator
     owed: float = 0.0
     target: float = 0.0
+    warned: bool = False
