@@ -46,7 +46,7 @@ from pygran_core.simulation.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
-from pygran_core.simulation.specs import positive_float, positive_int
+from pygran_core.simulation.specs import TrajectorySpec, positive_float, positive_int
 from pygran_core.simulation.timestep import Assessment, Body, Limits, characteristic_speed, limits
 
 if TYPE_CHECKING:
@@ -252,6 +252,16 @@ class Engine(abc.ABC):
             self.require("mpi", "several MPI ranks (nSim, nprocs)")
         if spec.threads not in (None, 1):
             self.require("threads", "threads")
+        if spec.nns_type != "bin":
+            self.require("neighbor-styles", f"the neighbour-list style nns_type={spec.nns_type!r}")
+        if spec.traj.dump_modify:
+            self.require("liggghts-dump", f"dump_modify {spec.traj.dump_modify}")
+        if spec.traj.margs != TrajectorySpec.margs:
+            self.require(
+                "liggghts-dump", f"traj margs {spec.traj.margs} (the columns of LIGGGHTS' mesh dump)"
+            )
+        if spec.traj.style == "atom":
+            self.require("liggghts-dump", "traj style 'atom'")
         unknown = list(dict.fromkeys(c for c in spec.traj.args if c not in TRAJ_COLUMNS))
         if unknown:
             hint = (
