@@ -29,6 +29,7 @@ ATOM_ARRAYS: dict[str, tuple[str, int, Any]] = {
     "mass": ("rmass", 1, ctypes.c_double),
     "id": ("id", 1, ctypes.c_int),
     "type": ("type", 1, ctypes.c_int),
+    "mol": ("molecule", 1, ctypes.c_int),  # the body of each sphere (with fix multisphere)
 }
 
 

@@ -116,6 +116,14 @@ PLAIN_PATH = re.compile(r"[\w./+,:=@%~-]+")
 #: Every region's ``volume_limit`` (m^3): LIGGGHTS' default, 1e-10, refuses to insert into
 #: regions smaller than a 0.47 mm cube; this is the original PyGran's.
 VOLUME_LIMIT = 1e-20
+#: The groups of atoms integrated by ``fix nve/sphere`` and by ``fix multisphere`` (when the
+#: simulation has multisphere species).
+SPHERES, BODIES = "pg_spheres", "pg_bodies"
+#: The computes of the bodies' kinetic energies (monitor quantity -> compute id).
+BODY_ENERGY = {"ke": "pg_body_ke", "ke_rot": "pg_body_erotate"}
+#: Monte Carlo samples of ``particletemplate/multisphere`` for a body's mass, centre and
+#: inertia (LIGGGHTS warns below 1e5).
+MONTE_CARLO_TRIES = 1_000_000
 #: LIGGGHTS refuses Young's moduli below this (SI) unless told ``soft_particles yes``.
 SOFT_LIMIT = 5e6
 #: ... and above this unless told ``hard_particles yes``.
@@ -149,6 +157,9 @@ class Commands:
                 self.mesh_types[mesh.name] = 1
         if not self.materials:
             raise ConfigError("LIGGGHTS needs at least one species: pass species=({'material': ...},)")
+        #: Atom types of the multisphere species (rigid clumps of spheres) and of the others.
+        self.body_types = [s.type for s in spec.species if s.style == "multisphere"]
+        self.sphere_types = [s.type for s in spec.species if s.style != "multisphere"]
         self.cohesion = any(m.get("cohesionEnergyDensity", 0) > 0 for m in self.materials)
         self.rolling = any(m.get("coefficientRollingFriction", 0) > 0 for m in self.materials)
         if self.rolling and "coeffRollingStiffness" in ROLLING[self.rolling_model]:
@@ -246,7 +257,7 @@ class Commands:
         if spec.gravity is not None and spec.gravity.magnitude > 0:
             direction = " ".join(fmt(d) for d in spec.gravity.direction)
             lines.append(f"fix pg_gravity all gravity {fmt(spec.gravity.magnitude)} vector {direction}")
-        lines.append("fix pg_integrate all nve/sphere")
+        lines += self._integrators()
         for mesh in spec.meshes:
             placement = f" scale {fmt(mesh.scale)}" if mesh.scale != 1 else ""
             if mesh.rotate is not None:
@@ -259,6 +270,41 @@ class Commands:
                 f"type {self.mesh_types[mesh.name]}{placement}{servo_words(mesh.servo)}"
             )
         return lines + self._dumps(append=resume is not None)
+
+    def _integrators(self) -> list[str]:
+        """``fix nve/sphere`` for every atom; with multisphere species, for the group of the
+        other species' atoms only, and ``fix multisphere`` for the group of the bodies' atoms,
+        with one ``particletemplate/multisphere`` per multisphere species (LIGGGHTS wants the
+        templates in the group of ``fix multisphere``, numbered 1, 2, ...). Atoms join the
+        groups through their templates when inserted, through :meth:`regroup` when created."""
+        if not self.body_types:
+            return ["fix pg_integrate all nve/sphere"]
+        lines = []
+        if self.sphere_types:
+            lines += [self.regroup(), f"fix pg_integrate {SPHERES} nve/sphere"]
+        lines += [
+            f"group {BODIES} type {' '.join(map(str, self.body_types))}",
+            f"fix pg_multisphere {BODIES} multisphere allow_group_and_set yes",
+            f"compute {BODY_ENERGY['ke']} all ke/multisphere",
+            f"compute {BODY_ENERGY['ke_rot']} all erotate/multisphere",
+        ]
+        for number, index in enumerate(self.body_types, start=1):
+            species = self.spec.species[index - 1]
+            smallest = min(r for *_, r in species.spheres)
+            spheres = " ".join(fmt(v) for sphere in species.spheres for v in sphere)
+            lines.append(
+                f"fix {shape_id(index)} {BODIES} particletemplate/multisphere "
+                f"{prime(self.spec.seed, 500 + index)} atom_type {index} "
+                f"density constant {fmt(species.density)} "
+                f"volume_limit {fmt(4 / 3 * math.pi * smallest**3 / 10)} nspheres {len(species.spheres)} "
+                f"ntry {MONTE_CARLO_TRIES} spheres {spheres} type {number}"
+            )
+        return lines
+
+    def regroup(self) -> str:
+        """The line adding the atoms of the species other than multisphere ones to the group
+        ``fix nve/sphere`` integrates (with multisphere species)."""
+        return f"group {SPHERES} type {' '.join(map(str, self.sphere_types))}"
 
     def _material_tables(self) -> list[str]:
         """``fix property/global`` tables of the materials by atom type, pairs mixed by PyGran's rules."""
@@ -344,8 +390,9 @@ class Commands:
                     f"traj args {unknown} are not LIGGGHTS dump custom columns: {sorted(DUMP_COLUMNS)}"
                 )
             traj.pfile.parent.mkdir(parents=True, exist_ok=True)
+            columns = traj.args + (("mol",) if self.body_types else ())  # the body of each sphere
             lines.append(
-                f"dump pg_dump {group} custom {traj.freq} {self.path(traj.pfile)} {' '.join(traj.args)}"
+                f"dump pg_dump {group} custom {traj.freq} {self.path(traj.pfile)} {' '.join(columns)}"
             )
             lines += [f"dump_modify pg_dump {arg}" for arg in traj.dump_modify]
             if append and "*" not in traj.pfile.name:
@@ -367,25 +414,32 @@ class Commands:
     def _templates(
         self, species: Sequence[int], weights: Sequence[float], seed: int
     ) -> tuple[str, list[str]]:
-        """Particle templates of ``species`` (number fractions ``weights``) and their distribution."""
+        """Particle templates of ``species`` (number fractions ``weights``) and their
+        distribution: by mass as LIGGGHTS weighs templates, or, with multisphere species (whose
+        mass LIGGGHTS computes), ``particledistribution/discrete/numberbased``."""
         lines, parts = [], []
+        by_number = any(index in self.body_types for index in species)
+        group = SPHERES if self.body_types else "all"
         for k, (index, weight) in enumerate(zip(species, weights)):
             sp = self.spec.species[index - 1]
+            if index in self.body_types:
+                parts.append((shape_id(index), weight))
+                continue
             for j, (radius, fraction) in enumerate(size_classes(sp.radius)):
                 tid = self.new_id("template")
                 volume = 4 / 3 * math.pi * radius**3
                 lines.append(
-                    f"fix {tid} all particletemplate/sphere {prime(seed, 10 * k + j + 1)} atom_type {index} "
-                    f"density constant {fmt(sp.density)} radius constant {fmt(radius)} "
+                    f"fix {tid} {group} particletemplate/sphere {prime(seed, 10 * k + j + 1)} "
+                    f"atom_type {index} density constant {fmt(sp.density)} radius constant {fmt(radius)} "
                     f"volume_limit {fmt(volume / 10)}"
                 )
-                # LIGGGHTS weighs templates by mass
-                parts.append((tid, weight * fraction * sp.density * radius**3))
+                parts.append((tid, weight * fraction * (1 if by_number else sp.density * radius**3)))
         total = sum(w for _, w in parts)
         did = self.new_id("distribution")
         entries = " ".join(f"{tid} {fmt(w / total)}" for tid, w in parts if w > 0)
         count = sum(1 for _, w in parts if w > 0)
-        lines.append(f"fix {did} all particledistribution/discrete {prime(seed)} {count} {entries}")
+        style = "particledistribution/discrete" + ("/numberbased" if by_number else "")
+        lines.append(f"fix {did} all {style} {prime(seed)} {count} {entries}")
         return did, lines
 
     def insert(self, spec: InsertSpec, dt: float | None) -> tuple[str, list[str]]:
@@ -409,6 +463,10 @@ class Commands:
             f"vel {vel.kind} {velocity} omega constant {' '.join(fmt(w) for w in spec.omega)} "
             f"overlapcheck yes all_in {'yes' if spec.all_in else 'no'}"
         )
+        if isinstance(spec.orientation, str):
+            common += f" orientation {spec.orientation}"
+        elif spec.orientation is not None:
+            common += f" orientation constant {' '.join(map(fmt, spec.orientation))}"
         if spec.mechanism == "by_pack":
             every = "once" if every is None else every
             amount = int(spec.value) if spec.target == "particles_in_region" else fmt(spec.value)
@@ -486,6 +544,11 @@ class Commands:
             lines.append(f"group {group} type {' '.join(str(s) for s in spec.species)}")
         lines.append(f"fix {vid} {group} viscous {fmt(spec.gamma * spec.scale)}")
         return vid, lines
+
+
+def shape_id(species: int) -> str:
+    """The ``particletemplate/multisphere`` of multisphere species ``species``."""
+    return f"pg_shape{species}"
 
 
 def servo_words(servo: ServoSpec | None) -> str:

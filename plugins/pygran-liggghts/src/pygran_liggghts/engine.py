@@ -34,7 +34,7 @@ from pygran_core.errors import ConfigError, EngineError, PyGranWarning, Unsuppor
 from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, launch_communicator
-from pygran_liggghts.commands import Commands, fmt, native_meshes, native_particles
+from pygran_liggghts.commands import BODY_ENERGY, Commands, fmt, native_meshes, native_particles
 from pygran_liggghts.session import LocalSession, WorkerSession
 
 if TYPE_CHECKING:
@@ -97,6 +97,7 @@ class LiggghtsEngine(Engine):
             "primitive-walls",
             "periodic",
             "polydisperse",
+            "multisphere",
             "spring-dashpot",
             "hertz-mindlin",
             "cohesion",
@@ -147,6 +148,8 @@ class LiggghtsEngine(Engine):
         #: calls would otherwise count anew from the restart's particles
         self._targets: dict[str, tuple[int, float]] = {}
         self._insert_calls = 0
+        self._ungrouped = False  # atoms created since the last run, not yet in the spheres' group
+        self._computed = False  # whether a run has set up LIGGGHTS' computes
         self._unreported = LostParticles()  # lost particles not yet reported to the front end
         try:
             if spec.traj.mfile is not None and spec.meshes and spec.traj.mfile.suffix != ".vtk":
@@ -284,6 +287,9 @@ class LiggghtsEngine(Engine):
                 f"the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
             )
         lines = []
+        if self._ungrouped:
+            lines.append(self.commands.regroup())
+            self._ungrouped = False
         if self.dt != self._timestep:
             lines.append(f"timestep {fmt(self.dt)}")
             self._timestep = self.dt
@@ -296,7 +302,7 @@ class LiggghtsEngine(Engine):
         self._queue([*lines, f"run {nsteps} {pre}post no"])
         self._unplaced.clear()  # LIGGGHTS makes them as this run starts
         self._max_id, count, x, v = self._ask("run", self._take(), sorted(self._insertions))
-        self._prepared = True
+        self._prepared = self._computed = True
         if count:
             self._unreported += self._lost_particles(count, x, v, nsteps * self.dt)
 
@@ -315,17 +321,49 @@ class LiggghtsEngine(Engine):
         lost, self._unreported = self._unreported, LostParticles()
         return lost
 
+    def _particles_in(self, region: Any) -> int:
+        """Particles whose centres are in ``region``, a multisphere particle counted once when
+        any of its spheres is."""
+        arrays = self._request("gather", ["x", "mol"])
+        inside = region.contains(arrays["x"].reshape(-1, 3))
+        mol = arrays["mol"][inside]
+        return int(np.count_nonzero(mol < 0) + len(np.unique(mol[mol >= 0])))
+
     def _extract(self, quantity: str) -> np.ndarray:
         return self._request("gather", [quantity])[quantity]
 
+    def bodies(self) -> np.ndarray:
+        """The body each particle belongs to, ordered by id as :meth:`extract`: LIGGGHTS'
+        body id (1, 2, ...) for the spheres of multisphere particles, -1 for single spheres.
+        (``extract('x')`` and the trajectory give every sphere of a multisphere particle.)"""
+        self._check_open()
+        if not self.commands.body_types:
+            return np.full(len(self._extract("id")), -1)
+        return self._extract("mol")
+
     def _scalar(self, quantity: str) -> float:
-        if quantity == "ke_rot":
-            arrays = self._request("gather", ["omega", "radius", "mass"])
-            inertia = 0.4 * arrays["mass"] * arrays["radius"] ** 2
-            return float(0.5 * np.sum(inertia * np.einsum("ij,ij->i", arrays["omega"], arrays["omega"])))
-        if quantity == "n":
-            return float(self._request("natoms"))
-        return super()._scalar(quantity)
+        """``ke`` and ``ke_rot`` of the single spheres, plus, with multisphere species, those
+        of the bodies from LIGGGHTS' computes (each sphere of a body carries the body's mass
+        and angular velocity, so the bodies' energies cannot be summed over their spheres)."""
+        if quantity not in ("ke", "ke_rot"):
+            return float(self._request("natoms")) if quantity == "n" else super()._scalar(quantity)
+        bodies = bool(self.commands.body_types)
+        arrays = self._request("gather", ["v", "omega", "radius", "mass", *(["mol"] if bodies else [])])
+        single = arrays["mol"] < 0 if bodies else slice(None)
+        mass = arrays["mass"][single]
+        if quantity == "ke":
+            energy = 0.5 * np.sum(mass * np.einsum("ij,ij->i", arrays["v"][single], arrays["v"][single]))
+        else:
+            omega = arrays["omega"][single]
+            energy = 0.5 * np.sum(
+                0.4 * mass * arrays["radius"][single] ** 2 * np.einsum("ij,ij->i", omega, omega)
+            )
+        if bodies:
+            if not self._computed:  # LIGGGHTS sets its computes up as a run starts
+                self._execute(["run 0 post no"])
+                self._computed = True
+            energy += self._request("scalar", BODY_ENERGY[quantity])
+        return float(energy)
 
     def _insert(self, spec: InsertSpec) -> str:
         number = self._insert_calls
@@ -357,6 +395,10 @@ class LiggghtsEngine(Engine):
             return spec if kept is None else replace(spec, value=float(kept))
         if spec.target != "particles_in_region":
             return spec
+        if self.commands.body_types:  # LIGGGHTS counts a multisphere particle once
+            present = self._particles_in(spec.region)
+            self.log("insert: %d particles (multisphere ones counted once) in the region", present)
+            spec = replace(spec, value=(spec.requested or 0) + present)
         earlier = [other for other in self._unplaced.values() if other.region == spec.region]
         waiting = sum(int(other.requested or 0) for other in earlier if other.target == spec.target)
         uncounted = sorted({other.target for other in earlier if other.target != spec.target})
@@ -378,6 +420,12 @@ class LiggghtsEngine(Engine):
 
     def _create(self, spec: CreateSpec) -> int:
         species = self.spec.species[spec.species - 1]
+        if species.style == "multisphere":
+            raise UnsupportedFeature(
+                f"LIGGGHTS makes multisphere particles (species {spec.species}) only by insertion: "
+                "use insert(), or createParticles for the species of single spheres"
+            )
+        self._ungrouped = bool(self.commands.body_types)
         first = self._max_id + 1
         radii = None  # per particle, when drawn here
         if spec.style == "single":
@@ -480,6 +528,14 @@ class LiggghtsEngine(Engine):
         self._prepared = False  # the next run's set-up sends the new values to ghost atoms
 
     def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
+        if self.commands.body_types:
+            types = self._extract("type")[np.isin(self._extract("id"), ids)]
+            bodies = sorted(set(types.tolist()) & set(self.commands.body_types))
+            if bodies:
+                raise UnsupportedFeature(
+                    f"set() on the spheres of multisphere species {bodies}: LIGGGHTS moves them with "
+                    "their bodies; select the species of single spheres (species=...)"
+                )
         group = self.commands.new_id("set")
         lines = [f"group {group} id {' '.join(str(int(i)) for i in ids)}"]
         if spec.velocity is not None:
