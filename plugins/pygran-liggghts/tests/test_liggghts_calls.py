@@ -248,7 +248,7 @@ def test_omega_on_two_ranks(tmp_path):
     """Angular velocities written into LIGGGHTS' arrays reach atoms on both ranks (the box is
     split in z) and stay through runs (no torque without contacts)."""
     with dem(tmp_path, nprocs=2) as sim:
-        region = ("block", -0.005, 0.005, -0.001, 0.001, 0.002, 0.028)
+        region = ("block", -0.005, 0.005, -0.002, 0.002, 0.002, 0.028)
         assert sim.createParticles(1, "lattice", 0.004, region=region, omega=(1, 2, 3)) == 21
         x = sim.extractCoords()
         assert x[:, 2].min() < 0.015 < x[:, 2].max()

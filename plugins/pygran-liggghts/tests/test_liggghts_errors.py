@@ -4,6 +4,7 @@ LIGGGHTS stops (error->all, error->one on rank 0 or another rank, a signal); the
 import math
 import os
 import signal
+from pathlib import Path
 
 import pytest
 from pygran_liggghts.library import LIBRARY_ENV, find_library
@@ -12,6 +13,8 @@ from pygran_core import simulation
 from pygran_core.errors import EngineError
 from pygran_core.testing.solvers import require_solver
 from pygran_core.validation import SOFT as MATERIAL
+
+SQUARE = Path(__file__).resolve().parents[3] / "tests" / "data" / "meshes" / "square.stl"
 
 
 def make(path, **extra):
@@ -47,11 +50,15 @@ def test_bad_raw_command(tmp_path):
     works(tmp_path / "after")
 
 
-def test_impossible_setup(tmp_path):
-    with make(tmp_path / "impossible") as sim:
-        sim.insert(species=1, value=10, region=("block", 0.005, 0.02, 0, 0.01, 0, 0.01))
-        with pytest.raises(EngineError, match="Insertion region extends outside simulation box"):
-            sim.run(10)
+def test_mesh_driven_out_of_the_box(tmp_path):
+    """An error LIGGGHTS finds only while it runs: a plate moved out of the box at 10 m/s."""
+    square = {"file": str(SQUARE), "args": {"scale": 1e-3, "move": (5e-3, 5e-3, 2e-3)}}
+    with make(tmp_path / "impossible", mesh={"plate": square}) as sim:
+        sim.moveMesh("plate", linear=(0, 0, 10))
+        with pytest.raises(
+            EngineError, match=r"Mesh elements have been lost / left the domain.* \(\S*:\d+\)"
+        ):
+            sim.run(1000)
     works(tmp_path / "after")
 
 
