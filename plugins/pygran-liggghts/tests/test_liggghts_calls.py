@@ -8,6 +8,7 @@ import pytest
 from pygran_liggghts.library import find_library
 
 from pygran_core import analysis, simulation
+from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.testing.solvers import require_solver
 from pygran_core.validation import SOFT as MATERIAL
 
@@ -316,3 +317,36 @@ def test_create_many_single_particles_from_an_array(tmp_path):
         np.testing.assert_array_equal(sim.extractCoords(), positions)
         np.testing.assert_array_equal(sim.extractVelocities()[:, 2], -0.5)
         np.testing.assert_array_equal(sim.extractRadii(), R)
+
+
+def test_dump_settings_reach_liggghts(tmp_path):
+    """nns_type and dump_modify are LIGGGHTS' own; traj sel picks the species at every frame,
+    so particles inserted after the dump was set up are in it too."""
+    species = ({"material": MATERIAL, "radius": R}, {"material": MATERIAL, "radius": R})
+    traj = {"freq": 100, "pfile": "traj.dump", "sel": 2, "args": ("id", "type", "x", "y", "z")}
+    region = ("block", -0.009, 0.009, -0.009, 0.009, 0.002, 0.028)
+    with dem(tmp_path, species=species, nns_type="nsq", dump_modify=("sort id",), traj=traj) as sim:
+        sim.insert(species=(1, 2), value=20, region=region)
+        sim.run(200)
+        types = sim.engine.extract("type")
+    text = (tmp_path / "in.pygran").read_text()
+    assert "neighbor 0.001 nsq\n" in text and "dump_modify pg_dump sort id\n" in text
+    with analysis.System(Particles=str(tmp_path / "traj.dump")) as system:
+        system.goto(-1)
+        ids = system.Particles.id
+    assert 0 < (types == 2).sum() < 20
+    np.testing.assert_array_equal(ids, np.flatnonzero(types == 2) + 1)  # sorted by id, species 2 only
+
+
+@pytest.mark.parametrize(
+    ("traj", "message"),
+    [
+        ({"style": "atom"}, "no dump style atom"),
+        ({"pfile": "traj.h5", "margs": ("id",)}, "margs .* needs meshes and traj mfile"),
+    ],
+)
+def test_dump_settings_liggghts_cannot_honour(tmp_path, traj, message):
+    with pytest.raises((ConfigError, UnsupportedFeature), match=message):
+        dem(tmp_path, traj=traj)
+    with pytest.raises(ConfigError, match=r"dump_modify \['sort id'\] applies to the .dump"):
+        dem(tmp_path / "h5", traj={"pfile": "traj.h5"}, dump_modify=("sort id",))

@@ -106,6 +106,8 @@ class LiggghtsEngine(Engine):
             "mpi",
             "restart",
             "raw-commands",
+            "liggghts-dump",
+            "neighbor-styles",
         }
     )
     #: Each run chunk is a LIGGGHTS ``run``; few chunks keep the overhead negligible.
