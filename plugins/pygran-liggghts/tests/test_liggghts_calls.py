@@ -192,7 +192,8 @@ def test_h5_trajectory_reads_back(tmp_path):
 
 def test_viscous_drag_gives_terminal_velocity(tmp_path):
     """fix viscous is F = -gamma * scale * v: m dv/dt = m g - gamma v, terminal velocity
-    m g / gamma reached as 1 - exp(-t / tau), tau = m / gamma. Species 2 has no drag."""
+    m g / gamma reached as 1 - exp(-t / tau), tau = m / gamma. Species 2 has no drag; a sphere
+    of species 1 created after addViscous has it too."""
     tau = 0.01
     gamma = MASS / tau / 2  # scale=2 below
     species = ({"material": MATERIAL, "radius": R}, {"material": MATERIAL, "radius": R})
@@ -201,10 +202,12 @@ def test_viscous_drag_gives_terminal_velocity(tmp_path):
         sim.createParticles(2, "single", 0.005, 0.0, 0.025)
         sim.engine.expect_outflow("z-")  # the sphere without drag falls out of the box
         sim.addViscous(gamma=gamma, scale=2, species=1)
+        sim.createParticles(1, "single", 0.0, 0.005, 0.025)
         sim.run(round(tau / DT))
         v = sim.extractVelocities()[:, 2]
         assert -v[0] == pytest.approx(G * tau * (1 - math.exp(-1)), rel=0.01)
         assert -v[1] == pytest.approx(G * tau, rel=1e-9)  # free fall
+        assert v[2] == v[0]
         sim.run(round(9 * tau / DT))
         assert -sim.extractVelocities()[0, 2] == pytest.approx(MASS * G / (2 * gamma), rel=1e-3)
 

@@ -548,13 +548,11 @@ class Commands:
         return mid, [f"fix {mid} all move/mesh mesh {mesh} {how}"]
 
     def viscous(self, spec: ViscousSpec) -> tuple[str, list[str]]:
-        vid, lines = self.new_id("viscous"), []
-        group = "all"
-        if set(spec.species) != {s.type for s in self.spec.species}:
-            group = self.new_id("group")
-            lines.append(f"group {group} type {' '.join(str(s) for s in spec.species)}")
-        lines.append(f"fix {vid} {group} viscous {fmt(spec.gamma * spec.scale)}")
-        return vid, lines
+        """``fix viscous`` on every atom, scaled to 0 for the species left out (by type at every
+        step: a group would miss particles created or inserted later)."""
+        vid = self.new_id("viscous")
+        others = "".join(f" scale {s.type} 0" for s in self.spec.species if s.type not in spec.species)
+        return vid, [f"fix {vid} all viscous {fmt(spec.gamma * spec.scale)}{others}"]
 
 
 def shape_id(species: int) -> str:
