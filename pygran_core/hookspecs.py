@@ -49,7 +49,7 @@ CAPABILITIES = frozenset(
         "restart",  # checkpoint and resume
         "raw-commands",  # pass solver-native commands through
         "monitor-species",  # monitor(var=..., species=...) of some species only
-        "liggghts-dump",  # LIGGGHTS' dump settings: dump_modify, traj margs, traj style 'atom'
+        "liggghts-dump",  # LIGGGHTS' dump settings: dump_modify, traj margs
         "neighbor-styles",  # nns_type other than 'bin' (LIGGGHTS' neighbor nsq, multi)
     }
 )

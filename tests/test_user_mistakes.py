@@ -135,6 +135,9 @@ SETUP = [
     ("mesh in millimetres", _mesh(), ConfigError, "'scale': 1e-3"),
     ("mesh outside the box", _mesh(scale=1e-3, move=(0.01, 0.01, 0.03)), ConfigError, "mesh 'plate'"),
     ("mesh partly outside the box", _mesh(scale=1e-3), ConfigError, "triangles lie outside the box"),
+    ("traj style atom", _traj(style="atom"), UnsupportedFeature, "traj style 'atom'"),
+    ("dump_modify without a dump file", _set(dump_modify=("sort", "id")), ConfigError, "dump_modify"),
+    ("traj margs without meshes", _traj(mfile="mesh*.vtk", margs=("id",)), ConfigError, "traj margs"),
     (
         "traj style custom/vtk with a dump file",
         _traj(pfile="t.dump", style="custom/vtk"),
@@ -331,10 +334,21 @@ CALL = [
 
 
 #: (id, change to the valid params, the capability that honours it, what the message must name)
+#: A mesh inside the box, for the settings of mesh output.
+PLATE = {"file": str(STL), "scale": 1e-3, "move": (0.01, 0.01, 0.01)}
 UNSUPPORTED = [
-    ("dump_modify", _set(dump_modify=("sort", "id")), "liggghts-dump", "dump_modify ('sort', 'id')"),
-    ("traj margs", _traj(margs=("id", "force")), "liggghts-dump", "traj margs ('id', 'force')"),
-    ("traj style atom", _traj(style="atom"), "liggghts-dump", "traj style 'atom'"),
+    (
+        "dump_modify",
+        lambda p: _traj(pfile="t.dump")(p) | {"dump_modify": ("sort id",)},
+        "liggghts-dump",
+        "dump_modify ('sort id',)",
+    ),
+    (
+        "traj margs",
+        lambda p: _traj(mfile="mesh*.vtk", margs=("id", "force"))(p) | {"mesh": {"plate": PLATE}},
+        "liggghts-dump",
+        "traj margs ('id', 'force')",
+    ),
     ("neighbour list nsq", _set(nns_type="nsq"), "neighbor-styles", "nns_type='nsq'"),
 ]
 

@@ -260,8 +260,6 @@ class Engine(abc.ABC):
             self.require(
                 "liggghts-dump", f"traj margs {spec.traj.margs} (the columns of LIGGGHTS' mesh dump)"
             )
-        if spec.traj.style == "atom":
-            self.require("liggghts-dump", "traj style 'atom'")
         unknown = list(dict.fromkeys(c for c in spec.traj.args if c not in TRAJ_COLUMNS))
         if unknown:
             hint = (

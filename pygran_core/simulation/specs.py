@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core import params as materials
-from pygran_core.errors import ConfigError, unknown_key
+from pygran_core.errors import ConfigError, UnsupportedFeature, unknown_key
 
 Vector = tuple[float, float, float]
 BOUNDARY_FLAGS = frozenset("pfsm")
@@ -725,9 +725,9 @@ class TrajectorySpec:
 
     The file extension picks the writer (``.dump``, ``.h5``, ``.vtk``); ``None`` writes nothing.
     ``sel`` is ``"all"`` or a species number; ``args`` the particle columns. ``style``
-    ``'custom/vtk'`` goes with a ``.vtk`` pfile; ``style='atom'``, ``margs`` (the columns of
-    LIGGGHTS' mesh dump) and ``dump_modify`` are LIGGGHTS' own: engines without the capability
-    ``liggghts-dump`` refuse them when they differ from the defaults.
+    ``'custom/vtk'`` goes with a ``.vtk`` pfile. ``margs`` (the columns of LIGGGHTS' mesh dump)
+    and ``dump_modify`` (of its ``.dump`` file) are LIGGGHTS' own: engines without the
+    capability ``liggghts-dump`` refuse them when they differ from the defaults.
     """
 
     freq: int = 1000
@@ -743,7 +743,12 @@ class TrajectorySpec:
 TRAJ_KEYS = ("freq", "pfile", "mfile", "dir", "sel", "style", "args", "margs")
 
 
-def parse_traj(value: Any, output: Path, dump_modify: Any, notes: list[str] | None = None) -> TrajectorySpec:
+def parse_traj(
+    value: Any, output: Path, dump_modify: Any, notes: list[str] | None = None, *, meshes: bool = False
+) -> TrajectorySpec:
+    """``traj`` and ``dump_modify`` (``meshes``: whether the simulation has meshes). Settings
+    that cannot apply are refused: ``dump_modify`` without a ``.dump`` pfile, ``margs`` without
+    meshes and an mfile, style ``'custom/vtk'`` without a ``.vtk`` pfile, style ``'atom'``."""
     value = {} if value is None else value
     if not isinstance(value, Mapping):
         raise ConfigError(f"traj must be a dict with keys {TRAJ_KEYS}, got {value!r}")
@@ -758,20 +763,38 @@ def parse_traj(value: Any, output: Path, dump_modify: Any, notes: list[str] | No
         isinstance(sel, bool) or not isinstance(sel, Integral) or sel < 1
     ):
         raise ConfigError(f"traj sel must be 'all' or a species number (1, 2, ...), got {sel!r}")
-    style = one_of(value.get("style", "custom"), "traj style", ("custom", "custom/vtk", "atom"))
+    style = value.get("style", "custom")
+    if isinstance(style, str) and style == "atom":
+        raise UnsupportedFeature(
+            "traj style 'atom': LIGGGHTS 3.8 has no dump style atom, nor does any other engine write one; "
+            "use style 'custom' with args ('id', 'type', 'x', 'y', 'z')"
+        )
+    style = one_of(style, "traj style", ("custom", "custom/vtk"))
     if style == "custom/vtk" and (files["pfile"] is None or not str(files["pfile"]).endswith(".vtk")):
         raise ConfigError(
             f"traj style 'custom/vtk' writes legacy VTK files, but pfile is "
             f"{value.get('pfile', 'traj.dump')!r}: give pfile a name ending in .vtk (the file's extension "
             "picks the format)"
         )
+    modify = () if dump_modify is None else words(dump_modify, "dump_modify")
+    if modify and not str(files["pfile"] or "").endswith(".dump"):
+        raise ConfigError(
+            f"dump_modify {list(modify)} applies to the .dump file LIGGGHTS writes, but traj pfile is "
+            f"{value.get('pfile', 'traj.dump')!r}: give pfile a name ending in .dump"
+        )
+    margs = columns(value.get("margs", TrajectorySpec.margs), "traj margs")
+    if margs != TrajectorySpec.margs and (files["mfile"] is None or not meshes):
+        raise ConfigError(
+            f"traj margs {list(margs)} are the columns of the meshes' trajectory, which needs meshes and "
+            "traj mfile (a name such as 'mesh*.vtk')"
+        )
     return TrajectorySpec(
         freq=step_count(value.get("freq", 1000), "traj freq", notes),
         sel=sel,
         style=style,
         args=columns(value.get("args", TrajectorySpec.args), "traj args"),
-        margs=columns(value.get("margs", TrajectorySpec.margs), "traj margs"),
-        dump_modify=() if dump_modify is None else words(dump_modify, "dump_modify"),
+        margs=margs,
+        dump_modify=modify,
         **files,
     )
 
@@ -1011,7 +1034,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
         raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     threads, nprocs = params.get("threads"), params.get("nprocs")
     notes: list[str] = []
-    traj = parse_traj(params.get("traj"), output, params.get("dump_modify"), notes)
+    traj = parse_traj(params.get("traj"), output, params.get("dump_modify"), notes, meshes=bool(meshes_in))
     restart = parse_restart(params.get("restart"), output, notes)
     spec = SimulationSpec(
         engine=engine,
