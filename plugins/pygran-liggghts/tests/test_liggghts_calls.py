@@ -353,3 +353,14 @@ def test_dump_settings_liggghts_cannot_honour(tmp_path, traj, message):
         dem(tmp_path, traj=traj)
     with pytest.raises(ConfigError, match=r"dump_modify \['sort id'\] applies to the .dump"):
         dem(tmp_path / "h5", traj={"pfile": "traj.h5"}, dump_modify=("sort id",))
+
+
+def test_particles_of_the_second_species_only(tmp_path):
+    """LIGGGHTS wants some atom or fix of type 1 ('Atom types must start from 1'): a simulation
+    whose particles are all of species 2 runs (free fall, exact under velocity Verlet)."""
+    species = ({"material": MATERIAL, "radius": R}, {"material": MATERIAL, "radius": 2 * R})
+    with dem(tmp_path, species=species, gravity=(G, 0, 0, -1)) as sim:
+        sim.createParticles(2, "single", 0.0, 0.0, 0.02)
+        sim.run(1000)
+        z = sim.extractCoords()[0, 2]
+    assert z == pytest.approx(0.02 - G * (1000 * DT) ** 2 / 2, rel=1e-12)

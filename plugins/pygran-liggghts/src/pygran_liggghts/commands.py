@@ -258,6 +258,17 @@ class Commands:
             direction = " ".join(fmt(d) for d in spec.gravity.direction)
             lines.append(f"fix pg_gravity all gravity {fmt(spec.gravity.magnitude)} vector {direction}")
         lines += self._integrators()
+        if spec.species:
+            # LIGGGHTS stops ('Atom types must start from 1') when neither an atom nor a fix has
+            # type 1, e.g. with particles of species 2 only: this unused template has it
+            first = spec.species[0]
+            volume = 4 / 3 * math.pi * first.radius.max**3
+            lines += [
+                f"fix pg_type1 all particletemplate/sphere {prime(spec.seed, 700)} atom_type 1 "
+                f"density constant {fmt(first.density)} radius constant {fmt(first.radius.max)} "
+                f"volume_limit {fmt(volume / 10)}",
+                f"fix pg_types all particledistribution/discrete {prime(spec.seed, 701)} 1 pg_type1 1",
+            ]
         for mesh in spec.meshes:
             placement = f" scale {fmt(mesh.scale)}" if mesh.scale != 1 else ""
             if mesh.rotate is not None:
