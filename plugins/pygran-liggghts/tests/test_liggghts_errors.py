@@ -3,6 +3,7 @@ LIGGGHTS stops (error->all, error->one on rank 0 or another rank, a signal); the
 
 import math
 import os
+import re
 import signal
 from pathlib import Path
 
@@ -122,13 +123,20 @@ def test_error_one_while_reading_a_command(tmp_path):
 
 
 def test_signal_inside_liggghts(tmp_path):
-    """LIGGGHTS' shell command signals the worker while LIGGGHTS runs it."""
-    with make(tmp_path / "segv") as sim:
-        pid = sim.engine._session.process.pid
-        with pytest.raises(
-            EngineError, match=r"ended by SIGSEGV \(Segmentation fault\) in .*execute_command"
-        ):
-            sim.command(f"shell kill -SEGV {pid}")
+    """LIGGGHTS' shell command signals the worker while LIGGGHTS runs it. The kernel hands a
+    signal sent to a process to any of its threads: when Open MPI's progress thread takes it,
+    the backtrace has no LIGGGHTS frame, so this tries up to three workers for one naming
+    LIGGGHTS' function; every one must name the signal."""
+    messages = []
+    for attempt in range(3):
+        with make(tmp_path / f"segv{attempt}") as sim:
+            pid = sim.engine._session.process.pid
+            with pytest.raises(EngineError, match=r"ended by SIGSEGV \(Segmentation fault\)") as failure:
+                sim.command(f"shell kill -SEGV {pid}")
+        messages.append(str(failure.value))
+        if "execute_command" in messages[-1]:
+            break
+    assert re.search(r"ended by SIGSEGV \(Segmentation fault\) in .*execute_command", messages[-1]), messages
     works(tmp_path / "after")
 
 
