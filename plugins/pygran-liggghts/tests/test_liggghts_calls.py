@@ -8,7 +8,6 @@ import pytest
 from pygran_liggghts.library import find_library
 
 from pygran_core import analysis, simulation
-from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.testing.solvers import require_solver
 from pygran_core.validation import SOFT as MATERIAL
 
@@ -339,20 +338,6 @@ def test_dump_settings_reach_liggghts(tmp_path):
         ids = system.Particles.id
     assert 0 < (types == 2).sum() < 20
     np.testing.assert_array_equal(ids, np.flatnonzero(types == 2) + 1)  # sorted by id, species 2 only
-
-
-@pytest.mark.parametrize(
-    ("traj", "message"),
-    [
-        ({"style": "atom"}, "no dump style atom"),
-        ({"pfile": "traj.h5", "margs": ("id",)}, "margs .* needs meshes and traj mfile"),
-    ],
-)
-def test_dump_settings_liggghts_cannot_honour(tmp_path, traj, message):
-    with pytest.raises((ConfigError, UnsupportedFeature), match=message):
-        dem(tmp_path, traj=traj)
-    with pytest.raises(ConfigError, match=r"dump_modify \['sort id'\] applies to the .dump"):
-        dem(tmp_path / "h5", traj={"pfile": "traj.h5"}, dump_modify=("sort id",))
 
 
 def test_particles_of_the_second_species_only(tmp_path):

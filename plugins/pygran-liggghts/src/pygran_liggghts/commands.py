@@ -30,7 +30,7 @@ from pygran_core.simulation.calls import (
     WallSpec,
 )
 from pygran_core.simulation.models import mixing
-from pygran_core.simulation.specs import RadiusDistribution, ServoSpec, SimulationSpec, TrajectorySpec
+from pygran_core.simulation.specs import RadiusDistribution, ServoSpec, SimulationSpec
 
 #: PyGran contact model -> LIGGGHTS ``gran model``.
 MODELS = {"SpringDashpot": "hooke", "HertzMindlin": "hertz"}
@@ -390,21 +390,6 @@ class Commands:
     def _dumps(self, append: bool = False) -> list[str]:
         """Particle and mesh dumps; ``append`` continues a particle dump (on resume)."""
         traj, lines = self.spec.traj, []
-        if traj.style == "atom":
-            raise UnsupportedFeature(
-                "LIGGGHTS 3.8 as packaged has no dump style atom (liggghts -h): use traj style "
-                "'custom' with args ('id', 'type', 'x', 'y', 'z')"
-            )
-        if traj.dump_modify and not native_particles(self.spec):
-            raise ConfigError(
-                f"dump_modify {list(traj.dump_modify)} applies to the .dump file LIGGGHTS writes; "
-                f"traj pfile is {traj.pfile and traj.pfile.name!r}: give it a name ending in .dump"
-            )
-        if traj.margs != TrajectorySpec.margs and not native_meshes(self.spec):
-            raise ConfigError(
-                f"traj margs {list(traj.margs)} are the columns of LIGGGHTS' mesh dump, which needs "
-                "meshes and traj mfile (a .vtk name such as 'mesh*.vtk')"
-            )
         if native_particles(self.spec):
             unknown = [a for a in traj.args if a not in DUMP_COLUMNS]
             if unknown:
