@@ -191,7 +191,8 @@ def test_a_vibrating_plate_is_honoured_or_refused(engine, tmp_path):
     system = analysis.System(Mesh=str(tmp_path / "out" / "wall*.vtk"))
     z = [float(np.mean(system.Mesh.points[:, 2])) for _ in system]
     # LIGGGHTS' viblin: z(t) - z(0) = A (cos(w t + phase) - cos(phase)) at t = 0, T/4, T/2, 3T/4, T
-    expected = [-8e-4 + 12.5e-6 * (math.cos(2 * math.pi * k / 4) - 1) for k in range(5)]
+    base = 3 * 2.5e-4 - 8e-4  # square.stl lies at z = 3: scaled, then moved
+    expected = [base + 12.5e-6 * (math.cos(2 * math.pi * k / 4) - 1) for k in range(5)]
     np.testing.assert_allclose(z, expected, atol=1e-8)
 
 
