@@ -20,7 +20,6 @@ class TestToyConformance(EngineConformance):
             "monitor-ke_rot",
             "monitor-contacts",
             "monitor-wall_force",
-            "mesh-vibration",
         }
     )
 

@@ -87,7 +87,6 @@ SUITE_FEATURES: Mapping[str, str] = {
     "monitor-ke_rot": "the monitor quantity 'ke_rot'",
     "monitor-contacts": "the monitor quantity 'contacts'",
     "monitor-wall_force": "the monitor quantity 'wall_force'",
-    "mesh-vibration": "moveMesh viblin and vibrot (a capability the front end asks for, not yet declarable)",
 }
 #: The contact models, in the order a scenario picks the first one an engine declares.
 MODELS: tuple[type[ContactModel], ...] = (HertzMindlin, SpringDashpot, ThorntonNing)

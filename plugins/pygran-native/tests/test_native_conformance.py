@@ -6,4 +6,4 @@ from pygran_core.testing.engines import EngineConformance
 class TestNativeConformance(EngineConformance):
     engine = "native"
     options = {"threads": 1}  # test_threads compares with two
-    refuses = frozenset({"monitor-wall_force", "mesh-vibration"})
+    refuses = frozenset({"monitor-wall_force"})
