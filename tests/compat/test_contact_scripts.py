@@ -1,7 +1,7 @@
 """PyGran 1.x contact-model scripts (manual chapter 3, Listings 3.2-3.4) run unchanged.
 
 The listings' own import, ``import PyGran.simulation as sim``, is used (the ``PyGran`` alias of
-``pygran_core``); Listing 3.4's ``sim.ThorntonNing`` is written ``sim.models.ThorntonNing``.
+``pygran_core``).
 Expected values come from closed forms: the damped linear oscillator, Hertz, JKR and
 Thornton's (1997) restitution with his published 1.56 constant.
 """
@@ -87,7 +87,7 @@ def thornton(v, v_y):
 
 
 def test_listing_3_3_restitution_against_the_yield_pressure():
-    cModel = sim.models.ThorntonNing
+    cModel = sim.ThorntonNing  # as Listing 3.4 writes it
     COR, analytic = [], []
     pressure = arange(1, 6, 0.1) * 0.01 * powderX["youngsModulus"]
     for yieldPress in pressure:
