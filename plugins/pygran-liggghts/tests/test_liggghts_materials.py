@@ -27,11 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 from pygran_liggghts.library import find_library
-from scipy.optimize import brentq
 
 from pygran_core import params
 from pygran_core.simulation.models import HertzMindlin
 from pygran_core.simulation.timestep import rayleigh_time
+from pygran_core.testing.engines import rest_overlap, slowest_decay
 from pygran_core.testing.solvers import require_solver
 from pygran_core.validation import (
     GRAVITY,
@@ -53,35 +53,6 @@ ALUMINIUM = {
 }
 #: A wall this many times stiffer than the sphere is rigid to 1e-9.
 RIGID = 1e9
-
-
-def rest_overlap(model: HertzMindlin, load: float) -> float:
-    """The overlap at which the model's elastic force (with cohesion) carries ``load``: the
-    force less the load is negative at touch (cohesion pulls) and grows past it once."""
-    top = (load / model.effective_modulus / math.sqrt(model.effective_radius)) ** (2 / 3)
-    while float(model.normal_force(top, 0.0)) < load:
-        top *= 2
-    return brentq(lambda delta: float(model.normal_force(delta, 0.0)) - load, 1e-30, top, xtol=1e-30)
-
-
-def slowest_decay(mass: float, *contacts: tuple[HertzMindlin, float]) -> float:
-    """Decay rate (1/s) of the least damped vertical vibration of a column of spheres of
-    ``mass`` about rest, each resting on the one below (the first on the floor) through a
-    contact ``(model, rest overlap)``: the smallest ``-Re(lambda)`` of the column's
-    equations linearised about rest (the models' tangent stiffness and damping)."""
-    n = len(contacts)
-    stiffness, damping = np.zeros((n, n)), np.zeros((n, n))
-    for i, (model, delta) in enumerate(contacts):
-        k = float(model.normal_force(delta * 1.000001, 0.0) - model.normal_force(delta, 0.0)) / (delta * 1e-6)
-        c = float(model.normal_force(delta, 1.0) - model.normal_force(delta, 0.0))
-        for matrix, value in ((stiffness, k), (damping, c)):  # between spheres i - 1 and i
-            matrix[i, i] += value
-            if i > 0:
-                matrix[i - 1, i - 1] += value
-                matrix[i, i - 1] -= value
-                matrix[i - 1, i] -= value
-    system = np.block([[np.zeros((n, n)), np.eye(n)], [-stiffness / mass, -damping / mass]])
-    return float(-np.linalg.eigvals(system).real.max())
 
 
 @pytest.mark.parametrize("name", sorted(params.MATERIALS))
