@@ -29,12 +29,14 @@ SHAPES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
 
 
 def run(engine: str, n: int, threads: int | None) -> dict:
-    parallel = {} if threads is None else {"nprocs" if engine == "liggghts" else "threads": threads}
+    # threads=None: the engine's default (settle_setup's own default is one thread)
+    parallel = {"nprocs": threads} if engine == "liggghts" else {"threads": threads}
     with tempfile.TemporaryDirectory() as output:
         start = time.perf_counter()
         with settle_setup(engine, Path(output), SHAPES[n], **parallel) as sim:
             created = time.perf_counter() - start
             assert len(sim.extractIds()) == n
+            workers = sim.engine._facts().get("threads", threads or 1)
             timings = []
             for steps in (8000, 4000):
                 start = time.perf_counter()
@@ -52,7 +54,7 @@ def run(engine: str, n: int, threads: int | None) -> dict:
     return {
         "engine": engine,
         "N": n,
-        "threads": threads or 1,
+        "threads": workers,
         "settle_pss": timings[0],
         "bed_pss": timings[1],
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,

@@ -14,12 +14,14 @@ extensions = [
         ["src/pygran_native/_accel.pyx"],
         **openmp | {"extra_compile_args": [*openmp["extra_compile_args"], "-ffp-contract=off"]},
     ),
-    Extension(
+    Extension(  # its own threads (team.h), not OpenMP's
         "pygran_native._solver",
         ["src/pygran_native/_solver.pyx"],
+        depends=["src/pygran_native/team.h"],
         include_dirs=[numpy.get_include()],
         define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
-        **openmp,
+        extra_compile_args=["-O3", "-fno-math-errno", "-pthread"],
+        extra_link_args=["-pthread"],
     ),
 ]
 setup(ext_modules=cythonize(extensions, language_level=3))

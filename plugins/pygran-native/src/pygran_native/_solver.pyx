@@ -1,14 +1,14 @@
 # cython: boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""Compiled core of the native DEM solver: data in C arrays, the time-step loop nogil/OpenMP.
+"""Compiled core of the native DEM solver: data in C arrays, the time-step loop nogil/threaded.
 
 Layout (struct of arrays, particles stored in cell order, re-sorted at every neighbour
 rebuild):
 
 - particles: ``x, v, w, f, t, x0`` (3 per particle), ``r, m``, ``type``, ``pid``;
 - half neighbour list (CSR over particles): partner ``nb_j`` (j > i), periodic image
-  code ``nb_s`` (0..26) and ``hs`` history values per pair: tangential displacement (3),
-  the last normal force, and for Thornton-Ning the largest overlap, the unloading
-  curvature radius and the plastic offset;
+  code ``nb_s`` (0..26, with the flags TOUCH and WRAP) and ``hs`` history values per pair:
+  tangential displacement (3), the last normal force, and for Thornton-Ning the largest
+  overlap, the unloading curvature radius and the plastic offset;
 - wall list (CSR over particles): wall element ``wl_e`` and its ``whs = hs + 1`` history
   values: the contact's ``hs`` values and, for a plane, the side the contact started on
   (``+1`` along the plane's normal, ``-1`` against it, ``0`` while there is no contact);
@@ -20,21 +20,43 @@ pushed back to where it came from. A contact's history is carried across rebuild
 re-sorts by looking the pair (or particle and wall element) up in the previous list (a
 pair's tangential history changes sign with the pair's orientation).
 
-Threads: in the pair loop (pair and wall forces) each thread owns a contiguous block of the
-cell-sorted rows (a slab of the domain); the bounds move after every step to where the work
-the loop counted (listed pairs, touching pairs, wall entries) splits evenly. Forces on a
-thread's own rows go to a shared buffer, forces on later rows to the thread's own buffer;
-the particle loop (equal blocks) adds them in thread order. The bounds are part of the
-state, so results are bitwise reproducible for a given thread count.
+Threads: the pair loop (pair and wall forces) runs over ``nblocks`` contiguous blocks of the
+cell-sorted rows (slabs of the domain): 1 for one thread, BLOCKS per thread otherwise. The
+bounds move after every step to where the work the loop counted (listed pairs, touching
+pairs, wall entries) splits evenly. Forces on a block's own rows go to a shared buffer,
+forces on later rows to the block's halo buffers (see Halo); the particle loop, over the same
+blocks, adds them up in block order. The bounds are part of the state and the order of every
+sum depends on the blocks only, so results are bitwise reproducible for a given thread count,
+whichever thread runs a block.
+
+The threads are the solver's own (team.h), started at the first run and asleep between
+runs; the calling thread runs the time-step loop and hands each parallel pass out to the team
+as blocks: each thread first takes its own share (the same slab step after step), then the
+blocks others have not started. So a thread whose core is taken by another program delays a
+pass by at most the block it is in, and threads with nothing to do sleep instead of spinning
+(see team.h for why that matters).
 """
 
 from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite
 from libc.stdlib cimport malloc, calloc, realloc, free
 from libc.string cimport memcpy, memset
 from libc.stdint cimport int64_t, uint8_t
+from libc.limits cimport INT_MAX
 from posix.time cimport clock_gettime, timespec, CLOCK_THREAD_CPUTIME_ID
-from cython.parallel cimport prange
-cimport openmp
+
+cdef extern from "team.h":
+    ctypedef struct pg_team:
+        pass
+    ctypedef void (*pg_task)(void* owner, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil
+    pg_team* pg_create(int nqueues, double spin) noexcept nogil
+    int pg_start(pg_team* t, pg_task task, void* owner) noexcept nogil
+    void pg_destroy(pg_team* t) noexcept nogil
+    double pg_now() noexcept nogil
+    unsigned int pg_epoch(pg_team* t) noexcept nogil
+    void pg_begin(pg_team* t, int phase, int nblocks) noexcept nogil
+    int pg_claim(pg_team* t, unsigned int epoch, int tid) noexcept nogil
+    void pg_finished(pg_team* t, int k, int nblocks) noexcept nogil
+    void pg_wait_done(pg_team* t, int nblocks) noexcept nogil
 
 import numpy as np
 cimport numpy as cnp
@@ -42,12 +64,21 @@ cimport numpy as cnp
 cnp.import_array()
 
 DEF MAXCAND = 64
-DEF CHUNK = 64     # particles per chunk of the static OpenMP schedule of the rebuild loops
+DEF MAXTHREADS = 1024   # a team's block numbers must stay below 65536 (team.h)
 DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
 DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
+DEF WRAP = 0x40    # flag bit of nb_s: the partner is across the periodic boundary of axis ax[0]
+DEF IMAGE = 0x1f   # bits of nb_s: the periodic image code
 DEF NMOT = 14      # motion values per wall element, see motion_origin
 DEF WROW = 5       # work of a row of the pair loop, a touching pair and a wall entry in units of
 DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
+
+DEF BLOCKS = 4     # blocks of the pair loop per thread (more threads than one): a thread
+                   # kept from its core holds up at most 1 / (BLOCKS threads) of a pass
+DEF SPIN = 1e-4    # seconds a waiting thread spins before it sleeps (when not contended)
+DEF TUNE_WINDOW = 0.02   # seconds: shortest window the Tuner times
+DEF TUNE_MIN = 0.1       # seconds between the Tuner's comparisons, at first and after a change
+DEF TUNE_MAX = 2.0       # ... at most
 
 cdef enum:
     HOOKE = 0
@@ -86,8 +117,22 @@ cdef enum:
     T_PARTICLES_SPAN = 12
     NTIMERS = 13
 
+MAX_THREADS = MAXTHREADS
+
 TIMERS = ("run", "drift", "walls", "pairs", "particles", "rebuild", "rebuild_cells", "rebuild_sort",
           "rebuild_permute", "rebuild_count", "rebuild_fill", "pairs_span", "particles_span")
+
+# phases of a run on the team (see Core.take)
+cdef enum:
+    P_DRIFT = 1
+    P_PAIRS = 2
+    P_PARTICLES = 3
+    P_PLACE = 4
+    P_GATHER = 5
+    P_GATHER_SCALARS = 6
+    P_COPY_BACK = 7
+    P_COUNT = 8
+    P_FILL = 9
 
 cdef struct Coef:
     double E        # effective modulus E*
@@ -101,8 +146,30 @@ cdef struct Coef:
     double vchar    # characteristic velocity (hooke)
 
 
+cdef struct Halo:
+    # Where a block of the pair loop puts forces on rows after its own (see pair_row): rows
+    # up to near_end (partners in the same or the next cells) from halo entry near_off, and
+    # rows far_lo..far_hi (partners across the periodic boundary of axis ax[0]) from far_off.
+    long long near_off, far_off
+    int near_end, far_lo, far_hi
+
+
+cdef struct Tuner:
+    # The master runs the phases alone (solo) or with the team, whichever was faster per step
+    # when last compared: it times windows of at least TUNE_WINDOW seconds and, every
+    # ``interval`` seconds, a window of the other mode; the interval doubles (up to
+    # TUNE_MAX) while the choice stands and falls back to TUNE_MIN when it changes. On a busy
+    # machine the team waits for a thread whose CPU another program holds, on a small system
+    # for its own hand-offs: then one thread is faster. Results do not depend on the choice.
+    bint solo, probing
+    long long steps     # steps in the current window
+    double elapsed      # seconds of the window in earlier runs (between runs is not timed)
+    double start, next_probe, interval
+    double per_step[2]  # seconds per step with the team [0] and solo [1], when last timed
+
+
 cdef struct Ctx:
-    int n, cap, hs, whs, model, nt, nthreads, ncells, update, kick, fuse
+    int n, cap, hs, whs, model, nt, nblocks, ncells, update, kick, fuse
     int nc[3]
     int ax[3]
     double cs[3]
@@ -120,6 +187,10 @@ cdef struct Ctx:
     double *m
     int *type
     double *buf
+    double *halo
+    Halo *halos
+    int nfarblocks
+    int *last
     int *pb
     int *work
     long long *tstat
@@ -500,7 +571,7 @@ cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogi
     Rm[8] = c + k2 * k2 * C
 
 
-# --- per-row work of the parallel loops (C arrays cannot be private in prange) -------------
+# --- per-row work of the parallel loops ---------------------------------------------------
 cdef inline void zero_hist(double* h, int hs) noexcept nogil:
     cdef int k
     for k in range(hs):
@@ -553,7 +624,7 @@ cdef uint8_t carry_pair(const Ctx* c, int a, int b, double* h) noexcept nogil:
 
 cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
     """Partners j > i within r_i + r_j + skin: counted, or written from ``nb_start[i]``."""
-    cdef int d0, d1, d2, j, code, cid, cnt = 0, pos
+    cdef int d0, d1, d2, j, code, cid, cnt = 0, pos, wrap
     cdef int cc[3]
     cdef int nb[3]
     cdef int s[3]
@@ -592,6 +663,7 @@ cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
                 j = c.cell_start[cid]
                 if j <= i:
                     j = i + 1
+                wrap = WRAP if s[c.ax[0]] != 0 else 0
                 while j < c.cell_start[cid + 1]:
                     dx = xi[0] - c.x[3 * j] + sv[0]
                     dy = xi[1] - c.x[3 * j + 1] + sv[1]
@@ -600,7 +672,8 @@ cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
                     if dx * dx + dy * dy + dz * dz < rc * rc:
                         if fill:
                             c.nb_j[pos + cnt] = j
-                            c.nb_s[pos + cnt] = <uint8_t>code | carry_pair(c, i, j, &c.nb_h[(pos + cnt) * c.hs])
+                            c.nb_s[pos + cnt] = (<uint8_t>(code | wrap)
+                                                 | carry_pair(c, i, j, &c.nb_h[(pos + cnt) * c.hs]))
                         cnt += 1
                     j += 1
     return cnt
@@ -653,12 +726,12 @@ cdef inline int row_work(int listed, int touching, int walls) noexcept nogil:
     return WROW + listed + WTOUCH * (touching + walls)
 
 
-cdef int pair_row(const Ctx* c, int i, int tid, int* hmax) noexcept nogil:
+cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
     """Forces of particle i's half-list contacts and walls; returns the row's work.
 
-    Thread ``tid`` owns the rows up to ``pb[tid + 1]``: forces on them go to the shared
-    buffer ``buf``, forces on later rows to the thread's own buffer ``tid + 1`` (``hmax``:
-    the last row it wrote there).
+    Block ``b`` owns the rows up to ``pb[b + 1]``: forces on them go to the shared buffer
+    ``buf``, forces on later rows to the block's halo buffers in ``halo`` (see Halo; ``hmax``:
+    the last row it wrote to the near one).
     """
     # locals: the flag store through uint8_t* may alias anything, including *c
     cdef const double* x = c.x
@@ -673,9 +746,12 @@ cdef int pair_row(const Ctx* c, int i, int tid, int* hmax) noexcept nogil:
     cdef const double* shiftv = c.shiftv
     cdef const Coef* coef = c.coef + c.type[i] * c.nt
     cdef double* buf = c.buf
-    cdef double* halo = c.buf + <long long>(tid + 1) * c.cap * 6
+    cdef double* halo = c.halo
+    cdef const Halo* hb = &c.halos[b]
+    cdef int own = c.pb[b + 1], near_end = hb.near_end
+    cdef long long near = hb.near_off - own, far = hb.far_off - hb.far_lo   # row j's entries
     cdef int hs = c.hs, model = c.model, update = c.update, k, j, q, res, kend = c.nb_start[i + 1]
-    cdef int own = c.pb[tid + 1], touching = 0, last = -1
+    cdef int touching = 0, last = -1
     cdef double dt = c.dt
     cdef double d[3]
     cdef double n[3]
@@ -702,7 +778,7 @@ cdef int pair_row(const Ctx* c, int i, int tid, int* hmax) noexcept nogil:
         fi[q] = 0.0
     for k in range(c.nb_start[i], kend):
         j = nb_j[k]
-        sv = &shiftv[3 * (nb_s[k] & ~TOUCH)]
+        sv = &shiftv[3 * (nb_s[k] & IMAGE)]
         for q in range(3):
             d[q] = xi[q] - x[3 * j + q] + sv[q]
         dist2 = dot3(d, d)
@@ -736,9 +812,11 @@ cdef int pair_row(const Ctx* c, int i, int tid, int* hmax) noexcept nogil:
         cross3(n, Ft, cx)
         if j < own:
             bj = &buf[j * 6]
-        else:
-            bj = &halo[j * 6]
+        elif j <= near_end:
+            bj = &halo[(near + j) * 6]
             last = j if j > last else last
+        else:
+            bj = &halo[(far + j) * 6]
         for q in range(3):
             fi[q] += F[q]
             fi[3 + q] += Mr[q] - ri * cx[q]
@@ -894,24 +972,37 @@ cdef inline void drift_row(const Ctx* c, int i, int tid, const double* F, const 
         c.tmax[PAD * tid] = dd
 
 
-cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
-    """Sum the buffers (the shared one, then those of the threads that wrote row i, in
-    thread order) and clear them, add gravity and viscous forces; second half kick, and with
-    ``fuse`` the first half kick and drift of the next step (one pass instead of two, the
-    same arithmetic; ``f`` and ``t`` are then left alone: they hold the forces of a run's
-    last step, which is not fused)."""
+cdef void particle_row(const Ctx* c, int i, int tid, int first, int end) noexcept nogil:
+    """Sum the buffers (the shared one, then the near halos of the pair blocks ``first`` to
+    ``end - 1`` that wrote row i, then the far halos holding it, each in block order) and
+    clear them, add gravity and viscous forces; second half kick, and with ``fuse`` the first
+    half kick and drift of the next step (one pass instead of two, the same arithmetic; ``f``
+    and ``t`` are then left alone: they hold the forces of a run's last step, which is not
+    fused)."""
     cdef double mi = c.m[i], g = c.visc[c.type[i]], s
     cdef double F[3]
     cdef double T[3]
     cdef double* b
     cdef int k, q
+    b = &c.buf[<long long>i * 6]
     for q in range(3):
         F[q] = mi * c.grav[q] - g * c.v[3 * i + q]
         T[q] = 0.0
-    for k in range(c.nthreads):
-        if k > 0 and not (c.pb[k] <= i <= c.tstat[PAD * (k - 1) + 1]):
+        F[q] += b[q]
+        T[q] += b[3 + q]
+    memset(b, 0, 6 * sizeof(double))
+    for k in range(first, end):
+        if i > c.tstat[PAD * k + 1]:
             continue
-        b = &c.buf[(<long long>k * c.cap + i) * 6]
+        b = &c.halo[(c.halos[k].near_off + i - c.pb[k + 1]) * 6]
+        for q in range(3):
+            F[q] += b[q]
+            T[q] += b[3 + q]
+        memset(b, 0, 6 * sizeof(double))
+    for k in range(c.nfarblocks):
+        if not c.halos[k].far_lo <= i <= c.halos[k].far_hi:
+            continue
+        b = &c.halo[(c.halos[k].far_off + i - c.halos[k].far_lo) * 6]
         for q in range(3):
             F[q] += b[q]
             T[q] += b[3 + q]
@@ -931,27 +1022,28 @@ cdef void particle_row(const Ctx* c, int i, int tid) noexcept nogil:
         drift_row(c, i, tid, F, T)
 
 
-cdef void pair_block(const Ctx* c, int t) noexcept nogil:
-    """Thread t's rows of the pair loop; records their work and the last row of its buffer."""
+cdef void pair_block(const Ctx* c, int b) noexcept nogil:
+    """Block b's rows of the pair loop; records their work and the last row of its halo."""
     cdef int i, hmax = -1
     cdef long long total = 0
-    cdef double t0 = thread_cpu()
-    for i in range(c.pb[t], c.pb[t + 1]):
-        c.work[i] = pair_row(c, i, t, &hmax)
+    for i in range(c.pb[b], c.pb[b + 1]):
+        c.work[i] = pair_row(c, i, b, &hmax)
         total += c.work[i]
-    c.tstat[PAD * t] = total
-    c.tstat[PAD * t + 1] = hmax
-    c.cpu[PAD * t + 2] = thread_cpu() - t0
-    c.cpu[PAD * t] += c.cpu[PAD * t + 2]
+    c.tstat[PAD * b] = total
+    c.tstat[PAD * b + 1] = hmax
 
 
-cdef void particle_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
-    cdef int i
-    cdef double t0 = thread_cpu()
+cdef void particle_block(const Ctx* c, int lo, int hi, int tid) noexcept nogil:
+    """Rows [lo, hi) of the particle loop. The pair blocks whose near halo can hold row i
+    are among ``first`` to ``end - 1``: those ending at or before i whose rows have a near
+    partner at or after i (``last``); both bounds move forward with i."""
+    cdef int i, first = 0, end = 0
     for i in range(lo, hi):
-        particle_row(c, i, t)
-    c.cpu[PAD * t + 3] = thread_cpu() - t0
-    c.cpu[PAD * t + 1] += c.cpu[PAD * t + 3]
+        while end < c.nblocks - 1 and c.pb[end + 1] <= i:
+            end += 1
+        while first < end and (c.pb[first + 1] == 0 or c.last[c.pb[first + 1] - 1] < i):
+            first += 1
+        particle_row(c, i, tid, first, end)
 
 
 cdef void drift_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
@@ -991,7 +1083,15 @@ cdef class Core:
     cdef double *m
     cdef int *type
     cdef int64_t *pid
-    cdef double *buf        # per-thread force/torque buffers, nthreads * cap * 6
+    cdef double *buf        # forces and torques of the pair loop, cap * 6 (see pair_row)
+    cdef double *halo       # the pair blocks' halo buffers, 6 per row (see Halo)
+    cdef long long halo_cap
+    cdef Halo *halos
+    cdef int nfarblocks     # the blocks that can have far halos: those starting before row nfar
+    cdef int *last          # the largest near partner (see Halo) of the rows up to i
+    cdef int *flo           # row i's smallest and largest far partner (INT_MAX, -1: none)
+    cdef int *fhi
+    cdef int nfar           # rows after the first nfar have no far partners
     cdef int *perm
     cdef int *cell
     # neighbour list (current and previous)
@@ -1042,10 +1142,15 @@ cdef class Core:
     # contact tables
     cdef Coef *coef
     cdef double *visc
-    cdef double *tmax
-    cdef int *pb            # rows [pb[t], pb[t + 1]) of the pair loop belong to thread t
+    cdef double *tmax       # per thread (PAD apart): largest squared displacement
+    cdef int nblocks        # blocks of the pair loop
+    cdef int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
     cdef int *work          # work of each row in the last pair loop (see row_work)
-    cdef long long *tstat   # per thread (PAD apart): work of its rows, last row of its buffer
+    cdef long long *tstat   # per block (PAD apart): work of its rows, last row of its halo
+    cdef pg_team *team      # the threads of a run (see pg_team)
+    cdef Ctx ctx            # what the team's phases work on
+    cdef int rows           # rows of the current row phase
+    cdef Tuner tuner        # whether the master runs the phases with the team or alone
     cdef double timers[NTIMERS]
     cdef double *cpu        # per thread (PAD apart): CPU seconds in the pair and particle loops,
                             # in total and in the last step
@@ -1074,21 +1179,28 @@ cdef class Core:
         self.ob_start = <int*>calloc(1, sizeof(int))
         self.wl_start = <int*>calloc(1, sizeof(int))
         self.ow_start = <int*>calloc(1, sizeof(int))
+        if not 1 <= threads <= MAXTHREADS:
+            raise ValueError(f"threads: between 1 and {MAXTHREADS}")
+        self.nblocks = 1 if threads == 1 else BLOCKS * threads
         self.tmax = <double*>calloc(threads * PAD, sizeof(double))
-        self.pb = <int*>calloc(threads + 1, sizeof(int))
-        self.tstat = <long long*>calloc(threads * PAD, sizeof(long long))
         self.cpu = <double*>calloc(threads * PAD, sizeof(double))
+        self.pb = <int*>calloc(self.nblocks + 1, sizeof(int))
+        self.tstat = <long long*>calloc(self.nblocks * PAD, sizeof(long long))
+        self.halos = <Halo*>calloc(self.nblocks, sizeof(Halo))
+        self.team = pg_create(threads, SPIN)
         self.coef = <Coef*>calloc(1, sizeof(Coef))
         self.visc = <double*>calloc(1, sizeof(double))
         self.ntypes = 1
         if not (self.nb_start and self.ob_start and self.wl_start and self.ow_start and self.tmax and self.pb
-                and self.tstat and self.cpu):
+                and self.tstat and self.cpu and self.halos and self.team):
             raise MemoryError()
 
     def __dealloc__(self):
+        pg_destroy(self.team)
         for p in (<size_t>self.x, <size_t>self.v, <size_t>self.w, <size_t>self.f, <size_t>self.t,
                   <size_t>self.x0, <size_t>self.r, <size_t>self.m, <size_t>self.type, <size_t>self.pid,
-                  <size_t>self.buf,
+                  <size_t>self.buf, <size_t>self.halo, <size_t>self.halos, <size_t>self.last,
+                  <size_t>self.flo, <size_t>self.fhi,
                   <size_t>self.perm, <size_t>self.cell, <size_t>self.nb_start, <size_t>self.nb_j,
                   <size_t>self.nb_s, <size_t>self.nb_h, <size_t>self.ob_start, <size_t>self.ob_j,
                   <size_t>self.ob_s, <size_t>self.ob_h, <size_t>self.wl_start, <size_t>self.wl_e,
@@ -1126,8 +1238,11 @@ cdef class Core:
         self.ob_start = <int*>self._grow(self.ob_start, (c + 1) * sizeof(int))
         self.wl_start = <int*>self._grow(self.wl_start, (c + 1) * sizeof(int))
         self.ow_start = <int*>self._grow(self.ow_start, (c + 1) * sizeof(int))
+        self.last = <int*>self._grow(self.last, c * sizeof(int))
+        self.flo = <int*>self._grow(self.flo, c * sizeof(int))
+        self.fhi = <int*>self._grow(self.fhi, c * sizeof(int))
         free(self.buf)
-        self.buf = <double*>calloc(self.nthreads * c * 6, sizeof(double))
+        self.buf = <double*>calloc(c * 6, sizeof(double))
         if self.buf == NULL:
             raise MemoryError()
         self.cap = cap
@@ -1509,7 +1624,7 @@ cdef class Core:
         c.whs = self.hs + 1
         c.model = self.model
         c.nt = self.ntypes
-        c.nthreads = self.nthreads
+        c.nblocks = self.nblocks
         c.ncells = self.ncells
         for d in range(3):
             c.nc[d] = self.nc[d]
@@ -1530,6 +1645,10 @@ cdef class Core:
         c.m = self.m
         c.type = self.type
         c.buf = self.buf
+        c.halo = self.halo
+        c.halos = self.halos
+        c.nfarblocks = self.nfarblocks
+        c.last = self.last
         c.pb = self.pb
         c.work = self.work
         c.tstat = self.tstat
@@ -1569,59 +1688,98 @@ cdef class Core:
         """Reorder the particle arrays by ``perm`` in three parallel passes. f, t and x0 are
         recomputed after a rebuild, so they serve as scratch: x, v and w are gathered into them
         and swapped with them; r, m, type and pid are gathered into the old x and v, then
-        copied back while x0 becomes a copy of x."""
-        cdef int i, d, T = self.nthreads
-        cdef int* perm = self.perm
+        copied back while x0 becomes a copy of x (see rebuild_rows)."""
         cdef double* p
-        cdef double* nx = self.f
-        cdef double* nv = self.t
-        cdef double* nw = self.x0
-        cdef double* sr
-        cdef double* sm
-        cdef int* st
-        cdef int64_t* sp
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T):
-            for d in range(3):
-                nx[3 * i + d] = self.x[3 * perm[i] + d]
-                nv[3 * i + d] = self.v[3 * perm[i] + d]
-                nw[3 * i + d] = self.w[3 * perm[i] + d]
-        p = self.x; self.x = nx; self.f = p
-        p = self.v; self.v = nv; self.t = p
-        p = self.w; self.w = nw; self.x0 = p
-        sr = self.f
-        sm = self.f + n
-        st = <int*>(self.f + 2 * n)
-        sp = <int64_t*>self.t
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T):
-            sr[i] = self.r[perm[i]]
-            sm[i] = self.m[perm[i]]
-            st[i] = self.type[perm[i]]
-            sp[i] = self.pid[perm[i]]
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T):
-            self.r[i] = sr[i]
-            self.m[i] = sm[i]
-            self.type[i] = st[i]
-            self.pid[i] = sp[i]
-            for d in range(3):
-                self.x0[3 * i + d] = self.x[3 * i + d]
+        self.parallel_rows(P_GATHER, n)
+        p = self.x; self.x = self.f; self.f = p
+        p = self.v; self.v = self.t; self.t = p
+        p = self.w; self.w = self.x0; self.x0 = p
+        self.parallel_rows(P_GATHER_SCALARS, n)
+        self.parallel_rows(P_COPY_BACK, n)
+
+    cdef void rebuild_rows(self, int phase, int lo, int hi) noexcept nogil:
+        """Rows [lo, hi) of a parallel pass of the rebuild."""
+        cdef int i, d, n = self.rows
+        cdef int* perm = self.perm
+        cdef double* sr = self.f
+        cdef double* sm = self.f + n
+        cdef int* st = <int*>(self.f + 2 * n)
+        cdef int64_t* sp = <int64_t*>self.t
+        if phase == P_PLACE:
+            for i in range(lo, hi):
+                self.cell[i] = self._place(i)
+        elif phase == P_GATHER:   # into f, t, x0 (swapped with x, v, w afterwards)
+            for i in range(lo, hi):
+                for d in range(3):
+                    self.f[3 * i + d] = self.x[3 * perm[i] + d]
+                    self.t[3 * i + d] = self.v[3 * perm[i] + d]
+                    self.x0[3 * i + d] = self.w[3 * perm[i] + d]
+        elif phase == P_GATHER_SCALARS:
+            for i in range(lo, hi):
+                sr[i] = self.r[perm[i]]
+                sm[i] = self.m[perm[i]]
+                st[i] = self.type[perm[i]]
+                sp[i] = self.pid[perm[i]]
+        elif phase == P_COPY_BACK:
+            for i in range(lo, hi):
+                self.r[i] = sr[i]
+                self.m[i] = sm[i]
+                self.type[i] = st[i]
+                self.pid[i] = sp[i]
+                for d in range(3):
+                    self.x0[3 * i + d] = self.x[3 * i + d]
+        elif phase == P_COUNT:
+            for i in range(lo, hi):
+                self.nb_start[i + 1] = scan_pairs(&self.ctx, i, False)
+                self.wl_start[i + 1] = scan_walls(&self.ctx, i, False)
+        elif phase == P_FILL:
+            for i in range(lo, hi):
+                scan_pairs(&self.ctx, i, True)
+                scan_walls(&self.ctx, i, True)
+                self.work[i] = self.estimated_work(i)
+                self.find_partners(i)
+
+    cdef inline void find_partners(self, int i) noexcept nogil:
+        """Row i's largest near partner (``last``, -1: none) and its smallest and largest far
+        partner (``flo``, ``fhi``; INT_MAX and -1: none), see Halo."""
+        cdef int k, j
+        self.last[i] = -1
+        self.flo[i] = INT_MAX
+        self.fhi[i] = -1
+        for k in range(self.nb_start[i], self.nb_start[i + 1]):
+            j = self.nb_j[k]
+            if self.nb_s[k] & WRAP:
+                self.flo[i] = min(self.flo[i], j)
+                self.fhi[i] = max(self.fhi[i], j)
+            elif j > self.last[i]:
+                self.last[i] = j
+
+    cdef void prefix_last(self) noexcept nogil:
+        """``last``: from each row's largest near partner to the largest of the rows up to it;
+        ``nfar`` after the last row with a far partner."""
+        cdef int i
+        self.nfar = 0
+        for i in range(self.n):
+            if i > 0 and self.last[i - 1] > self.last[i]:
+                self.last[i] = self.last[i - 1]
+            if self.fhi[i] >= 0:
+                self.nfar = i + 1
 
     cdef int rebuild(self) noexcept nogil:
         """Wrap, drop lost particles, sort into cells, rebuild both lists carrying histories."""
-        cdef Ctx c
-        cdef int i, d, n = self.n, nnew, T = self.nthreads
+        cdef int i, d, n = self.n, nnew
         cdef long long lost = 0
         cdef double rmax = 0.0
         cdef int *ip
         cdef uint8_t *bp
         cdef double *dp
         cdef long long cap
-        cdef double t0 = openmp.omp_get_wtime(), t1
+        cdef double t0 = pg_now(), t1
         for i in range(n):
             if self.r[i] > rmax:
                 rmax = self.r[i]
         if self.setup_cells(rmax) < 0:
             return -1
-        self.make_ctx(&c)
         if self.binned_dirty or self.binned_reach != rmax + self.skin or self.any_moving() \
                 or self.binned_nc[0] != self.nc[0] or self.binned_nc[1] != self.nc[1] or self.binned_nc[2] != self.nc[2]:
             if self.bin_triangles(rmax + self.skin) < 0:
@@ -1632,8 +1790,7 @@ cdef class Core:
                 self.binned_nc[d] = self.nc[d]
         t1 = self.lap(T_CELLS, t0)
         # wrap periodic coordinates, mark particles outside a fixed boundary (or removed) lost
-        for i in prange(n, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
-            self.cell[i] = self._place(i)
+        self.parallel_rows(P_PLACE, n)
         for i in range(n):
             if self.cell[i] < 0:
                 lost += self.cell[i] == -1
@@ -1666,10 +1823,8 @@ cdef class Core:
         dp = self.ow_h; self.ow_h = self.wl_h; self.wl_h = dp
         cap = self.ow_cap; self.ow_cap = self.wl_cap; self.wl_cap = cap
         self.n = nnew
-        self.make_ctx(&c)
-        for i in prange(nnew, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
-            self.nb_start[i + 1] = scan_pairs(&c, i, False)
-            self.wl_start[i + 1] = scan_walls(&c, i, False)
+        self.make_ctx(&self.ctx)
+        self.parallel_rows(P_COUNT, nnew)
         self.nb_start[0] = 0
         self.wl_start[0] = 0
         for i in range(nnew):
@@ -1678,11 +1833,9 @@ cdef class Core:
         if self.reserve_pairs(self.nb_start[nnew]) < 0 or self.reserve_walls(self.wl_start[nnew]) < 0:
             return -1
         t1 = self.lap(T_COUNT, t1)
-        self.make_ctx(&c)
-        for i in prange(nnew, schedule='static', chunksize=CHUNK, num_threads=T, nogil=True):
-            scan_pairs(&c, i, True)
-            scan_walls(&c, i, True)
-            self.work[i] = self.estimated_work(i)
+        self.make_ctx(&self.ctx)
+        self.parallel_rows(P_FILL, nnew)
+        self.prefix_last()
         for i in range(9 * self.ne):
             self.ebuilt[i] = self.egeo[i]
         self.balance()
@@ -1693,7 +1846,7 @@ cdef class Core:
 
     cdef inline double lap(self, int k, double since) noexcept nogil:
         """Add the wall-clock time since ``since`` to timer k; returns now."""
-        cdef double now = openmp.omp_get_wtime()
+        cdef double now = pg_now()
         self.timers[k] += now - since
         return now
 
@@ -1767,9 +1920,9 @@ cdef class Core:
                         self.wl_start[i + 1] - self.wl_start[i])
 
     cdef void balance(self) noexcept nogil:
-        """Split the (cell-sorted) rows of the pair loop into one block per thread with about
-        equal ``work``: a spatial slab per thread, so few neighbours belong to another thread."""
-        cdef int t, i = 0, n = self.n, T = self.nthreads
+        """Split the (cell-sorted) rows of the pair loop into ``nblocks`` blocks of about equal
+        ``work``: each a spatial slab, so few neighbours belong to another block."""
+        cdef int t, i = 0, n = self.n, T = self.nblocks
         cdef long long total = 0, prefix = 0
         for t in range(n):
             total += self.work[t]
@@ -1785,7 +1938,7 @@ cdef class Core:
         """Move each bound of the pair loop to where the work of the loop just run splits
         evenly (the first row where its prefix reaches ``total t / T``), walking from where the
         bound was: the partition follows contacts as they form, and depends only on the state."""
-        cdef int t, b, T = self.nthreads
+        cdef int t, b, T = self.nblocks
         cdef long long total = 0, old = 0, prefix, target
         for t in range(T):
             total += self.tstat[PAD * t]
@@ -1802,51 +1955,174 @@ cdef class Core:
                 b += 1
             self.pb[t] = b
 
-    cdef void forces(self, double dt, bint update, bint kick, bint fuse) noexcept nogil:
+    cdef int forces(self, double dt, bint update, bint kick, bint fuse) noexcept nogil:
         """Forces (pair loop, then per particle), second half kick; ``fuse``: see particle_row.
+        -1 when out of memory.
 
-        The pair loop's partition (see pair_row) fixes the order of the sums, and depends
-        only on the state: results are deterministic for a given thread count. The particle
-        loop sums in an order independent of its partition: equal blocks of rows.
+        The pair loop's blocks (see pair_row) fix the order of the sums and depend only on the
+        state: results are deterministic for a given thread count, whichever thread runs a
+        block. The particle loop takes the same blocks of rows, so a thread that ran a block
+        of the pair loop usually sums and integrates the same rows.
         """
-        cdef Ctx c
         cdef int t, T = self.nthreads
-        cdef double t0 = openmp.omp_get_wtime()
+        cdef double t0 = pg_now()
         cdef double span[2]
         span[0] = span[1] = 0.0
-        self.make_ctx(&c)
-        c.dt = dt
-        c.update = update
-        c.kick = kick
-        c.fuse = fuse
+        if self.place_halos() < 0:
+            return -1
+        self.make_ctx(&self.ctx)
+        self.ctx.dt = dt
+        self.ctx.update = update
+        self.ctx.kick = kick
+        self.ctx.fuse = fuse
         for t in range(T):
             self.tmax[PAD * t] = 0.0
-        for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
-            pair_block(&c, t)
+            self.cpu[PAD * t + 2] = 0.0
+            self.cpu[PAD * t + 3] = 0.0
+        self.run_phase(P_PAIRS, self.nblocks)
         t0 = self.lap(T_PAIRS, t0)
-        for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
-            particle_block(&c, <long long>c.n * t // T, <long long>c.n * (t + 1) // T, t)
+        self.run_phase(P_PARTICLES, self.nblocks)
         self.rebalance()
         self.lap(T_PARTICLES, t0)
         for t in range(T):   # the busiest thread's CPU time: the loops' wall time on idle cores
+            self.cpu[PAD * t] += self.cpu[PAD * t + 2]
+            self.cpu[PAD * t + 1] += self.cpu[PAD * t + 3]
             span[0] = max(span[0], self.cpu[PAD * t + 2])
             span[1] = max(span[1], self.cpu[PAD * t + 3])
         self.timers[T_PAIRS_SPAN] += span[0]
         self.timers[T_PARTICLES_SPAN] += span[1]
+        return 0
+
+    cdef int place_halos(self) noexcept nogil:
+        """The pair blocks' halos (see Halo) for the current bounds; -1 when out of memory."""
+        cdef int b, i, start, end
+        cdef long long total = 0
+        cdef Halo* h
+        cdef void* p
+        self.nfarblocks = 0
+        for b in range(self.nblocks):
+            h = &self.halos[b]
+            start = self.pb[b]
+            end = self.pb[b + 1]
+            h.near_off = total
+            h.near_end = end - 1
+            if end > start and end < self.n and self.last[end - 1] >= end:
+                h.near_end = self.last[end - 1]
+                total += h.near_end - end + 1
+            h.far_lo = INT_MAX
+            h.far_hi = -1
+            for i in range(start, min(end, self.nfar)):
+                if self.fhi[i] > h.near_end:
+                    h.far_lo = min(h.far_lo, max(self.flo[i], h.near_end + 1))
+                    h.far_hi = max(h.far_hi, self.fhi[i])
+            h.far_off = total
+            if h.far_hi >= h.far_lo:
+                total += h.far_hi - h.far_lo + 1
+            if start < self.nfar:
+                self.nfarblocks = b + 1
+        if total > self.halo_cap:   # the buffers are all zero between steps: start afresh
+            p = calloc(6 * (total + total // 4), sizeof(double))
+            if p == NULL:
+                return -1
+            free(self.halo)
+            self.halo = <double*>p
+            self.halo_cap = total + total // 4
+        return 0
 
     cdef double drift(self, double dt) noexcept nogil:
         """First half kick and drift; the largest displacement since the last rebuild."""
-        cdef Ctx c
-        cdef int t, T = self.nthreads
-        cdef double t0 = openmp.omp_get_wtime()
-        self.make_ctx(&c)
-        c.dt = dt
-        for t in range(T):
+        cdef int t
+        cdef double t0 = pg_now()
+        self.make_ctx(&self.ctx)
+        self.ctx.dt = dt
+        for t in range(self.nthreads):
             self.tmax[PAD * t] = 0.0
-        for t in prange(T, schedule='static', chunksize=1, num_threads=T, nogil=True):
-            drift_block(&c, <long long>c.n * t // T, <long long>c.n * (t + 1) // T, t)
+        self.parallel_rows(P_DRIFT, self.n)
         self.lap(T_DRIFT, t0)
         return self.max_displacement()
+
+    # ------------------------------------------------------------------ the team --------
+    cdef void parallel_rows(self, int phase, int rows) noexcept nogil:
+        """Run a phase over rows [0, rows) in ``nblocks`` equal blocks on the team."""
+        self.rows = rows
+        self.run_phase(phase, self.nblocks)
+
+    cdef void run_phase(self, int phase, int nblocks) noexcept nogil:
+        """Master: open a phase, take blocks of it like the other threads, and return when
+        all its blocks are done (whichever threads ran them); alone, run them in order."""
+        cdef int b
+        cdef double t0
+        if self.nthreads == 1 or self.tuner.solo:
+            t0 = thread_cpu() if phase == P_PAIRS or phase == P_PARTICLES else 0.0
+            for b in range(nblocks):
+                self.run_block(phase, b, nblocks, 0)
+            if phase == P_PAIRS or phase == P_PARTICLES:
+                self.cpu[2 if phase == P_PAIRS else 3] += thread_cpu() - t0
+            return
+        pg_begin(self.team, phase, nblocks)
+        self.take(pg_epoch(self.team), phase, nblocks, 0)
+        pg_wait_done(self.team, nblocks)
+
+    cdef inline void run_block(self, int phase, int b, int nblocks, int tid) noexcept nogil:
+        """Block b of a phase, run by thread ``tid``."""
+        cdef long long lo, hi
+        if phase == P_PAIRS:
+            pair_block(&self.ctx, b)
+        elif phase == P_PARTICLES:
+            particle_block(&self.ctx, self.pb[b], self.pb[b + 1], tid)
+        else:
+            lo = <long long>self.rows * b // nblocks
+            hi = <long long>self.rows * (b + 1) // nblocks
+            if phase == P_DRIFT:
+                drift_block(&self.ctx, <int>lo, <int>hi, tid)
+            else:
+                self.rebuild_rows(phase, <int>lo, <int>hi)
+
+    cdef void tune(self) noexcept nogil:
+        """Before a step: time the window that ends here and choose how to run the next
+        one (see Tuner)."""
+        cdef Tuner* u = &self.tuner
+        cdef double now = pg_now(), window = u.elapsed + now - u.start
+        cdef int probe
+        if u.interval == 0.0:   # the first step with a team
+            u.interval = TUNE_MIN
+            u.next_probe = now + TUNE_WINDOW
+        if u.steps > 0 and window >= TUNE_WINDOW:
+            probe = 1 if u.solo else 0
+            u.per_step[probe] = window / u.steps
+            if u.probing:   # keep the faster mode; compare less often while the choice stands
+                u.probing = False
+                if u.per_step[probe] < u.per_step[1 - probe]:
+                    u.interval = TUNE_MIN
+                else:
+                    u.solo = not u.solo
+                    u.interval = min(2.0 * u.interval, TUNE_MAX)
+                u.next_probe = now + u.interval
+            elif now >= u.next_probe:
+                u.probing = True
+                u.solo = not u.solo
+            u.steps = 0
+            u.elapsed = 0.0
+            u.start = now
+        u.steps += 1
+
+    cdef void take(self, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
+        """Claim and run blocks of phase ``epoch`` until none is left, then report them done;
+        the CPU time of the pair and particle loops goes to thread ``tid``'s counters."""
+        cdef int b, k = 0
+        cdef double t0 = 0.0
+        b = pg_claim(self.team, epoch, tid)
+        if b < 0:
+            return
+        if phase == P_PAIRS or phase == P_PARTICLES:
+            t0 = thread_cpu()
+        while b >= 0:
+            self.run_block(phase, b, nblocks, tid)
+            k += 1
+            b = pg_claim(self.team, epoch, tid)
+        if phase == P_PAIRS or phase == P_PARTICLES:
+            self.cpu[PAD * tid + (2 if phase == P_PAIRS else 3)] += thread_cpu() - t0
+        pg_finished(self.team, k, nblocks)
 
     cdef double max_displacement(self) noexcept nogil:
         cdef int i
@@ -1858,7 +2134,7 @@ cdef class Core:
 
     cdef int _run(self, long long nsteps, double dt) noexcept nogil:
         cdef long long s
-        cdef double dp, dw, t0 = openmp.omp_get_wtime(), t1
+        cdef double dp, dw, t0 = pg_now(), t1
         cdef bint fused = False
         if dt != self.dt_base:
             self.t_base = self.time
@@ -1867,26 +2143,35 @@ cdef class Core:
         if self.dirty:
             if self.rebuild() < 0:
                 return -1
-            self.forces(dt, False, False, False)
+            if self.forces(dt, False, False, False) < 0:
+                return -1
             self.dirty = 0
+        self.tuner.start = t0
         for s in range(nsteps):
+            if self.nthreads > 1:
+                self.tune()
             dp = self.max_displacement() if fused else self.drift(dt)
             self.step += 1
             self.time = self.t_base + (self.step - self.step_base) * dt
-            t1 = openmp.omp_get_wtime()
+            t1 = pg_now()
             dw = self.move_walls()
             self.lap(T_WALLS, t1)
             if dp + dw > 0.5 * self.skin:
                 if self.rebuild() < 0:
                     return -1
             fused = s + 1 < nsteps   # the last step ends after its second half kick
-            self.forces(dt, True, True, fused)
-        self.lap(T_RUN, t0)
+            if self.forces(dt, True, True, fused) < 0:
+                return -1
+        self.tuner.elapsed += self.lap(T_RUN, t0) - self.tuner.start
         return 0
 
     def run(self, long long nsteps, double dt):
-        """Advance ``nsteps`` velocity-Verlet steps of ``dt`` without the GIL."""
+        """Advance ``nsteps`` velocity-Verlet steps of ``dt`` without the GIL, on a team of
+        ``nthreads`` threads: this one runs the loop, the others (started at the first run,
+        asleep between runs) take part in its parallel passes."""
         cdef int rc
+        if self.nthreads > 1:
+            pg_start(self.team, team_task, <void*>self)
         with nogil:
             rc = self._run(nsteps, dt)
         if rc < 0:
@@ -1928,7 +2213,7 @@ cdef class Core:
             for k in range(self.nb_start[i], self.nb_start[i + 1]):
                 if not self._in_contact(k):
                     continue
-                sv = &self.shiftv[3 * (self.nb_s[k] & ~TOUCH)]
+                sv = &self.shiftv[3 * (self.nb_s[k] & IMAGE)]
                 d2 = 0.0
                 for q in range(3):
                     d = self.x[3 * i + q] - self.x[3 * self.nb_j[k] + q] + sv[q]
@@ -1957,7 +2242,7 @@ cdef class Core:
 
     def memory_bytes(self):
         """Bytes held by the per-particle arrays and lists (allocated capacity)."""
-        return (self.cap * (18 * 8 + 2 * 8 + 4 * 4 + 8 + 4 * 4 + 6 * 8 * self.nthreads)
+        return (self.cap * (18 * 8 + 2 * 8 + 4 * 4 + 8 + 7 * 4 + 6 * 8) + self.halo_cap * 6 * 8
                 + self.nb_cap * (5 + 8 * self.hs) + self.ob_cap * (5 + 8 * self.hs)
                 + self.wl_cap * (12 + 8 * self.hs) + self.ow_cap * (12 + 8 * self.hs)
                 + self.cell_cap * 8 + self.ctri_cap * 4)
@@ -1990,7 +2275,7 @@ cdef class Core:
             "scalars": np.array([self.time, self.t_base, self.dt_base], dtype=float),
             "counters": np.array([self.step, self.lost, self.rebuilds, self.dirty, self.step_base],
                                  dtype=np.int64),
-            "bounds": _copy_i(self.pb, self.nthreads + 1),
+            "bounds": _copy_i(self.pb, self.nblocks + 1),
         }
         return state
 
@@ -2031,12 +2316,20 @@ cdef class Core:
         self.n = n
         self.time, self.t_base, self.dt_base = (float(k) for k in state["scalars"])
         self.step, self.lost, self.rebuilds, self.dirty, self.step_base = (int(k) for k in state["counters"])
-        if state["bounds"].shape[0] == self.nthreads + 1:
+        if state["bounds"].shape[0] == self.nblocks + 1:
             _put_i(self.pb, state["bounds"])
         else:   # another thread count: sums in another order anyway
             for i in range(n):
                 self.work[i] = self.estimated_work(i)
             self.balance()
+        for i in range(n):
+            self.find_partners(i)
+        self.prefix_last()
+
+
+cdef void team_task(void* owner, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
+    """What the team's threads run: their part of a phase of ``owner``, a :class:`Core`."""
+    (<Core>owner).take(epoch, phase, nblocks, tid)
 
 
 cdef object _copy_d(const double* p, long long k):

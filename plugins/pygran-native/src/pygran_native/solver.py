@@ -1,9 +1,12 @@
 """The native DEM solver: argument checking and numpy I/O around the compiled core.
 
 All quantities are SI. Per-particle outputs are copies ordered by particle id. The time
-step loop (:meth:`Solver.run`) runs entirely in compiled code without the GIL, with
-OpenMP over particles and contacts; results are bitwise reproducible for a given thread
-count, also across :meth:`Solver.get_state` / :meth:`Solver.set_state`.
+step loop (:meth:`Solver.run`) runs entirely in compiled code without the GIL, on a team of
+threads sharing blocks of particles and their contacts (a thread whose core another program
+takes leaves its blocks to the others, and waiting threads sleep rather than spin, so a busy
+machine slows a run down instead of stalling it); results are bitwise reproducible for a
+given thread count, whichever thread runs a block, also across :meth:`Solver.get_state` /
+:meth:`Solver.set_state`.
 
 Conventions (LIGGGHTS):
 
@@ -33,15 +36,16 @@ from __future__ import annotations
 
 import json
 import math
+import os
 
 import numpy as np
 
 from pygran_core.errors import ConfigError
 from pygran_core.simulation.models import mixing
 from pygran_native import _kernels
-from pygran_native._solver import Core
+from pygran_native._solver import MAX_THREADS, Core
 
-__all__ = ["Solver"]
+__all__ = ["Solver", "default_threads"]
 
 _MODELS = {"hooke": 0, "hertz": 1, "thornton-ning": 2}
 _HISTORY = {"hooke": 4, "hertz": 4, "thornton-ning": 7}
@@ -57,6 +61,17 @@ _MODEL_KEYS = (
     "yield_pressure",
     "characteristic_velocity",
 )
+
+
+def default_threads() -> int:
+    """Threads of a solver not told otherwise: ``OMP_NUM_THREADS`` when it is set, else the
+    CPUs this process may run on now (``os.sched_getaffinity``: ``taskset``, a batch job's
+    cpuset), not every core of the machine."""
+    if os.environ.get("OMP_NUM_THREADS"):
+        return _kernels.openmp_threads()
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
 
 
 def _array(value, name: str, shape: tuple, dtype=float) -> np.ndarray:
@@ -84,8 +99,8 @@ class Solver:
     """A DEM simulation of spheres in a box; see the module docstring for conventions.
 
     ``box`` is ``[[xlo, ylo, zlo], [xhi, yhi, zhi]]``; ``periodic`` per axis; ``gravity``
-    the acceleration vector; ``skin`` the neighbour-list skin; ``threads`` the OpenMP
-    threads (default: ``OMP_NUM_THREADS`` or all cores); ``seed`` seeds :attr:`rng`, the
+    the acceleration vector; ``skin`` the neighbour-list skin; ``threads`` the threads of
+    :meth:`run` (default: :func:`default_threads`); ``seed`` seeds :attr:`rng`, the
     solver's random stream (its state is part of :meth:`get_state`).
     """
 
@@ -105,9 +120,9 @@ class Solver:
         gravity = _array(gravity, "gravity", (3,))
         if not (math.isfinite(skin) and skin > 0):
             raise ConfigError(f"skin: must be > 0, got {skin!r}.")
-        threads = _kernels.openmp_threads() if threads is None else threads
-        if not (isinstance(threads, (int, np.integer)) and threads >= 1):
-            raise ConfigError(f"threads: must be a positive integer, got {threads!r}.")
+        threads = default_threads() if threads is None else threads
+        if not (isinstance(threads, (int, np.integer)) and 1 <= threads <= MAX_THREADS):
+            raise ConfigError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {threads!r}.")
         self.box, self.periodic, self.threads = box, periodic, int(threads)
         self._core = Core(box[0], box[1], periodic, gravity, float(skin), self.threads)
         self.rng = np.random.default_rng(seed)

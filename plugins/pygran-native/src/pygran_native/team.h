@@ -1,0 +1,292 @@
+#ifndef PYGRAN_TEAM_H
+#define PYGRAN_TEAM_H
+
+/* The team of threads of a native-solver run (used by _solver.pyx).
+
+   The calling thread (the master) runs the time-step loop and hands each parallel phase out
+   as numbered blocks, a contiguous share of them queued for each thread. A thread takes
+   blocks from the front of its own queue, then from the back of the others' queues, then
+   waits for the next phase: on an idle machine each thread works on the same rows step after
+   step, and a thread that is held up (its core taken by another program) leaves its blocks to
+   the others. Results do not depend on which thread runs a block.
+
+   A waiting thread spins for a moment (waking a sleeping thread takes tens of microseconds),
+   then sleeps on a futex; it does not spin at all while it has lately been kept waiting for
+   its CPU (its run-queue delay, from /proc/thread-self/schedstat): a thread with nothing to
+   do then gives its core away at once to the threads that have work, ours or another
+   program's. Spinning in OpenMP's barriers (libgomp's default wait policy) is what made 2
+   threads 7x slower than 1 on a 2-core machine where another process kept a core busy. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <pthread.h>
+#include <signal.h>
+#include <limits.h>
+#include <stdio.h>
+#include <time.h>
+#include <sched.h>
+#ifdef __linux__
+#include <fcntl.h>
+#include <linux/futex.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
+typedef struct { uint32_t word, sleepers; char pad[56]; } pg_flag;   /* a cache line */
+
+typedef struct { uint64_t word; char pad[56]; } pg_queue;   /* epoch << 32 | front << 16 | end */
+
+#define PG_STOP (-1)        /* the phase that ends the threads */
+
+/* What a thread does with phase `epoch`: claim blocks with pg_claim, run them, pg_finished. */
+typedef void (*pg_task)(void* owner, uint32_t epoch, int phase, int nblocks, int tid);
+
+struct pg_team_s;
+typedef struct { struct pg_team_s* team; int tid; uint32_t epoch; } pg_start_arg;
+
+typedef struct pg_team_s {
+    char pad0[64];
+    pg_flag epoch;         /* phase number; the threads wait for it to change */
+    pg_flag done;          /* blocks finished in the phase; the master waits for nblocks */
+    int phase, nblocks;    /* written by the master before it moves epoch on */
+    int nqueues;           /* one per thread */
+    double spin;           /* seconds a waiting thread spins before it sleeps */
+    pg_task task;          /* the threads started by pg_start (in process pid) */
+    void* owner;
+    pthread_t* threads;
+    pg_start_arg* args;
+    int started;
+    pid_t pid;
+    char pad1[64];
+    pg_queue queue[];      /* thread q's blocks */
+} pg_team;
+
+static pg_team* pg_create(int nqueues, double spin) {
+    pg_team* t = (pg_team*)calloc(1, sizeof(pg_team) + nqueues * sizeof(pg_queue));
+    if (t) {
+        t->nqueues = nqueues;
+        t->spin = spin;
+    }
+    return t;
+}
+
+static inline double pg_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+static inline void pg_relax(void) {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#elif defined(__aarch64__)
+    __asm__ __volatile__("yield" ::: "memory");
+#endif
+}
+
+/* Nanoseconds the calling thread has spent runnable but waiting for a CPU, -1 if unknown. */
+static long long pg_run_delay(void) {
+#ifdef __linux__
+    char buf[96];
+    unsigned long long run, delay;
+    ssize_t k;
+    int fd = open("/proc/thread-self/schedstat", O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return -1;
+    k = read(fd, buf, sizeof(buf) - 1);
+    close(fd);
+    if (k <= 0)
+        return -1;
+    buf[k] = 0;
+    return sscanf(buf, "%llu %llu", &run, &delay) == 2 ? (long long)delay : -1;
+#else
+    return -1;
+#endif
+}
+
+/* Whether the calling thread shares its CPU with another that wants it: more than a fifth of
+   a window of 10 ms or more spent waiting for it (brief interruptions do not count); then
+   its waits do not spin for the next 100 ms. */
+static __thread double pg_checked = -1.0, pg_calm_from = 0.0;
+static __thread long long pg_delay = -1;
+static int pg_contended(double now) {
+    long long d;
+    if (now - pg_checked >= 1e-2) {
+        d = pg_run_delay();
+        if (d >= 0 && pg_delay >= 0 && d - pg_delay > 0.2e9 * (now - pg_checked))
+            pg_calm_from = now + 0.1;
+        pg_delay = d;
+        pg_checked = now;
+    }
+    return now < pg_calm_from;
+}
+
+static inline void pg_wake(pg_flag* f) {
+    if (__atomic_load_n(&f->sleepers, __ATOMIC_SEQ_CST)) {
+#ifdef __linux__
+        syscall(SYS_futex, &f->word, FUTEX_WAKE_PRIVATE, INT_MAX, NULL, NULL, 0);
+#endif
+    }
+}
+
+/* Wait until f's word differs from `seen` (spin, then sleep); returns the new value. */
+static uint32_t pg_wait(pg_flag* f, uint32_t seen, double spin) {
+    uint32_t v;
+    unsigned k = 0;
+    double now, until;
+    if ((v = __atomic_load_n(&f->word, __ATOMIC_ACQUIRE)) != seen)
+        return v;
+    now = pg_now();
+    until = now + (pg_contended(now) ? 0.0 : spin);
+    while ((v = __atomic_load_n(&f->word, __ATOMIC_ACQUIRE)) == seen) {
+        if (k++ & 63 && now < until) {   /* spinning: the clock is read every 64 rounds */
+            pg_relax();
+            continue;
+        }
+        now = pg_now();
+        if (now < until)
+            continue;
+        __atomic_add_fetch(&f->sleepers, 1, __ATOMIC_SEQ_CST);
+#ifdef __linux__
+        syscall(SYS_futex, &f->word, FUTEX_WAIT_PRIVATE, seen, NULL, NULL, 0);
+#else
+        sched_yield();
+#endif
+        __atomic_sub_fetch(&f->sleepers, 1, __ATOMIC_SEQ_CST);
+    }
+    return v;
+}
+
+static inline uint32_t pg_epoch(pg_team* t) {
+    return __atomic_load_n(&t->epoch.word, __ATOMIC_ACQUIRE);
+}
+
+static inline int pg_phase(pg_team* t) { return __atomic_load_n(&t->phase, __ATOMIC_RELAXED); }
+
+static inline int pg_nblocks(pg_team* t) { return __atomic_load_n(&t->nblocks, __ATOMIC_RELAXED); }
+
+/* Master: open phase `phase` of `nblocks` (< 65536) blocks and wake the team. */
+static void pg_begin(pg_team* t, int phase, int nblocks) {
+    uint32_t e = __atomic_load_n(&t->epoch.word, __ATOMIC_RELAXED) + 1;
+    uint64_t lo, hi;
+    int q;
+    __atomic_store_n(&t->phase, phase, __ATOMIC_RELAXED);
+    __atomic_store_n(&t->nblocks, nblocks, __ATOMIC_RELAXED);
+    __atomic_store_n(&t->done.word, 0, __ATOMIC_RELAXED);
+    for (q = 0; q < t->nqueues; q++) {
+        lo = (uint64_t)nblocks * q / t->nqueues;
+        hi = (uint64_t)nblocks * (q + 1) / t->nqueues;
+        __atomic_store_n(&t->queue[q].word, (uint64_t)e << 32 | lo << 16 | hi, __ATOMIC_RELAXED);
+    }
+    __atomic_store_n(&t->epoch.word, e, __ATOMIC_SEQ_CST);
+    pg_wake(&t->epoch);
+}
+
+/* The front (or last) block of queue q of phase `epoch`; -1 when it is empty or the phase is
+   over. */
+static inline int pg_take(pg_queue* q, uint32_t epoch, int last) {
+    uint64_t w = __atomic_load_n(&q->word, __ATOMIC_ACQUIRE);
+    uint32_t lo, hi;
+    for (;;) {
+        lo = (w >> 16) & 0xffff;
+        hi = w & 0xffff;
+        if ((uint32_t)(w >> 32) != epoch || lo >= hi)
+            return -1;
+        if (__atomic_compare_exchange_n(&q->word, &w, last ? w - 1 : w + (1u << 16), 1,
+                                        __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE))
+            return (int)(last ? hi - 1 : lo);
+    }
+}
+
+/* A block of phase `epoch` for thread `tid`: the next of its own queue, which even threads
+   run forwards and odd threads backwards (two neighbouring threads reach the blocks at their
+   common border last), else one from the other end of another queue (the nearest queue after
+   its own first); -1 when none is left. */
+static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
+    int k, b, q, nq = t->nqueues;
+    if (tid < nq && (b = pg_take(&t->queue[tid], epoch, tid & 1)) >= 0)
+        return b;
+    for (k = 1; k < nq; k++) {
+        q = (tid + k) % nq;
+        if ((b = pg_take(&t->queue[q], epoch, !(q & 1))) >= 0)
+            return b;
+    }
+    return -1;
+}
+
+/* A thread finished k blocks of the phase (after its last claim failed). */
+static inline void pg_finished(pg_team* t, int k, int nblocks) {
+    if ((int)__atomic_add_fetch(&t->done.word, (uint32_t)k, __ATOMIC_SEQ_CST) == nblocks)
+        pg_wake(&t->done);
+}
+
+/* Master: wait until every block of the phase is finished. */
+static void pg_wait_done(pg_team* t, int nblocks) {
+    uint32_t d;
+    while ((int)(d = __atomic_load_n(&t->done.word, __ATOMIC_ACQUIRE)) != nblocks)
+        pg_wait(&t->done, d, t->spin);
+}
+
+
+static void* pg_main(void* p) {
+    pg_start_arg* a = (pg_start_arg*)p;
+    pg_team* t = a->team;
+    uint32_t e = a->epoch;
+    int phase;
+    for (;;) {
+        e = pg_wait(&t->epoch, e, t->spin);
+        phase = pg_phase(t);
+        if (phase == PG_STOP)
+            return NULL;
+        t->task(t->owner, e, phase, pg_nblocks(t), a->tid);
+    }
+}
+
+/* Start threads 1 .. nqueues - 1 of the team (the caller is thread 0), unless they run
+   already in this process (after a fork they do not); they take part in each phase the
+   master opens, with signals blocked (Python handles them in its main thread). Returns how
+   many run: fewer when the system refuses some, and the others then run their blocks. */
+static int pg_start(pg_team* t, pg_task task, void* owner) {
+    sigset_t all, old;
+    int k;
+    if (t->started && t->pid == getpid())
+        return t->started;
+    t->started = 0;
+    t->pid = getpid();
+    t->task = task;
+    t->owner = owner;
+    if (!t->threads)
+        t->threads = (pthread_t*)calloc(t->nqueues, sizeof(pthread_t));
+    if (!t->args)
+        t->args = (pg_start_arg*)calloc(t->nqueues, sizeof(pg_start_arg));
+    if (!t->threads || !t->args)
+        return 0;
+    sigfillset(&all);
+    pthread_sigmask(SIG_SETMASK, &all, &old);
+    for (k = 1; k < t->nqueues; k++) {
+        t->args[k].team = t;
+        t->args[k].tid = k;
+        t->args[k].epoch = __atomic_load_n(&t->epoch.word, __ATOMIC_ACQUIRE);
+        if (pthread_create(&t->threads[k], NULL, pg_main, &t->args[k]) != 0)
+            break;
+        t->started++;
+    }
+    pthread_sigmask(SIG_SETMASK, &old, NULL);
+    return t->started;
+}
+
+/* End the threads pg_start started in this process and free the team. */
+static void pg_destroy(pg_team* t) {
+    int k;
+    if (!t)
+        return;
+    if (t->started && t->pid == getpid()) {
+        pg_begin(t, PG_STOP, 0);
+        for (k = 1; k <= t->started; k++)
+            pthread_join(t->threads[k], NULL);
+    }
+    free(t->threads);
+    free(t->args);
+    free(t);
+}
+
+#endif
