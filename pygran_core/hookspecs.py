@@ -42,7 +42,11 @@ CAPABILITIES = frozenset(
         "hertz-mindlin",
         "thornton-ning",
         "cohesion",  # SJKR / JKR adhesion
-        "rolling-friction",
+        "rolling-friction",  # rolling resistance, LIGGGHTS' cdt model
+        "rolling-epsd",  # the other rolling-resistance models (ContactModel.configure(rolling=...))
+        "rolling-epsd2",
+        "rolling-epsd3",
+        "limit-force",  # ContactModel.configure(limitForce=True): no attractive visco-elastic force
         "insert-by-rate",
         "mpi",  # runs on several MPI ranks
         "threads",  # shared-memory parallelism within one process

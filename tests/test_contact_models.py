@@ -499,12 +499,14 @@ def test_configured_models_keep_their_options_and_engines_without_them_refuse(tm
     )
     with pytest.raises(ConfigError, match="Did you mean 'epsd2'"):
         HertzMindlin.configure(rolling="epsd22")
-    with pytest.raises(UnsupportedFeature, match=r"HertzMindlin\[rolling=epsd2\]"):
+    with pytest.raises(
+        UnsupportedFeature, match=r"rolling-friction model epsd2 \(capability 'rolling-epsd2'\)"
+    ):
         simulation.DEM(
             engine="native",
             model=epsd2,
             box=(0, 1e-2, 0, 1e-2, 0, 1e-2),
-            species=({"material": params.organic, "radius": 5e-4},),
+            species=({"material": dict(params.organic, coefficientRollingFriction=0.05), "radius": 5e-4},),
             output=str(tmp_path / "out"),
             progress=False,
         )

@@ -24,7 +24,7 @@ import pytest
 
 from pygran_core import registry
 from pygran_core.errors import UnsupportedFeature
-from pygran_core.simulation.engine import MODEL_CAPABILITY
+from pygran_core.simulation import models
 from pygran_core.simulation.models import HertzMindlin
 from pygran_core.testing.solvers import in_ci, require_solver
 from pygran_core.validation import (
@@ -196,7 +196,7 @@ def hopper(engine: str, output: Path) -> tuple[float, np.ndarray]:
 
 def unsupported(engine: str, model: str | None = None) -> str | None:
     """What ``engine`` must raise UnsupportedFeature about for ``model``, if anything."""
-    if model is not None and not _declares(engine, MODEL_CAPABILITY[model]):
+    if model is not None and not _declares(engine, getattr(models, model).kernel):
         return model
     return None
 

@@ -65,12 +65,6 @@ if TYPE_CHECKING:
 LOG_NAME = "pygran.log"
 _LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
 
-#: Built-in contact model -> the capability an engine needs to run it.
-MODEL_CAPABILITY = {
-    "SpringDashpot": "spring-dashpot",
-    "HertzMindlin": "hertz-mindlin",
-    "ThorntonNing": "thornton-ning",
-}
 #: Per-particle quantities ``extract`` knows, with their shape per particle.
 EXTRACTABLE = {"x": 3, "v": 3, "omega": 3, "f": 3, "torque": 3, "radius": 1, "mass": 1, "id": 1, "type": 1}
 #: Trajectory columns (``traj`` ``args``) of the quantities of :data:`EXTRACTABLE`.
@@ -239,9 +233,17 @@ class Engine(abc.ABC):
 
     def _check_spec(self, spec: SimulationSpec) -> None:
         """Refuse, before the solver starts, whatever of ``spec`` this engine cannot do."""
-        capability = MODEL_CAPABILITY.get(spec.model.__name__)
-        if capability is not None:
-            self.require(capability, f"the {spec.model.__name__} contact model")
+        model = spec.model
+        if model.kernel is None:
+            raise UnsupportedFeature(
+                f"The contact model {model.__name__} declares no kernel (class attribute kernel), so no "
+                "engine can run it: subclass SpringDashpot, HertzMindlin or ThorntonNing without "
+                "overriding their force law (normal_force...), or set kernel to the capability of an "
+                "engine that runs its law."
+            )
+        self.require(model.kernel, f"the {model.__name__} contact model")
+        if model.limit_force:
+            self.require("limit-force", "limitForce=True")
         if any(spec.domain.periodic):
             self.require("periodic", "periodic boundaries")
         if spec.meshes:
@@ -278,6 +280,8 @@ class Engine(abc.ABC):
                 self.require("cohesion", "cohesion")
             if species.material.get("coefficientRollingFriction", 0) > 0:
                 self.require("rolling-friction", "rolling friction")
+                if model.rolling != "cdt":
+                    self.require(f"rolling-{model.rolling}", f"the rolling-friction model {model.rolling}")
 
     # -- common behaviour ------------------------------------------------------------
 

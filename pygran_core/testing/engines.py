@@ -57,7 +57,6 @@ from pygran_core.errors import (
 from pygran_core.hookspecs import CAPABILITIES
 from pygran_core.io import open_trajectory
 from pygran_core.simulation.dem import DEM
-from pygran_core.simulation.engine import MODEL_CAPABILITY
 from pygran_core.simulation.insertion import triangle_distance
 from pygran_core.simulation.models import ContactModel, HertzMindlin, SpringDashpot, ThorntonNing
 from pygran_core.simulation.timestep import Body, characteristic_speed, limits
@@ -291,7 +290,7 @@ class EngineConformance:
     @property
     def model(self) -> type[ContactModel]:
         """The first of :data:`MODELS` the engine declares."""
-        declared = [m for m in MODELS if MODEL_CAPABILITY[m.__name__] in self.capabilities]
+        declared = [m for m in MODELS if m.kernel in self.capabilities]
         assert declared, f"the {self.engine} engine declares no contact model"
         return declared[0]
 
@@ -1047,7 +1046,7 @@ class EngineConformance:
         the reference model; for Hertz-Mindlin, also the closed-form Hertz contact time and
         largest overlap of an elastic impact (``pygran validate``'s rows, within 1 %)."""
         material = IMPACT_MATERIALS[model]
-        if MODEL_CAPABILITY[model.__name__] not in self.capabilities:
+        if model.kernel not in self.capabilities:
             with pytest.raises(UnsupportedFeature):
                 pair_impact(self.engine, tmp_path, model, material, **self.options)
             return
@@ -1063,6 +1062,30 @@ class EngineConformance:
         if model is HertzMindlin and self.supports("primitive-walls"):
             rows = check_hertz(self.engine, tmp_path / "hertz")
             assert all(row.passed for row in rows), format_table(rows)
+
+    def test_a_user_subclass_runs_with_its_parents_kernel(self, tmp_path):
+        """A subclass of a model (a user's helper methods, a plugin's renamed model) runs the
+        parent's kernel: the same impact to the last bit; a model that declares no kernel is
+        refused by name."""
+        parent = self.model
+
+        class Renamed(parent):  # type: ignore[valid-type,misc]
+            """A user's model: the parent's law with a helper of its own."""
+
+            def stiffness_note(self) -> str:
+                return f"{type(self).__name__} is {parent.__name__}"
+
+        class NoKernel(parent):  # type: ignore[valid-type,misc]
+            """A force law no engine has."""
+
+            kernel = None
+
+        material = IMPACT_MATERIALS[parent]
+        mine = pair_impact(self.engine, tmp_path / "renamed", Renamed, material, **self.options)
+        theirs = pair_impact(self.engine, tmp_path / "parent", parent, material, **self.options)
+        assert (mine.restitution, mine.contact_time) == (theirs.restitution, theirs.contact_time)
+        with pytest.raises(UnsupportedFeature, match="NoKernel declares no kernel"):
+            pair_impact(self.engine, tmp_path / "none", NoKernel, material, **self.options)
 
     @pytest.fixture(scope="class")
     @classmethod

@@ -92,7 +92,7 @@ class Stiffer(HertzMindlin):
 
 @pytest.mark.parametrize(
     ("model", "reason"),
-    [(Epsd3, "epsd3 needs coeffRollingStiffness"), (Stiffer, "not Stiffer.normal_force")],
+    [(Epsd3, "epsd3 needs coeffRollingStiffness"), (Stiffer, "Stiffer declares no kernel")],
 )
 def test_what_liggghts_cannot_run_is_refused(tmp_path, model, reason):
     material = dict(MATERIAL, coefficientRollingFriction=0.3)

@@ -165,11 +165,13 @@ def test_unsupported_and_wrong_calls_are_clear(tmp_path):
     with pytest.raises(ConfigError, match="at least one species"):
         simulation.DEM(engine="native", box=(0, 1, 0, 1, 0, 1), output=str(tmp_path / "x"))
 
-    class StiffSpring(simulation.models.SpringDashpot):
-        """A model from a plugin, without a native kernel."""
+    class Plastic(simulation.models.SpringDashpot):
+        """A model from a plugin with a force law the native engine has no kernel for."""
 
-    with pytest.raises(UnsupportedFeature, match="does not implement the contact model StiffSpring"):
-        dem(tmp_path, model=StiffSpring)
+        kernel = "thornton-ning-2"
+
+    with pytest.raises(UnsupportedFeature, match="does not support the Plastic contact model"):
+        dem(tmp_path, model=Plastic)
 
 
 def test_set_velocity_omega_and_radius(tmp_path):

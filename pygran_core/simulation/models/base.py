@@ -7,7 +7,7 @@ import math
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -32,6 +32,18 @@ ROLLING_MODELS: Mapping[str, str] = MappingProxyType(
         "epsd2": "elastic-plastic spring (Iwashita & Oda 1998), k_r = k_t R*^2, no damping",
         "epsd3": "epsd with a user prefactor, k_r = coeffRollingStiffness k_n mu_r^2 R*^2",
     }
+)
+
+
+#: The methods that define a model's force law (see :attr:`ContactModel.kernel`).
+FORCE_LAW = (
+    "normal_force",
+    "tangential_force",
+    "rolling_torque",
+    "_model_coefficients",
+    "_tangential_coefficients",
+    "_in_contact",
+    "_separation_overlap",
 )
 
 
@@ -97,12 +109,24 @@ class ContactModel(abc.ABC):
     ``model.rolling`` either way.
     """
 
+    #: The force law engines run for this model: the engine capability that names their
+    #: kernel (``"spring-dashpot"``, ``"hertz-mindlin"``, ``"thornton-ning"``), or ``None``
+    #: when no engine has one. Inherited: a subclass that adds methods or sets options runs
+    #: on every engine with its parent's kernel. A subclass that overrides a method of
+    #: :data:`FORCE_LAW` has no kernel unless it declares one (an engine plugin that runs
+    #: its law declares the same capability), so no engine runs the parent's law instead.
+    kernel: ClassVar[str | None] = None
     #: Material keys a model cannot do without (``density`` or ``mass`` is always needed).
     required: ClassVar[tuple[str, ...]] = ("youngsModulus", "poissonsRatio", "radius")
     #: The rolling-resistance model, a key of :data:`ROLLING_MODELS`.
     rolling: str = "cdt"
     #: Whether the normal force is kept from turning attractive (``limitForce``).
     limit_force: bool = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "kernel" not in vars(cls) and any(name in vars(cls) for name in FORCE_LAW):
+            cls.kernel = None
 
     @classmethod
     def configure(cls, *, rolling: str | None = None, limitForce: bool | None = None) -> type[ContactModel]:

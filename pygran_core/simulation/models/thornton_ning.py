@@ -63,6 +63,8 @@ class ThorntonNing(ContactModel):
     normal and tangential forces; ``None`` means loading.
     """
 
+    kernel = "thornton-ning"
+
     required = (*ContactModel.required, "yieldPress")
 
     def __init__(

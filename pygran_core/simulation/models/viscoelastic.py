@@ -86,6 +86,8 @@ class SpringDashpot(_Viscoelastic):
     Not clamped unless ``limitForce=True``; see the module docstring for both conventions.
     """
 
+    kernel = "spring-dashpot"
+
     required = (*_Viscoelastic.required, "characteristicVelocity")
 
     def __init__(
@@ -185,6 +187,8 @@ class HertzMindlin(_Viscoelastic):
     Cohesion (``cohesionEnergyDensity`` k > 0, J/m^3): SJKR, ``F_n -= k pi delta (2 R* - delta)``.
     Not clamped unless ``limitForce=True``; see the module docstring for both conventions.
     """
+
+    kernel = "hertz-mindlin"
 
     def _model_coefficients(self) -> dict[str, float]:
         return {"beta": self.beta}

@@ -17,7 +17,6 @@ import shutil
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -32,8 +31,8 @@ from pygran_core.simulation.calls import (
 from pygran_core.simulation.models import mixing
 from pygran_core.simulation.specs import RadiusDistribution, ServoSpec, SimulationSpec
 
-#: PyGran contact model -> LIGGGHTS ``gran model``.
-MODELS = {"SpringDashpot": "hooke", "HertzMindlin": "hertz"}
+#: Contact-model kernel (``ContactModel.kernel``) -> LIGGGHTS' ``gran model``.
+MODELS = {"spring-dashpot": "hooke", "hertz-mindlin": "hertz"}
 #: LIGGGHTS ``rolling_friction`` model -> the material keys it reads besides
 #: ``coefficientRollingFriction`` (``epsd3`` also reads the global ``coeffRollingStiffness``,
 #: which PyGran's materials do not carry).
@@ -50,28 +49,6 @@ SIZE_CLASSES = 9
 DUMP_COLUMNS = frozenset(
     "id type x y z vx vy vz fx fy fz omegax omegay omegaz tqx tqy tqz radius mass".split()
 )
-
-
-def kernel(model: Any) -> str:
-    """LIGGGHTS' ``gran model`` for a contact model: one of :data:`MODELS`, given as its
-    class, an instance, or a subclass that only sets attributes (``rolling = 'epsd2'``).
-    A subclass that overrides a method changes the force law, which LIGGGHTS cannot run."""
-    cls = model if isinstance(model, type) else type(model)
-    for depth, base in enumerate(cls.__mro__):
-        if base.__name__ in MODELS and base.__module__.startswith("pygran_core.simulation.models"):
-            changed = [
-                f"{sub.__name__}.{name}"
-                for sub in cls.__mro__[:depth]
-                for name, value in vars(sub).items()
-                if callable(value) or isinstance(value, (property, classmethod, staticmethod))
-            ]
-            if changed:
-                raise UnsupportedFeature(
-                    f"LIGGGHTS runs its own {base.__name__} kernel, not {', '.join(changed)}: "
-                    "a subclass may set attributes such as rolling, not override methods"
-                )
-            return MODELS[base.__name__]
-    raise UnsupportedFeature(f"LIGGGHTS has no kernel for the {cls.__name__} model")
 
 
 def fmt(value: float) -> str:
@@ -137,7 +114,7 @@ class Commands:
         self.spec = spec
         self._counter = itertools.count(1)
         self._links: Path | None = None  # the directory of links to awkward directories
-        self.model = kernel(spec.model)
+        self.model = MODELS[spec.model.kernel]  # the engine refused kernels it lacks
         #: The ``rolling_friction`` model (the model's ``rolling``, default the original's cdt).
         self.rolling_model = getattr(spec.model, "rolling", "cdt")
         if self.rolling_model not in ROLLING:

@@ -20,7 +20,8 @@ from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.specs import SimulationSpec
 from pygran_native.solver import Solver
 
-MODEL_KIND = {"SpringDashpot": "hooke", "HertzMindlin": "hertz", "ThorntonNing": "thornton-ning"}
+#: Contact-model kernel (``ContactModel.kernel``) -> the solver's force law.
+SOLVER_LAW = {"spring-dashpot": "hooke", "hertz-mindlin": "hertz", "thornton-ning": "thornton-ning"}
 
 
 class NativeEngine(PlacingEngine):
@@ -46,11 +47,7 @@ class NativeEngine(PlacingEngine):
     )
 
     def __init__(self, spec: SimulationSpec) -> None:
-        super().__init__(spec)
-        if spec.model.__name__ not in MODEL_KIND:
-            raise self._unsupported(
-                f"the contact model {spec.model.__name__} (it has kernels for {', '.join(MODEL_KIND)})"
-            )
+        super().__init__(spec)  # refuses a model whose kernel is not among the capabilities
         gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
         self.solver = Solver(
             np.array(spec.domain.box).T, spec.domain.periodic, gravity, spec.skin, spec.threads, spec.seed
@@ -59,7 +56,7 @@ class NativeEngine(PlacingEngine):
         materials = [s.material for s in spec.species] + [
             m.material or spec.species[0].material for m in spec.meshes
         ]
-        self.solver.set_contact_model(MODEL_KIND[spec.model.__name__], **self._material_arrays(materials))
+        self.solver.set_contact_model(SOLVER_LAW[spec.model.kernel], **self._material_arrays(materials))
         self._walls: dict[str, int] = {}
         self._planes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._mesh_walls: dict[str, int] = {}
@@ -69,7 +66,7 @@ class NativeEngine(PlacingEngine):
         self.log("native solver: %d threads, skin %g m", self.solver.threads, spec.skin)
 
     def _material_arrays(self, materials: list[Any]) -> dict[str, Any]:
-        kind = MODEL_KIND[self.spec.model.__name__]
+        kind = SOLVER_LAW[self.spec.model.kernel]
 
         def column(key: str, default: float | None) -> np.ndarray:
             values = [m.get(key, default) for m in materials]

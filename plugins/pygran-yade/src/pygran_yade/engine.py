@@ -52,7 +52,7 @@ from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
-from pygran_core.simulation.models import HertzMindlin, SpringDashpot, mixing
+from pygran_core.simulation.models import mixing
 from pygran_core.simulation.specs import SimulationSpec
 from pygran_yade.client import Worker
 from pygran_yade.worker import from_bytes, to_bytes
@@ -153,7 +153,7 @@ class YadeEngine(PlacingEngine):
         self.log("YADE %s worker, pid %d", self.worker.version, self.worker.process.pid)
         self.worker.call(
             "setup",
-            model="hertz" if spec.model is HertzMindlin else "linear",
+            model="hertz" if spec.model.kernel == "hertz-mindlin" else "linear",
             materials=[self._yade_material(m, rho) for m, rho in zip(materials, densities)],
             matches=self._pairs(materials, n),
             gravity=spec.gravity.vector.tolist() if spec.gravity is not None else [0.0, 0.0, 0.0],
@@ -174,13 +174,8 @@ class YadeEngine(PlacingEngine):
     # -- materials and contact model ------------------------------------------------------
 
     def _check_spec(self, spec: SimulationSpec) -> None:
-        super()._check_spec(spec)
-        if spec.model not in (HertzMindlin, SpringDashpot):
-            raise UnsupportedFeature(
-                "The yade engine maps only the HertzMindlin and SpringDashpot models, "
-                f"not {spec.model.__name__}"
-            )
-        if spec.model is SpringDashpot:
+        super()._check_spec(spec)  # the model's kernel: hertz-mindlin or spring-dashpot
+        if spec.model.kernel == "spring-dashpot":
             if any(s.radius.kind != "constant" for s in spec.species):
                 raise UnsupportedFeature(
                     "The yade engine runs SpringDashpot only with one radius per species: YADE's linear "
@@ -201,7 +196,7 @@ class YadeEngine(PlacingEngine):
             "density": density,
             "frictionAngle": math.atan(material.get("coefficientFriction", 0.0)),
         }
-        if self.spec.model is SpringDashpot:
+        if self.spec.model.kernel == "spring-dashpot":
             e = material["coefficientRestitution"]
             props["betan"] = -math.log(e) / math.hypot(math.log(e), math.pi)
         return props
@@ -214,7 +209,7 @@ class YadeEngine(PlacingEngine):
         for i in range(len(materials)):
             for j in range(min(i + 1, n)):  # j is always a species: walls never touch walls
                 mi, mj = materials[i], materials[j]
-                if self.spec.model is HertzMindlin:
+                if self.spec.model.kernel == "hertz-mindlin":
                     e = float(
                         mixing.pair_restitution(mi["coefficientRestitution"], mj["coefficientRestitution"])
                     )
@@ -227,7 +222,7 @@ class YadeEngine(PlacingEngine):
                         if i < n
                         else mi
                     )
-                    pair = {"kn": SpringDashpot(mine, partner=partner).kn}
+                    pair = {"kn": self.spec.model(mine, partner=partner).kn}
                 for name, value in pair.items():
                     values.setdefault(name, []).append((i, j, float(value)))
         return values
