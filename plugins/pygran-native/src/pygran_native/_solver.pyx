@@ -118,6 +118,7 @@ cdef enum:
     NTIMERS = 13
 
 MAX_THREADS = MAXTHREADS
+MOTION_VALUES = NMOT
 
 TIMERS = ("run", "drift", "walls", "pairs", "particles", "rebuild", "rebuild_cells", "rebuild_sort",
           "rebuild_permute", "rebuild_count", "rebuild_fill", "pairs_span", "particles_span")
@@ -2280,8 +2281,9 @@ cdef class Core:
         return state
 
     def set_state(self, state):
-        """Restore :meth:`get_state` output (the contact model must be set already)."""
-        cdef int n = state["r"].shape[0], ne = state["ekind"].shape[0]
+        """Restore :meth:`get_state` output (the contact model must be set already). The entries
+        must be consistent (see ``solver._checked_state``); every copy checks its length."""
+        cdef int n = state["r"].shape[0], ne = state["ekind"].shape[0], i
         cdef long long npair = state["nb_j"].shape[0], nwall = state["wl_e"].shape[0]
         self.reserve(n)
         if self.reserve_pairs(npair) < 0 or self.reserve_walls(nwall) < 0:
@@ -2293,23 +2295,27 @@ cdef class Core:
                           np.ascontiguousarray(state["ewall"], dtype=np.int32),
                           np.ascontiguousarray(state["egeo"], dtype=float).reshape(ne, 9),
                           np.ascontiguousarray(state["evid"], dtype=np.int32).reshape(ne, 3))
-        _put_d(self.eref, state["eref"])
-        _put_d(self.ebuilt, state["ebuilt"])
-        _put_d(self.emot, state["emot"])
-        _put_i(self.emoving, state["emoving"])
-        for name, ptr in (("x", <size_t>self.x), ("v", <size_t>self.v), ("w", <size_t>self.w),
-                          ("f", <size_t>self.f), ("t", <size_t>self.t), ("x0", <size_t>self.x0),
-                          ("r", <size_t>self.r), ("m", <size_t>self.m), ("nb_h", <size_t>self.nb_h),
-                          ("wl_h", <size_t>self.wl_h)):
-            _put_d(<double*><size_t>ptr, state[name])
-        for name, ptr in (("type", <size_t>self.type), ("nb_start", <size_t>self.nb_start),
-                          ("nb_j", <size_t>self.nb_j), ("wl_start", <size_t>self.wl_start),
-                          ("wl_e", <size_t>self.wl_e)):
-            _put_i(<int*><size_t>ptr, state[name])
+        _put_d(self.eref, state["eref"], 9 * ne)
+        _put_d(self.ebuilt, state["ebuilt"], 9 * ne)
+        _put_d(self.emot, state["emot"], NMOT * ne)
+        _put_i(self.emoving, state["emoving"], ne)
+        for name, ptr, k in (("x", <size_t>self.x, 3 * n), ("v", <size_t>self.v, 3 * n),
+                             ("w", <size_t>self.w, 3 * n), ("f", <size_t>self.f, 3 * n),
+                             ("t", <size_t>self.t, 3 * n), ("x0", <size_t>self.x0, 3 * n),
+                             ("r", <size_t>self.r, n), ("m", <size_t>self.m, n),
+                             ("nb_h", <size_t>self.nb_h, npair * self.hs),
+                             ("wl_h", <size_t>self.wl_h, nwall * (self.hs + 1))):
+            _put_d(<double*><size_t>ptr, state[name], k)
+        for name, ptr, k in (("type", <size_t>self.type, n), ("nb_start", <size_t>self.nb_start, n + 1),
+                             ("nb_j", <size_t>self.nb_j, npair), ("wl_start", <size_t>self.wl_start, n + 1),
+                             ("wl_e", <size_t>self.wl_e, nwall)):
+            _put_i(<int*><size_t>ptr, state[name], k)
         ids = np.ascontiguousarray(state["id"], dtype=np.int64)
+        nbs = np.ascontiguousarray(state["nb_s"], dtype=np.uint8)
+        if ids.shape[0] != n or nbs.shape[0] != npair:
+            raise ValueError("id, nb_s: one per particle and per listed pair")
         if n:
             memcpy(self.pid, cnp.PyArray_DATA(ids), n * sizeof(int64_t))
-        nbs = np.ascontiguousarray(state["nb_s"], dtype=np.uint8)
         if npair:
             memcpy(self.nb_s, cnp.PyArray_DATA(nbs), npair)
         self.set_viscous(np.ascontiguousarray(state["visc"], dtype=float))
@@ -2317,7 +2323,7 @@ cdef class Core:
         self.time, self.t_base, self.dt_base = (float(k) for k in state["scalars"])
         self.step, self.lost, self.rebuilds, self.dirty, self.step_base = (int(k) for k in state["counters"])
         if state["bounds"].shape[0] == self.nblocks + 1:
-            _put_i(self.pb, state["bounds"])
+            _put_i(self.pb, state["bounds"], self.nblocks + 1)
         else:   # another thread count: sums in another order anyway
             for i in range(n):
                 self.work[i] = self.estimated_work(i)
@@ -2360,13 +2366,17 @@ cdef object _copy_b(const uint8_t* p, long long k):
     return a
 
 
-cdef void _put_d(double* p, a) except *:
+cdef void _put_d(double* p, a, long long k) except *:
     a = np.ascontiguousarray(a, dtype=float).reshape(-1)
+    if a.shape[0] != k:
+        raise ValueError(f"expected {k} values, got {a.shape[0]}")
     if a.shape[0]:
         memcpy(p, cnp.PyArray_DATA(a), a.shape[0] * sizeof(double))
 
 
-cdef void _put_i(int* p, a) except *:
+cdef void _put_i(int* p, a, long long k) except *:
     a = np.ascontiguousarray(a, dtype=np.int32).reshape(-1)
+    if a.shape[0] != k:
+        raise ValueError(f"expected {k} values, got {a.shape[0]}")
     if a.shape[0]:
         memcpy(p, cnp.PyArray_DATA(a), a.shape[0] * sizeof(int))

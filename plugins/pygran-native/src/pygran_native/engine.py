@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from pygran_core.errors import ConfigError
+from pygran_core.errors import ConfigError, ReadError
 from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle
@@ -236,7 +236,12 @@ class NativeEngine(PlacingEngine):
 
     def _restore_state(self, state: dict[str, np.ndarray]) -> None:
         super()._restore_state(state)
-        self.solver.set_state({k[len("solver/") :]: v for k, v in state.items() if k.startswith("solver/")})
+        try:
+            self.solver.set_state(
+                {k[len("solver/") :]: v for k, v in state.items() if k.startswith("solver/")}
+            )
+        except ReadError as exc:
+            raise ReadError(f"{self._resume_path}: {exc}") from None
 
     def _facts(self) -> dict[str, Any]:
         return {"threads": self.solver.threads}

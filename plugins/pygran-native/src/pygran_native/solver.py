@@ -37,13 +37,14 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping
 
 import numpy as np
 
-from pygran_core.errors import ConfigError
+from pygran_core.errors import ConfigError, ReadError
 from pygran_core.simulation.models import mixing
 from pygran_native import _kernels
-from pygran_native._solver import MAX_THREADS, Core
+from pygran_native._solver import MAX_THREADS, MOTION_VALUES, Core
 
 __all__ = ["Solver", "default_threads"]
 
@@ -93,6 +94,73 @@ def _per_particle(value, name: str, n: int, dtype=float) -> np.ndarray:
     if arr.ndim == 0:
         arr = np.full(n, arr, dtype=dtype)
     return _array(arr, name, (n,), dtype)
+
+
+def _model_tables(kind: str, *, restitution, yield_pressure, characteristic_velocity, **per_type_values):
+    """The arguments of ``Core.set_model`` for a contact model, and the settings as given
+    (see :meth:`Solver.set_contact_model`); a ConfigError naming a bad one."""
+    if kind not in _MODELS:
+        raise ConfigError(f"kind: unknown contact model {kind!r}; choose one of {', '.join(_MODELS)}.")
+    E = _array(np.atleast_1d(per_type_values["youngs"]), "youngs", (-1,))
+    nt = E.shape[0]
+    if nt == 0:
+        raise ConfigError("youngs: give at least one type.")
+
+    def per_type(value, name, check):
+        arr = _array(
+            np.broadcast_to(np.asarray(value, float), (nt,)) if np.ndim(value) == 0 else value,
+            name,
+            (nt,),
+        )
+        if not np.all(check(arr)):
+            raise ConfigError(f"{name}: out of range: {arr.tolist()}.")
+        return arr
+
+    E = per_type(E, "youngs", lambda a: a > 0)
+    nu = per_type(per_type_values["poisson"], "poisson", lambda a: (a > -1) & (a < 0.5))
+    mu = per_type(per_type_values["friction"], "friction", lambda a: a >= 0)
+    mur = per_type(per_type_values["rolling_friction"], "rolling_friction", lambda a: a >= 0)
+    coh = per_type(per_type_values["cohesion_energy"], "cohesion_energy", lambda a: a >= 0)
+    vchar = 0.0
+    if kind == "thornton-ning":
+        if yield_pressure is None:
+            raise ConfigError("yield_pressure: required by the thornton-ning model.")
+        py = per_type(yield_pressure, "yield_pressure", lambda a: a > 0)
+        damp = np.zeros((nt, nt))
+    else:
+        if restitution is None:
+            raise ConfigError(f"restitution: required by the {kind} model.")
+        e = per_type(restitution, "restitution", lambda a: (a > 0) & (a <= 1))
+        py = np.zeros(nt)
+        log_e = np.log(mixing.pair_table(mixing.pair_restitution, e))
+        beta = log_e / np.hypot(log_e, np.pi)
+        damp = (-2 * math.sqrt(5 / 6) if kind == "hertz" else -2.0) * beta
+        if kind == "hooke":
+            if characteristic_velocity is None or not characteristic_velocity > 0:
+                raise ConfigError("characteristic_velocity: the hooke model needs a value > 0.")
+            vchar = float(characteristic_velocity)
+    tables = [
+        mixing.pair_table(mixing.effective_modulus, E, nu),
+        mixing.pair_table(mixing.effective_shear_modulus, E, nu),
+        mixing.pair_table(mixing.pair_friction, mu),
+        mixing.pair_table(mixing.pair_friction, mur),
+        np.asarray(damp, float) + np.zeros((nt, nt)),
+        mixing.pair_table(mixing.pair_cohesion, coh),
+        mixing.pair_table(mixing.pair_yield_pressure, py) if kind == "thornton-ning" else np.zeros((nt, nt)),
+    ]
+    model = {
+        "kind": kind,
+        "youngs": E,
+        "poisson": nu,
+        "restitution": restitution,
+        "friction": mu,
+        "rolling_friction": mur,
+        "cohesion_energy": coh,
+        "yield_pressure": yield_pressure,
+        "characteristic_velocity": characteristic_velocity,
+    }
+    args = (_MODELS[kind], _HISTORY[kind], *(np.ascontiguousarray(t) for t in tables), vchar)
+    return args, model
 
 
 class Solver:
@@ -155,69 +223,19 @@ class Solver:
         others the SJKR energy density in J/m^3). Particle and wall types index these
         arrays. Changing the model to one with another history layout clears histories.
         """
-        if kind not in _MODELS:
-            raise ConfigError(f"kind: unknown contact model {kind!r}; choose one of {', '.join(_MODELS)}.")
-        E = _array(np.atleast_1d(youngs), "youngs", (-1,))
-        nt = E.shape[0]
-        if nt == 0:
-            raise ConfigError("youngs: give at least one type.")
-
-        def per_type(value, name, check):
-            arr = _array(
-                np.broadcast_to(np.asarray(value, float), (nt,)) if np.ndim(value) == 0 else value,
-                name,
-                (nt,),
-            )
-            if not np.all(check(arr)):
-                raise ConfigError(f"{name}: out of range: {arr.tolist()}.")
-            return arr
-
-        E = per_type(E, "youngs", lambda a: a > 0)
-        nu = per_type(poisson, "poisson", lambda a: (a > -1) & (a < 0.5))
-        mu = per_type(friction, "friction", lambda a: a >= 0)
-        mur = per_type(rolling_friction, "rolling_friction", lambda a: a >= 0)
-        coh = per_type(cohesion_energy, "cohesion_energy", lambda a: a >= 0)
-        vchar = 0.0
-        if kind == "thornton-ning":
-            if yield_pressure is None:
-                raise ConfigError("yield_pressure: required by the thornton-ning model.")
-            py = per_type(yield_pressure, "yield_pressure", lambda a: a > 0)
-            damp = np.zeros((nt, nt))
-        else:
-            if restitution is None:
-                raise ConfigError(f"restitution: required by the {kind} model.")
-            e = per_type(restitution, "restitution", lambda a: (a > 0) & (a <= 1))
-            py = np.zeros(nt)
-            log_e = np.log(mixing.pair_table(mixing.pair_restitution, e))
-            beta = log_e / np.hypot(log_e, np.pi)
-            damp = (-2 * math.sqrt(5 / 6) if kind == "hertz" else -2.0) * beta
-            if kind == "hooke":
-                if characteristic_velocity is None or not characteristic_velocity > 0:
-                    raise ConfigError("characteristic_velocity: the hooke model needs a value > 0.")
-                vchar = float(characteristic_velocity)
-        tables = [
-            mixing.pair_table(mixing.effective_modulus, E, nu),
-            mixing.pair_table(mixing.effective_shear_modulus, E, nu),
-            mixing.pair_table(mixing.pair_friction, mu),
-            mixing.pair_table(mixing.pair_friction, mur),
-            np.asarray(damp, float) + np.zeros((nt, nt)),
-            mixing.pair_table(mixing.pair_cohesion, coh),
-            mixing.pair_table(mixing.pair_yield_pressure, py)
-            if kind == "thornton-ning"
-            else np.zeros((nt, nt)),
-        ]
-        self._core.set_model(_MODELS[kind], _HISTORY[kind], *(np.ascontiguousarray(t) for t in tables), vchar)
-        self._model = {
-            "kind": kind,
-            "youngs": E,
-            "poisson": nu,
-            "restitution": restitution,
-            "friction": mu,
-            "rolling_friction": mur,
-            "cohesion_energy": coh,
-            "yield_pressure": yield_pressure,
-            "characteristic_velocity": characteristic_velocity,
-        }
+        tables, self._model = _model_tables(
+            kind,
+            youngs=youngs,
+            poisson=poisson,
+            restitution=restitution,
+            friction=friction,
+            rolling_friction=rolling_friction,
+            cohesion_energy=cohesion_energy,
+            yield_pressure=yield_pressure,
+            characteristic_velocity=characteristic_velocity,
+        )
+        self._core.set_model(*tables)
+        nt = self.ntypes
         if self._viscous.shape[0] != nt:
             self._viscous = np.resize(self._viscous, nt) * (np.arange(nt) < self._viscous.shape[0])
         self._core.set_viscous(self._viscous)
@@ -528,28 +546,29 @@ class Solver:
         state["rng"] = _encode(json.dumps(self.rng.bit_generator.state))
         return state
 
-    def set_state(self, state: dict[str, np.ndarray]) -> None:
-        """Restore a :meth:`get_state` result (box, periodicity and threads are this solver's)."""
+    def set_state(self, state: Mapping[str, np.ndarray]) -> None:
+        """Restore a :meth:`get_state` result (box, periodicity and threads are this solver's).
+
+        Every entry is checked, against the particle count, the others and the solver's layout,
+        before anything is changed: a malformed state is a :class:`ReadError` naming the entry
+        and what it should hold, and leaves the solver as it was.
+        """
         try:
-            kind = _decode(state["model_kind"])
-            model = {}
-            for key in _MODEL_KEYS:
-                value = np.asarray(state[f"model_{key}"], float)
-                model[key] = (
-                    None
-                    if value.ndim == 0 and np.isnan(value)
-                    else (float(value) if value.ndim == 0 else value)
-                )
-            self.set_contact_model(kind, **model)
-            self.set_viscous(state["viscous"])
-            self._core.set_state({k[5:]: v for k, v in state.items() if k.startswith("core_")})
-            self._next_id, self._next_wall, self._next_vertex = (int(k) for k in state["counters"])
-            self._walls = {
-                int(h): _WALL_KINDS[int(k)] for h, k in zip(state["wall_handles"], state["wall_kinds"])
-            }
-            self.rng.bit_generator.state = json.loads(_decode(state["rng"]))
-        except KeyError as exc:
-            raise ConfigError(f"state: missing entry {exc.args[0]!r}.") from None
+            checked = _checked_state(state, self.periodic)
+        except ReadError:
+            raise
+        except (KeyError, IndexError, ValueError, TypeError, AttributeError, OverflowError) as exc:
+            # a JSON or UTF-8 decoding error is a ValueError
+            raise ReadError(f"checkpoint state: malformed ({type(exc).__name__}: {exc})") from None
+        tables, model, viscous, core, counters, walls, rng = checked
+        self._core.set_model(*tables)
+        self._model = model
+        self._viscous = viscous
+        self._core.set_viscous(viscous)
+        self._core.set_state(core)
+        self._next_id, self._next_wall, self._next_vertex = counters
+        self._walls = walls
+        self.rng.bit_generator.state = rng
 
 
 def _encode(text: str) -> np.ndarray:
@@ -558,3 +577,179 @@ def _encode(text: str) -> np.ndarray:
 
 def _decode(array: np.ndarray) -> str:
     return np.asarray(array, dtype=np.uint8).tobytes().decode()
+
+
+# --- checking a state ------------------------------------------------------------------
+_IMAGES = 27  #: periodic image codes 9 (sx + 1) + 3 (sy + 1) + (sz + 1) of the neighbour list
+_FLAGS = 0x80 | 0x40  #: the other bits of a neighbour-list code (TOUCH, WRAP; see _solver.pyx)
+
+
+def _fail(key: str, expected: str, found: object = None) -> ReadError:
+    got = "" if found is None else f", found {found}"
+    return ReadError(f"checkpoint state entry {key!r}: expected {expected}{got}.")
+
+
+def _entry(
+    state: Mapping[str, np.ndarray], key: str, dtype, length: int | None = None, basis: str = ""
+) -> np.ndarray:
+    """``state[key]`` as a flat array of exactly ``dtype`` (and ``length``, which ``basis``
+    explains), or a ReadError."""
+    if key not in state:
+        raise ReadError(f"checkpoint state: missing entry {key!r}.")
+    value = np.asarray(state[key])
+    dtype = np.dtype(dtype)
+    if value.dtype != dtype:
+        raise _fail(key, f"{dtype} values", value.dtype)
+    if value.ndim != 1:
+        raise _fail(key, "a one-dimensional array", f"shape {value.shape}")
+    if length is not None and value.shape[0] != length:
+        raise _fail(key, f"{length} values{basis}", value.shape[0])
+    return np.ascontiguousarray(value)
+
+
+def _text(state: Mapping[str, np.ndarray], key: str) -> str:
+    """``state[key]``, UTF-8 text stored as bytes, or a ReadError."""
+    try:
+        return _decode(_entry(state, key, np.uint8))
+    except UnicodeDecodeError as exc:
+        raise _fail(key, "UTF-8 text", f"bytes that are not: {exc}") from None
+
+
+def _within(key: str, values: np.ndarray, lo: float, hi: float, what: str = "") -> None:
+    """Every value finite and in [lo, hi), or a ReadError."""
+    ok = np.isfinite(values) & (values >= lo) & (values < hi) if values.size else np.ones(0, bool)
+    if not np.all(ok):
+        bad = values[~ok][0]
+        raise _fail(key, what or f"values in [{lo:g}, {hi:g})", f"{bad!r}")
+
+
+def _offsets(key: str, start: np.ndarray, total: int, listed: str) -> None:
+    """CSR offsets: from 0, non-decreasing, ending at ``total`` (the length of ``listed``)."""
+    if start[0] != 0 or np.any(np.diff(start) < 0) or start[-1] != total:
+        raise _fail(
+            key,
+            f"offsets from 0, non-decreasing, up to the length {total} of {listed}",
+            f"{start[0]}..{start[-1]}" + (" (decreasing somewhere)" if np.any(np.diff(start) < 0) else ""),
+        )
+
+
+def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
+    """What :meth:`Solver.set_state` applies, each entry checked (see there)."""
+    kind = _text(state, "model_kind")
+    if kind not in _MODELS:
+        raise _fail("model_kind", f"one of {', '.join(_MODELS)}", repr(kind))
+    settings = {}
+    for key in _MODEL_KEYS:
+        value = np.asarray(state[f"model_{key}"]) if f"model_{key}" in state else None
+        if value is None or value.dtype != np.float64 or value.ndim > 1:
+            raise _fail(
+                f"model_{key}", "a float64 number or one per type", None if value is None else value.dtype
+            )
+        settings[key] = (
+            None if value.ndim == 0 and np.isnan(value) else (float(value) if value.ndim == 0 else value)
+        )
+    try:
+        tables, model = _model_tables(kind, **settings)
+    except ConfigError as exc:  # "poisson: expected ..."
+        name, _, problem = str(exc).partition(": ")
+        types = np.size(settings["youngs"])
+        raise ReadError(
+            f"checkpoint state entry 'model_{name}': {problem} (model_youngs gives {types} types)"
+        ) from None
+    nt, hs = model["youngs"].shape[0], tables[1]
+    viscous = _entry(state, "viscous", float, nt, " (one per type of model_youngs)")
+    _within("viscous", viscous, 0, np.inf, "damping coefficients >= 0")
+
+    def get(key, dtype, length=None, basis=""):
+        return _entry(state, f"core_{key}", dtype, length, basis and f" ({basis})")
+
+    out = {}
+    r = out["r"] = get("r", float)
+    n = r.shape[0]
+    for key in ("x", "v", "w", "f", "t", "x0"):
+        out[key] = get(key, float, 3 * n, "3 per particle of core_r")
+    out["m"] = get("m", float, n, "one per particle of core_r")
+    _within("core_r", r, 0, np.inf, "radii > 0")
+    _within("core_m", out["m"], 0, np.inf, "masses > 0")
+    for key in ("r", "m"):
+        if np.any(out[key] == 0):
+            raise _fail(f"core_{key}", "values > 0", 0.0)
+    out["type"] = get("type", np.int32, n, "one per particle of core_r")
+    _within("core_type", out["type"], 0, nt, f"types in [0, {nt - 1}]")
+    ids = out["id"] = get("id", np.int64, n, "one per particle of core_r")
+    _within("core_id", ids, 0, np.inf, "ids >= 0")
+    if len(np.unique(ids)) != n:
+        raise _fail("core_id", "distinct ids", "repeated ids")
+    # neighbour list: rows in storage order, partners j > i (a half list), image codes
+    nb_start = out["nb_start"] = get("nb_start", np.int32, n + 1, "one more than the particles of core_r")
+    nb_j = out["nb_j"] = get("nb_j", np.int32)
+    npair = nb_j.shape[0]
+    _offsets("core_nb_start", nb_start, npair, "core_nb_j")
+    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(nb_start))
+    if np.any(nb_j >= n) or np.any(nb_j <= rows):
+        raise _fail("core_nb_j", f"partners j of row i with i < j < {n}", "others")
+    nb_s = out["nb_s"] = get("nb_s", np.uint8, npair, "one per pair of core_nb_j")
+    image = nb_s & ~np.uint8(_FLAGS)
+    shifts = np.stack([image // 9, image // 3 % 3, image % 3], axis=1) if npair else np.ones((0, 3), int)
+    if np.any(image >= _IMAGES) or np.any((shifts != 1) & ~np.array(periodic)):
+        raise _fail("core_nb_s", "periodic image codes 0..26 across periodic axes only", "others")
+    out["nb_h"] = get("nb_h", float, npair * hs, f"{hs} per pair of core_nb_j")
+    # wall elements and the wall list
+    ekind = out["ekind"] = get("ekind", np.int32)
+    ne = ekind.shape[0]
+    _within("core_ekind", ekind, 0, 3, "element kinds 0 (plane), 1 (cylinder), 2 (triangle)")
+    out["etype"] = get("etype", np.int32, ne, "one per element of core_ekind")
+    _within("core_etype", out["etype"], 0, nt, f"types in [0, {nt - 1}]")
+    out["ewall"] = get("ewall", np.int32, ne, "one per element of core_ekind")
+    out["evid"] = get("evid", np.int32, 3 * ne, "3 per element of core_ekind")
+    _within("core_evid", out["evid"], -1, np.inf, "vertex ids >= -1")
+    out["emoving"] = get("emoving", np.int32, ne, "one per element of core_ekind")
+    _within("core_emoving", out["emoving"], 0, 2, "flags 0 or 1")
+    for key in ("egeo", "eref", "ebuilt"):
+        out[key] = get(key, float, 9 * ne, "9 per element of core_ekind")
+        _within(f"core_{key}", out[key], -np.inf, np.inf, "finite coordinates")
+    out["emot"] = get("emot", float, MOTION_VALUES * ne, f"{MOTION_VALUES} per element of core_ekind")
+    _within("core_emot", out["emot"], -np.inf, np.inf, "finite motion values")
+    geo = out["egeo"].reshape(ne, 9)
+    cylinders = geo[ekind == 1]
+    if np.any(~np.isin(cylinders[:, 0], (0.0, 1.0, 2.0))) or np.any(cylinders[:, 3] <= 0):
+        raise _fail("core_egeo", "cylinders with an axis 0, 1 or 2 and a radius > 0", "others")
+    wl_start = out["wl_start"] = get("wl_start", np.int32, n + 1, "one more than the particles of core_r")
+    wl_e = out["wl_e"] = get("wl_e", np.int32)
+    nwall = wl_e.shape[0]
+    _offsets("core_wl_start", wl_start, nwall, "core_wl_e")
+    _within("core_wl_e", wl_e, 0, ne, f"wall elements in [0, {ne - 1}]")
+    wl_h = out["wl_h"] = get("wl_h", float, nwall * (hs + 1), f"{hs + 1} per entry of core_wl_e")
+    if nwall and not np.all(np.isin(wl_h.reshape(nwall, hs + 1)[:, hs], (-1.0, 0.0, 1.0))):
+        raise _fail("core_wl_h", "plane sides -1, 0 or 1 after each entry's history")
+    out["visc"] = get("visc", float, nt, "one per type of model_youngs")
+    _within("core_visc", out["visc"], 0, np.inf, "damping coefficients >= 0")
+    out["scalars"] = get("scalars", float, 3)
+    _within("core_scalars", out["scalars"], -np.inf, np.inf, "finite time, time base and step")
+    out["counters"] = counters = get("counters", np.int64, 5)
+    step, lost, rebuilds, dirty, step_base = counters.tolist()
+    if min(step, lost, rebuilds, step_base) < 0 or dirty not in (0, 1) or step_base > step:
+        raise _fail("core_counters", "step, lost, rebuilds >= 0, dirty 0 or 1, 0 <= step base <= step")
+    bounds = out["bounds"] = get("bounds", np.int32)
+    if bounds.shape[0] < 2 or bounds[0] != 0 or bounds[-1] != n or np.any(np.diff(bounds) < 0):
+        raise _fail("core_bounds", f"block bounds from 0, non-decreasing, up to the particle count {n}")
+    # the solver's own entries
+    next_id, next_wall, next_vertex = _entry(state, "counters", np.int64, 3).tolist()
+    handles = _entry(state, "wall_handles", np.int64)
+    kinds = _entry(state, "wall_kinds", np.int64, handles.shape[0], " (one per wall of wall_handles)")
+    _within("wall_handles", handles, 0, next_wall, f"handles in [0, {next_wall})")
+    _within("wall_kinds", kinds, 0, len(_WALL_KINDS), "0 (plane), 1 (cylinder) or 2 (mesh)")
+    walls = {int(h): _WALL_KINDS[int(k)] for h, k in zip(handles, kinds)}
+    if len(walls) != handles.shape[0]:
+        raise _fail("wall_handles", "distinct handles", "repeated ones")
+    owner = [walls.get(int(w)) for w in out["ewall"]]
+    if any(o is None or _WALL_KINDS.index(o) != k for o, k in zip(owner, ekind.tolist())):
+        raise _fail("core_ewall", "the handle of a wall of the element's kind", "others")
+    if n and next_id <= ids.max() or ne and next_vertex <= out["evid"].max():
+        raise _fail("counters", "next particle id and vertex beyond those in use", [next_id, next_vertex])
+    try:
+        rng = json.loads(_text(state, "rng"))
+        type(np.random.default_rng().bit_generator)().state = rng
+    except (ValueError, TypeError, KeyError) as exc:
+        raise _fail("rng", "the JSON state of a PCG64 generator", f"{type(exc).__name__}: {exc}") from None
+    return tables, model, viscous, out, (next_id, next_wall, next_vertex), walls, rng
