@@ -60,6 +60,33 @@ def decode_text(array: np.ndarray) -> str:
     return np.asarray(array, dtype=np.uint8).tobytes().decode()
 
 
+def state_entry(
+    path: Path, state: dict[str, np.ndarray], key: str, kinds: str, shape: tuple[int | None, ...]
+) -> np.ndarray:
+    """``state[key]`` for an engine restoring a checkpoint, checked before anything of it is
+    used: present, of a numpy dtype kind among ``kinds`` (``"iu"``: integers, ``"biuf"``: any
+    number) and of ``shape`` (``None``: any length along that axis); else a :class:`ReadError`
+    naming the file and the key."""
+    value = state.get(key)
+    if value is None:
+        raise ReadError(f"{path}: the checkpoint has no state entry {key!r}")
+    fits = value.ndim == len(shape) and all(n is None or n == m for n, m in zip(shape, value.shape))
+    if value.dtype.kind not in kinds or not fits:
+        expected = " x ".join("any" if n is None else str(n) for n in shape) or "a scalar"
+        raise ReadError(
+            f"{path}: the checkpoint's state entry {key!r} is {value.dtype} of shape {value.shape}, "
+            f"not {'integers' if kinds == 'iu' else 'numbers'} of shape {expected}"
+        )
+    return value
+
+
+def state_json(path: Path, state: dict[str, np.ndarray], key: str, kind: type) -> Any:
+    """The JSON value (a ``kind``) of a state entry made with :func:`encode_text`, checked as
+    :func:`state_entry` checks arrays."""
+    value = state_entry(path, state, key, "u", (None,))
+    return _json(lambda message: ReadError(f"{path}: {message}"), value, f"state entry {key!r}", kind)
+
+
 def checkpoint_path(restart: RestartSpec, step: int) -> Path:
     """Where the checkpoint of ``step`` goes."""
     return restart.directory / restart.fname.replace("*", str(step))
@@ -210,7 +237,7 @@ def _read(path: Path, f: Any) -> tuple[Checkpoint, int]:
             datasets[name] = item[()]
 
     f.visititems(collect)
-    journal = _json(fail, datasets, "journal", list)
+    journal = _json(fail, datasets.get("journal"), "journal", list)
     if not all(isinstance(c, list) and len(c) == 2 and isinstance(c[0], str) for c in journal):
         raise fail("the journal is not a list of [call, result] pairs")
     monitors: dict[int, np.ndarray] = {}
@@ -232,14 +259,14 @@ def _read(path: Path, f: Any) -> tuple[Checkpoint, int]:
         journal=journal,
         monitors=monitors,
         state=state,
-        facts=_json(fail, datasets, "facts", dict),
+        facts=_json(fail, datasets.get("facts"), "facts", dict),
     )
     return checkpoint, version
 
 
-def _json(fail: Any, datasets: dict[str, np.ndarray], name: str, kind: type) -> Any:
-    """The JSON value of a text dataset, which must be a ``kind``."""
-    value = datasets.get(name)
+def _json(fail: Any, value: np.ndarray | None, name: str, kind: type) -> Any:
+    """The JSON value of a text dataset ``value`` (called ``name`` in messages), which must be
+    a ``kind``."""
     if value is None or value.dtype != np.uint8 or value.ndim != 1:
         raise fail(f"the {name} is missing or not UTF-8 bytes")
     try:

@@ -20,9 +20,9 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pygran_core.errors import ConfigError, InsertionWarning
+from pygran_core.errors import ConfigError, InsertionWarning, ReadError
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
-from pygran_core.simulation.checkpoint import decode_text, encode_text
+from pygran_core.simulation.checkpoint import encode_text, state_entry, state_json
 from pygran_core.simulation.engine import Engine, Handle
 from pygran_core.simulation.specs import SimulationSpec, positive_float, positive_int
 
@@ -440,17 +440,47 @@ class PlacingEngine(Engine):
         return state
 
     def _restore_state(self, state: dict[str, np.ndarray]) -> None:
+        """The insertion schedules of the checkpoint, each entry checked (a :class:`ReadError`
+        naming the file and the key) before any schedule is changed."""
         super()._restore_state(state)
-        saved = {name.split("/")[1] for name in state if name.startswith("schedules/")}
-        for label in set(self._schedules) - saved:
-            del self._schedules[label]
+        path = self._resume_path
+        saved = sorted({name.split("/")[1] for name in state if name.startswith("schedules/")})
+        restored = []
         for label in saved:
+            key = f"schedules/{label}"
+            if label not in self._schedules:
+                raise ReadError(
+                    f"{path}: the checkpoint's state entry {key!r} is an insertion the script does not "
+                    f"make (its insertions still due: {sorted(self._schedules) or 'none'})"
+                )
+            next_step, end = (int(v) for v in state_entry(path, state, f"{key}/clock", "iu", (2,)))
+            owed = float(state_entry(path, state, f"{key}/owed", "biuf", ()))
+            target = float(state_entry(path, state, f"{key}/target", "biuf", ()))
+            if next_step < 0 or not (math.isfinite(owed) and math.isfinite(target)):
+                raise ReadError(
+                    f"{path}: the checkpoint's insertion {key!r} is due at step {next_step}, owes {owed} "
+                    f"and targets {target}"
+                )
+            rng = np.random.default_rng()
+            try:
+                rng.bit_generator.state = state_json(path, state, f"{key}/rng", dict)
+            except (KeyError, TypeError, ValueError) as exc:
+                raise ReadError(
+                    f"{path}: the checkpoint's state entry '{key}/rng' is not a random generator's state "
+                    f"({type(exc).__name__}: {exc})"
+                ) from None
+            restored.append((label, next_step, None if end < 0 else end, owed, target, rng))
+        for label in set(self._schedules) - set(saved):
+            del self._schedules[label]
+        for label, next_step, end_step, owed, target, rng in restored:
             schedule = self._schedules[label]
-            schedule.next_step, end = (int(v) for v in state[f"schedules/{label}/clock"])
-            schedule.end_step = None if end < 0 else end
-            schedule.owed = float(state[f"schedules/{label}/owed"])
-            schedule.target = float(state[f"schedules/{label}/target"])
-            schedule.rng.bit_generator.state = json.loads(decode_text(state[f"schedules/{label}/rng"]))
+            schedule.next_step, schedule.end_step, schedule.owed, schedule.target = (
+                next_step,
+                end_step,
+                owed,
+                target,
+            )
+            schedule.rng.bit_generator.state = rng.bit_generator.state
 
     def _remove(self, handle: Handle) -> None:
         if handle.kind != "insertion":
