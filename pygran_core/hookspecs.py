@@ -14,13 +14,11 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import pluggy
 
-if TYPE_CHECKING:
-    from pygran_core.io import Trajectory, TrajectoryWriter
-    from pygran_core.simulation.engine import Engine
+from pygran_core.formats.base import Trajectory, TrajectoryWriter
 
 PROJECT = "pygran"
 hookspec = pluggy.HookspecMarker(PROJECT)
@@ -64,14 +62,15 @@ class EngineSpec:
     """An engine a plugin provides.
 
     ``factory(spec)`` builds the :class:`~pygran_core.simulation.engine.Engine` from a
-    :class:`~pygran_core.simulation.specs.SimulationSpec`;
+    :class:`~pygran_core.simulation.specs.SimulationSpec` (typed loosely: the records are a leaf
+    module, below the engine base class, which looks up writers through the registry);
     ``locate_solver()`` returns a one-line description of the solver it will drive (path,
     version, threads) or raises :class:`~pygran_core.errors.EngineError` whose message
     says how to install the missing solver.
     """
 
     name: str
-    factory: Callable[..., Engine]
+    factory: Callable[..., Any]
     capabilities: frozenset[str] = frozenset()
     description: str = ""
     locate_solver: Callable[[], str] | None = None

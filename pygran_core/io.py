@@ -1,147 +1,31 @@
-"""File access for trajectories and meshes: the base classes formats implement, and lookup.
+"""File access for trajectories and meshes: what users and format plugins import.
 
 Formats are registered like plugins (the core's own in :mod:`pygran_core.formats`,
-``pygran-readers`` and third-party ones); this module holds what
-they share: :class:`Frame` (one snapshot), :class:`Trajectory` (a lazy, random-access
-sequence of frames) and :class:`TrajectoryWriter` (appends one frame at a time), plus
-:func:`open_trajectory` / :func:`open_writer`, which pick the format through the registry.
+``pygran-readers`` and third-party ones). This module gives the interfaces they implement,
+:class:`Frame`, :class:`Trajectory` and :class:`TrajectoryWriter` (defined in
+:mod:`pygran_core.formats.base`), and :func:`open_trajectory` / :func:`open_writer`, which
+pick the format through the registry.
 """
 
 from __future__ import annotations
 
-import abc
-import glob
-import os
-import re
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from pygran_core import registry
+from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter, expand_paths, natural_key
 
-from pygran_core.errors import ReadError
-
-PathLike = str | os.PathLike[str]
-
-
-@dataclass
-class Frame:
-    """One snapshot: per-element arrays plus scalar metadata.
-
-    Particles: ``arrays`` maps LIGGGHTS column names (``"id"``, ``"type"``, ``"x"``,
-    ``"radius"``, ``"vx"``, ``"c_stress[1]"``, ...) to 1-D arrays of one length, ``int64``
-    for ``id``/``type``/``mol`` and ``float64`` otherwise. Scaled coordinates are stored
-    unscaled as ``x y z``.
-
-    Meshes (``attrs["kind"] == "mesh"``): ``points`` is ``(P, 3)`` float64; ``cells`` is
-    ``(C, k)`` int64 point indices, one row per cell, padded with -1 when cells have
-    different sizes (triangles give ``(C, 3)``); ``cell_types`` is ``(C,)`` VTK cell type
-    ids (5 triangle, 9 quad, 7 polygon, 1 vertex); every other key is point data (length
-    P) or cell data (length C), listed in ``attrs["point_data"]`` / ``attrs["cell_data"]``
-    (``(n, k)`` for k-component data; a name that is both gets ``point:``/``cell:``).
-
-    ``box`` is ``(3, 2)`` lower/upper bounds or ``None`` (for a triclinic box, the bounds
-    as a dump writes them, with ``attrs["tilt"] = (xy, xz, yz)``); ``boundary`` the
-    LIGGGHTS boundary flags such as ``("pp", "pp", "ff")``; ``timestep`` the step number;
-    ``time`` in the file's units.
-    """
-
-    arrays: dict[str, np.ndarray]
-    timestep: int | None = None
-    time: float | None = None
-    box: np.ndarray | None = None
-    boundary: tuple[str, ...] | None = None
-    attrs: dict[str, Any] = field(default_factory=dict)
-
-
-class Trajectory(abc.ABC):
-    """A lazy sequence of frames: opening reads headers only; frames are read on demand.
-
-    Subclasses implement :attr:`n_frames` and :meth:`_read_frame`; indexing, negative
-    indices, bounds checks and iteration live here once.
-    """
-
-    @property
-    @abc.abstractmethod
-    def n_frames(self) -> int:
-        """Number of frames."""
-
-    @abc.abstractmethod
-    def _read_frame(self, index: int) -> Frame:
-        """Read frame ``index`` (already checked: ``0 <= index < n_frames``)."""
-
-    def read_frame(self, index: int) -> Frame:
-        """Frame ``index``; negative indices count from the end."""
-        n = self.n_frames
-        if not -n <= index < n:
-            raise IndexError(f"Frame {index} is out of range: the trajectory has {n} frames")
-        return self._read_frame(index % n)
-
-    def __len__(self) -> int:
-        return self.n_frames
-
-    def __getitem__(self, index: int) -> Frame:
-        return self.read_frame(index)
-
-    def __iter__(self) -> Iterator[Frame]:
-        for index in range(self.n_frames):
-            yield self._read_frame(index)
-
-    def close(self) -> None:
-        """Release open files; the default holds none."""
-
-    def __enter__(self) -> Trajectory:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class TrajectoryWriter(abc.ABC):
-    """Appends frames to a file; each frame is flushed so a crash loses at most one."""
-
-    @abc.abstractmethod
-    def write_frame(self, frame: Frame) -> None:
-        """Append and flush one frame."""
-
-    def close(self) -> None:
-        """Finish the file; the default holds nothing open."""
-
-    def __enter__(self) -> TrajectoryWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-def natural_key(text: str) -> list[Any]:
-    """Sort key that orders embedded numbers numerically: ``f2`` before ``f10``."""
-    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", text)]
-
-
-def expand_paths(pattern: PathLike | Sequence[PathLike]) -> list[Path]:
-    """Expand a path, a glob pattern or a list of them into existing files, in natural order.
-
-    Raises :class:`ReadError` naming the pattern when nothing matches.
-    """
-    if isinstance(pattern, (str, os.PathLike)):
-        text = os.fspath(pattern)
-        if glob.has_magic(text):
-            found = sorted(glob.glob(text), key=natural_key)
-            if not found:
-                raise ReadError(f"No file matches {text!r} (looked in {Path(text).parent.resolve()})")
-            return [Path(p) for p in found]
-        path = Path(text)
-        if not path.is_file():
-            raise ReadError(f"File not found: {path.resolve()}")
-        return [path]
-    paths: list[Path] = []
-    for item in pattern:
-        paths.extend(expand_paths(item))
-    if not paths:
-        raise ReadError("An empty list of files was given")
-    return paths
+__all__ = [
+    "Frame",
+    "PathLike",
+    "Trajectory",
+    "TrajectoryWriter",
+    "expand_paths",
+    "natural_key",
+    "open_trajectory",
+    "open_writer",
+]
 
 
 def open_trajectory(
@@ -152,8 +36,6 @@ def open_trajectory(
     The format is ``format`` if given, else the first reader whose ``can_open`` accepts the
     first file, else the reader registered for the longest matching extension.
     """
-    from pygran_core import registry
-
     paths = expand_paths(pattern)
     spec = registry.reader_for(paths[0], format)
     return spec.open(paths, **options)
@@ -161,7 +43,5 @@ def open_trajectory(
 
 def open_writer(path: PathLike, format: str | None = None, **options: Any) -> TrajectoryWriter:
     """Open a :class:`TrajectoryWriter` for ``path``; the format comes from ``format`` or the name."""
-    from pygran_core import registry
-
     spec = registry.writer_for(Path(path), format)
     return spec.open(Path(path), **options)

@@ -23,14 +23,12 @@ import os
 import re
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from pygran_core.analysis.particles import Particles
 from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature
-
-if TYPE_CHECKING:
-    from pygran_core.analysis.particles import Particles
 
 __all__ = [
     "coarseDiscretize",

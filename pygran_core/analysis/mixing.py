@@ -10,15 +10,13 @@ mixing index over time.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pygran_core.analysis.subsystem import SubSystem
 from pygran_core.errors import ConfigError
-
-if TYPE_CHECKING:
-    from pygran_core.analysis.particles import Particles
 
 __all__ = ["Cells", "ScaleSegregation", "cells", "intensity", "lacey", "scale"]
 
@@ -41,7 +39,7 @@ class ScaleSegregation(NamedTuple):
     r: np.ndarray
 
 
-def cells(particles: Particles, resol: float | None = None, species: int | None = None) -> Cells:
+def cells(particles: SubSystem, resol: float | None = None, species: int | None = None) -> Cells:
     """Bin ``particles`` on the cubic grid of side ``resol`` (see the module docstring)."""
     if len(particles) == 0:
         raise ConfigError("Mixing statistics need at least one particle; the Particles are empty")
@@ -61,7 +59,7 @@ def cells(particles: Particles, resol: float | None = None, species: int | None 
     size = float(3 * 2 * radii.mean() if resol is None else resol)
     if not size > 0:
         raise ConfigError(f"resol must be a length > 0, got {resol!r}")
-    positions = particles.positions
+    positions = np.column_stack((particles.x, particles.y, particles.z)).astype(float)
     cell = ((positions - positions.min(axis=0)) // size).astype(np.intp)
     shape = tuple(cell.max(axis=0) + 1)
     occupied, flat = np.unique(np.ravel_multi_index(cell.T, shape), return_inverse=True)
@@ -81,7 +79,7 @@ def cells(particles: Particles, resol: float | None = None, species: int | None 
     )
 
 
-def lacey(particles: Particles, resol: float | None = None, species: int | None = None) -> float:
+def lacey(particles: SubSystem, resol: float | None = None, species: int | None = None) -> float:
     """Lacey's (1954) mixing index ``M = (s0^2 - s^2) / (s0^2 - sr^2)``: 0 segregated, 1 random.
 
     Each grid cell is a sample of ``n_c`` particles of which a number fraction ``x_c`` is
@@ -109,7 +107,7 @@ def lacey(particles: Particles, resol: float | None = None, species: int | None 
     return float((s0 - s2.sum() / n_total) / (s0 - s0 / n_mean))
 
 
-def intensity(particles: Particles, resol: float | None = None, species: int | None = None) -> float:
+def intensity(particles: SubSystem, resol: float | None = None, species: int | None = None) -> float:
     """Danckwerts' intensity of segregation ``var(a) / (mean(a) (1 - mean(a)))``, ``a`` the volume
     fraction of ``species`` in each non-empty cell: 1 when every cell holds one species, near 0
     for a fine random mixture."""
@@ -122,7 +120,7 @@ def intensity(particles: Particles, resol: float | None = None, species: int | N
 
 
 def scale(
-    particles: Particles, resol: float | None = None, maxDist: float | None = None, species: int | None = None
+    particles: SubSystem, resol: float | None = None, maxDist: float | None = None, species: int | None = None
 ) -> ScaleSegregation:
     """Danckwerts' correlation ``R(r) = <(a_i - m)(a_j - m)> / var(a)`` over every pair of non-empty
     cells ``r`` apart, up to ``maxDist`` (default ten cells), ``a`` as in :func:`intensity`.

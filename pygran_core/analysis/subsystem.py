@@ -24,6 +24,7 @@ import numpy as np
 
 from pygran_core import units as _units
 from pygran_core.errors import AttributeProblem, ConfigError, SelectionError, did_you_mean
+from pygran_core.io import Frame, open_writer
 
 Selection = int | slice | Sequence[int] | np.ndarray
 
@@ -374,7 +375,7 @@ class SubSystem:
         return self
 
     @classmethod
-    def _frame_kwargs(cls, frame: Any) -> dict[str, Any]:
+    def _frame_kwargs(cls, frame: Frame) -> dict[str, Any]:
         """Constructor keywords for one :class:`~pygran_core.io.Frame` (its arrays and metadata)."""
         meta = {"timestep": frame.timestep, "time": frame.time, "box": frame.box, "boundary": frame.boundary}
         return {
@@ -383,9 +384,7 @@ class SubSystem:
             "units": frame.attrs.get("units", "si"),
         }
 
-    def _to_frame(self) -> Any:
-        from pygran_core.io import Frame
-
+    def _to_frame(self) -> Frame:
         box = self._meta.get("box")
         boundary = self._meta.get("boundary") or (None if box is None else ("ff", "ff", "ff"))
         return Frame(
@@ -399,7 +398,5 @@ class SubSystem:
 
     def write(self, path: str | os.PathLike[str], format: str | None = None, **options: Any) -> None:
         """Write this object as one frame to ``path`` (any registered writer; by extension or ``format``)."""
-        from pygran_core.io import open_writer
-
         with open_writer(path, format, **options) as writer:
             writer.write_frame(self._to_frame())

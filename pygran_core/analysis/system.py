@@ -32,11 +32,15 @@ from typing import Any
 import numpy as np
 
 from pygran_core import units as _units
+from pygran_core.analysis.mesh import Mesh
+from pygran_core.analysis.particles import Particles
 from pygran_core.analysis.subsystem import SubSystem
 from pygran_core.errors import ConfigError, SelectionError, did_you_mean
 from pygran_core.io import Trajectory, open_trajectory
 
 PathLike = str | os.PathLike[str]
+#: The SubSystem classes of :mod:`pygran_core.analysis`, by name.
+BUILTIN_CLASSES: dict[str, Any] = {cls.__name__: cls for cls in (SubSystem, Particles, Mesh)}
 
 
 def load_module(module: ModuleType | PathLike) -> ModuleType:
@@ -85,20 +89,13 @@ def _module_from_file(path: Path) -> ModuleType:
 
 def resolve_class(name: str, module: ModuleType | None = None) -> type[SubSystem]:
     """The SubSystem subclass called ``name`` in ``module``, else in :mod:`pygran_core.analysis`."""
-    from pygran_core import analysis
-
-    places = [m for m in (module, analysis) if m is not None]
+    places = [vars(module), BUILTIN_CLASSES] if module is not None else [BUILTIN_CLASSES]
     for place in places:
-        candidate = getattr(place, name, None)
+        candidate = place.get(name)
         if isinstance(candidate, type) and issubclass(candidate, SubSystem):
             return candidate
     known = sorted(
-        {
-            k
-            for place in places
-            for k, v in vars(place).items()
-            if isinstance(v, type) and issubclass(v, SubSystem)
-        }
+        {k for place in places for k, v in place.items() if isinstance(v, type) and issubclass(v, SubSystem)}
     )
     hint = "" if module is not None else " A class of your own needs module=... (see System's documentation)."
     raise ConfigError(

@@ -23,7 +23,7 @@ import numpy as np
 
 from pygran_core._compiled import kernels as _accel
 from pygran_core.errors import ReadError, UnsupportedFeature, did_you_mean
-from pygran_core.io import Frame, PathLike, Trajectory, TrajectoryWriter
+from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 
 #: Columns read as integers.
 INT_COLUMNS = frozenset({"id", "type", "mol", "proc", "procp1", "ix", "iy", "iz"})

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature
-from pygran_core.io import Frame, PathLike, Trajectory, TrajectoryWriter
+from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 
 #: H5MD vector elements and the dump columns they hold.
 VECTORS = {

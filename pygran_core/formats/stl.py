@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from pygran_core.errors import ReadError
-from pygran_core.io import Frame, PathLike, Trajectory
+from pygran_core.formats.base import Frame, PathLike, Trajectory
 
 TRIANGLE = 5  # VTK cell type
 _BINARY_TRIANGLE = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])

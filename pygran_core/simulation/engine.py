@@ -24,7 +24,7 @@ import sys
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -39,6 +39,17 @@ from pygran_core.errors import (
     did_you_mean,
     unknown_key,
 )
+from pygran_core.io import Frame, TrajectoryWriter, open_trajectory, open_writer
+from pygran_core.registry import engines_with
+from pygran_core.simulation.calls import (
+    CreateSpec,
+    InsertSpec,
+    MonitorSpec,
+    MotionSpec,
+    SetSpec,
+    ViscousSpec,
+    WallSpec,
+)
 from pygran_core.simulation.checkpoint import (
     Checkpoint,
     checkpoint_path,
@@ -46,21 +57,8 @@ from pygran_core.simulation.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
-from pygran_core.simulation.specs import TrajectorySpec, positive_float, positive_int
+from pygran_core.simulation.specs import SimulationSpec, TrajectorySpec, positive_float, positive_int
 from pygran_core.simulation.timestep import Assessment, Body, Limits, characteristic_speed, limits
-
-if TYPE_CHECKING:
-    from pygran_core.io import Frame, TrajectoryWriter
-    from pygran_core.simulation.calls import (
-        CreateSpec,
-        InsertSpec,
-        MonitorSpec,
-        MotionSpec,
-        SetSpec,
-        ViscousSpec,
-        WallSpec,
-    )
-    from pygran_core.simulation.specs import SimulationSpec
 
 LOG_NAME = "pygran.log"
 _LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
@@ -308,8 +306,6 @@ class Engine(abc.ABC):
         """Raise :class:`UnsupportedFeature` unless this engine has ``capability``."""
         if capability in self.capabilities:
             return
-        from pygran_core.registry import engines_with
-
         able = [name for name in engines_with(capability) if name != self.name]
         alternative = f"Engines that can: {', '.join(able)}." if able else "No installed engine can."
         raise UnsupportedFeature(
@@ -845,8 +841,6 @@ class Engine(abc.ABC):
 
         Files written a frame each need nothing: later frames are overwritten as they come.
         """
-        from pygran_core.io import open_trajectory, open_writer
-
         before = path.with_name(f"{path.stem}.before-resume{path.suffix}")
         os.replace(path, before)
         writer = self._writers[key] = open_writer(path)
@@ -874,8 +868,6 @@ class Engine(abc.ABC):
 
     def _write(self, key: str, path: Any, make_frame: Any) -> None:
         if key not in self._writers:
-            from pygran_core.io import open_writer
-
             path.parent.mkdir(parents=True, exist_ok=True)
             self._writers[key] = open_writer(path)
         self._writers[key].write_frame(make_frame())
@@ -948,8 +940,6 @@ class Engine(abc.ABC):
     def _frame(self) -> Frame:
         """The particles now (those of species ``traj`` ``sel`` unless ``"all"``), as a
         trajectory frame with the ``traj`` columns in their order."""
-        from pygran_core.io import Frame
-
         traj = self.spec.traj
         arrays: dict[str, np.ndarray] = {}
         for quantity, names in TRAJ_VECTORS.items():

@@ -24,6 +24,8 @@ import numpy as np
 
 from pygran_core import params as materials
 from pygran_core.errors import ConfigError, UnsupportedFeature, unknown_key
+from pygran_core.formats.base import expand_paths
+from pygran_core.formats.stl import STLTrajectory
 
 Vector = tuple[float, float, float]
 BOUNDARY_FLAGS = frozenset("pfsm")
@@ -445,9 +447,7 @@ class MeshSpec:
     def triangles(self) -> np.ndarray:
         """The mesh's triangles ``(T, 3, 3)`` in place: scaled, rotated about the origin, then
         translated (the order of LIGGGHTS' ``scale``, ``rotate``, ``move`` keywords)."""
-        from pygran_core.io import open_trajectory
-
-        frame = open_trajectory(self.file, format="stl", scale=self.scale).read_frame(0)
+        frame = STLTrajectory(expand_paths(self.file), scale=self.scale).read_frame(0)
         points, cells = frame.arrays["points"], frame.arrays["cells"]
         if self.rotate is not None:
             points = points @ rotation_matrix(*self.rotate).T

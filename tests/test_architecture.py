@@ -1,0 +1,104 @@
+"""The layering of pygran_core, read from its source: no import cycle, and the applications
+(``pygran_core.apps``, the CLI) and test helpers (``pygran_core.testing``) stay out of the library.
+
+Every import statement counts, wherever it stands (in a function, under ``TYPE_CHECKING``), with
+the package ``__init__`` modules it runs: an import moved into a function cannot hide a cycle.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = "pygran_core"
+ROOT = Path(__file__).resolve().parents[1]
+#: Modules the library may not import: they are built on it.
+ON_TOP = ("pygran_core.apps", "pygran_core.testing", "pygran_core.cli")
+
+
+def modules() -> dict[str, Path]:
+    """Module name -> source file, packages under their own name."""
+    found = {}
+    for path in sorted((ROOT / PACKAGE).rglob("*.py")):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        found[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return found
+
+
+def imported(name: str, path: Path, known: set[str]) -> set[str]:
+    """The modules of ``known`` that importing ``name`` may run, besides its own packages."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    targets: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            targets.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, base] if base else anchor)
+            targets.update(f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names)
+    deps = set()
+    for target in targets:
+        while target and target not in known:
+            target = target.rpartition(".")[0]
+        parts = target.split(".") if target else []
+        for i in range(1, len(parts) + 1):  # the target and the packages above it
+            prefix = ".".join(parts[:i])
+            if prefix != name and not name.startswith(prefix + "."):
+                deps.add(prefix)
+    return deps
+
+
+def import_graph() -> dict[str, set[str]]:
+    found = modules()
+    return {name: imported(name, path, set(found)) for name, path in found.items()}
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle of ``graph`` as a path that ends where it starts, or ``None``."""
+    state: dict[str, int] = {}  # 1 on the current path, 2 done
+    path: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        path.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return [*path[path.index(nxt) :], nxt]
+            if nxt not in state and (cycle := visit(nxt)):
+                return cycle
+        state[node] = 2
+        path.pop()
+        return None
+
+    for start in sorted(graph):
+        if start not in state and (cycle := visit(start)):
+            return cycle
+    return None
+
+
+def test_the_graph_is_read_from_the_source():
+    graph = import_graph()
+    assert {"pygran_core.hookspecs", "pygran_core.errors"} <= graph["pygran_core.registry"]
+    # a submodule import runs the packages above it
+    assert "pygran_core.simulation" in graph["pygran_core.testing.engines"]
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_no_import_cycle():
+    cycle = find_cycle(import_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or ())
+
+
+def test_library_does_not_import_applications_or_test_helpers():
+    def on_top(module: str) -> bool:
+        return any(module == top or module.startswith(top + ".") for top in ON_TOP)
+
+    wrong = {
+        name: sorted(dep for dep in deps if on_top(dep))
+        for name, deps in import_graph().items()
+        if not on_top(name) and any(on_top(dep) for dep in deps)
+    }
+    assert not wrong, f"library modules import applications or test helpers: {wrong}"
