@@ -13,7 +13,7 @@ from pygran_liggghts.library import LIBRARY_ENV, find_library
 from pygran_core import simulation
 from pygran_core.errors import EngineError
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import SOFT as MATERIAL
+from pygran_core.testing.validation import SOFT as MATERIAL
 
 SQUARE = Path(__file__).resolve().parents[3] / "tests" / "data" / "meshes" / "square.stl"
 

@@ -13,7 +13,7 @@ from pygran_liggghts.library import find_library
 from pygran_core import simulation
 from pygran_core.errors import LostParticlesWarning
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import SOFT
+from pygran_core.testing.validation import SOFT
 
 R = 5e-4
 

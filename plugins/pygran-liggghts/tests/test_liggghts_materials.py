@@ -33,7 +33,7 @@ from pygran_core.simulation.models import HertzMindlin
 from pygran_core.simulation.timestep import rayleigh_time
 from pygran_core.testing.engines import rest_overlap, slowest_decay
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import (
+from pygran_core.testing.validation import (
     GRAVITY,
     contact_modulus,
     hertz_contact_time,
@@ -113,7 +113,7 @@ def impact(
 
     400 steps per Hertz contact time; the overlap is sampled every 6 steps over 1.2 contact
     times for its maximum; the contact ends when the free flight after it extrapolates back
-    to touching (as in :func:`pygran_core.validation.wall_impact`).
+    to touching (as in :func:`pygran_core.testing.validation.wall_impact`).
     """
     speed = abs(velocity[2])
     mass, modulus = sphere_mass(material, radius), contact_modulus(material)

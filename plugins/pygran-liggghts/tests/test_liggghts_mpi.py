@@ -47,7 +47,7 @@ def test_nsim_two_runs_under_mpirun(tmp_path):
 FAILING = """
 import math
 from pygran_core import simulation
-from pygran_core.validation import SOFT
+from pygran_core.testing.validation import SOFT
 
 with simulation.DEM(engine="liggghts", model="HertzMindlin", nSim=NSIM, box=(0, 0.01, 0, 0.01, 0, 0.01),
                     dt=1e-6, output=OUTPUT, progress=False,
@@ -104,7 +104,7 @@ LOSING = """
 import sys
 
 from pygran_core import simulation
-from pygran_core.validation import SOFT
+from pygran_core.testing.validation import SOFT
 
 with simulation.DEM(engine="liggghts", model="HertzMindlin", box=(0, 0.01, 0, 0.01, 0, 0.01),
                     gravity=(9.81, 0, 0, -1), dt=1e-5, output=OUTPUT, progress=False,

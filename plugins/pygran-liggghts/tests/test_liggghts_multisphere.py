@@ -10,7 +10,7 @@ from pygran_liggghts.library import find_library
 from pygran_core import analysis, simulation
 from pygran_core.errors import UnsupportedFeature
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import SOFT as MATERIAL
+from pygran_core.testing.validation import SOFT as MATERIAL
 
 G, R = 9.81, 1e-4
 

@@ -15,7 +15,7 @@ from pygran_liggghts.library import find_library
 from pygran_core import simulation
 from pygran_core.io import open_trajectory
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import SOFT
+from pygran_core.testing.validation import SOFT
 
 PLATE = Path(__file__).resolve().parents[3] / "tests" / "data" / "meshes" / "square.stl"
 NAMES = ["my run", "run#1", "run$x", "it's", 'say "hi"', "all $ # ' \" of them"]

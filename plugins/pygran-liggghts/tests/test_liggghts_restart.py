@@ -12,7 +12,7 @@ from pygran_core import simulation
 from pygran_core.io import open_trajectory
 from pygran_core.simulation.checkpoint import read_checkpoint
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import SOFT as MATERIAL
+from pygran_core.testing.validation import SOFT as MATERIAL
 
 R = 1e-3
 

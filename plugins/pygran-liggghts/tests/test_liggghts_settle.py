@@ -5,7 +5,7 @@ import pytest
 from pygran_liggghts.library import find_library
 
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import RADIUS, SETTLE_SPACING, settle_positions, settle_setup
+from pygran_core.testing.validation import RADIUS, SETTLE_SPACING, settle_positions, settle_setup
 
 CELLS = (8, 6, 5)  # 240 particles
 
