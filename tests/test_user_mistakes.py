@@ -418,18 +418,7 @@ def test_a_second_lattice_in_the_same_place_is_refused(tmp_path, engine):
         assert len(sim.extractIds()) == made
 
 
-@pytest.mark.parametrize(
-    "engine",
-    [
-        *ENGINES[:2],
-        pytest.param(
-            "liggghts",
-            marks=pytest.mark.xfail(
-                strict=True, reason="the LIGGGHTS engine does not yet report insert/pack's shortfall"
-            ),
-        ),
-    ],
-)
+@pytest.mark.parametrize("engine", ENGINES)
 def test_a_full_region_is_a_warning_that_says_how_many(tmp_path, engine):
     """Asked for 50 particles where about 8 fit: an InsertionWarning with the numbers, also in
     pygran.log; the particles that fit are there."""

@@ -1,16 +1,19 @@
 """insert() on real LIGGGHTS as on the placing engines: small regions, two insertions into one
-region before a run, and the target of a repeated insertion kept across a resume."""
+region before a run, the target of a repeated insertion kept across a resume, and the
+shortfall of insertions into a full region reported."""
 
+import re
 import shutil
+import warnings
 
 import numpy as np
 import pytest
 from pygran_liggghts.library import find_library
 
-from pygran_core import simulation
-from pygran_core.errors import PyGranWarning
+from pygran_core import params, simulation
+from pygran_core.errors import InsertionWarning, PyGranWarning
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import SOFT as MATERIAL
+from pygran_core.testing.validation import SOFT as MATERIAL
 
 
 def dem(output, **params):
@@ -102,3 +105,36 @@ def test_an_earlier_volume_fraction_waiting_for_the_run_is_named(tmp_path):
         sim.run(10)
         types = sim.engine.extract("type")
     assert np.bincount(types, minlength=3)[2] == 10  # none at the first run, 10 at the second
+
+
+def test_batches_by_rate_into_a_full_region_warn_once_with_the_numbers(tmp_path):
+    """4000 particles/s every 1000 steps of 5 us asks for 20 particles per batch, of 1 mm radius
+    in a 5 mm cube (about 8 fit): the first batch's shortfall is an InsertionWarning with the
+    numbers, the later batches' are logged, and the particles present are those reported."""
+    region = ("block", 0, 0.005, 0, 0.005, 0, 0.005)
+    organic = params.organic
+    with dem(
+        tmp_path,
+        box=(0, 0.02, 0, 0.02, 0, 0.02),
+        boundary=("f", "f", "f"),
+        dt=5e-6,
+        species=({"material": organic, "radius": 1e-3},),
+    ) as sim:
+        sim.insert(1, value=4000, region=region, insert="by_rate", freq=1000)
+        with pytest.warns(InsertionWarning) as caught:
+            sim.run(1)
+        first = len(sim.extractIds())
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", InsertionWarning)
+            sim.run(2500)  # batches at steps 1001 and 2001: logged only
+        total = len(sim.extractIds())
+    assert 0 < first < 20 and len(caught) == 1
+    assert str(caught[0].message).startswith(
+        f"insertion at step 1: {first} of 20 particles inserted, the region {region} is full "
+        f"(no free place for the other {20 - first})"
+    )
+    later = re.findall(
+        r"insertion at step (\d+): (\d+) of 20 particles inserted", (tmp_path / "pygran.log").read_text()
+    )
+    assert [step for step, _ in later] == ["1", "1001", "2001"]
+    assert first + sum(int(made) for _, made in later[1:]) == total

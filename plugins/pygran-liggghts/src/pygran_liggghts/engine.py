@@ -30,11 +30,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, EngineError, PyGranWarning, UnsupportedFeature
+from pygran_core.errors import ConfigError, EngineError, InsertionWarning, PyGranWarning, UnsupportedFeature
 from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, launch_communicator
 from pygran_liggghts.commands import BODY_ENERGY, Commands, fmt, native_meshes, native_particles
+from pygran_liggghts.screen import InsertionEvent, insertion_events
 from pygran_liggghts.session import LocalSession, WorkerSession
 
 if TYPE_CHECKING:
@@ -146,7 +147,15 @@ class LiggghtsEngine(Engine):
         self._mesh_fix: str | None = None  # the one fix wall/gran of all mesh walls
         self._restart_file: Path | None = None  # of the last checkpoint
         self._replayed_once: set[str] = set()  # one-off insertions not redone on resume
-        self._insertions: set[str] = set()  # insertion fixes in LIGGGHTS, whose counts are read
+        #: Insertion fixes in LIGGGHTS (label -> spec), whose counts are read
+        self._insertions: dict[str, InsertSpec] = {}
+        #: Reading insertion events from LIGGGHTS' screen file: how far it has been read, the
+        #: particles asked for at the first step of the next run by the by-pack insertions made
+        #: then, those by rate asked for per event, and the insertions whose shortfall was warned
+        self._screen_read = 0
+        self._asked: dict[str, int] = {}
+        self._per_event: dict[str, float] = {}
+        self._short_warned: set[str] = set()
         #: By-pack insertions LIGGGHTS has not made yet (it makes them as the next run starts)
         self._unplaced: dict[str, InsertSpec] = {}
         #: label -> (the insert call's number, the target given to LIGGGHTS) of each by-pack
@@ -305,12 +314,87 @@ class LiggghtsEngine(Engine):
         # init from the smallest particle present
         auto = any(mesh.servo and mesh.servo.mode == "auto" for mesh in self.spec.meshes)
         pre = "pre no " if self._prepared and not lines and not auto else ""
+        # LIGGGHTS makes these as this run starts, asking for its target less what it counts
+        self._asked = {
+            label: int(spec.value) - self._held(spec)
+            for label, spec in self._unplaced.items()
+            if spec.target == "particles_in_region"
+        }
+        self._unplaced.clear()
         self._queue([*lines, f"run {nsteps} {pre}post no"])
-        self._unplaced.clear()  # LIGGGHTS makes them as this run starts
+        start = self.step
         self._max_id, count, x, v = self._ask("run", self._take(), sorted(self._insertions))
         self._prepared = self._computed = True
         if count:
             self._unreported += self._lost_particles(count, x, v, nsteps * self.dt)
+        self._report_insertions(start)
+
+    def _held(self, spec: InsertSpec) -> int:
+        """The particles LIGGGHTS counts in the region of by-pack insertion ``spec``: centres
+        in it, or with ``all_in`` whole spheres (multisphere particles by their centres)."""
+        if self.commands.body_types:
+            return self._particles_in(spec.region)
+        arrays = self._request("gather", ["x", "radius"])
+        margin = arrays["radius"] if spec.all_in else 0.0
+        return int(np.count_nonzero(spec.region.contains(arrays["x"].reshape(-1, 3), margin)))
+
+    def _report_insertions(self, start: int) -> None:
+        """Log the insertion events of the run that began at step ``start`` from LIGGGHTS'
+        screen file; one that inserted fewer than it asked for (its region full) is an
+        :class:`InsertionWarning`, the first time for each insertion, then logged."""
+        if not self._root:
+            return
+        try:
+            with (self.output / LOG_NAME).open("rb") as screen:
+                screen.seek(self._screen_read)
+                text = screen.read()
+        except FileNotFoundError:
+            return
+        text = text[: text.rfind(b"\n") + 1]  # whole lines only
+        self._screen_read += len(text)
+        events, per_event = insertion_events(text.decode(errors="replace"))
+        self._per_event.update(per_event)
+        for event in events:
+            spec = self._insertions.get(event.fix)
+            if spec is None:
+                continue
+            asked = self._asked.pop(event.fix, None) if event.step == start + 1 else None
+            if not event.short:
+                self.log("insert at step %d: %d particles", event.step, event.inserted)
+                continue
+            message = self._shortfall(event, spec, asked)
+            if event.fix in self._short_warned:
+                self._to_file(logging.WARNING, message)
+            else:
+                self._short_warned.add(event.fix)
+                self._warn(
+                    f"{message}: give a larger region or fewer particles. Further shortfalls of this "
+                    "insertion are logged in pygran.log only.",
+                    InsertionWarning,
+                )
+        self._asked.clear()
+
+    def _shortfall(self, event: InsertionEvent, spec: InsertSpec, asked: int | None) -> str:
+        """What LIGGGHTS' insertion ``event`` (of ``spec``) asked for and inserted, as the
+        placing engines say it. Asked: a by-pack target less the particles LIGGGHTS counted
+        as the run started, or what a batch by rate asks (``int(per + uniform)``, exact for a
+        whole number); else (a repeated by-pack insertion, a volume or mass target) the target."""
+        made = event.inserted
+        where = f"the region {spec.region} is full"
+        per = self._per_event.get(event.fix) if spec.mechanism == "by_rate" else None
+        if asked is None and per is not None and per.is_integer():
+            asked = int(per)
+        if asked is not None:
+            return (
+                f"insertion at step {event.step}: {made} of {asked} particles inserted, {where} "
+                f"(no free place for the other {asked - made})"
+            )
+        if per is not None:
+            wanted = f"of about {per:.3g} particles asked for"
+        else:
+            amount = f"{spec.value:g}" if spec.target == "particles_in_region" else f"{spec.value:.3g}"
+            wanted = f"fewer than its target ({spec.target} {amount}) needs"
+        return f"insertion at step {event.step}: {made} particles inserted {wanted}, {where}"
 
     def _lost_particles(self, count: int, x: np.ndarray, v: np.ndarray, duration: float) -> LostParticles:
         """``count`` particles lost in a run of ``duration``: those seen at its start (``x``,
@@ -383,7 +467,7 @@ class LiggghtsEngine(Engine):
             self._replayed_once.add(label)
             return label
         self._execute(lines)
-        self._insertions.add(label)
+        self._insertions[label] = spec
         if spec.mechanism == "by_pack":
             self._targets[label] = (number, spec.value)
             if not self.replaying:
@@ -622,7 +706,7 @@ class LiggghtsEngine(Engine):
             self._execute([f"unfix {handle.label}"])
         self._walls.pop(handle.label, None)
         self._motions.pop(handle.label, None)
-        self._insertions.discard(handle.label)
+        self._insertions.pop(handle.label, None)
         self._unplaced.pop(handle.label, None)
         self._targets.pop(handle.label, None)
 

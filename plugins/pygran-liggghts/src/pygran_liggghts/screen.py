@@ -15,6 +15,9 @@ LIGGGHTS opened for the ``-screen`` file among glibc's open streams (``_IO_list_
 looks for that pointer in the first words of the instance; every rank of one binary has the
 same layout. Where any of this is unavailable, the screen is left as LIGGGHTS made it.
 
+:func:`insertion_events` reads what LIGGGHTS' insertion fixes write on that screen (how many
+each event inserted, and whether fewer than it asked for).
+
 This module imports nothing of ``pygran_core`` (the worker loads it).
 """
 
@@ -23,8 +26,10 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import os
+import re
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -42,6 +47,39 @@ _CLOSE = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)
 
 class _CookieFunctions(ctypes.Structure):
     _fields_ = [("read", ctypes.c_void_p), ("write", _WRITE), ("seek", ctypes.c_void_p), ("close", _CLOSE)]
+
+
+#: ``fix insert/*``'s line after each insertion event (rank 0's screen).
+_INSERTED = re.compile(r"INFO: Particle insertion (\S+): inserted (\d+) particle templates .* at step (\d+)")
+#: ... its warning right after it when fewer were inserted than the event asked for.
+_SHORT = "Less insertions than requested"
+#: ... and, as an insertion by rate starts, the particles it asks for at each event.
+_PER_EVENT = re.compile(r"INFO: Particle insertion (\S+): ([0-9.eE+-]+) particles every (\d+) steps")
+
+
+@dataclass
+class InsertionEvent:
+    """One insertion event of LIGGGHTS fix ``fix`` as its screen reports it."""
+
+    fix: str
+    step: int
+    inserted: int
+    short: bool = False  # fewer than asked for (LIGGGHTS: 'Less insertions than requested')
+
+
+def insertion_events(text: str) -> tuple[list[InsertionEvent], dict[str, float]]:
+    """The insertion events in LIGGGHTS screen output ``text`` and, by fix, the particles an
+    insertion by rate asks for per event (LIGGGHTS draws ``int(per + uniform)`` each time)."""
+    events: list[InsertionEvent] = []
+    per_event: dict[str, float] = {}
+    for line in text.splitlines():
+        if (match := _INSERTED.search(line)) is not None:
+            events.append(InsertionEvent(match[1], int(match[3]), int(match[2])))
+        elif _SHORT in line and events:
+            events[-1].short = True
+        elif (match := _PER_EVENT.search(line)) is not None:
+            per_event[match[1]] = float(match[2])
+    return events, per_event
 
 
 def rank_log(path: Path, rank: int) -> Path:
