@@ -116,8 +116,10 @@ def test_hopper_fills_then_discharges_after_the_stopper_is_removed(tmp_path):
         z = sim.extractCoords()[:, 2]
         assert len(z) == 300 and z.min() > 0
         sim.remove(stopper)
+        sim.engine.expect_outflow("z-")  # the outlet lets them fall out of the box: logged, not warned
         sim.run(40000)
         remaining = len(sim.extractIds())
+        assert dict(sim.engine.last_lost.where) == {"z-": 300 - remaining} == {"z-": sim.engine.lost}
     assert remaining < 300 - 30, "the hopper did not discharge"
     system = analysis.System(Particles=str(tmp_path / "out" / "traj.h5"))
     assert len(system) == 7  # steps 0, 10000, ..., 60000

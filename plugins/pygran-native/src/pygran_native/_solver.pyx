@@ -37,7 +37,7 @@ pass by at most the block it is in, and threads with nothing to do sleep instead
 (see team.h for why that matters).
 """
 
-from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite
+from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
 from libc.stdlib cimport malloc, calloc, realloc, free
 from libc.string cimport memcpy, memset
 from libc.stdint cimport int64_t, uint8_t
@@ -119,6 +119,8 @@ cdef enum:
 
 MAX_THREADS = MAXTHREADS
 MOTION_VALUES = NMOT
+#: Where :meth:`Core.take_lost` counts lost particles: the faces of the box, then non-finite.
+LOST_PLACES = ("x-", "x+", "y-", "y+", "z-", "z+", "non-finite")
 
 TIMERS = ("run", "drift", "walls", "pairs", "particles", "rebuild", "rebuild_cells", "rebuild_sort",
           "rebuild_permute", "rebuild_count", "rebuild_fill", "pairs_span", "particles_span")
@@ -969,8 +971,8 @@ cdef inline void drift_row(const Ctx* c, int i, int tid, const double* F, const 
         c.x[3 * i + d] += c.dt * c.v[3 * i + d]
         q = c.x[3 * i + d] - c.x0[3 * i + d]
         dd += q * q
-    if dd > c.tmax[PAD * tid]:
-        c.tmax[PAD * tid] = dd
+    if not dd <= c.tmax[PAD * tid]:   # a non-finite particle forces a rebuild, which drops it
+        c.tmax[PAD * tid] = dd if isfinite(dd) else INFINITY
 
 
 cdef void particle_row(const Ctx* c, int i, int tid, int first, int end) noexcept nogil:
@@ -1067,6 +1069,10 @@ cdef class Core:
     cdef double t_base, dt_base
     cdef long long step_base
     cdef public long long step, lost, rebuilds
+    # particles lost since the last take_lost: through each face x-, x+, y-, y+, z-, z+ of the
+    # box and non-finite (LOST_PLACES), and the largest speed of those lost through a face
+    cdef long long lost_at[7]
+    cdef double lost_speed
     cdef double lo[3]
     cdef double hi[3]
     cdef double L[3]
@@ -1794,7 +1800,9 @@ cdef class Core:
         self.parallel_rows(P_PLACE, n)
         for i in range(n):
             if self.cell[i] < 0:
-                lost += self.cell[i] == -1
+                if self.cell[i] == -1:
+                    lost += 1
+                    self.count_lost(i)
                 self.cell[i] = self.ncells
         self.lost += lost
         # counting sort by cell (lost ones in the sentinel cell ncells)
@@ -1844,6 +1852,39 @@ cdef class Core:
         self.lap(T_REBUILD, t0)
         self.rebuilds += 1
         return 0
+
+    cdef void count_lost(self, int i) noexcept nogil:
+        """Count lost particle i at the face of the box it is furthest beyond (or as non-finite),
+        and its speed."""
+        cdef int d, place = 6
+        cdef double p, beyond = 0.0, speed = 0.0
+        for d in range(3):
+            if not (isfinite(self.x[3 * i + d]) and isfinite(self.v[3 * i + d])):
+                self.lost_at[6] += 1
+                return
+            speed += self.v[3 * i + d] * self.v[3 * i + d]
+        for d in range(3):
+            p = self.x[3 * i + d]
+            if self.per[d]:
+                continue
+            if self.lo[d] - p > beyond:
+                beyond = self.lo[d] - p
+                place = 2 * d
+            elif p - self.hi[d] > beyond:
+                beyond = p - self.hi[d]
+                place = 2 * d + 1
+        self.lost_at[place] += 1
+        if sqrt(speed) > self.lost_speed:
+            self.lost_speed = sqrt(speed)
+
+    def take_lost(self):
+        """Particles lost since the last call, by place (``LOST_PLACES``), and the largest speed
+        of those lost through a face (0 if none); resets both."""
+        counts = np.array([self.lost_at[k] for k in range(7)], dtype=np.int64)
+        speed = self.lost_speed
+        memset(self.lost_at, 0, 7 * sizeof(long long))
+        self.lost_speed = 0.0
+        return counts, speed
 
     cdef inline double lap(self, int k, double since) noexcept nogil:
         """Add the wall-clock time since ``since`` to timer k; returns now."""
@@ -2273,7 +2314,8 @@ cdef class Core:
             "emoving": _copy_i(self.emoving, ne), "egeo": _copy_d(self.egeo, 9 * ne),
             "eref": _copy_d(self.eref, 9 * ne), "ebuilt": _copy_d(self.ebuilt, 9 * ne),
             "emot": _copy_d(self.emot, NMOT * ne), "visc": _copy_d(self.visc, self.ntypes),
-            "scalars": np.array([self.time, self.t_base, self.dt_base], dtype=float),
+            "scalars": np.array([self.time, self.t_base, self.dt_base, self.lost_speed], dtype=float),
+            "lost": np.array([self.lost_at[k] for k in range(7)], dtype=np.int64),
             "counters": np.array([self.step, self.lost, self.rebuilds, self.dirty, self.step_base],
                                  dtype=np.int64),
             "bounds": _copy_i(self.pb, self.nblocks + 1),
@@ -2320,7 +2362,9 @@ cdef class Core:
             memcpy(self.nb_s, cnp.PyArray_DATA(nbs), npair)
         self.set_viscous(np.ascontiguousarray(state["visc"], dtype=float))
         self.n = n
-        self.time, self.t_base, self.dt_base = (float(k) for k in state["scalars"])
+        self.time, self.t_base, self.dt_base, self.lost_speed = (float(k) for k in state["scalars"])
+        for i in range(7):
+            self.lost_at[i] = state["lost"][i]
         self.step, self.lost, self.rebuilds, self.dirty, self.step_base = (int(k) for k in state["counters"])
         if state["bounds"].shape[0] == self.nblocks + 1:
             _put_i(self.pb, state["bounds"], self.nblocks + 1)

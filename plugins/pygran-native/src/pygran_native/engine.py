@@ -15,7 +15,7 @@ import numpy as np
 from pygran_core.errors import ConfigError, ReadError
 from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
-from pygran_core.simulation.engine import Handle
+from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.specs import SimulationSpec
 from pygran_native.solver import Solver
@@ -242,6 +242,12 @@ class NativeEngine(PlacingEngine):
             )
         except ReadError as exc:
             raise ReadError(f"{self._resume_path}: {exc}") from None
+
+    def _lost_since_last(self) -> LostParticles:
+        """The particles the solver deleted since the last call: by the face of the box they
+        were beyond, or non-finite, and the largest speed of the first (see Solver.take_lost)."""
+        where, speed = self.solver.take_lost()
+        return LostParticles(sum(where.values()), where, speed)
 
     def _facts(self) -> dict[str, Any]:
         return {"threads": self.solver.threads}

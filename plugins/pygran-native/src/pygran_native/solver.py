@@ -15,8 +15,9 @@ Conventions (LIGGGHTS):
 - neighbour search: cell list of side ``>= 2 r_max + skin``, half neighbour list rebuilt
   when a particle plus a moving wall have moved more than half the skin since the last
   rebuild; at each rebuild particles are wrapped into periodic directions, sorted by
-  cell, and those outside a fixed boundary are deleted and counted in :attr:`Solver.lost`
-  (LIGGGHTS ``boundary f``);
+  cell, and those outside a fixed boundary or non-finite are deleted and counted in
+  :attr:`Solver.lost` (LIGGGHTS ``boundary f``), by face and with their speed
+  (:meth:`Solver.take_lost`); a non-finite particle forces a rebuild at once;
 - contact models: ``hooke``, ``hertz`` and ``thornton-ning`` with the formulas of
   :mod:`pygran_core.simulation.models` (``SpringDashpot``, ``HertzMindlin``,
   ``ThorntonNing``), tangential history with the Coulomb limit, SJKR cohesion for
@@ -44,7 +45,7 @@ import numpy as np
 from pygran_core.errors import ConfigError, ReadError
 from pygran_core.simulation.models import mixing
 from pygran_native import _kernels
-from pygran_native._solver import MAX_THREADS, MOTION_VALUES, Core
+from pygran_native._solver import LOST_PLACES, MAX_THREADS, MOTION_VALUES, Core
 
 __all__ = ["Solver", "default_threads"]
 
@@ -478,7 +479,20 @@ class Solver:
     n = property(lambda self: self._core.n, doc="Number of particles.")
     time = property(lambda self: self._core.time, doc="Simulated time (s).")
     step = property(lambda self: self._core.step, doc="Steps run so far.")
-    lost = property(lambda self: self._core.lost, doc="Particles deleted for leaving a fixed boundary.")
+    lost = property(
+        lambda self: self._core.lost,
+        doc="Particles deleted for leaving a fixed boundary or becoming non-finite.",
+    )
+
+    def take_lost(self) -> tuple[dict[str, int], float | None]:
+        """Particles lost since the last call (part of :meth:`get_state`): counts by place, a
+        face of the box (``"z-"``: below its lower z bound; the one a particle is furthest
+        beyond) or ``"non-finite"``, and the largest speed (m/s) of those lost through a face,
+        ``None`` if there were none."""
+        counts, speed = self._core.take_lost()
+        where = {place: int(k) for place, k in zip(LOST_PLACES, counts) if k}
+        return where, (speed if sum(where.values()) > where.get("non-finite", 0) else None)
+
     positions = property(lambda self: self._sorted("x"), doc="(n, 3) positions, by id.")
     velocities = property(lambda self: self._sorted("v"), doc="(n, 3) velocities, by id.")
     omegas = property(lambda self: self._sorted("w"), doc="(n, 3) angular velocities, by id.")
@@ -724,8 +738,12 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
         raise _fail("core_wl_h", "plane sides -1, 0 or 1 after each entry's history")
     out["visc"] = get("visc", float, nt, "one per type of model_youngs")
     _within("core_visc", out["visc"], 0, np.inf, "damping coefficients >= 0")
-    out["scalars"] = get("scalars", float, 3)
-    _within("core_scalars", out["scalars"], -np.inf, np.inf, "finite time, time base and step")
+    out["scalars"] = get("scalars", float, 4)
+    _within("core_scalars", out["scalars"], -np.inf, np.inf, "finite time, time base, step, lost speed")
+    if out["scalars"][3] < 0:
+        raise _fail("core_scalars", "a lost particles' speed >= 0", out["scalars"][3])
+    out["lost"] = get("lost", np.int64, len(LOST_PLACES), "one per place of LOST_PLACES")
+    _within("core_lost", out["lost"], 0, np.inf, "counts >= 0")
     out["counters"] = counters = get("counters", np.int64, 5)
     step, lost, rebuilds, dirty, step_base = counters.tolist()
     if min(step, lost, rebuilds, step_base) < 0 or dirty not in (0, 1) or step_base > step:
