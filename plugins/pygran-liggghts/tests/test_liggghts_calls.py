@@ -9,7 +9,7 @@ from pygran_liggghts.library import find_library
 
 from pygran_core import analysis, simulation
 from pygran_core.testing.solvers import require_solver
-from pygran_core.validation import SOFT as MATERIAL
+from pygran_core.testing.validation import SOFT as MATERIAL
 
 R = 1e-3
 MASS = 4 / 3 * math.pi * R**3 * MATERIAL["density"]
@@ -252,18 +252,19 @@ def test_omega_on_two_ranks(tmp_path):
     split in z) and stay through runs (no torque without contacts)."""
     with dem(tmp_path, nprocs=2) as sim:
         region = ("block", -0.005, 0.005, -0.002, 0.002, 0.002, 0.028)
-        assert sim.createParticles(1, "lattice", 0.004, region=region, omega=(1, 2, 3)) == 21
+        # sites at x = -3, 1 mm, y = 0, z = 4, 8, ..., 24 mm
+        assert sim.createParticles(1, "lattice", 0.004, region=region, omega=(1, 2, 3)) == 12
         x = sim.extractCoords()
         assert x[:, 2].min() < 0.015 < x[:, 2].max()
-        assert sim.set(region=("block", 0.001, 0.01, -0.01, 0.01, 0, 0.03), omega=(4, 5, 6)) == 7
+        assert sim.set(region=("block", 0, 0.01, -0.01, 0.01, 0, 0.03), omega=(4, 5, 6)) == 6
         sim.run(100)
         w = sim.extractOmegas()
         assert sim.createParticles(1, "single", 0.0, 0.005, 0.02, omega=(0, 0, -5)) == 1
         sim.run(100)
         w_new = sim.extractOmegas()
-    right = x[:, 0] > 0.001
-    np.testing.assert_array_equal(w[right], np.tile([4, 5, 6], (7, 1)))
-    np.testing.assert_array_equal(w[~right], np.tile([1, 2, 3], (14, 1)))
+    right = x[:, 0] > 0
+    np.testing.assert_array_equal(w[right], np.tile([4, 5, 6], (6, 1)))
+    np.testing.assert_array_equal(w[~right], np.tile([1, 2, 3], (6, 1)))
     np.testing.assert_array_equal(w_new[:-1], w)
     np.testing.assert_array_equal(w_new[-1], [0, 0, -5])
 
@@ -281,7 +282,7 @@ def test_run_chunks_with_pre_no_match_one_run(tmp_path):
             results.append(sim.extractCoords())
         runs = (tmp_path / f"chunks{chunks}" / "in.pygran").read_text().count("pre no")
         assert runs == chunks - 1
-    assert len(results[0]) == 27
+    assert len(results[0]) == 18  # x, y at -2.75, -0.25, 2.25 mm; z at 3.25, 5.75 mm
     np.testing.assert_array_equal(results[0], results[1])
 
 
@@ -322,17 +323,20 @@ def test_create_many_single_particles_from_an_array(tmp_path):
 
 
 def test_dump_settings_reach_liggghts(tmp_path):
-    """nns_type and dump_modify are LIGGGHTS' own; traj sel picks the species at every frame,
-    so particles inserted after the dump was set up are in it too."""
+    """nns_type and dump_modify are LIGGGHTS' own (dump_modify's words, as PyGran 1.x wrote
+    them, on one line); traj sel picks the species at every frame, so particles inserted after
+    the dump was set up are in it too."""
     species = ({"material": MATERIAL, "radius": R}, {"material": MATERIAL, "radius": R})
     traj = {"freq": 100, "pfile": "traj.dump", "sel": 2, "args": ("id", "type", "x", "y", "z")}
     region = ("block", -0.009, 0.009, -0.009, 0.009, 0.002, 0.028)
-    with dem(tmp_path, species=species, nns_type="nsq", dump_modify=("sort id",), traj=traj) as sim:
+    with dem(
+        tmp_path, species=species, nns_type="nsq", dump_modify=("append", "yes", "sort", "id"), traj=traj
+    ) as sim:
         sim.insert(species=(1, 2), value=20, region=region)
         sim.run(200)
         types = sim.engine.extract("type")
     text = (tmp_path / "in.pygran").read_text()
-    assert "neighbor 0.001 nsq\n" in text and "dump_modify pg_dump sort id\n" in text
+    assert "neighbor 0.001 nsq\n" in text and "dump_modify pg_dump append yes sort id\n" in text
     with analysis.System(Particles=str(tmp_path / "traj.dump")) as system:
         system.goto(-1)
         ids = system.Particles.id
@@ -349,3 +353,17 @@ def test_particles_of_the_second_species_only(tmp_path):
         sim.run(1000)
         z = sim.extractCoords()[0, 2]
     assert z == pytest.approx(0.02 - G * (1000 * DT) ** 2 / 2, rel=1e-12)
+
+
+def test_a_lattice_fills_its_region_with_whole_spheres(tmp_path):
+    """createParticles 'lattice' of spacing 2.5 mm in a block 10 mm x 5 mm x 7 mm from (-5, -2, 1)
+    mm: sites from each lower bound plus half a spacing where a sphere of 1 mm lies wholly
+    inside (4 x 2 x 2 = 16; at z = 7.25 mm it would reach 8.25 > 8), as every engine places them."""
+    region = ("block", -0.005, 0.005, -0.002, 0.003, 0.001, 0.008)
+    with dem(tmp_path) as sim:
+        assert sim.createParticles(1, "lattice", 0.0025, region=region) == 16
+        x = sim.extractCoords()
+    xs, ys, zs = (-3.75e-3, -1.25e-3, 1.25e-3, 3.75e-3), (-0.75e-3, 1.75e-3), (2.25e-3, 4.75e-3)
+    expected = sorted((a, b, c) for a in xs for b in ys for c in zs)
+    np.testing.assert_allclose(sorted(map(tuple, x)), expected, atol=1e-12)
+    assert "lattice sc" not in (tmp_path / "in.pygran").read_text()

@@ -378,7 +378,8 @@ class Commands:
             lines.append(f"dump pg_dump all custom {traj.freq} {self.path(traj.pfile)} {' '.join(columns)}")
             if traj.sel != "all":  # chosen at every frame: a group would miss particles inserted later
                 lines.append(f"dump_modify pg_dump thresh type == {traj.sel}")
-            lines += [f"dump_modify pg_dump {arg}" for arg in traj.dump_modify]
+            if traj.dump_modify:  # the script's words, on one line: ('append', 'yes') or ('sort id',)
+                lines.append(f"dump_modify pg_dump {' '.join(traj.dump_modify)}")
             if append and "*" not in traj.pfile.name:
                 lines.append("dump_modify pg_dump append yes")
         if native_meshes(self.spec):

@@ -518,7 +518,7 @@ class LiggghtsEngine(Engine):
         self._ungrouped = bool(self.commands.body_types)
         first = self._max_id + 1
         radii = None  # per particle, when drawn here
-        if spec.style == "single":
+        if spec.style in ("single", "lattice"):  # lattice: the front end's sites, as on every engine
             centres = spec.centres
             lines = [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
             box = np.array(self.spec.domain.box, float)
@@ -530,12 +530,6 @@ class LiggghtsEngine(Engine):
             else:
                 self._queue(lines)
                 self._flush()
-        elif spec.style == "lattice":
-            rid, region = self.commands.region(spec.region)
-            self._queue(
-                [f"lattice sc {fmt(spec.spacing)}", region, f"create_atoms {spec.species} region {rid}"]
-            )
-            self._flush()
         else:
             centres, radii = self._random_spheres(spec)
             self._queue(
