@@ -33,7 +33,7 @@ PHASES = (8000, 4000)
 
 def settle(n: int, nprocs: int, output: str) -> None:
     """The settle scenario as a PyGran script (run in its own process)."""
-    from pygran_core.validation import settle_setup
+    from pygran_core.testing.validation import settle_setup
 
     with settle_setup("liggghts", Path(output), SIZES[n], nprocs=nprocs, progress=False) as sim:
         for steps in PHASES:

@@ -23,7 +23,7 @@ import numpy as np
 
 from pygran_core.analysis import Particles
 from pygran_core.analysis.equilibrium import Neighbors
-from pygran_core.validation import settle_setup
+from pygran_core.testing.validation import settle_setup
 
 SHAPES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
 

@@ -8,7 +8,7 @@ Writes traj.h5 (particles), walls*.vtk (the hopper), hopper.png and summary.txt.
 
 import argparse
 
-from pygran_core import demo
+from pygran_core.apps import demo
 
 
 def main(argv=None):

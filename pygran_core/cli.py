@@ -12,8 +12,11 @@ from typing import Any
 import numpy as np
 
 from pygran_core import registry
+from pygran_core.apps import demo
 from pygran_core.errors import PyGranError
 from pygran_core.io import Frame, Trajectory, expand_paths, open_writer
+from pygran_core.simulation.dem import resolve_engine
+from pygran_core.testing import validation
 
 
 def _solver_status(provided: registry.Provided) -> str:
@@ -139,8 +142,6 @@ def cmd_convert(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     """The hopper discharge study: simulation, analysis, plots and summary in the output folder."""
-    from pygran_core import demo
-
     summary = demo.run(
         args.output,
         engine=args.engine,
@@ -159,9 +160,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def cmd_validate(args: argparse.Namespace) -> int:
     """Physics checks of an engine against closed forms, as a table and a summary line;
     non-zero exit when a check failed or none could run."""
-    from pygran_core import validation
-    from pygran_core.simulation.dem import resolve_engine
-
     engine = resolve_engine(args.engine)
     results = validation.run_validation(
         engine,
@@ -204,12 +202,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--no-progress", action="store_true", help="no progress bars")
     demo.set_defaults(func=cmd_demo)
-    from pygran_core.validation import CHECKS
-
     validate = commands.add_parser("validate", help="check an engine's physics against closed forms")
     validate.add_argument("--engine", help="engine to check (default: the one DEM picks, native)")
     validate.add_argument(
-        "--check", action="append", choices=list(CHECKS), help="run only this check (repeatable)"
+        "--check", action="append", choices=list(validation.CHECKS), help="run only this check (repeatable)"
     )
     validate.add_argument("--output", help="keep the simulations in this folder (default: a temporary one)")
     validate.set_defaults(func=cmd_validate)

@@ -27,7 +27,7 @@ from pygran_core.errors import UnsupportedFeature
 from pygran_core.simulation import models
 from pygran_core.simulation.models import HertzMindlin
 from pygran_core.testing.solvers import in_ci, require_solver
-from pygran_core.validation import (
+from pygran_core.testing.validation import (
     IMPACT_MATERIALS,
     IMPACT_SPEED,
     RADIUS,

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pygran_core import analysis, demo
+from pygran_core import analysis
+from pygran_core.apps import demo
 from pygran_core.io import open_trajectory
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "hopper_demo.py"

@@ -5,10 +5,10 @@ import re
 
 import pytest
 
-from pygran_core import validation
 from pygran_core.errors import ConfigError, PluginNotFound
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot, ThorntonNing
-from pygran_core.validation import SOFT, CheckResult
+from pygran_core.testing import validation
+from pygran_core.testing.validation import SOFT, CheckResult
 
 
 def test_every_check_passes_on_native(tmp_path):

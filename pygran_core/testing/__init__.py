@@ -1,6 +1,4 @@
-"""Test helpers for PyGran and its plugins (need pytest): the format and engine conformance suites."""
-
-from pygran_core.testing.engines import EngineConformance
-from pygran_core.testing.formats import FormatConformance, assert_frames_equal, particle_frames
-
-__all__ = ["EngineConformance", "FormatConformance", "assert_frames_equal", "particle_frames"]
+"""Test helpers for PyGran and its plugins, each in its module: the engine and format conformance
+suites (:mod:`~pygran_core.testing.engines`, :mod:`~pygran_core.testing.formats`; they need
+pytest), the physics checks of ``pygran validate`` (:mod:`~pygran_core.testing.validation`) and
+:func:`~pygran_core.testing.solvers.require_solver` for tests that need a solver."""

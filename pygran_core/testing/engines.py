@@ -61,7 +61,7 @@ from pygran_core.simulation.insertion import triangle_distance
 from pygran_core.simulation.models import ContactModel, HertzMindlin, SpringDashpot, ThorntonNing
 from pygran_core.simulation.timestep import Body, characteristic_speed, limits
 from pygran_core.testing.solvers import in_ci, require_solver
-from pygran_core.validation import (
+from pygran_core.testing.validation import (
     IMPACT_MATERIALS,
     IMPACT_SPEED,
     STEPS_PER_CONTACT,

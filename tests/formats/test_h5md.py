@@ -11,8 +11,13 @@ import pytest
 
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, open_trajectory, open_writer
-from pygran_core.testing import FormatConformance, assert_frames_equal, particle_frames
-from pygran_core.testing.formats import fuzz_read, read_every_frame
+from pygran_core.testing.formats import (
+    FormatConformance,
+    assert_frames_equal,
+    fuzz_read,
+    particle_frames,
+    read_every_frame,
+)
 
 
 class TestH5MD(FormatConformance):

@@ -7,7 +7,7 @@ import pytest
 
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, open_trajectory
-from pygran_core.testing import FormatConformance
+from pygran_core.testing.formats import FormatConformance
 
 
 def write_stl(path, points, cells, binary):

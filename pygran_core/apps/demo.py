@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from pygran_core import analysis, simulation
+from pygran_core import analysis, registry, simulation
 from pygran_core.errors import ConfigError
 
 GRAVITY = 9.81
@@ -142,8 +142,6 @@ class Summary:
 
 def default_nprocs(engine: str) -> int:
     """MPI ranks for ``engine``: every core where it runs under MPI and ``mpirun`` exists, else 1."""
-    from pygran_core import registry
-
     if "mpi" in registry.get_engine(engine).capabilities and shutil.which("mpirun"):
         return os.cpu_count() or 1
     return 1

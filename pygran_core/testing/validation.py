@@ -42,6 +42,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pygran_core.analysis import Particles
+from pygran_core.analysis.equilibrium import Neighbors
 from pygran_core.errors import PyGranError, UnsupportedFeature, unknown_key
 from pygran_core.simulation.dem import DEM, resolve_engine
 from pygran_core.simulation.models import ContactModel, HertzMindlin, SpringDashpot, ThorntonNing
@@ -358,9 +360,6 @@ def settle(
     inside it exactly; the coordination number is the mean count of touching neighbours
     (:class:`~pygran_core.analysis.equilibrium.Neighbors`) of the spheres centred in it.
     """
-    from pygran_core.analysis import Particles
-    from pygran_core.analysis.equilibrium import Neighbors
-
     with settle_setup(engine, output, shape, material, seed) as sim:
         for nsteps in steps:
             sim.run(nsteps)
