@@ -1,4 +1,5 @@
-"""Pair (mixing) rules for a contact between two bodies 1 and 2: the one place they live.
+"""Pair (mixing) rules for a contact between two bodies 1 and 2, and the damping ratio of a
+restitution coefficient: the one place they live.
 
 Every function takes scalars or numpy arrays and broadcasts, so an engine builds a
 per-type-pair table with :func:`pair_table`, e.g.
@@ -15,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "damping_ratio",
     "effective_mass",
     "effective_modulus",
     "effective_radius",
@@ -66,6 +68,14 @@ def pair_friction(mu1: ArrayLike, mu2: ArrayLike) -> Real:
 def pair_restitution(e1: ArrayLike, e2: ArrayLike) -> Real:
     """Restitution of a pair: the geometric mean ``sqrt(e1 e2)`` (exact for like materials)."""
     return np.sqrt(np.multiply(e1, e2, dtype=float))
+
+
+def damping_ratio(e: ArrayLike) -> Real:
+    """Damping ratio ``zeta = -ln e / sqrt(ln^2 e + pi^2)`` of the linear dashpot whose impact has
+    restitution ``e`` (``0 < e <= 1``): 0 for ``e = 1``, towards 1 as ``e -> 0``. LIGGGHTS' damping
+    parameter ``beta`` of its visco-elastic models is ``-zeta``; YADE's ``betan`` is ``zeta``."""
+    log_e = np.log(np.asarray(e, float))
+    return -log_e / np.hypot(log_e, np.pi)
 
 
 def pair_cohesion(g1: ArrayLike, g2: ArrayLike) -> Real:

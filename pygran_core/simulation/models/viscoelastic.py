@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from pygran_core.errors import ConfigError
+from pygran_core.simulation.models import mixing
 from pygran_core.simulation.models.base import Array, ContactModel, Impact
 
 __all__ = ["HertzMindlin", "SpringDashpot"]
@@ -45,9 +46,9 @@ class _Viscoelastic(ContactModel):
         rolling: str | None = None,
     ) -> None:
         super().__init__(material, partner=partner, limitForce=limitForce, rolling=rolling)
-        e = self.restitution_coefficient
-        #: LIGGGHTS' damping parameter: ``beta = ln e / sqrt(ln^2 e + pi^2)`` (<= 0).
-        self.beta = math.log(e) / math.hypot(math.log(e), math.pi)
+        #: LIGGGHTS' damping parameter: ``beta = ln e / sqrt(ln^2 e + pi^2)`` (<= 0), minus
+        #: :func:`~pygran_core.simulation.models.mixing.damping_ratio`.
+        self.beta = -float(mixing.damping_ratio(self.restitution_coefficient))
 
     @abc.abstractmethod
     def _normal_coefficients(self, overlap: Array) -> tuple[Array, Array]:
