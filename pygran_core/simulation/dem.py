@@ -178,7 +178,7 @@ class DEM:
         self._note(notes)
         return handle
 
-    def createParticles(self, species: Any, style: str, *args: Any, **kwargs: Any) -> int:  # noqa: N802
+    def createParticles(self, species: Any, style: str, *args: Any, **kwargs: Any) -> int:
         """Create particles now: ``'single'`` at x, y, z (or one per row of an ``(N, 3)`` array
         of positions); ``'lattice'`` or ``'random'`` in a region. Returns how many were created."""
         return self.engine.create_particles(
@@ -203,7 +203,7 @@ class DEM:
         self,
         wtype: str = "primitive",
         species: Any = 1,
-        plane: str | None = None,  # noqa: N802
+        plane: str | None = None,
         peq: float | None = None,
         **kwargs: Any,
     ) -> Handle:
@@ -225,7 +225,7 @@ class DEM:
             self._mesh_walls[spec.mesh] = (handle, spec.species)
         return handle
 
-    def moveMesh(self, name: str, **kwargs: Any) -> Handle:  # noqa: N802
+    def moveMesh(self, name: str, **kwargs: Any) -> Handle:
         """Move mesh ``name`` as LIGGGHTS' ``move/mesh`` styles (see :class:`~.calls.MotionSpec`):
         ``rotate=('origin', x, y, z), axis=..., period=...`` (or ``rotate=True`` with
         ``origin``, ``axis``, ``period`` or ``omega``), ``linear=(vx, vy, vz)``,
@@ -238,7 +238,7 @@ class DEM:
 
     # -- forces, monitors, raw commands ---------------------------------------------------
 
-    def addViscous(self, **kwargs: Any) -> Handle:  # noqa: N802
+    def addViscous(self, **kwargs: Any) -> Handle:
         """A drag force ``-gamma * scale * v`` on ``species`` (default all)."""
         return self.engine.add_viscous(calls.parse_viscous(kwargs, self.spec))
 
@@ -310,23 +310,23 @@ class DEM:
             handle = wall[0]
         self.engine.remove(handle)
 
-    def extractCoords(self) -> np.ndarray:  # noqa: N802
+    def extractCoords(self) -> np.ndarray:
         """Positions, (N, 3), ordered by particle id."""
         return self.engine.extract("x")
 
-    def extractVelocities(self) -> np.ndarray:  # noqa: N802
+    def extractVelocities(self) -> np.ndarray:
         return self.engine.extract("v")
 
-    def extractOmegas(self) -> np.ndarray:  # noqa: N802
+    def extractOmegas(self) -> np.ndarray:
         return self.engine.extract("omega")
 
-    def extractForces(self) -> np.ndarray:  # noqa: N802
+    def extractForces(self) -> np.ndarray:
         return self.engine.extract("f")
 
-    def extractRadii(self) -> np.ndarray:  # noqa: N802
+    def extractRadii(self) -> np.ndarray:
         return self.engine.extract("radius")
 
-    def extractIds(self) -> np.ndarray:  # noqa: N802
+    def extractIds(self) -> np.ndarray:
         return self.engine.extract("id")
 
     @property
