@@ -2,12 +2,17 @@
 SIGKILLed (at seeded random moments, and at chosen points: inside a checkpoint's HDF5 write,
 between its seal and its rename, in the middle of an H5MD trajectory frame, while a resumed
 run cuts its trajectory back), then the same script is run again. Every file a kill leaves is
-readable (or a ``ReadError``, never a hang), and the run that finishes ends bitwise where an
-uninterrupted run ends: particles, monitor and every trajectory frame."""
+readable (or a ``ReadError``, never a hang), and the run that finishes ends where an
+uninterrupted run ends: bitwise on the native engine (particles, monitor and every trajectory
+frame); on LIGGGHTS, which rebuilds its neighbour lists from its restart file, with the same
+particles, monitor and frames and positions within half a radius. Engines with the ``restart``
+capability only (YADE has none). Also: a checkpoint whose insertion state is malformed is a
+``ReadError`` naming the file and the key."""
 
 from __future__ import annotations
 
 import json
+import os
 import re
 import signal
 import subprocess
@@ -21,14 +26,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pygran_core import params, simulation
+from pygran_core import params, registry, simulation
 from pygran_core.errors import ReadError
 from pygran_core.io import open_trajectory
 from pygran_core.simulation.checkpoint import encode_text, read_checkpoint, write_checkpoint
+from pygran_core.testing.solvers import require_solver
 
-#: The user's study (native engine, H5MD trajectory, a checkpoint every 500 steps; it resumes
-#: from the newest checkpoint when there is one). ``sys.argv[1]`` is the output folder.
-STUDY = '''
+#: The user's study on the native engine (H5MD trajectory, a checkpoint every 500 steps; it
+#: resumes from the newest checkpoint when there is one). ``sys.argv[1]`` is the output folder.
+NATIVE = '''
 """Spheres poured onto a floor by rate, then the floor lowered."""
 
 import sys
@@ -63,13 +69,51 @@ with simulation.DEM(**settings) as sim:
         duration=0.003,
         region=("block", -1.8e-3, 1.8e-3, -1.8e-3, 1.8e-3, 3e-3, 7.8e-3),
     )
-    ke = sim.monitor(quantities=("ke", "n"), freq=100, file="ke.txt")
+    ke = sim.monitor(quantities=("ke", "n"), freq=100, file="monitor.txt")
     sim.run(4000)
     sim.remove(floor)
     sim.setupWall(species=1, plane="zplane", peq=-1.5e-3)
     sim.run(6000)
     final = {q: sim.engine.extract(q) for q in ("id", "x", "v", "omega", "f", "radius")}
-    np.savez(output / "final.npz", ke=ke.values["ke"], **final)
+    np.savez(output / "final.npz", monitor=ke.values["ke"], **final)
+'''
+
+#: The same kind of study on LIGGGHTS: 100 spheres packed above a floor (insertion at step 0
+#: only: LIGGGHTS' restart files do not keep its insertion's random stream), poured, then the
+#: floor lowered; a checkpoint every 600 steps.
+LIGGGHTS = '''
+"""100 spheres packed above a floor, poured, then the floor lowered."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pygran_core import params, simulation
+
+output = Path(sys.argv[1])
+settings = {
+    "engine": "liggghts",
+    "model": simulation.HertzMindlin,
+    "box": (-0.006, 0.006, -0.006, 0.006, -0.005, 0.03),
+    "boundary": ("p", "p", "f"),
+    "gravity": (9.81, 0, 0, -1),
+    "dt": 1e-5,
+    "output": str(output),
+    "progress": False,
+    "species": ({"material": params.cohesionless, "radius": 1e-3},),
+    "traj": {"pfile": "traj.h5", "freq": 200, "args": ("id", "type", "x", "y", "z", "radius")},
+    "restart": (600, "restart", "restart.*.h5", any((output / "restart").glob("restart.*.h5"))),
+}
+with simulation.DEM(**settings) as sim:
+    floor = sim.setupWall(species=1, plane="zplane", peq=0.0)
+    sim.insert(species=1, value=100, region=("block", -0.005, 0.005, -0.005, 0.005, 0.01, 0.028))
+    n = sim.monitor(quantities=("n",), freq=100, file="monitor.txt")
+    sim.run(2000)
+    sim.remove(floor)
+    sim.setupWall(species=1, plane="zplane", peq=-0.004)
+    sim.run(1000)
+    np.savez(output / "final.npz", id=sim.extractIds(), x=sim.extractCoords(), monitor=n.values["n"])
 '''
 
 #: Runs a script (``argv[3:]``) and SIGKILLs itself at the ``argv[2]``-th time it reaches
@@ -149,11 +193,13 @@ print(json.dumps(results))
 
 #: Seconds any child may take before it counts as hung (generous: the cores are shared).
 TIMEOUT = 120
+#: Seconds a killed study's own child processes (the LIGGGHTS worker) may outlive it.
+ORPHAN_TIMEOUT = 30
 
 
 @dataclass
 class Outcome:
-    """What an uninterrupted run leaves: final arrays, monitor file, trajectory frames."""
+    """What a finished run leaves: final arrays, monitor file, trajectory frames."""
 
     final: dict[str, np.ndarray]
     monitor: str
@@ -165,7 +211,7 @@ def outcome(output: Path) -> Outcome:
         final = dict(saved)
     with open_trajectory(output / "traj.h5") as trajectory:
         frames = [(frame.timestep, dict(frame.arrays)) for frame in trajectory]
-    return Outcome(final, (output / "ke.txt").read_text(), frames)
+    return Outcome(final, (output / "monitor.txt").read_text(), frames)
 
 
 def assert_same(got: Outcome, expected: Outcome) -> None:
@@ -180,38 +226,80 @@ def assert_same(got: Outcome, expected: Outcome) -> None:
             np.testing.assert_array_equal(arrays[key], reference[key], err_msg=f"{key} at step {step}")
 
 
+def assert_continued(got: Outcome, expected: Outcome) -> None:
+    """LIGGGHTS: the same particles, particle counts and frames; positions within half a radius."""
+    np.testing.assert_array_equal(got.final["id"], expected.final["id"])
+    np.testing.assert_array_equal(got.final["monitor"], expected.final["monitor"])
+    assert np.abs(got.final["x"] - expected.final["x"]).max() < 0.5e-3
+    assert [step for step, _ in got.frames] == [step for step, _ in expected.frames]
+    for (step, arrays), (_, reference) in zip(got.frames, expected.frames):
+        np.testing.assert_array_equal(np.sort(arrays["id"]), np.sort(reference["id"]), err_msg=f"step {step}")
+
+
+SAME = {"native": assert_same, "liggghts": assert_continued}
+
+
 @pytest.fixture(scope="module")
 def scripts(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("scripts")
-    for name, text in (("study.py", STUDY), ("killer.py", KILLER), ("checker.py", CHECKER)):
+    for name, text in (
+        ("native.py", NATIVE),
+        ("liggghts.py", LIGGGHTS),
+        ("killer.py", KILLER),
+        ("checker.py", CHECKER),
+    ):
         (folder / name).write_text(textwrap.dedent(text))
     return folder
 
 
-def study(scripts: Path, output: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, str(scripts / "study.py"), str(output)], stderr=subprocess.PIPE)
+def launch(scripts: Path, engine: str, output: Path, *killer: str) -> subprocess.Popen:
+    """The study in a child process of its own session (so that what it starts can be found),
+    through the killer when ``killer`` gives its point and count."""
+    through = [str(scripts / "killer.py"), *killer] if killer else []
+    return subprocess.Popen(
+        [sys.executable, *through, str(scripts / f"{engine}.py"), str(output)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
 
 
-def finish(scripts: Path, output: Path) -> None:
+def survivors(child: subprocess.Popen) -> list[int]:
+    """Processes left in the killed child's session (Linux /proc)."""
+    left = []
+    for entry in os.listdir("/proc"):
+        try:
+            if entry.isdigit() and os.getsid(int(entry)) == child.pid:
+                left.append(int(entry))
+        except OSError:
+            pass
+    return left
+
+
+def settle(child: subprocess.Popen) -> str:
+    """Wait for a killed study and everything it started to be gone, as a user would before
+    running it again; returns the study's stderr."""
+    _, stderr = child.communicate(timeout=TIMEOUT)
+    deadline = time.monotonic() + ORPHAN_TIMEOUT
+    while survivors(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not survivors(child), f"processes of the killed study still run after {ORPHAN_TIMEOUT} s"
+    return stderr.decode()
+
+
+def finish(scripts: Path, engine: str, output: Path) -> None:
     """Run the study (again) to its end."""
     (output / "final.npz").unlink(missing_ok=True)
-    child = subprocess.run(
-        [sys.executable, str(scripts / "study.py"), str(output)],
-        timeout=TIMEOUT,
-        capture_output=True,
-        text=True,
-    )
-    assert child.returncode == 0, child.stderr
+    child = launch(scripts, engine, output)
+    _, stderr = child.communicate(timeout=TIMEOUT)
+    assert child.returncode == 0, stderr.decode()
 
 
-def kill_at(scripts: Path, output: Path, point: str, due: int) -> None:
+def kill_at(scripts: Path, engine: str, output: Path, point: str, due: int) -> None:
     """Run the study until it reaches ``point`` for the ``due``-th time, and SIGKILL it there."""
-    child = subprocess.run(
-        [sys.executable, str(scripts / "killer.py"), point, str(due), str(scripts / "study.py"), str(output)],
-        timeout=TIMEOUT,
-        capture_output=True,
-    )
-    assert child.returncode == -signal.SIGKILL, f"not killed at {point} #{due}: {child.stderr.decode()}"
+    child = launch(scripts, engine, output, point, str(due))
+    stderr = settle(child)
+    assert child.returncode == -signal.SIGKILL, f"not killed at {point} #{due}: {stderr}"
 
 
 def check_left_files(scripts: Path, output: Path) -> dict[str, list]:
@@ -229,81 +317,103 @@ def check_left_files(scripts: Path, output: Path) -> dict[str, list]:
 
 def resumed_from(output: Path) -> list[int]:
     """The steps of the checkpoints the runs in ``output`` resumed from, in order (pygran.log)."""
-    return [
-        int(step)
-        for step in re.findall(r" resuming from .* \(step (\d+)\)", (output / "pygran.log").read_text())
-    ]
+    log = (output / "pygran.log").read_text()
+    return [int(step) for step in re.findall(r" resuming from .* \(step (\d+)\)", log)]
+
+
+def latest_checkpoint(left: dict[str, list]) -> int:
+    """The step of the newest whole checkpoint among the files a kill left."""
+    return max(int(Path(p).name.split(".")[1]) for p in left if "/restart/" in p and p.endswith(".h5"))
 
 
 @pytest.fixture(scope="module")
-def straight(scripts, tmp_path_factory) -> tuple[Outcome, float, float]:
-    """The uninterrupted run, and when (seconds after its launch) its simulation started and
-    ended, read from the timestamps of pygran.log."""
-    output = tmp_path_factory.mktemp("straight")
-    launched = time.time()
-    finish(scripts, output)
-    stamps = [
-        datetime.strptime(line[:23], "%Y-%m-%d %H:%M:%S,%f").timestamp()
-        for line in (output / "pygran.log").read_text().splitlines()
-        if " engine opened" in line or " engine closed" in line
-    ]
-    return outcome(output), stamps[0] - launched, stamps[-1] - launched
+def straight(scripts, tmp_path_factory):
+    """The uninterrupted run of an engine's study, and when (seconds after its launch) its
+    simulation started and ended, read from the timestamps of pygran.log."""
+    runs: dict[str, tuple[Outcome, float, float]] = {}
+
+    def run(engine: str) -> tuple[Outcome, float, float]:
+        spec = registry.get_engine(engine)
+        if spec.locate_solver is not None:
+            require_solver(spec.locate_solver)
+        assert "restart" in spec.capabilities
+        if engine not in runs:
+            output = tmp_path_factory.mktemp(f"straight-{engine}")
+            launched = time.time()
+            finish(scripts, engine, output)
+            stamps = [
+                datetime.strptime(line[:23], "%Y-%m-%d %H:%M:%S,%f").timestamp()
+                for line in (output / "pygran.log").read_text().splitlines()
+                if " engine opened" in line or " engine closed" in line
+            ]
+            runs[engine] = outcome(output), stamps[0] - launched, stamps[-1] - launched
+        return runs[engine]
+
+    return run
 
 
-def test_the_study_writes_what_the_kills_are_about(straight):
-    result, opened, closed = straight
-    assert [step for step, _ in result.frames] == list(range(0, 10001, 250))
-    assert len(result.final["id"]) == 600  # six insertions of 100
+def test_yade_declares_no_restart():
+    """Which engines these tests are for: the kills below cover every engine with ``restart``."""
+    assert "restart" not in registry.get_engine("yade").capabilities
+
+
+@pytest.mark.parametrize(
+    ("engine", "frames", "particles"),
+    [("native", list(range(0, 10001, 250)), 600), ("liggghts", list(range(0, 3001, 200)), 100)],
+)
+def test_the_studies_write_what_the_kills_are_about(straight, engine, frames, particles):
+    result, opened, closed = straight(engine)
+    assert [step for step, _ in result.frames] == frames
+    assert len(result.final["id"]) == particles
     assert closed > opened
 
 
-def test_killed_at_random_moments_resumes_bitwise(scripts, straight, tmp_path):
-    """Ten SIGKILLs at seeded random moments of the simulation (measured on the uninterrupted
-    run); after each, the files left are readable and the rerun ends where the straight run does."""
-    expected, opened, closed = straight
-    delays = opened + np.random.default_rng(17).uniform(0.0, 1.0, 10) * (closed - opened)
+@pytest.mark.parametrize(("engine", "kills", "after_checkpoint"), [("native", 10, 3), ("liggghts", 3, 0)])
+def test_killed_at_random_moments_resumes(scripts, straight, tmp_path, engine, kills, after_checkpoint):
+    """SIGKILLs at seeded random moments of the simulation (as timed on the uninterrupted run);
+    after each, the files left are readable and the rerun ends where the straight run does."""
+    expected, opened, closed = straight(engine)
+    delays = opened + np.random.default_rng(17).uniform(0.0, 1.0, kills) * (closed - opened)
     resumed = []
     for k, delay in enumerate(delays):
         output = tmp_path / f"kill{k}"
-        child = study(scripts, output)
+        child = launch(scripts, engine, output)
         try:
             child.wait(delay)
         except subprocess.TimeoutExpired:
             child.send_signal(signal.SIGKILL)
-        child.communicate(timeout=TIMEOUT)
+        settle(child)
         check_left_files(scripts, output)
-        finish(scripts, output)
-        assert_same(outcome(output), expected)
+        finish(scripts, engine, output)
+        SAME[engine](outcome(output), expected)
         resumed += resumed_from(output)
-    # the kills are measured, not assumed: most must have come after a checkpoint
-    assert len(resumed) >= 3, f"only {len(resumed)} of 10 kills came after a checkpoint"
+    # where the kills landed is measured, not assumed
+    assert len(resumed) >= after_checkpoint, f"only {len(resumed)} of {kills} kills came after a checkpoint"
 
 
 @pytest.mark.parametrize(
-    ("point", "due", "resumes_from"),
+    ("engine", "point", "due", "resumes_from"),
     [
-        ("checkpoint-dataset", 3 * 30 + 8, 1500),  # in the 4th checkpoint (step 2000), its 8th solver array
-        ("checkpoint-rename", 9, 4000),  # the 9th checkpoint written and sealed, not renamed
-        ("frame", 30, 7000),  # in the 30th frame (step 7250)
+        ("native", "checkpoint-dataset", 3 * 30 + 8, 1500),  # in the 4th checkpoint (step 2000)'s 8th array
+        ("native", "checkpoint-rename", 9, 4000),  # the 9th checkpoint written and sealed, not renamed
+        ("native", "frame", 30, 7000),  # in the 30th frame (step 7250)
+        ("liggghts", "checkpoint-rename", 3, 1200),  # LIGGGHTS' restart file of step 1800 written
+        ("liggghts", "frame", 14, 2400),  # in the 14th frame (step 2600)
     ],
 )
-def test_killed_at_a_chosen_point_resumes_bitwise(scripts, straight, tmp_path, point, due, resumes_from):
-    expected = straight[0]
+def test_killed_at_a_chosen_point_resumes(scripts, straight, tmp_path, engine, point, due, resumes_from):
+    expected = straight(engine)[0]
     output = tmp_path / "out"
-    kill_at(scripts, output, point, due)
-    left = check_left_files(scripts, output)
-    checkpoints = sorted(
-        int(Path(p).name.split(".")[1]) for p in left if p.endswith(".h5") and "/restart/" in p
-    )
-    assert checkpoints[-1] == resumes_from
-    finish(scripts, output)
+    kill_at(scripts, engine, output, point, due)
+    assert latest_checkpoint(check_left_files(scripts, output)) == resumes_from
+    finish(scripts, engine, output)
     assert resumed_from(output) == [resumes_from]
-    assert_same(outcome(output), expected)
+    SAME[engine](outcome(output), expected)
 
 
 def test_killed_inside_a_checkpoint_write_leaves_the_previous_one(scripts, tmp_path):
     output = tmp_path / "out"
-    kill_at(scripts, output, "checkpoint-dataset", 3 * 30 + 8)
+    kill_at(scripts, "native", output, "checkpoint-dataset", 3 * 30 + 8)
     left = check_left_files(scripts, output)
     partial = str(output / "restart" / "restart.2000.h5.partial")
     assert left[partial][0] == "ReadError"  # half written: refused, never resumed
@@ -319,12 +429,12 @@ def test_killed_inside_a_checkpoint_write_leaves_the_previous_one(scripts, tmp_p
 def test_killed_again_while_the_resumed_run_cuts_its_trajectory(scripts, straight, tmp_path):
     """The first kill leaves frames up to step 7250 past the checkpoint of step 7000; the
     resumed run is killed while it copies the frames it keeps; the third run finishes."""
-    expected = straight[0]
+    expected = straight("native")[0]
     output = tmp_path / "out"
-    kill_at(scripts, output, "frame", 30)
-    kill_at(scripts, output, "cut", 10)
+    kill_at(scripts, "native", output, "frame", 30)
+    kill_at(scripts, "native", output, "cut", 10)
     check_left_files(scripts, output)
-    finish(scripts, output)
+    finish(scripts, "native", output)
     assert resumed_from(output) == [7000, 7000]
     assert_same(outcome(output), expected)
 
