@@ -6,7 +6,8 @@ readable (or a ``ReadError``, never a hang), and the run that finishes ends wher
 uninterrupted run ends: bitwise on the native engine (particles, monitor and every trajectory
 frame); on LIGGGHTS, which rebuilds its neighbour lists from its restart file, with the same
 particles, monitor and frames and positions within half a radius. Engines with the ``restart``
-capability only (YADE has none). Also: a checkpoint whose insertion state is malformed is a
+capability only (YADE has none). Also: a checkpoint whose insertion state, monitor tables or
+LIGGGHTS restart entry is malformed (sealed anew, as a tool rewriting it would) is a
 ``ReadError`` naming the file and the key."""
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -22,6 +24,7 @@ import time
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -39,6 +42,7 @@ NATIVE = '''
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -86,6 +90,7 @@ LIGGGHTS = '''
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -550,3 +555,72 @@ def test_the_untouched_checkpoint_resumes(poured, tmp_path):
         sim.run(400)
         sim.run(800)
         assert sim.step == 1200 and len(sim.extractIds()) == 100  # 10 at steps 0, 100, ..., 900
+
+
+def drop(engine: str, output: Path, resume: bool) -> None:
+    """Two spheres fall, their kinetic energy and count monitored; a checkpoint every 200 steps."""
+    spec = registry.get_engine(engine)
+    if spec.locate_solver is not None:
+        require_solver(spec.locate_solver)
+    with simulation.DEM(
+        engine=engine,
+        model=simulation.HertzMindlin,
+        box=(-2e-3, 2e-3, -2e-3, 2e-3, 0, 4e-3),
+        gravity=(9.81, 0, 0, -1),
+        dt=1e-6,
+        output=str(output),
+        progress=False,
+        species=({"material": params.cohesionless, "radius": 1.5e-4},),
+        traj={"pfile": None},
+        restart=(200, "restart", "restart.h5", resume),
+    ) as sim:
+        sim.createParticles(1, "single", np.array([[0, 0, 1e-3], [5e-4, 0, 1e-3]]))
+        sim.monitor(quantities=("ke", "n"), freq=100, file="monitor.txt")
+        sim.run(400)
+
+
+def resume_damaged(engine: str, tmp_path: Path, damage: Any) -> tuple[Path, pytest.ExceptionInfo]:
+    """Resume ``drop`` from its checkpoint of step 400 changed by ``damage`` and sealed anew."""
+    drop(engine, tmp_path / "first", resume=False)
+    checkpoint = read_checkpoint(tmp_path / "first" / "restart" / "restart.h5")
+    damage(checkpoint)
+    path = tmp_path / "again" / "restart" / "restart.h5"
+    write_checkpoint(path, checkpoint)
+    for restart in (tmp_path / "first" / "restart").glob("*.restart"):  # LIGGGHTS' own
+        shutil.copy(restart, path.parent)
+    with pytest.raises(ReadError) as info:
+        drop(engine, tmp_path / "again", resume=True)
+    return path, info
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="Engine._restore copies monitor samples without comparing their width with the "
+    "monitor's quantities: the resumed monitor file silently lacks a column",
+)
+@pytest.mark.parametrize("engine", ["native", "liggghts"])
+def test_a_monitor_table_of_another_width_is_a_read_error(tmp_path, engine):
+    path, info = resume_damaged(
+        engine, tmp_path, lambda c: c.monitors.update({k: v[:, :3] for k, v in c.monitors.items()})
+    )
+    assert str(info.value).startswith(f"{path}: ") and "monitor" in str(info.value)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="LiggghtsEngine reads state['liggghts/restart'] unchecked: missing, a KeyError; not "
+    "text, a ConfigError about a garbled file name; a path out of the restart folder is followed",
+)
+@pytest.mark.parametrize(
+    "entry",
+    [None, np.zeros(3), encode_text("../../first/restart/restart.400.restart")],
+    ids=["missing", "floats", "outside the folder"],
+)
+def test_a_malformed_liggghts_restart_entry_is_a_read_error(tmp_path, entry):
+    def damage(checkpoint):
+        checkpoint.state.pop("liggghts/restart")
+        if entry is not None:
+            checkpoint.state["liggghts/restart"] = entry
+
+    path, info = resume_damaged("liggghts", tmp_path, damage)
+    assert str(info.value).startswith(f"{path}: ") and "'liggghts/restart'" in str(info.value)
