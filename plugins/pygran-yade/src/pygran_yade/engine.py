@@ -43,13 +43,14 @@ finite, and reports them by face and speed (:meth:`YadeEngine._lost_since_last`)
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.io import Frame
-from pygran_core.simulation.calls import MotionSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.models import mixing
@@ -61,6 +62,9 @@ from pygran_yade.worker import from_bytes, to_bytes
 CYLINDER_SEGMENTS = 96
 #: How far plane walls, and cylinders along a periodic axis, reach: in domain lengths.
 PLANE_REACH = 1e6
+#: YADE integrates an overlapping clump's mass and inertia on a grid of this many cells across
+#: its thinnest extent (``appendClumped(discretization=...)``): within 0.2 % of the union's.
+CLUMP_DISCRETIZATION = 40
 #: The worker's log, in the output directory.
 WORKER_LOG = "yade.log"
 #: Thornton et al., Powder Technol. 233 (2013) 30, table 2: coefficients h_1..h_10.
@@ -138,6 +142,7 @@ class YadeEngine(PlacingEngine):
             "insert-by-rate",
             "threads",
             "raw-commands",
+            "multisphere",
         }
     )
 
@@ -149,6 +154,12 @@ class YadeEngine(PlacingEngine):
         materials = [s.material for s in spec.species] * 2 + [m.material for m in spec.meshes if m.material]
         densities = [s.density for s in spec.species] * 2 + [1.0] * len(self._mesh_material)
         self._radius_of = {s.type: s.radius for s in spec.species}
+        #: Multisphere species -> their template spheres ``(k, 4)``.
+        self._templates = {
+            s.type: np.array(s.spheres, float) for s in spec.species if s.style == "multisphere"
+        }
+        #: How the clumps being added are turned: an insertion's orientation and generator.
+        self._orienting: tuple[Any, np.random.Generator | None] = ("template", None)
         self.worker = Worker(self.output / WORKER_LOG, spec.threads or 1)
         self.log("YADE %s worker, pid %d", self.worker.version, self.worker.process.pid)
         self.worker.call(
@@ -176,6 +187,12 @@ class YadeEngine(PlacingEngine):
     def _check_spec(self, spec: SimulationSpec) -> None:
         super()._check_spec(spec)  # the model's kernel: hertz-mindlin or spring-dashpot
         if spec.model.kernel == "spring-dashpot":
+            if any(s.style == "multisphere" for s in spec.species):
+                raise UnsupportedFeature(
+                    "The yade engine runs multisphere species with HertzMindlin only: SpringDashpot's "
+                    "reference stiffness depends on the particle's radius and mass, which a clump's "
+                    "spheres do not share"
+                )
             if any(s.radius.kind != "constant" for s in spec.species):
                 raise UnsupportedFeature(
                     "The yade engine runs SpringDashpot only with one radius per species: YADE's linear "
@@ -236,8 +253,24 @@ class YadeEngine(PlacingEngine):
     def _add_spheres(
         self, species: np.ndarray, centres: np.ndarray, radii: np.ndarray, velocities: np.ndarray, omega: Any
     ) -> None:
+        """Add spheres, or for a multisphere species clumps of its template spheres (with the
+        orientation :attr:`_orienting` gives) whose template origin is at the centre."""
         for kind in np.unique(species):  # one YADE material per species
             chosen = np.asarray(species) == kind
+            count = int(chosen.sum())
+            if kind in self._templates:
+                self.worker.call(
+                    "clumps",
+                    centres=to_bytes(np.asarray(centres, float)[chosen]),
+                    orientations=to_bytes(self._orientations(count)),
+                    template=to_bytes(self._templates[kind]),
+                    velocities=to_bytes(np.asarray(velocities, float)[chosen]),
+                    omegas=to_bytes(np.tile(np.asarray(omega, float), (count, 1))),
+                    material=int(kind) - 1,
+                    species=int(kind),
+                    discretization=CLUMP_DISCRETIZATION,
+                )
+                continue
             self.worker.call(
                 "spheres",
                 centres=to_bytes(np.asarray(centres, float)[chosen]),
@@ -247,6 +280,86 @@ class YadeEngine(PlacingEngine):
                 material=int(kind) - 1,
                 species=int(kind),
             )
+
+    # -- clumps (multisphere species) ---------------------------------------------------------
+
+    def _orientations(self, count: int) -> np.ndarray:
+        """Unit quaternions ``(w, x, y, z)`` for ``count`` new clumps: uniformly random (from the
+        insertion's generator), the template's own, or a constant one."""
+        orientation, rng = self._orienting
+        if orientation == "random":
+            q = rng.normal(size=(count, 4))
+            return q / np.linalg.norm(q, axis=1, keepdims=True)
+        if orientation == "template":
+            return np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))
+        return np.tile(np.asarray(orientation, float), (count, 1))
+
+    def _radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Radii to place particles with: a clump's is that of the sphere about its template's
+        origin enclosing every template sphere."""
+        radii = super()._radii(species, rng)
+        for kind, template in self._templates.items():
+            radii[species == kind] = float(np.max(np.linalg.norm(template[:, :3], axis=1) + template[:, 3]))
+        return radii
+
+    def _insert(self, request: InsertSpec) -> str:
+        clumps = [k for k in request.species if k in self._templates]
+        if clumps and request.target not in ("particles_in_region", "particlerate"):
+            raise self._unsupported(
+                f"inserting multisphere species {clumps} by {request.target} (the yade engine inserts "
+                "clumps by number: particles_in_region or particlerate)"
+            )
+        if self._templates and request.mechanism == "by_pack" and request.target == "particles_in_region":
+            # the front end added the spheres in the region to the request; count each clump once
+            request = replace(request, value=(request.requested or 0) + self._held(request))
+        return super()._insert(request)
+
+    def _insert_now(self, schedule: Any, amount: float) -> float:
+        orientation = schedule.request.orientation or "random"  # LIGGGHTS' default
+        self._orienting = (orientation, schedule.rng)
+        try:
+            return super()._insert_now(schedule, amount)
+        finally:
+            self._orienting = ("template", None)
+
+    def _create(self, request: CreateSpec) -> int:
+        """As :meth:`PlacingEngine._create`; clumps keep their template's orientation."""
+        if request.species not in self._templates:
+            return super()._create(request)
+        if request.radius:
+            raise ConfigError(
+                f"createParticles: species {request.species} is multisphere, its spheres' radii come from "
+                "its template; leave radius out"
+            )
+        if request.style != "random":
+            return super()._create(request)
+        rng = np.random.default_rng(request.seed)
+        types = np.full(request.count, request.species)
+        velocities = np.tile(request.velocity, (request.count, 1))
+        return self._place(request.region, types, self._radii(types, rng), rng, velocities, request.omega)
+
+    def _held(self, request: InsertSpec) -> float:
+        """As :meth:`PlacingEngine._held`; a clump counts once when any of its spheres is in the region."""
+        if not self._templates:
+            return super()._held(request)
+        inside = request.region.contains(self._extract("x"))
+        body = self._extract("body")[inside]
+        return float(np.count_nonzero(body < 0) + len(np.unique(body[body >= 0])))
+
+    def bodies(self) -> np.ndarray:
+        """The clump of each sphere, ordered by id as :meth:`extract`: the clump's YADE body id
+        plus one for the spheres of multisphere particles, -1 for single spheres (as the
+        LIGGGHTS engine's ``bodies()``; extracts give every sphere of a clump)."""
+        self._check_open()
+        return self._extract("body")
+
+    def clumps(self) -> dict[str, np.ndarray]:
+        """Every clump's ``id`` (as :meth:`bodies`), ``mass``, ``centre`` and ``inertia`` tensor
+        about its centre in the world frame ``(n, 3, 3)``, as YADE computed them."""
+        self._check_open()
+        found = {key: from_bytes(value) for key, value in self.worker.call("clump_properties").items()}
+        found["id"] = found["id"] + 1
+        return found
 
     def _obstacles(self) -> Obstacles:
         """Plane walls and mesh triangles new particles must clear."""
@@ -321,6 +434,11 @@ class YadeEngine(PlacingEngine):
         return label
 
     def _viscous(self, spec: ViscousSpec) -> str:
+        clumps = [k for k in spec.species if k in self._templates]
+        if clumps:
+            raise self._unsupported(
+                f"addViscous on multisphere species {clumps} (YADE's LinearDragEngine drags single bodies)"
+            )
         if any(self._radius_of[s].kind in ("normal", "lognormal") for s in spec.species):
             raise self._unsupported(
                 "addViscous on a continuous size distribution (YADE's LinearDragEngine scales with the "
@@ -377,12 +495,8 @@ class YadeEngine(PlacingEngine):
         return from_bytes(self.worker.call("extract", quantity=quantity))
 
     def _scalar(self, quantity: str) -> float:
-        if quantity == "contacts":
-            return float(self.worker.call("scalar", quantity="contacts"))
-        if quantity == "ke_rot":
-            omega = self._extract("omega")
-            inertia = 0.4 * self._extract("mass") * self._extract("radius") ** 2
-            return float(0.5 * np.sum(inertia * np.einsum("ij,ij->i", omega, omega)))
+        if quantity in ("contacts", "ke", "ke_rot"):  # a clump's energy is its own, not its spheres'
+            return float(self.worker.call("scalar", quantity=quantity))
         return super()._scalar(quantity)
 
     def _mesh_frame(self) -> Frame:

@@ -53,6 +53,34 @@ def vector(values):
     return Vector3(*(float(v) for v in values))
 
 
+def rotation_matrix(q) -> np.ndarray:
+    """The rotation matrix of the unit quaternion ``q = (w, x, y, z)``."""
+    w, x, y, z = (float(v) for v in q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def set_velocity(state, velocity, omega) -> None:
+    """Set a body's velocity and angular velocity; for an aspherical one (a clump) also its
+    angular momentum, from which YADE's integrator takes the angular velocity."""
+    state.vel, state.angVel = vector(velocity), vector(omega)
+    local = state.ori.conjugate() * state.angVel
+    state.angMom = state.ori * vector([state.inertia[a] * local[a] for a in range(3)])
+
+
+def kinetic_energy(state, quantity) -> float:
+    """Translational (``ke``) or rotational (``ke_rot``, about the principal axes) energy."""
+    if quantity == "ke":
+        return 0.5 * state.mass * state.vel.squaredNorm()
+    local = state.ori.conjugate() * state.angVel
+    return 0.5 * sum(state.inertia[a] * local[a] ** 2 for a in range(3))
+
+
 def read_message(stream):
     header = stream.read(4)
     if len(header) < 4:
@@ -79,6 +107,8 @@ class Simulation:
         self.O = yade.Omega()
         self.materials: list[int] = []
         self.species: dict[int, int] = {}  # sphere id -> species
+        self.clump_of: dict[int, int] = {}  # clump member id -> clump id
+        self.own_mass: dict[int, float] = {}  # clump member id -> the sphere's own mass
         self.bounds: np.ndarray | None = None  # fixed-boundary box; spheres leaving it are deleted
         self.drags: dict[str, dict] = {}  # label -> gamma, species, {radius: LinearDragEngine}
         self.engines: dict[str, list] = {}  # label -> the YADE engines it added
@@ -153,6 +183,52 @@ class Simulation:
                 self._drag_one(label, i, species)
         return ids
 
+    def clumps(self, centres, orientations, template, velocities, omegas, material, species, discretization):
+        """Add rigid clumps of the ``template`` spheres ``(k, 4)``: offsets ``(x, y, z)`` in the
+        particle's frame and radii, the frame's origin at each of ``centres`` and rotated by
+        each of ``orientations`` (unit quaternions ``w, x, y, z``). YADE computes each clump's
+        mass, centre and principal inertia, on a grid of ``discretization`` cells across the
+        clump's thinnest extent where members overlap (the union's volume, overlap counted
+        once). Each member's mass becomes the clump's, so that contact damping uses the body's
+        mass as LIGGGHTS does; returns the clump ids."""
+        centres, orientations, template = from_bytes(centres), from_bytes(orientations), from_bytes(template)
+        velocities, omegas = from_bytes(velocities), from_bytes(omegas)
+        made = []
+        for centre, q, v, w in zip(centres, orientations, velocities, omegas):
+            offsets = template[:, :3] @ rotation_matrix(q).T
+            members = [
+                self.utils.sphere(vector(centre + d), float(r), material=self.materials[material])
+                for d, r in zip(offsets, template[:, 3])
+            ]
+            clump, ids = self.O.bodies.appendClumped(members, discretization=int(discretization))
+            state = self.O.bodies[clump].state
+            set_velocity(state, v, w)
+            for i in ids:
+                member = self.O.bodies[i].state
+                self.own_mass[i] = member.mass
+                member.mass = state.mass
+                self.species[i] = species
+                self.clump_of[i] = clump
+            made.append(clump)
+        return made
+
+    def clump_properties(self):
+        """Every clump's id, mass, centre and inertia tensor about its centre in the world frame."""
+        clumps = sorted(set(self.clump_of.values()))
+        mass, centre, inertia = [], [], []
+        for i in clumps:
+            state = self.O.bodies[i].state
+            turn = rotation_matrix([state.ori[3], state.ori[0], state.ori[1], state.ori[2]])
+            mass.append(state.mass)
+            centre.append([state.pos[a] for a in range(3)])
+            inertia.append(turn @ np.diag([state.inertia[a] for a in range(3)]) @ turn.T)
+        return {
+            "id": to_bytes(np.array(clumps, np.int64)),
+            "mass": to_bytes(np.array(mass, float)),
+            "centre": to_bytes(np.array(centre, float).reshape(-1, 3)),
+            "inertia": to_bytes(np.array(inertia, float).reshape(-1, 3, 3)),
+        }
+
     def facets(self, triangles, material):
         """Add fixed facets, one per triangle ``(T, 3, 3)``; returns their ids."""
         triangles = from_bytes(triangles)
@@ -171,7 +247,15 @@ class Simulation:
         return to_bytes(out)
 
     def erase(self, ids):
+        """Erase bodies; a clump member takes its whole clump with it."""
         for i in ids:
+            clump = self.clump_of.get(i)
+            if clump is not None:
+                for member in [m for m, c in self.clump_of.items() if c == clump]:
+                    del self.clump_of[member], self.own_mass[member]
+                    self.species.pop(member, None)
+                self.O.bodies.erase(clump, True)
+                continue
             if self.O.bodies[i] is not None:
                 self.O.bodies.erase(i)
             self.species.pop(i, None)
@@ -253,10 +337,13 @@ class Simulation:
     def _drop_lost(self):
         """Delete lost spheres; returns ``{"count", "where", "max_speed"}``: how many, how many
         by place (a face such as ``"z-"``, below the lower z bound, or ``"non-finite"``) and
-        the largest speed of those that left through a face (``None`` if none did)."""
+        the largest speed of those that left through a face (``None`` if none did). A lost
+        clump member takes its whole clump, counted at the same place."""
         fixed = [axis for axis in range(3) if not self.periodic[axis]]
-        gone, where, speeds = [], {}, []
+        gone, where, speeds, taken = [], {}, [], set()
         for i in self.species:
+            if i in taken:
+                continue  # already going with its clump
             state = self.O.bodies[i].state
             pos, vel = [state.pos[a] for a in range(3)], [state.vel[a] for a in range(3)]
             if not all(math.isfinite(c) for c in pos + vel):
@@ -270,6 +357,12 @@ class Simulation:
                 speeds.append(math.sqrt(sum(c * c for c in vel)))
             gone.append(i)
             where[place] = where.get(place, 0) + 1
+            if i in self.clump_of:
+                clump = self.clump_of[i]
+                others = [m for m, c in self.clump_of.items() if c == clump and m != i]
+                gone.extend(others)
+                taken.update(others)
+                where[place] += len(others)
         self.erase(gone)
         return {"count": len(gone), "where": where, "max_speed": max(speeds) if speeds else None}
 
@@ -288,9 +381,12 @@ class Simulation:
             values = [b.state.vel for b in bodies]
         elif quantity == "omega":
             values = [b.state.angVel for b in bodies]
-        elif quantity == "f":
+        elif quantity == "f":  # a clump member's gravity is that of its own sphere
             g = np.asarray(self.O.engines[-1].gravity)
-            values = [np.asarray(self.O.forces.f(i)) + b.state.mass * g for i, b in zip(ids, bodies)]
+            values = [
+                np.asarray(self.O.forces.f(i)) + self.own_mass.get(i, b.state.mass) * g
+                for i, b in zip(ids, bodies)
+            ]
         elif quantity == "torque":
             values = [self.O.forces.t(i) for i in ids]
         elif quantity == "radius":
@@ -301,6 +397,8 @@ class Simulation:
             values = np.array(ids, np.int64) + 1
         elif quantity == "type":
             values = np.array([self.species[i] for i in ids], np.int64)
+        elif quantity == "body":
+            values = np.array([self.clump_of.get(i, -2) for i in ids], np.int64) + 1
         else:
             raise ValueError(f"unknown quantity {quantity!r}")
         values = np.asarray(values)
@@ -309,9 +407,13 @@ class Simulation:
         return to_bytes(values)
 
     def scalar(self, quantity):
-        """``contacts`` (real interactions) or ``pwave_dt`` (``utils.PWaveTimeStep``)."""
+        """``contacts`` (real interactions), ``ke`` or ``ke_rot`` (of the spheres and clumps,
+        each clump once) or ``pwave_dt`` (``utils.PWaveTimeStep``)."""
         if quantity == "contacts":
             return sum(1 for i in self.O.interactions if i.isReal)
+        if quantity in ("ke", "ke_rot"):
+            moving = [i for i in self.species if i not in self.clump_of] + sorted(set(self.clump_of.values()))
+            return sum(kinetic_energy(self.O.bodies[i].state, quantity) for i in moving)
         if quantity == "pwave_dt":
             return self.utils.PWaveTimeStep()
         raise ValueError(f"unknown scalar {quantity!r}")
