@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from pygran_yade.engine import clamped_damping_ratio
 
-from pygran_core import registry, simulation
+from pygran_core import params, registry, simulation
 from pygran_core.errors import EngineError, UnsupportedFeature
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot, ThorntonNing
 from pygran_core.testing.solvers import in_ci, require_solver
-from pygran_core.validation import GRAVITY, settle_setup
+from pygran_core.testing.validation import GRAVITY, settle_setup
 
 MATERIAL = {
     "youngsModulus": 5e6,
@@ -283,3 +283,19 @@ def test_insertion_by_rate(tmp_path):
         )
         sim.run(15000)  # 15 ms, of which 10 ms insert
         assert len(sim.extractIds()) == pytest.approx(2000 * 0.01, abs=1)
+
+
+@pytest.mark.parametrize("name", ["steel", "organic", "cohesionless"])
+def test_original_materials_bounce_with_their_restitution(tmp_path, name):
+    """The original PyGran materials without cohesion run on YADE: a sphere hitting the floor at
+    0.5 m/s rebounds with their restitution, 0.9."""
+    material = getattr(params, name)
+    _, e = _wall_impact(tmp_path, HertzMindlin, material)
+    assert e == pytest.approx(material["coefficientRestitution"], rel=0.02)
+
+
+@pytest.mark.parametrize(("name", "missing"), [("glass", "cohesion"), ("sodaLimeGlass", "rolling friction")])
+def test_materials_with_cohesion_or_rolling_friction_are_refused(tmp_path, name, missing):
+    """YADE has neither cohesion nor a rolling-resistance law matching LIGGGHTS' (README)."""
+    with pytest.raises(UnsupportedFeature, match=f"does not support {missing}.*Engines that can: liggghts"):
+        _dem(tmp_path, HertzMindlin, species=({"material": getattr(params, name), "radius": R},))
