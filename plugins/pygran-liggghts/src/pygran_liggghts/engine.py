@@ -432,14 +432,32 @@ class LiggghtsEngine(Engine):
         return self._extract("mol")
 
     def _scalar(self, quantity: str) -> float:
-        """``ke`` and ``ke_rot`` of the single spheres, plus, with multisphere species, those
-        of the bodies from LIGGGHTS' computes (each sphere of a body carries the body's mass
-        and angular velocity, so the bodies' energies cannot be summed over their spheres)."""
-        if quantity not in ("ke", "ke_rot"):
-            return float(self._request("natoms")) if quantity == "n" else super()._scalar(quantity)
+        if quantity in ("ke", "ke_rot"):
+            return self._energy(quantity, None)
+        return float(self._request("natoms")) if quantity == "n" else super()._scalar(quantity)
+
+    def _species_scalar(self, quantity: str, species: tuple[int, ...]) -> float:
+        if quantity in ("ke", "ke_rot"):
+            return self._energy(quantity, species)
+        return super()._species_scalar(quantity, species)
+
+    def _energy(self, quantity: str, species: tuple[int, ...] | None) -> float:
+        """``ke`` or ``ke_rot`` of the single spheres (of ``species``; ``None``: of all), plus,
+        with multisphere species, those of the bodies from LIGGGHTS' computes (each sphere of a
+        body carries the body's mass and angular velocity, so the bodies' energies cannot be
+        summed over their spheres; the computes take every body, so no species of them is chosen)."""
         bodies = bool(self.commands.body_types)
-        arrays = self._request("gather", ["v", "omega", "radius", "mass", *(["mol"] if bodies else [])])
-        single = arrays["mol"] < 0 if bodies else slice(None)
+        chosen_bodies = sorted(set(species or ()) & set(self.commands.body_types))
+        if chosen_bodies:
+            raise UnsupportedFeature(
+                f"a monitor of multisphere species {chosen_bodies} on LIGGGHTS: its energies of "
+                "multisphere bodies are over every body; monitor species='all', or species of single spheres"
+            )
+        names = ["v", "omega", "radius", "mass", *(["mol"] if bodies else []), *(["type"] if species else [])]
+        arrays = self._request("gather", names)
+        single = arrays["mol"] < 0 if bodies else np.ones(len(arrays["mass"]), bool)
+        if species:
+            single &= np.isin(arrays["type"], species)
         mass = arrays["mass"][single]
         if quantity == "ke":
             energy = 0.5 * np.sum(mass * np.einsum("ij,ij->i", arrays["v"][single], arrays["v"][single]))
@@ -448,7 +466,7 @@ class LiggghtsEngine(Engine):
             energy = 0.5 * np.sum(
                 0.4 * mass * arrays["radius"][single] ** 2 * np.einsum("ij,ij->i", omega, omega)
             )
-        if bodies:
+        if bodies and species is None:
             if not self._computed:  # LIGGGHTS sets its computes up as a run starts
                 self._execute(["run 0 post no"])
                 self._computed = True
