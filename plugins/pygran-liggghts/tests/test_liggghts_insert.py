@@ -138,3 +138,32 @@ def test_batches_by_rate_into_a_full_region_warn_once_with_the_numbers(tmp_path)
     )
     assert [step for step, _ in later] == ["1", "1001", "2001"]
     assert first + sum(int(made) for _, made in later[1:]) == total
+
+
+def test_a_volume_fraction_of_one_fills_what_fits_and_logs_how_much(tmp_path):
+    """insert(mech='volumefraction_region', value=1) into a 5 mm cube of 0.5 mm spheres: what
+    fits goes in (a random packing, 20 % to 64 %), the shortfall is an InsertionWarning naming
+    the target, and pygran.log gives the fraction reached, as the front end counts it."""
+    region = ("block", 0, 0.005, 0, 0.005, 0, 0.005)
+    organic = params.organic
+    with dem(
+        tmp_path,
+        box=(0, 0.01, 0, 0.01, 0, 0.01),
+        boundary=("f", "f", "f"),
+        dt=2e-6,
+        species=({"material": organic, "radius": 5e-4},),
+    ) as sim:
+        sim.insert(1, value=1, mech="volumefraction_region", region=region)
+        with pytest.warns(
+            InsertionWarning,
+            match=r"particles inserted, fewer than its target \(volumefraction_region 1\) needs",
+        ):
+            sim.run(1)
+        x = sim.extractCoords()
+    inside = np.all((x >= 0) & (x <= 0.005), axis=1)
+    fraction = inside.sum() * 4 / 3 * np.pi * 5e-4**3 / 0.005**3
+    assert 0.2 < fraction < 0.64
+    assert (
+        f"volume fraction in the region {region} at step 1: {fraction:.3g} of the 1 asked for"
+        in (tmp_path / "pygran.log").read_text()
+    )

@@ -320,6 +320,11 @@ class LiggghtsEngine(Engine):
             for label, spec in self._unplaced.items()
             if spec.target == "particles_in_region"
         }
+        filling = [  # volume fractions inserted in this run, whose outcome is logged
+            label
+            for label, spec in self._insertions.items()
+            if spec.target == "volumefraction_region" and (label in self._unplaced or spec.freq)
+        ]
         self._unplaced.clear()
         self._queue([*lines, f"run {nsteps} {pre}post no"])
         start = self.step
@@ -328,6 +333,8 @@ class LiggghtsEngine(Engine):
         if count:
             self._unreported += self._lost_particles(count, x, v, nsteps * self.dt)
         self._report_insertions(start)
+        if filling:
+            self._log_fractions(filling, start + nsteps)
 
     def _held(self, spec: InsertSpec) -> int:
         """The particles LIGGGHTS counts in the region of by-pack insertion ``spec``: centres
@@ -374,6 +381,22 @@ class LiggghtsEngine(Engine):
                 )
         self._asked.clear()
 
+    def _log_fractions(self, labels: list[str], step: int) -> None:
+        """Log the volume fraction the regions of by-pack insertions ``labels`` hold at ``step``
+        (collective: every rank gathers)."""
+        arrays = self._request("gather", ["x", "radius"])
+        for label in labels:
+            spec = self._insertions[label]
+            inside = spec.region.contains(arrays["x"].reshape(-1, 3))
+            held = float(np.sum(4 / 3 * np.pi * arrays["radius"][inside] ** 3)) / spec.region.volume()
+            self.log(
+                "volume fraction in the region %s at step %d: %.3g of the %.3g asked for",
+                spec.region,
+                step,
+                held,
+                spec.value,
+            )
+
     def _shortfall(self, event: InsertionEvent, spec: InsertSpec, asked: int | None) -> str:
         """What LIGGGHTS' insertion ``event`` (of ``spec``) asked for and inserted, as the
         placing engines say it. Asked: a by-pack target less the particles LIGGGHTS counted
@@ -390,11 +413,11 @@ class LiggghtsEngine(Engine):
                 f"(no free place for the other {asked - made})"
             )
         if per is not None:
-            wanted = f"of about {per:.3g} particles asked for"
+            wanted = f"of about {per:.3g} asked for"
         else:
             amount = f"{spec.value:g}" if spec.target == "particles_in_region" else f"{spec.value:.3g}"
             wanted = f"fewer than its target ({spec.target} {amount}) needs"
-        return f"insertion at step {event.step}: {made} particles inserted {wanted}, {where}"
+        return f"insertion at step {event.step}: {made} particles inserted, {wanted}, {where}"
 
     def _lost_particles(self, count: int, x: np.ndarray, v: np.ndarray, duration: float) -> LostParticles:
         """``count`` particles lost in a run of ``duration``: those seen at its start (``x``,
