@@ -5,10 +5,15 @@ neighbour analysis, and the parser of a dump's atom rows), or None without it. E
 has a numpy path that gives the same results, so the core never needs a compiler.
 """
 
+import importlib
 from types import ModuleType
 
-kernels: ModuleType | None
-try:
-    from pygran_native import _accel as kernels
-except ImportError:  # pragma: no cover - depends on the installation
-    kernels = None
+
+def _load() -> ModuleType | None:
+    try:
+        return importlib.import_module("pygran_native._accel")
+    except ImportError:  # pragma: no cover - depends on the installation
+        return None
+
+
+kernels = _load()

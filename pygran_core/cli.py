@@ -7,16 +7,18 @@ import sys
 from collections.abc import Callable, Iterable, Sequence
 from importlib.metadata import version
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from pygran_core import registry
 from pygran_core.apps import demo
 from pygran_core.errors import PyGranError
-from pygran_core.io import Frame, Trajectory, expand_paths, open_writer
+from pygran_core.io import Trajectory, expand_paths, open_writer
 from pygran_core.simulation.dem import resolve_engine
 from pygran_core.testing import validation
+
+T = TypeVar("T")
 
 
 def _solver_status(provided: registry.Provided) -> str:
@@ -61,11 +63,11 @@ def _open(pattern: str, format: str | None) -> tuple[Trajectory, str, int]:
     return spec.open(paths), spec.name, len(paths)
 
 
-def _progress(frames: Iterable[Frame], total: int, what: str) -> Iterable[Frame]:
+def _progress(items: Iterable[T], total: int, what: str) -> Iterable[T]:
     """A progress bar on stderr for runs longer than a second; silent when not a terminal."""
     from tqdm import tqdm
 
-    return tqdm(frames, total=total, desc=what, unit="frame", delay=1.0, disable=None, leave=False)
+    return tqdm(items, total=total, desc=what, unit="frame", delay=1.0, disable=None, leave=False)
 
 
 def _box_text(box: Any, boundary: Any) -> str:
@@ -85,7 +87,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         columns: list[str] = []
         first: dict[str, Any] = {}
         read_header = getattr(trajectory, "read_header", None)  # dump: no need to parse atoms
-        for index in _progress(range(len(trajectory)), len(trajectory), "reading"):  # type: ignore[arg-type]
+        for index in _progress(range(len(trajectory)), len(trajectory), "reading"):
             if read_header is not None:
                 header = read_header(index)
                 size, box, boundary, names, step = (

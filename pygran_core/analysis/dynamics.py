@@ -77,16 +77,15 @@ class Temporal:
         particles have a mass (``density=`` or a ``mass``/``density`` column), else particles
         per time. Returns (mid-interval times, rates), one per pair of frames.
         """
-        normal = np.asarray(normal, dtype=float)
-        normal = normal / np.linalg.norm(normal)
-        point = np.asarray(point, dtype=float)
+        unit = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+        origin = np.asarray(point, dtype=float)
         times = self._times(dt)
         crossed = []
         previous: tuple[np.ndarray, np.ndarray] | None = None
         for obj in self._frames():
             particles = self._particles(obj, "flowRate")
             ids = np.asarray(particles.id) if len(particles) else np.zeros(0, dtype=np.int64)
-            side = (particles.positions - point) @ normal > 0 if len(particles) else np.zeros(0, dtype=bool)
+            side = (particles.positions - origin) @ unit > 0 if len(particles) else np.zeros(0, dtype=bool)
             try:
                 weight = particles.computeMass(density) if len(particles) else np.zeros(0)
             except ValueError:

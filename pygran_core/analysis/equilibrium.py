@@ -48,6 +48,8 @@ class Overlaps(np.ndarray):
     the original's ``int(contact[1])`` both work.
     """
 
+    _pairs: np.ndarray | None  # (K, 2) indices; None in views and slices
+
     def __new__(cls, d: np.ndarray, pairs: np.ndarray) -> Overlaps:
         rows = np.column_stack((d, pairs)).astype(float).reshape(-1, 3)
         new = rows.view(cls)
@@ -60,9 +62,6 @@ class Overlaps(np.ndarray):
 
     __array_wrap__ = _plain_results
 
-    def _rows(self) -> bool:
-        return self._pairs is not None
-
     @property
     def d(self) -> np.ndarray:
         """(K,) overlap of each pair."""
@@ -71,15 +70,15 @@ class Overlaps(np.ndarray):
     @property
     def i(self) -> np.ndarray:
         """(K,) index of the first particle of each pair."""
-        return self._pairs[:, 0] if self._rows() else np.asarray(self)[:, 1].astype(np.intp)
+        return self._pairs[:, 0] if self._pairs is not None else np.asarray(self)[:, 1].astype(np.intp)
 
     @property
     def j(self) -> np.ndarray:
         """(K,) index of the second particle of each pair."""
-        return self._pairs[:, 1] if self._rows() else np.asarray(self)[:, 2].astype(np.intp)
+        return self._pairs[:, 1] if self._pairs is not None else np.asarray(self)[:, 2].astype(np.intp)
 
     def __iter__(self) -> Iterator[Any]:
-        if not self._rows():
+        if self._pairs is None:
             return iter(np.asarray(self))
         return (Overlap(float(d), int(i), int(j)) for d, (i, j) in zip(np.asarray(self)[:, 0], self._pairs))
 

@@ -10,6 +10,7 @@ mixing index over time.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -21,7 +22,8 @@ from pygran_core.errors import ConfigError
 __all__ = ["Cells", "ScaleSegregation", "cells", "intensity", "lacey", "scale"]
 
 
-class Cells(NamedTuple):
+@dataclass(frozen=True)
+class Cells:
     """The non-empty sample cells of a grid: per-cell totals and integer coordinates."""
 
     count: np.ndarray  #: (C,) particles in each cell

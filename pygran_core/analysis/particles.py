@@ -116,7 +116,9 @@ class Particles(SubSystem):
                 f"region {lower} + {length}; choose a smaller rMax"
             )
         cells = _neighbors.cell_list(data, lengths, rMax)
-        counts = _neighbors.histogram(cells, edges, None if references.size == len(self) else inside)
+        counts = _neighbors.histogram(
+            cells, edges, None if references.size == len(self) else np.asarray(inside)
+        )
         volume = np.prod(np.where(periodic | (length > 0), length, 1.0))
         shells = 4.0 / 3.0 * np.pi * np.diff(edges**3)
         g = counts / (references.size * (len(self) - 1) / volume * shells)

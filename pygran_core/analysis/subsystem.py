@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator, Mapping, Sequence
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -41,6 +41,9 @@ DIMENSIONS: dict[str, str] = {
     "density": "density",
     "time": "time",
 }
+
+
+_S = TypeVar("_S", bound="SubSystem")
 
 
 class Keys(tuple[str, ...]):
@@ -113,7 +116,7 @@ class SubSystem:
         return None
 
     @classmethod
-    def _from_parts(cls, fields: dict[str, np.ndarray], meta: dict[str, Any]) -> SubSystem:
+    def _from_parts(cls: type[_S], fields: dict[str, np.ndarray], meta: dict[str, Any]) -> _S:
         """A new instance from already frozen arrays, without calling a subclass __init__."""
         new = object.__new__(cls)
         object.__setattr__(new, "_fields", fields)

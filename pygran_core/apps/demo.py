@@ -17,7 +17,7 @@ import shutil
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -204,10 +204,10 @@ def simulate(
 def analyse(study: HopperStudy, output: Path, engine: str, opened: int) -> Summary:
     """Measure the study's trajectory and write plots and a summary into ``output``."""
     system = analysis.System(Particles=str(output / "traj.h5"))
-    steps = analysis.dynamics.Temporal(system).series("timestep")
+    steps = np.asarray(analysis.dynamics.Temporal(system).series("timestep"))
     settled_frame = int(np.searchsorted(steps, opened))
     system.goto(settled_frame)
-    settled = system.Particles
+    settled = cast(analysis.Particles, system.Particles)
     packing, z_hi = _packing_fraction(study, settled)
     coon = analysis.equilibrium.Neighbors(settled).coon
     bulk = (settled.z > 2 * study.radius) & (settled.z < max(z_hi, 4 * study.radius))

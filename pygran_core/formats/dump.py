@@ -63,7 +63,7 @@ class _Block:
     problem: str | None = None  # known before parsing, e.g. a truncated gzip stream
 
 
-def _open_binary(path: Path) -> IO[bytes]:
+def _open_binary(path: Path) -> io.BufferedIOBase:
     if path.name.lower().endswith(".gz"):
         return gzip.open(path, "rb")
     return open(path, "rb")
@@ -78,13 +78,13 @@ def can_open(path: Path) -> bool:
         return False
 
 
-def _read_chunk(handle: IO[bytes]) -> tuple[bytes, str | None]:
+def _read_chunk(handle: io.BufferedIOBase) -> tuple[bytes, str | None]:
     """Up to ``_CHUNK`` bytes, and what went wrong if the (compressed) stream broke off."""
     parts: list[bytes] = []
     size = 0
     try:
         while size < _CHUNK:
-            part = handle.read1(_CHUNK - size)  # type: ignore[attr-defined]
+            part = handle.read1(_CHUNK - size)
             if not part:
                 break
             parts.append(part)
@@ -176,7 +176,7 @@ class DumpTrajectory(Trajectory):
         self._blocks: list[_Block] = []
         for index, path in enumerate(self.paths):
             self._blocks.extend(_scan(path, index))
-        self._gz: tuple[int, IO[bytes]] | None = None
+        self._gz: tuple[int, io.BufferedIOBase] | None = None
 
     @property
     def n_frames(self) -> int:

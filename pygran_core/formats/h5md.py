@@ -108,7 +108,7 @@ class H5MDWriter(TrajectoryWriter):
             raise UnsupportedFeature(f"H5MD units must be 'si' or a mapping, got {units!r}")
         self.path = Path(path)
         self.group = group
-        self.units = SI_UNITS if units == "si" else dict(units or {})
+        self.units = SI_UNITS if isinstance(units, str) else dict(units or {})
         self.compression = compression
         self.count = 0
         self._file: Any = None
@@ -235,17 +235,16 @@ class H5MDWriter(TrajectoryWriter):
                     else np.asarray(frame.arrays[cols[0]])
                 )
                 value[k, :n] = data
-        box = frame.box if frame.box is not None else np.full((3, 2), np.nan)
-        box = np.asarray(box, dtype=np.float64)
+        box = np.asarray(frame.box if frame.box is not None else np.full((3, 2), np.nan), dtype=np.float64)
         lengths = box[:, 1] - box[:, 0]
-        for dataset, data in (
+        for dataset, row in (
             (self._edges, _edges(lengths, frame.attrs.get("tilt"), self._triclinic)),
             (self._bounds, box),
             (self._tilt, frame.attrs.get("tilt")),
         ):
             if dataset is not None:
                 dataset.resize(k + 1, axis=0)
-                dataset[k] = data
+                dataset[k] = row
         self._number.resize((k + 1,))
         self._number[k] = n
         self._file.flush()

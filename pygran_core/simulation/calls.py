@@ -21,11 +21,14 @@ from pygran_core.simulation.specs import (
     Vector,
     check_keys,
     finite_number,
+    is_integer,
+    is_real,
     number_tuple,
     one_of,
     positive_float,
     positive_int,
     step_count,
+    vector,
 )
 
 # -- regions ---------------------------------------------------------------------------------
@@ -193,7 +196,7 @@ def parse_species_selection(value: Any, spec: SimulationSpec) -> tuple[int, ...]
             f"species must be 'all', a species number or numbers; defined: {known}, got {value!r}"
         )
     for item in chosen:
-        if isinstance(item, bool) or not isinstance(item, Integral) or item not in known:
+        if not is_integer(item) or item not in known:
             raise ConfigError(f"species {item!r} does not exist; defined species: {known} or 'all'")
     return tuple(int(i) for i in chosen)
 
@@ -219,7 +222,8 @@ def parse_velocity(kind: Any, values: Any) -> VelocityDistribution:
     kind = one_of(str(kind).lower(), "vel_type", ("constant", "uniform", "gaussian"))
     size = 3 if kind == "constant" else 6
     numbers = number_tuple(values, f"vel ({kind})", size)
-    return VelocityDistribution(kind, numbers[:3], numbers[3:] if size == 6 else (0.0, 0.0, 0.0))
+    spread = vector(numbers[3:], "vel spread") if size == 6 else (0.0, 0.0, 0.0)
+    return VelocityDistribution(kind, vector(numbers[:3], "vel mean"), spread)
 
 
 # -- insert ------------------------------------------------------------------------------------
@@ -288,7 +292,7 @@ CLOSE_PACKING = 0.64
 
 
 def _seed(value: Any, call: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, Integral) or value < 0:
+    if not is_integer(value) or value < 0:
         raise ConfigError(f"{call} seed must be a non-negative integer, got {value!r}")
     return int(value)
 
@@ -414,7 +418,7 @@ def _omega(value: Any) -> Vector:
     """``(wx, wy, wz)`` or the manual's ``('constant', wx, wy, wz)``."""
     if isinstance(value, Sequence) and len(value) == 4 and value[0] == "constant":
         value = value[1:]
-    return number_tuple(value, "omega")  # type: ignore[return-value]
+    return vector(value, "omega")
 
 
 # -- create particles --------------------------------------------------------------------------
@@ -464,7 +468,7 @@ def parse_create(
     common = {
         "species": chosen,
         "style": style,
-        "velocity": number_tuple(kwargs.get("vel", (0, 0, 0)), "vel"),
+        "velocity": vector(kwargs.get("vel", (0, 0, 0)), "vel"),
         "omega": _omega(kwargs.get("omega", (0, 0, 0))),
         "radius": None if kwargs.get("radius") is None else positive_float(kwargs["radius"], "radius"),
         "seed": _seed(kwargs.get("seed", seed), "createParticles"),
@@ -479,15 +483,15 @@ def parse_create(
                 )
             check_points_in_box(positions, spec, "createParticles position")
             positions.flags.writeable = False
-            return CreateSpec(positions=positions, **common)  # type: ignore[arg-type]
+            return CreateSpec(positions=positions, **common)
         if len(args) != 3:
             raise ConfigError(
                 "createParticles(species, 'single', x, y, z) or (species, 'single', positions) with "
                 f"an (N, 3) array: got {args!r}"
             )
-        position = number_tuple(args, "position")
+        position = vector(args, "position")
         check_points_in_box(np.array([position]), spec, "createParticles position")
-        return CreateSpec(position=position, **common)  # type: ignore[arg-type]
+        return CreateSpec(position=position, **common)
     region = _region_in_box(kwargs.get("region"), spec, "createParticles")
     if style == "lattice":
         spacing = kwargs.get("spacing", args[0] if args else None)
@@ -510,10 +514,10 @@ def parse_create(
                 "give a larger region or a smaller spacing"
             )
         sites.flags.writeable = False
-        return CreateSpec(region=region, spacing=spacing, positions=sites, **common)  # type: ignore[arg-type]
+        return CreateSpec(region=region, spacing=spacing, positions=sites, **common)
     if len(args) != 1:
         raise ConfigError("createParticles(species, 'random', count, region=...): give the count")
-    return CreateSpec(region=region, count=positive_int(args[0], "count"), **common)  # type: ignore[arg-type]
+    return CreateSpec(region=region, count=positive_int(args[0], "count"), **common)
 
 
 # -- walls, meshes -----------------------------------------------------------------------------
@@ -582,10 +586,10 @@ def parse_wall(kwargs: Mapping[str, Any], spec: SimulationSpec) -> WallSpec:
         return WallSpec("plane", species, plane=plane, peq=peq)
     if kwargs.get("radius") is not None:
         axis = one_of(kwargs.get("axis", "z"), "cylinder axis", ("x", "y", "z"))
-        centre = number_tuple(kwargs.get("centre", (0, 0)), "centre", 2)
+        c1, c2 = number_tuple(kwargs.get("centre", (0, 0)), "centre", 2)
         return WallSpec(
-            "cylinder", species, axis=axis, centre=centre, radius=positive_float(kwargs["radius"], "radius")
-        )  # type: ignore[arg-type]
+            "cylinder", species, axis=axis, centre=(c1, c2), radius=positive_float(kwargs["radius"], "radius")
+        )
     raise ConfigError("setupWall(wtype='primitive') needs plane='zplane' and peq=..., or axis/centre/radius")
 
 
@@ -648,7 +652,7 @@ def _motion_words(style: str, value: Any) -> dict[str, list[Any]]:
             if key in words:
                 raise ConfigError(f"moveMesh {style}: {key!r} is given twice in {value!r}")
             words[key] = []
-        elif isinstance(item, Real) and not isinstance(item, bool) or isinstance(item, str):
+        elif is_real(item) or isinstance(item, str):
             words[key].append(float(item))
         else:
             raise ConfigError(f"moveMesh {style}: {item!r} in {value!r} is neither a keyword nor a number")
@@ -683,7 +687,7 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
         extra = [k for k in kwargs if k != "linear"]
         if extra:
             raise ConfigError(f"moveMesh(linear=(vx, vy, vz)) takes no {extra[0]!r}")
-        return MotionSpec(mesh, kind, velocity=number_tuple(kwargs["linear"], "moveMesh linear velocity"))  # type: ignore[arg-type]
+        return MotionSpec(mesh, kind, velocity=vector(kwargs["linear"], "moveMesh linear velocity"))
     given: dict[str, Any] = _motion_words(kind, kwargs[kind])
     for key, value in kwargs.items():
         if key == kind:
@@ -699,17 +703,17 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
                 + did_you_mean(key, allowed)
             )
 
-    def vector(key: str, default: Any = None) -> Vector:
+    def motion_vector(key: str, default: Any = None) -> Vector:
         value = given.get(key, default)
         if value is None:
             raise ConfigError(f"moveMesh {kind} needs {key}=(x, y, z). The forms: {FORMS}")
-        return number_tuple(value, f"moveMesh {kind} {key}")  # type: ignore[return-value]
+        return vector(value, f"moveMesh {kind} {key}")
 
     def direction(key: str, default: Any = None) -> Vector:
-        axis = np.array(vector(key, default))
+        axis = np.array(motion_vector(key, default))
         if not np.linalg.norm(axis) > 0:
             raise ConfigError(f"moveMesh {kind} {key} must not be zero")
-        return tuple(float(a) for a in axis / np.linalg.norm(axis))  # type: ignore[return-value]
+        return vector((axis / np.linalg.norm(axis)).tolist(), f"moveMesh {kind} {key}")
 
     def scalar(key: str) -> Any:
         value = given.get(key)
@@ -721,7 +725,7 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
         return MotionSpec(
             mesh,
             kind,
-            amplitude=vector("amplitude"),
+            amplitude=motion_vector("amplitude"),
             period=positive_float(scalar("period"), "moveMesh wiggle period"),
         )
     if kind == "rotate":
@@ -733,10 +737,14 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
             else finite_number(scalar("omega"), "moveMesh rotate omega")
         )
         return MotionSpec(
-            mesh, kind, axis=direction("axis", (0, 0, 1)), origin=vector("origin", (0, 0, 0)), omega=omega
+            mesh,
+            kind,
+            axis=direction("axis", (0, 0, 1)),
+            origin=motion_vector("origin", (0, 0, 0)),
+            omega=omega,
         )
     order = scalar("order")
-    if isinstance(order, bool) or not isinstance(order, Real) or order not in range(1, 31):
+    if not is_real(order) or order not in range(1, 31):
         raise ConfigError(f"moveMesh {kind} needs order=n, the number of harmonics (1 to 30), got {order!r}")
     order = int(order)
 
@@ -756,7 +764,7 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
         mesh,
         kind,
         axis=direction("axis"),
-        origin=vector("origin", (0, 0, 0)) if kind == "vibrot" else (0.0, 0.0, 0.0),
+        origin=motion_vector("origin", (0, 0, 0)) if kind == "vibrot" else (0.0, 0.0, 0.0),
         amplitudes=harmonics("amplitude"),
         phases=harmonics("phase"),
         periods=harmonics("period", positive=True),
@@ -848,10 +856,10 @@ class AverageSpec:
         first = -(-(since + span) // self.nfreq) * self.nfreq
         out_steps, means = [], []
         for step in range(first, int(steps.max(initial=-1)) + 1, self.nfreq):
-            window = [sampled.get(s) for s in range(step - span, step + 1, self.nevery)]
-            if None not in window:
+            window = range(step - span, step + 1, self.nevery)
+            if all(s in sampled for s in window):
                 out_steps.append(step)
-                means.append(float(np.mean(window)))
+                means.append(float(np.mean([sampled[s] for s in window])))
         return np.array(out_steps, np.int64), np.array(means, float)
 
 
@@ -918,12 +926,10 @@ class SetSpec:
 
 def parse_set(kwargs: Mapping[str, Any], spec: SimulationSpec) -> SetSpec:
     check_keys("set keyword", kwargs, ("species", "region", "ids", "vel", "omega", "radius"))
-    values = {
-        "velocity": None if kwargs.get("vel") is None else number_tuple(kwargs["vel"], "vel"),
-        "omega": None if kwargs.get("omega") is None else _omega(kwargs["omega"]),
-        "radius": None if kwargs.get("radius") is None else positive_float(kwargs["radius"], "radius"),
-    }
-    if all(v is None for v in values.values()):
+    velocity = None if kwargs.get("vel") is None else vector(kwargs["vel"], "vel")
+    omega = None if kwargs.get("omega") is None else _omega(kwargs["omega"])
+    radius = None if kwargs.get("radius") is None else positive_float(kwargs["radius"], "radius")
+    if velocity is None and omega is None and radius is None:
         raise ConfigError(
             "set/velocity needs something to assign: vel=(vx, vy, vz), omega=(...) or radius=..."
         )
@@ -934,12 +940,14 @@ def parse_set(kwargs: Mapping[str, Any], spec: SimulationSpec) -> SetSpec:
             isinstance(ids, str)
             or not isinstance(ids, Sequence)
             or not ids
-            or any(isinstance(i, bool) or not isinstance(i, Integral) or i < 1 for i in ids)
+            or any(not is_integer(i) or i < 1 for i in ids)
         ):
             raise ConfigError(f"ids must be particle ids (1, 2, ...), got {kwargs['ids']!r}")
     return SetSpec(
         species=None if kwargs.get("species") is None else parse_species_selection(kwargs["species"], spec),
         region=None if kwargs.get("region") is None else parse_region(kwargs["region"], spec),
         ids=None if ids is None else tuple(int(i) for i in ids),
-        **values,
+        velocity=velocity,
+        omega=omega,
+        radius=radius,
     )

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -18,7 +17,7 @@ import numpy as np
 from pygran_core import registry
 from pygran_core.errors import ConfigError, PluginNotFound
 from pygran_core.simulation import calls
-from pygran_core.simulation.engine import Engine, Handle, Monitor
+from pygran_core.simulation.engine import Engine, Handle, Monitor, require_capability
 from pygran_core.simulation.models import ContactModel
 from pygran_core.simulation.specs import SimulationSpec, parse_simulation, step_count
 
@@ -64,8 +63,7 @@ def require(engine: str, capability: str, what: str) -> None:
     """Refuse, before the engine starts, what the installed engine ``engine`` lacks: the
     :class:`~pygran_core.errors.UnsupportedFeature` of :meth:`Engine.require`, naming the
     engines that can."""
-    declared = SimpleNamespace(name=engine, capabilities=registry.get_engine(engine).capabilities)
-    Engine.require(declared, capability, what)  # type: ignore[arg-type]
+    require_capability(engine, registry.get_engine(engine).capabilities, capability, what)
 
 
 def required_capabilities(params: Mapping[str, Any]) -> list[tuple[str, str]]:
@@ -221,7 +219,7 @@ class DEM:
                     return handle
                 self.engine.remove(handle)
         handle = self.engine.setup_wall(spec)
-        if spec.kind == "mesh":
+        if spec.mesh is not None:
             self._mesh_walls[spec.mesh] = (handle, spec.species)
         return handle
 

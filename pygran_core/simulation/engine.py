@@ -22,8 +22,9 @@ import math
 import os
 import sys
 import warnings
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
+from types import FrameType
 from typing import Any, ClassVar
 
 import numpy as np
@@ -139,9 +140,23 @@ class LostParticles:
         return ", ".join(parts)
 
 
+def require_capability(engine: str, capabilities: Collection[str], capability: str, what: str | None) -> None:
+    """Raise :class:`UnsupportedFeature`, naming the installed engines that can, unless the
+    engine ``engine`` has ``capability`` among its ``capabilities``."""
+    if capability in capabilities:
+        return
+    able = [name for name in engines_with(capability) if name != engine]
+    alternative = f"Engines that can: {', '.join(able)}." if able else "No installed engine can."
+    raise UnsupportedFeature(
+        f"The {engine} engine does not support {what or capability} "
+        f"(capability {capability!r}). {alternative}"
+    )
+
+
 def _user_stacklevel() -> int:
     """The ``stacklevel`` of ``warnings.warn`` that points at the first caller outside PyGran."""
-    frame, level = sys._getframe(1), 1
+    frame: FrameType | None = sys._getframe(1)
+    level = 1
     while frame is not None and frame.f_globals.get("__name__", "").startswith("pygran"):
         frame, level = frame.f_back, level + 1
     return level
@@ -304,14 +319,7 @@ class Engine(abc.ABC):
 
     def require(self, capability: str, what: str | None = None) -> None:
         """Raise :class:`UnsupportedFeature` unless this engine has ``capability``."""
-        if capability in self.capabilities:
-            return
-        able = [name for name in engines_with(capability) if name != self.name]
-        alternative = f"Engines that can: {', '.join(able)}." if able else "No installed engine can."
-        raise UnsupportedFeature(
-            f"The {self.name} engine does not support {what or capability} "
-            f"(capability {capability!r}). {alternative}"
-        )
+        require_capability(self.name, self.capabilities, capability, what)
 
     def _check_open(self) -> None:
         if self.closed:
@@ -507,7 +515,7 @@ class Engine(abc.ABC):
         self._command(text)
         self._forget_particles()
 
-    def remove(self, handle: Handle) -> None:
+    def remove(self, handle: Handle | Monitor) -> None:
         """Remove what ``handle`` refers to (an insertion, wall, mesh motion, force, monitor)."""
         self._check_open()
         if isinstance(handle, Monitor):
@@ -562,11 +570,11 @@ class Engine(abc.ABC):
 
         start, end = self.step, self.step + nsteps
         self._journal(f"run {nsteps} {self.dt!r}")
-        if self.replaying:
+        if self._resume is not None:
             if len(self._calls) < len(self._resume.journal):
-                self._set_step(end)
+                self._set_step(end, run_dt)
                 return  # a run the checkpoint's script had finished before it
-            self._restore()  # the run the checkpoint was taken in
+            self._restore(self._resume)  # the run the checkpoint was taken in
         elif self.step == 0:
             self._on_event()
         counted = self._lost_since_last()
@@ -581,7 +589,7 @@ class Engine(abc.ABC):
                 except EngineError:
                     self.log("solver error at step %d", self.step, level=logging.ERROR)
                     raise
-                self._set_step(self.step + chunk)
+                self._set_step(self.step + chunk, run_dt)
                 bar.update(chunk)
                 self._on_event()
                 if watch is None:
@@ -617,9 +625,8 @@ class Engine(abc.ABC):
         """Compare ``dt`` with the contacts that can happen now (see :meth:`_time_step_limits`):
         warn once per time step and set of contacts; refuse a step that cannot resolve them."""
         found = self._time_step_limits()
-        self.time_step_check = None if found is None else found.assess(dt)
-        check = self.time_step_check
-        if check is None or check.level == "ok":
+        self.time_step_check = check = None if found is None else found.assess(dt)
+        if found is None or check is None or check.level == "ok":
             return
         if check.level == "error" and check_dt:
             message = f"{check.message()} Or pass check_dt=False to run() to run anyway."
@@ -746,9 +753,10 @@ class Engine(abc.ABC):
             )
         return step or "look for particles created outside the box or beyond a wall"
 
-    def _set_step(self, step: int) -> None:
+    def _set_step(self, step: int, dt: float) -> None:
+        """Move the clock to ``step``, ``dt`` after ``dt`` since the last change of time step."""
         self.step = step
-        self.time = self._clock[1] + (step - self._clock[0]) * self.dt
+        self.time = self._clock[1] + (step - self._clock[0]) * dt
 
     def _frequencies(self) -> list[int]:
         freqs = [m.spec.freq for m in self._monitors.values()]
@@ -805,10 +813,10 @@ class Engine(abc.ABC):
         write_checkpoint(path, checkpoint)
         self.log("checkpoint at step %d: %s", self.step, path)
 
-    def _restore(self) -> None:
-        """Continue from the checkpoint being resumed: the engine's state, the clock, the
-        monitors, and the trajectory files cut back to the checkpoint's step."""
-        checkpoint, self._resume = self._resume, None
+    def _restore(self, checkpoint: Checkpoint) -> None:
+        """Continue from ``checkpoint``, the one being resumed: the engine's state, the clock,
+        the monitors, and the trajectory files cut back to the checkpoint's step."""
+        self._resume = None
         unknown = sorted(set(checkpoint.monitors) - set(self._monitors))
         if unknown:
             raise ReadError(f"{self._resume_path}: monitors {unknown} are not among the script's monitors")

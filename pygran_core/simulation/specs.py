@@ -26,6 +26,7 @@ from pygran_core import params as materials
 from pygran_core.errors import ConfigError, UnsupportedFeature, unknown_key
 from pygran_core.formats.base import expand_paths
 from pygran_core.formats.stl import STLTrajectory
+from pygran_core.simulation.models.base import ContactModel
 
 Vector = tuple[float, float, float]
 BOUNDARY_FLAGS = frozenset("pfsm")
@@ -34,9 +35,19 @@ BOUNDARY_FLAGS = frozenset("pfsm")
 # -- small validators --------------------------------------------------------------------
 
 
+def is_real(value: Any) -> bool:
+    """``value`` is a real number (numpy's too), not a bool."""
+    return isinstance(value, Real) and not isinstance(value, bool)
+
+
+def is_integer(value: Any) -> bool:
+    """``value`` is an integer (numpy's too), not a bool."""
+    return isinstance(value, Integral) and not isinstance(value, bool)
+
+
 def positive_int(value: Any, name: str) -> int:
     """``value`` as an int > 0, or a :class:`ConfigError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, Integral) or value <= 0:
+    if not is_integer(value) or value <= 0:
         raise ConfigError(f"{name} must be a positive integer, got {value!r}")
     return int(value)
 
@@ -45,7 +56,7 @@ def step_count(value: Any, name: str, notes: list[str] | None = None) -> int:
     """A number of steps (or a frequency in steps) as LIGGGHTS reads one: an int, or a float
     truncated toward zero (``1e5`` is 100000 steps, ``1e5 / 3`` is 33333). When truncation
     changes the value, a line saying so is appended to ``notes`` (for ``pygran.log``)."""
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+    if not is_real(value) or not math.isfinite(value):
         raise ConfigError(f"{name} must be a number of steps such as 1000 or 1e5, got {value!r}")
     steps = int(value)
     if steps <= 0:
@@ -57,13 +68,13 @@ def step_count(value: Any, name: str, notes: list[str] | None = None) -> int:
 
 def positive_float(value: Any, name: str) -> float:
     """``value`` (int or float) as a finite float > 0, or a :class:`ConfigError` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, Real) or not 0 < value < math.inf:
+    if not is_real(value) or not 0 < value < math.inf:
         raise ConfigError(f"{name} must be a positive number, got {value!r}")
     return float(value)
 
 
 def finite_number(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
+    if not is_real(value) or not math.isfinite(value):
         raise ConfigError(f"{name} must be a finite number, got {value!r}")
     return float(value)
 
@@ -72,6 +83,12 @@ def number_tuple(value: Any, name: str, size: int = 3) -> tuple[float, ...]:
     if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != size:
         raise ConfigError(f"{name} must be a sequence of {size} numbers, got {value!r}")
     return tuple(finite_number(v, f"{name}[{i}]") for i, v in enumerate(value))
+
+
+def vector(value: Any, name: str) -> Vector:
+    """Three finite numbers ``(x, y, z)``, or a :class:`ConfigError` naming ``name``."""
+    x, y, z = number_tuple(value, name)
+    return (x, y, z)
 
 
 def one_of(value: Any, name: str, choices: Sequence[str]) -> str:
@@ -109,7 +126,8 @@ def check_keys(kind: str, given: Mapping[str, Any], known: Sequence[str]) -> Non
 def edits(a: str, b: str) -> int:
     """The number of single-letter insertions, deletions, substitutions and swaps of two
     neighbours that turn ``a`` into ``b`` (optimal string alignment distance)."""
-    previous, current = None, list(range(len(b) + 1))
+    previous: list[int] = []
+    current = list(range(len(b) + 1))
     for i, x in enumerate(a, start=1):
         before, previous, current = previous, current, [i] + [0] * len(b)
         for j, y in enumerate(b, start=1):
@@ -144,7 +162,8 @@ class Domain:
 
     @property
     def periodic(self) -> tuple[bool, bool, bool]:
-        return tuple(flag == "p" for flag in self.boundary)  # type: ignore[return-value]
+        x, y, z = (flag == "p" for flag in self.boundary)
+        return (x, y, z)
 
     @property
     def lengths(self) -> np.ndarray:
@@ -172,7 +191,7 @@ def parse_boundary(value: Any) -> tuple[str, str, str]:
         if "p" in flag and flag not in ("p", "pp"):
             raise ConfigError(f"boundary {axis}: {flag!r} mixes periodic and non-periodic faces")
         flags.append("p" if flag == "pp" else flag if len(flag) == 1 or flag[0] != flag[1] else flag[0])
-    return tuple(flags)  # type: ignore[return-value]
+    return (flags[0], flags[1], flags[2])
 
 
 @dataclass(frozen=True)
@@ -202,10 +221,10 @@ def parse_gravity(value: Any) -> Gravity:
             f"gravity {tuple(numbers)} is ambiguous or invalid: give (magnitude, dx, dy, dz) or "
             "(dx, dy, dz, magnitude) with (dx, dy, dz) a unit vector, e.g. (9.81, 0, 0, -1)"
         )
-    magnitude, direction = (numbers[0], first) if first_unit else (numbers[3], last)
+    magnitude, direction = (numbers[0], numbers[1:]) if first_unit else (numbers[3], numbers[:3])
     if magnitude < 0:
         raise ConfigError(f"gravity magnitude must be >= 0, got {magnitude}")
-    return Gravity(magnitude, tuple(float(d) for d in direction))  # type: ignore[arg-type]
+    return Gravity(magnitude, vector(direction, "gravity direction"))
 
 
 # -- particle sizes, species ---------------------------------------------------------------
@@ -266,7 +285,7 @@ class RadiusDistribution:
 
 
 def parse_radius(value: Any) -> RadiusDistribution:
-    if isinstance(value, Real) and not isinstance(value, bool):
+    if is_real(value):
         value = ("constant", value)
     if isinstance(value, str) or not isinstance(value, Sequence) or not value:
         raise ConfigError(
@@ -306,7 +325,7 @@ class Species:
     density: float
     radius: RadiusDistribution
     style: str = "sphere"
-    spheres: tuple[tuple[float, float, float, float], ...] = ()
+    spheres: tuple[tuple[float, ...], ...] = ()
 
 
 SPECIES_KEYS = ("style", "material", "density", "radius")
@@ -356,7 +375,7 @@ def _multisphere(value: Mapping[str, Any], index: int, style: str) -> tuple[tupl
             f"length (missing {', '.join(missing)})"
         )
     count = value["nspheres"]
-    if isinstance(count, bool) or not isinstance(count, Integral) or not 2 <= count <= MAX_SPHERES:
+    if not is_integer(count) or not 2 <= count <= MAX_SPHERES:
         raise ConfigError(f"{where}: nspheres must be a whole number from 2 to {MAX_SPHERES}, got {count!r}")
     radius = positive_float(value["radius"], f"{where} radius")
     length = positive_float(value["length"], f"{where} length")
@@ -387,11 +406,12 @@ def parse_species(value: Any, index: int) -> Species:
     density = value.get("density", material.get("density"))
     if density is None:
         raise ConfigError(f"species {index}: give 'density' or a material with 'density'")
+    spheres: tuple[tuple[float, ...], ...] = ()
     if style == "sphere":
-        radius, spheres = parse_radius(value["radius"]), ()
+        radius = parse_radius(value["radius"])
     else:
         spheres = _multisphere(value, index, style)
-        radius = RadiusDistribution("constant", (max(r for *_, r in spheres),))
+        radius = RadiusDistribution("constant", (max(sphere[-1] for sphere in spheres),))
     return Species(
         index,
         material,
@@ -501,7 +521,7 @@ def _words(args: Any, name: str) -> list[Any]:
     for item in args:
         if isinstance(item, str):
             words.extend(item.split())
-        elif isinstance(item, Real) and not isinstance(item, bool):
+        elif is_real(item):
             words.append(item)
         else:
             raise ConfigError(
@@ -595,10 +615,12 @@ def compose(steps: list[tuple[Any, ...]]) -> tuple[float, tuple[Vector, float] |
     else:
         from scipy.spatial.transform import Rotation  # loaded on first use: import pygran_core stays light
 
-        vector = Rotation.from_matrix(rotation).as_rotvec()
-        angle = float(np.linalg.norm(vector))
-        rotate = None if angle < 1e-12 else (tuple(float(v) for v in vector / angle), math.degrees(angle))  # type: ignore[assignment]
-    return scale, rotate, tuple(float(v) for v in shift)  # type: ignore[return-value]
+        rotvec = Rotation.from_matrix(rotation).as_rotvec()
+        angle = float(np.linalg.norm(rotvec))
+        rotate = None
+        if angle >= 1e-12:
+            rotate = (vector((rotvec / angle).tolist(), "mesh rotation axis"), math.degrees(angle))
+    return scale, rotate, vector(shift.tolist(), "mesh translation")
 
 
 def parse_servo(values: Mapping[str, Any], name: str) -> ServoSpec:
@@ -624,9 +646,9 @@ def parse_servo(values: Mapping[str, Any], name: str) -> ServoSpec:
     if mode == "pid" and (min(gains.values()) < 0 or not any(gains.values())):
         raise ConfigError(f"mesh {name!r}: the servo gains kp, ki, kd must be >= 0, not all 0; got {gains}")
     return ServoSpec(
-        com=tuple(values["com"]),  # type: ignore[arg-type]
+        com=tuple(values["com"]),
         control=one_of(values["ctrlPV"], f"mesh {name!r} servo ctrlPV", ("force", "torque")),
-        axis=tuple(float(a) for a in axis / np.linalg.norm(axis)),  # type: ignore[arg-type]
+        axis=vector((axis / np.linalg.norm(axis)).tolist(), f"mesh {name!r} servo axis"),
         target=float(target),
         vel_max=positive_float(values["vel_max"], f"mesh {name!r} servo vel_max"),
         mode=mode,
@@ -759,9 +781,7 @@ def parse_traj(
         name = value.get(key, default)
         files[key] = None if name is None else directory / file_name(name, f"traj {key}")
     sel = value.get("sel", "all")
-    if not (isinstance(sel, str) and sel == "all") and (
-        isinstance(sel, bool) or not isinstance(sel, Integral) or sel < 1
-    ):
+    if not (isinstance(sel, str) and sel == "all") and (not is_integer(sel) or sel < 1):
         raise ConfigError(f"traj sel must be 'all' or a species number (1, 2, ...), got {sel!r}")
     style = value.get("style", "custom")
     if isinstance(style, str) and style == "atom":
@@ -814,7 +834,7 @@ def parse_restart(value: Any, output: Path, notes: list[str] | None = None) -> R
     """The manual's 5-tuple ``(freq, dir, fname, resume, lastfile)``, a dict, or a frequency."""
     if value is None:
         return None
-    if isinstance(value, Real) and not isinstance(value, bool):
+    if is_real(value):
         value = (value,)
     if isinstance(value, Mapping):
         check_keys("restart keyword", value, ("freq", "dir", "fname", "resume", "lastfile"))
@@ -823,7 +843,8 @@ def parse_restart(value: Any, output: Path, notes: list[str] | None = None) -> R
         raise ConfigError(
             f"restart must be (freq, dir, fname, resume, lastfile), a dict or an int: {value!r}"
         )
-    freq, directory, fname, resume, lastfile = (*value, *([None] * (5 - len(value))))
+    padded: tuple[Any, ...] = (*value, *([None] * (5 - len(value))))
+    freq, directory, fname, resume, lastfile = padded
     directory = output / file_name(directory or "restart", "restart dir")
     if resume not in (None, True, False):
         raise ConfigError(f"restart resume must be True or False, got {resume!r}")
@@ -844,7 +865,7 @@ class SimulationSpec:
     """Everything ``simulation.DEM(**params)`` was given, validated."""
 
     engine: str
-    model: type
+    model: type[ContactModel]
     output: Path
     domain: Domain
     species: tuple[Species, ...] = ()
@@ -961,7 +982,7 @@ def default_output(model: type) -> str:
     the ``nSim`` runs) write into one folder."""
     comm = launch_communicator()
     name = f"{model.__name__}-{time.strftime('%d%m%Y-%H%M%S')}" if comm is None or comm.rank == 0 else None
-    return name if comm is None else comm.bcast(name, root=0)
+    return str(name if comm is None else comm.bcast(name, root=0))
 
 
 def _per_run(value: Any, index: int, nsim: int, where: str) -> Any:
@@ -991,7 +1012,7 @@ def run_params(params: Mapping[str, Any], index: int, nsim: int) -> dict[str, An
     return {**params, "species": tuple(species), "output": str(Path(params["output"]) / f"run{index}")}
 
 
-def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> SimulationSpec:
+def parse_simulation(params: Mapping[str, Any], engine: str, model: type[ContactModel]) -> SimulationSpec:
     """Validate ``simulation.DEM`` keywords; ``engine`` and ``model`` are already resolved.
     Keys that are not simulation keywords are the script's own (see :func:`split_keys`).
 
@@ -1013,7 +1034,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
     if "box" not in params:
         raise ConfigError("box is required: (xmin, xmax, ymin, ymax, zmin, zmax) in metres")
     dim = params.get("dim", 3)
-    if isinstance(dim, bool) or not isinstance(dim, Integral) or dim != 3:
+    if not is_integer(dim) or dim != 3:
         raise ConfigError(f"dim={dim!r}: only 3-D simulations are supported")
     units = one_of(params.get("units", "si"), "units", ("si",))
     cwd = Path(os.getcwd())
@@ -1030,7 +1051,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type) -> Sim
     if not isinstance(meshes_in, Mapping):
         raise ConfigError("mesh must be a dict of {name: {'file': ..., 'material': ...}}")
     seed = params.get("seed", 12345)
-    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
+    if not is_integer(seed) or seed < 0:
         raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     threads, nprocs = params.get("threads"), params.get("nprocs")
     notes: list[str] = []

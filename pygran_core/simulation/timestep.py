@@ -70,7 +70,9 @@ class Body:
 
     def as_material(self, speed: float) -> dict[str, float]:
         """The material a contact model takes, at the characteristic velocity ``speed``."""
-        extra = {} if self.is_wall else {"radius": self.radius, "density": self.density}
+        extra: dict[str, float] = {}
+        if self.radius is not None and self.density is not None:
+            extra = {"radius": self.radius, "density": self.density}
         return {**self.material, **extra, "characteristicVelocity": speed}
 
 
@@ -180,13 +182,18 @@ def limits(model: type[ContactModel], pairs: Iterable[tuple[Body, Body]], speed:
     pairs = list(pairs)
     if not pairs:
         return None
-    particles = {b.name: b for pair in pairs for b in pair if not b.is_wall}
+    particles = {
+        b.name: (b.radius, b.density, b.material)
+        for pair in pairs
+        for b in pair
+        if b.radius is not None and b.density is not None
+    }
     rayleigh, rayleigh_of = min(
         (
-            rayleigh_time(b.radius, b.density, b.material["youngsModulus"], b.material["poissonsRatio"]),
-            f"{name}, radius {b.radius:.3g} m",
+            rayleigh_time(radius, density, material["youngsModulus"], material["poissonsRatio"]),
+            f"{name}, radius {radius:.3g} m",
         )
-        for name, b in particles.items()
+        for name, (radius, density, material) in particles.items()
     )
     contact, contact_of = min((contact_time(model, a, b, speed), f"{a.name} on {b.name}") for a, b in pairs)
     return Limits(rayleigh, rayleigh_of, contact, contact_of, speed, model.__name__)

@@ -273,7 +273,7 @@ def energy_drift(
         return float(kinetic + 8 / 15 * modulus * (pair_elastic + wall_elastic))
 
     box = (0.0, side, 0.0, side, 0.0, side)
-    energies = []
+    energies: list[float] = []
     with one_species(engine, output, material, radius, model=HertzMindlin, box=box, dt=dt) as sim:
         for plane in ("xplane", "yplane", "zplane"):
             sim.setupWall(species=1, plane=plane, peq=0.0)
@@ -377,7 +377,7 @@ def settle(
 # -- checks -------------------------------------------------------------------------------------------
 
 
-def _measure(measure: Callable[[], Sequence[float]], *rows: CheckResult) -> list[CheckResult]:
+def _measure(measure: Callable[[], Sequence[float | None]], *rows: CheckResult) -> list[CheckResult]:
     """``rows`` with ``obtained`` filled from ``measure()`` (one value per row), or marked
     unsupported, or failed with the error in their notes."""
     try:
@@ -386,7 +386,10 @@ def _measure(measure: Callable[[], Sequence[float]], *rows: CheckResult) -> list
         return [replace(row, unsupported=True, notes=str(exc)) for row in rows]
     except PyGranError as exc:
         return [replace(row, notes=f"error: {type(exc).__name__}: {exc}") for row in rows]
-    return [replace(row, obtained=float(value)) for row, value in zip(rows, values, strict=True)]
+    return [
+        replace(row, obtained=None if value is None else float(value))
+        for row, value in zip(rows, values, strict=True)
+    ]
 
 
 def check_hertz(engine: str, output: Path, material: Mapping[str, float] | None = None) -> list[CheckResult]:
@@ -395,7 +398,7 @@ def check_hertz(engine: str, output: Path, material: Mapping[str, float] | None 
         material = dict(SOFT, coefficientRestitution=1.0)
     args = (sphere_mass(material, RADIUS), RADIUS, contact_modulus(material), IMPACT_SPEED)
 
-    def measure() -> tuple[float, float]:
+    def measure() -> tuple[float, float | None]:
         impact = wall_impact(engine, output, HertzMindlin, material, samples=60)
         return impact.contact_time, impact.max_overlap
 

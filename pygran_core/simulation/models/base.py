@@ -85,6 +85,19 @@ class Impact:
         return float(self.force.max())
 
 
+class _Event:
+    """A terminal event of ``scipy.integrate.solve_ivp``: ``value(t, y, history)`` crossing
+    zero in ``direction`` (-1 falling, 1 rising) ends the integration."""
+
+    terminal = True
+
+    def __init__(self, value: Callable[[float, Array, float | None], float], direction: int) -> None:
+        self.value, self.direction = value, direction
+
+    def __call__(self, t: float, y: Array, history: float | None) -> float:
+        return self.value(t, y, history)
+
+
 class ContactModel(abc.ABC):
     """Base class of the contact models: a normal force law plus friction and rolling resistance.
 
@@ -179,7 +192,7 @@ class ContactModel(abc.ABC):
         self.effective_modulus = float(mixing.effective_modulus(*moduli))
         self.effective_shear_modulus = float(mixing.effective_shear_modulus(*moduli))
 
-        def pair(key: str, rule: Callable[[float, float], float]) -> float | None:
+        def pair(key: str, rule: Callable[[float, float], mixing.Real]) -> float | None:
             return float(rule(mine[key], theirs[key])) if key in mine else None
 
         self.friction = pair("coefficientFriction", mixing.pair_friction)
@@ -325,18 +338,9 @@ class ContactModel(abc.ABC):
         def rhs(t: float, y: Array, history: float | None) -> tuple[float, float]:
             return y[1], -float(self.normal_force(y[0], y[1], history)) / self.effective_mass
 
-        def turning(t: float, y: Array, history: float | None) -> float:
-            return y[1]
-
-        def returning(t: float, y: Array, history: float | None) -> float:
-            return y[1]
-
-        def separating(t: float, y: Array, history: float | None) -> float:
-            return y[0] - separation
-
-        turning.terminal, turning.direction = True, -1
-        returning.terminal, returning.direction = True, 1
-        separating.terminal, separating.direction = True, -1
+        turning = _Event(lambda t, y, history: y[1], direction=-1)
+        returning = _Event(lambda t, y, history: y[1], direction=1)
+        separating = _Event(lambda t, y, history: y[0] - separation, direction=-1)
 
         loading = solve_ivp(rhs, (0.0, span), (0.0, v0), events=turning, args=(None,), **options)
         if loading.status != 1:

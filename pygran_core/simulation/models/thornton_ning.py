@@ -6,7 +6,7 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from pygran_core.errors import ConfigError
 from pygran_core.simulation.models.base import Array, ContactModel
@@ -66,6 +66,7 @@ class ThorntonNing(ContactModel):
     kernel = "thornton-ning"
 
     required = (*ContactModel.required, "yieldPress")
+    yield_pressure: float  # required: never None here
 
     def __init__(
         self,
@@ -113,7 +114,7 @@ class ThorntonNing(ContactModel):
     def _force(self, a: ArrayLike, R: ArrayLike) -> Array:
         a = np.asarray(a, float)
         E = self.effective_modulus
-        return 4 * E * a**3 / (3 * R) - 4 * np.sqrt(np.pi * self.cohesion * E * a**3)
+        return 4 * E * a**3 / (3 * np.asarray(R, float)) - 4 * np.sqrt(np.pi * self.cohesion * E * a**3)
 
     def _separation_radius(self, R: ArrayLike) -> Array:
         return np.cbrt(np.pi * self.cohesion * np.square(R) / (4 * self.effective_modulus))
@@ -165,11 +166,11 @@ class ThorntonNing(ContactModel):
         a = self._contact_radius(overlap - delta_p, R_p)
         return (a if max_overlap is not None else np.where(overlap > 0, a, np.nan)), R_p
 
-    def _in_contact(self, overlap: Array, max_overlap: ArrayLike | None) -> Array:
+    def _in_contact(self, overlap: Array, max_overlap: ArrayLike | None) -> NDArray[np.bool_]:
         return np.isfinite(self._state(overlap, max_overlap)[0])
 
     def _separation_overlap(self, max_overlap: float) -> float:
-        R_p, delta_p = self._unloading(np.float64(max_overlap), None)
+        R_p, delta_p = self._unloading(np.asarray(max_overlap, float), None)
         return float(delta_p + self._overlap(self._separation_radius(R_p), R_p))
 
     # --- forces ------------------------------------------------------------------------

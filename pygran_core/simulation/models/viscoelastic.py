@@ -36,6 +36,7 @@ class _Viscoelastic(ContactModel):
     """The normal law, SJKR cohesion and clamping shared by the visco-elastic models (see module)."""
 
     required = (*ContactModel.required, "coefficientRestitution")
+    restitution_coefficient: float  # required: never None here
 
     def __init__(
         self,
@@ -153,7 +154,7 @@ class SpringDashpot(_Viscoelastic):
                 v * decay * (np.cos(omega * t) - alpha / omega * np.sin(omega * t)),
             )
 
-        d_end, v_end = (float(x) for x in state(np.float64(t_force)))
+        d_end, v_end = (float(x) for x in state(np.asarray(t_force, float)))
         t_end = t_force + (d_end / -v_end if d_end > 0 else 0.0)
         step = 0.01 * self.contactTime() if dt is None else float(dt)
         if not step > 0:
