@@ -89,82 +89,43 @@ def _material(**values: float) -> Mapping[str, float]:
     return MappingProxyType(validate(values))
 
 
+#: The columns of the material tables below (see the module docstring); ``None``: no such key.
+_COLUMNS = (
+    "youngsModulus",
+    "poissonsRatio",
+    "coefficientFriction",
+    "coefficientRollingFriction",
+    "cohesionEnergyDensity",
+    "coefficientRestitution",
+    "coefficientRollingViscousDamping",
+    "yieldPress",
+    "characteristicVelocity",
+    "density",
+)
+
+
+def _table(rows: Mapping[str, tuple[float | None, ...]]) -> dict[str, Mapping[str, float]]:
+    """Materials from rows of :data:`_COLUMNS` values."""
+    return {
+        name: _material(**{key: value for key, value in zip(_COLUMNS, row, strict=True) if value is not None})
+        for name, row in rows.items()
+    }
+
+
 #: The original PyGran's materials (PyGran 1.x ``params``), value for value: scripts written
 #: for it depend on them (``organic``'s soft modulus sets their time step).
-_ORIGINAL = {
-    "glass": _material(
-        youngsModulus=63e9,
-        poissonsRatio=0.24,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.0,
-        cohesionEnergyDensity=0.05,
-        coefficientRestitution=0.9,
-        coefficientRollingViscousDamping=0.1,
-        yieldPress=62e9,
-        characteristicVelocity=0.1,
-        density=2500.0,
-    ),
+# fmt: off
+_ORIGINAL = _table({
+    #                                   E     nu     mu   mu_r  Gamma     e  eta_r     p_y   v_c      rho
+    "glass":                     (   63e9,  0.24,   0.5,   0.0,  0.05,  0.9,   0.1,   62e9,  0.1,  2500.0),
     # the manual's Listing 3.1
-    "stearicAcid": _material(
-        youngsModulus=4.15e7,
-        poissonsRatio=0.25,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.0,
-        cohesionEnergyDensity=0.033,
-        coefficientRestitution=0.9,
-        coefficientRollingViscousDamping=0.1,
-        yieldPress=2.2e6,
-        characteristicVelocity=0.1,
-        density=997.164,
-    ),
-    "organic": _material(
-        youngsModulus=1e7,
-        poissonsRatio=0.25,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.0,
-        cohesionEnergyDensity=0.0,
-        coefficientRestitution=0.9,
-        coefficientRollingViscousDamping=0.1,
-        yieldPress=2.2e6,
-        characteristicVelocity=0.1,
-        density=1000.0,
-    ),
-    "cohesionless": _material(
-        youngsModulus=1e7,
-        poissonsRatio=0.25,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.0,
-        coefficientRestitution=0.9,
-        coefficientRollingViscousDamping=0.1,
-        yieldPress=2.2e6,
-        characteristicVelocity=0.1,
-        density=1000.0,
-    ),
-    "cohesive": _material(
-        youngsModulus=1e7,
-        poissonsRatio=0.25,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.0,
-        cohesionEnergyDensity=2e5,
-        coefficientRestitution=0.9,
-        coefficientRollingViscousDamping=0.1,
-        yieldPress=2.2e6,
-        characteristicVelocity=0.1,
-        density=1000.0,
-    ),
-    "steel": _material(
-        youngsModulus=2e11,
-        poissonsRatio=0.3,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.0,
-        cohesionEnergyDensity=0.0,
-        coefficientRestitution=0.9,
-        coefficientRollingViscousDamping=0.1,
-        yieldPress=2e10,
-        characteristicVelocity=0.1,
-        density=8050.0,
-    ),
-}
+    "stearicAcid":               ( 4.15e7,  0.25,   0.5,   0.0, 0.033,  0.9,   0.1,  2.2e6,  0.1, 997.164),
+    "organic":                   (    1e7,  0.25,   0.5,   0.0,   0.0,  0.9,   0.1,  2.2e6,  0.1,  1000.0),
+    "cohesionless":              (    1e7,  0.25,   0.5,   0.0,  None,  0.9,   0.1,  2.2e6,  0.1,  1000.0),
+    "cohesive":                  (    1e7,  0.25,   0.5,   0.0,   2e5,  0.9,   0.1,  2.2e6,  0.1,  1000.0),
+    "steel":                     (   2e11,   0.3,   0.5,   0.0,   0.0,  0.9,   0.1,   2e10,  0.1,  8050.0),
+})
+# fmt: on
 
 # Representative literature values. Sources:
 # - sodaLimeGlass: E, nu, density from standard soda-lime glass data (E ~ 63-72 GPa,
@@ -182,68 +143,16 @@ _ORIGINAL = {
 #   interparticle friction ~0.5; yieldPress ~ hardness of quartz.
 # Rolling friction coefficients are typical calibrated values for the cdt model (1e-3 to
 # 1e-2; Ai, Chen, Rotter & Ooi, Powder Technol. 206 (2011) 269).
-_REALISTIC = {
-    "sodaLimeGlass": _material(
-        youngsModulus=6.3e10,
-        poissonsRatio=0.23,
-        coefficientFriction=0.092,
-        coefficientRollingFriction=0.002,
-        cohesionEnergyDensity=0.0,
-        coefficientRestitution=0.97,
-        coefficientRollingViscousDamping=0.0,
-        yieldPress=5.5e9,
-        characteristicVelocity=1.0,
-        density=2500.0,
-    ),
-    "bearingSteel": _material(
-        youngsModulus=2.1e11,
-        poissonsRatio=0.3,
-        coefficientFriction=0.2,
-        coefficientRollingFriction=0.002,
-        cohesionEnergyDensity=0.0,
-        coefficientRestitution=0.9,
-        coefficientRollingViscousDamping=0.0,
-        yieldPress=7.0e9,
-        characteristicVelocity=1.0,
-        density=7810.0,
-    ),
-    "microcrystallineCellulose": _material(
-        youngsModulus=8.0e9,
-        poissonsRatio=0.3,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.005,
-        cohesionEnergyDensity=0.0,
-        coefficientRestitution=0.75,
-        coefficientRollingViscousDamping=0.0,
-        yieldPress=7.0e7,
-        characteristicVelocity=0.1,
-        density=1560.0,
-    ),
-    "cohesivePowder": _material(
-        youngsModulus=6.0e9,
-        poissonsRatio=0.25,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.01,
-        cohesionEnergyDensity=0.04,
-        coefficientRestitution=0.5,
-        coefficientRollingViscousDamping=0.0,
-        yieldPress=4.0e7,
-        characteristicVelocity=0.04,
-        density=1500.0,
-    ),
-    "quartzSand": _material(
-        youngsModulus=9.45e10,
-        poissonsRatio=0.074,
-        coefficientFriction=0.5,
-        coefficientRollingFriction=0.005,
-        cohesionEnergyDensity=0.0,
-        coefficientRestitution=0.8,
-        coefficientRollingViscousDamping=0.0,
-        yieldPress=1.1e10,
-        characteristicVelocity=1.0,
-        density=2650.0,
-    ),
-}
+# fmt: off
+_REALISTIC = _table({
+    #                                   E     nu     mu   mu_r  Gamma     e  eta_r     p_y   v_c      rho
+    "sodaLimeGlass":             ( 6.3e10,  0.23, 0.092, 0.002,   0.0, 0.97,   0.0,  5.5e9,  1.0,  2500.0),
+    "bearingSteel":              ( 2.1e11,   0.3,   0.2, 0.002,   0.0,  0.9,   0.0,  7.0e9,  1.0,  7810.0),
+    "microcrystallineCellulose": (  8.0e9,   0.3,   0.5, 0.005,   0.0, 0.75,   0.0,  7.0e7,  0.1,  1560.0),
+    "cohesivePowder":            (  6.0e9,  0.25,   0.5,  0.01,  0.04,  0.5,   0.0,  4.0e7, 0.04,  1500.0),
+    "quartzSand":                (9.45e10, 0.074,   0.5, 0.005,   0.0,  0.8,   0.0, 1.1e10,  1.0,  2650.0),
+})
+# fmt: on
 
 #: Every material by name, read-only: the reference the module attributes are copied from.
 MATERIALS: Mapping[str, Mapping[str, float]] = MappingProxyType(_ORIGINAL | _REALISTIC)
