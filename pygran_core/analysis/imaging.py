@@ -128,12 +128,17 @@ def _numbers(path: str) -> list[Any]:
     return [int(p) if p.isdigit() else p for p in parts]
 
 
-def _files(file: ImageSet, order: bool) -> list[str] | None:
-    """The files ``file`` names (None for one file given by name, which reads as 2D)."""
+def _single(file: ImageSet) -> str | None:
+    """The file ``file`` names when it is one file given by name (which reads as 2D), else None."""
+    if isinstance(file, (str, os.PathLike)) and not glob.has_magic(os.fspath(file)):
+        return os.fspath(file)
+    return None
+
+
+def _files(file: ImageSet, order: bool) -> list[str]:
+    """The files of a stack: a glob pattern or a sequence of names."""
     if isinstance(file, (str, os.PathLike)):
         text = os.fspath(file)
-        if not glob.has_magic(text):
-            return None
         names = glob.glob(text)
         if not names:
             raise ReadError(f"No image file matches {text!r}")
@@ -176,10 +181,11 @@ def readImg(
     """
     if ncores is not None and (isinstance(ncores, bool) or not isinstance(ncores, int) or ncores < 1):
         raise ConfigError(f"readImg: ncores must be a positive integer, got {ncores!r}")
-    names = _files(file, order)
-    if names is None:
-        data = _read_one(os.fspath(file), flip)  # type: ignore[arg-type]
+    single = _single(file)
+    if single is not None:
+        data = _read_one(single, flip)
     else:
+        names = _files(file, order)
         with ThreadPoolExecutor(max_workers=ncores or 1) as pool:
             images = list(pool.map(lambda name: _read_one(name, flip), names))
         shapes = {image.shape for image in images}
