@@ -38,6 +38,12 @@ a shared edge has a contact with each. Mesh motion through ``RotationEngine``,
 one. Forces include gravity, as LIGGGHTS reports them. After each piece of a run the worker
 deletes the spheres that left a fixed boundary or whose position or velocity is no longer
 finite, and reports them by face and speed (:meth:`YadeEngine._lost_since_last`).
+
+Multisphere species are YADE clumps (``O.bodies.appendClumped``), one per particle, whose
+mass, centre and inertia YADE integrates over the union of the spheres on a grid of
+:data:`CLUMP_DISCRETIZATION` cells across; extracts give every sphere of a clump, as the
+LIGGGHTS engine's do. YADE has no rolling-resistance law matching LIGGGHTS' (see the README),
+so no rolling-friction capability is declared.
 """
 
 from __future__ import annotations
