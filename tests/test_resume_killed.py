@@ -375,14 +375,20 @@ def test_the_studies_write_what_the_kills_are_about(straight, engine, frames, pa
 
 @pytest.mark.parametrize(("engine", "kills", "after_checkpoint"), [("native", 10, 3), ("liggghts", 3, 0)])
 def test_killed_at_random_moments_resumes(scripts, straight, tmp_path, engine, kills, after_checkpoint):
-    """SIGKILLs at seeded random moments of the simulation (as timed on the uninterrupted run);
-    after each, the files left are readable and the rerun ends where the straight run does."""
+    """SIGKILLs at seeded random moments of the simulation (a fraction of its duration on the
+    uninterrupted run, after the engine opened); after each, the files left are readable and
+    the rerun ends where the straight run does."""
     expected, opened, closed = straight(engine)
-    delays = opened + np.random.default_rng(17).uniform(0.0, 1.0, kills) * (closed - opened)
+    delays = np.random.default_rng(17).uniform(0.0, 1.0, kills) * (closed - opened)
     resumed = []
     for k, delay in enumerate(delays):
         output = tmp_path / f"kill{k}"
         child = launch(scripts, engine, output)
+        log, deadline = output / "pygran.log", time.monotonic() + TIMEOUT
+        while child.poll() is None and time.monotonic() < deadline:
+            if log.is_file() and " engine opened" in log.read_text():
+                break
+            time.sleep(0.005)
         try:
             child.wait(delay)
         except subprocess.TimeoutExpired:
