@@ -141,9 +141,10 @@ def test_batches_by_rate_into_a_full_region_warn_once_with_the_numbers(tmp_path)
 
 
 def test_a_volume_fraction_of_one_fills_what_fits_and_logs_how_much(tmp_path):
-    """insert(mech='volumefraction_region', value=1) into a 5 mm cube of 0.5 mm spheres: what
-    fits goes in (a random packing, 20 % to 64 %), the shortfall is an InsertionWarning naming
-    the target, and pygran.log gives the fraction reached, as the front end counts it."""
+    """insert(mech='volumefraction_region', value=1) into a 5 mm cube of 0.5 mm spheres asks
+    for about as many spheres as the cube's volume holds (239): what fits goes in (a random
+    packing, 20 % to 64 %), the shortfall is an InsertionWarning with both numbers, and
+    pygran.log gives the fraction reached, as the front end counts it."""
     region = ("block", 0, 0.005, 0, 0.005, 0, 0.005)
     organic = params.organic
     with dem(
@@ -154,12 +155,13 @@ def test_a_volume_fraction_of_one_fills_what_fits_and_logs_how_much(tmp_path):
         species=({"material": organic, "radius": 5e-4},),
     ) as sim:
         sim.insert(1, value=1, mech="volumefraction_region", region=region)
-        with pytest.warns(
-            InsertionWarning,
-            match=r"particles inserted, fewer than its target \(volumefraction_region 1\) needs",
-        ):
+        with pytest.warns(InsertionWarning) as caught:
             sim.run(1)
         x = sim.extractCoords()
+    asked = round(0.005**3 / (4 / 3 * np.pi * 5e-4**3))
+    assert asked == 239 and str(caught[0].message).startswith(
+        f"insertion at step 1: {len(x)} of about {asked} particles inserted, the region {region} is full"
+    )
     inside = np.all((x >= 0) & (x <= 0.005), axis=1)
     fraction = inside.sum() * 4 / 3 * np.pi * 5e-4**3 / 0.005**3
     assert 0.2 < fraction < 0.64

@@ -22,6 +22,7 @@ into its arrays and only noted there in a comment. LIGGGHTS' screen output goes 
 from __future__ import annotations
 
 import logging
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import replace
@@ -34,7 +35,14 @@ from pygran_core.errors import ConfigError, EngineError, InsertionWarning, PyGra
 from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, launch_communicator
-from pygran_liggghts.commands import BODY_ENERGY, Commands, fmt, native_meshes, native_particles
+from pygran_liggghts.commands import (
+    BODY_ENERGY,
+    Commands,
+    fmt,
+    native_meshes,
+    native_particles,
+    size_classes,
+)
 from pygran_liggghts.screen import InsertionEvent, insertion_events
 from pygran_liggghts.session import LocalSession, WorkerSession
 
@@ -153,7 +161,7 @@ class LiggghtsEngine(Engine):
         #: particles asked for at the first step of the next run by the by-pack insertions made
         #: then, those by rate asked for per event, and the insertions whose shortfall was warned
         self._screen_read = 0
-        self._asked: dict[str, int] = {}
+        self._asked: dict[str, tuple[int, bool] | None] = {}  # (particles, whether exactly)
         self._per_event: dict[str, float] = {}
         self._short_warned: set[str] = set()
         #: By-pack insertions LIGGGHTS has not made yet (it makes them as the next run starts)
@@ -315,11 +323,7 @@ class LiggghtsEngine(Engine):
         auto = any(mesh.servo and mesh.servo.mode == "auto" for mesh in self.spec.meshes)
         pre = "pre no " if self._prepared and not lines and not auto else ""
         # LIGGGHTS makes these as this run starts, asking for its target less what it counts
-        self._asked = {
-            label: int(spec.value) - self._held(spec)
-            for label, spec in self._unplaced.items()
-            if spec.target == "particles_in_region"
-        }
+        self._asked = {label: self._asked_by(spec) for label, spec in self._unplaced.items()}
         filling = [  # volume fractions inserted in this run, whose outcome is logged
             label
             for label, spec in self._insertions.items()
@@ -336,14 +340,37 @@ class LiggghtsEngine(Engine):
         if filling:
             self._log_fractions(filling, start + nsteps)
 
-    def _held(self, spec: InsertSpec) -> int:
-        """The particles LIGGGHTS counts in the region of by-pack insertion ``spec``: centres
-        in it, or with ``all_in`` whole spheres (multisphere particles by their centres)."""
+    def _asked_by(self, spec: InsertSpec) -> tuple[int, bool] | None:
+        """The particles by-pack insertion ``spec`` asks for as the next run starts, as LIGGGHTS
+        counts them: its target less what its region holds (centres in it, or with ``all_in``
+        whole spheres; multisphere particles by their centres), exactly for a number of
+        particles; for a volume or mass, what lacks over the expected volume or mass of one
+        particle, to which LIGGGHTS adds a uniform draw before rounding down (about); ``None``
+        for the volume or mass of multisphere bodies, which LIGGGHTS computes."""
         if self.commands.body_types:
-            return self._particles_in(spec.region)
-        arrays = self._request("gather", ["x", "radius"])
+            if spec.target != "particles_in_region":
+                return None
+            return int(spec.value) - self._particles_in(spec.region), True
+        arrays = self._request("gather", ["x", "radius", "mass"])
         margin = arrays["radius"] if spec.all_in else 0.0
-        return int(np.count_nonzero(spec.region.contains(arrays["x"].reshape(-1, 3), margin)))
+        inside = spec.region.contains(arrays["x"].reshape(-1, 3), margin)
+        if spec.target == "particles_in_region":
+            return int(spec.value) - int(np.count_nonzero(inside)), True
+        sizes = [
+            (weight * fraction, 4 / 3 * math.pi * radius**3, self.spec.species[index - 1].density)
+            for index, weight in zip(spec.species, spec.weights)
+            for radius, fraction in size_classes(self.spec.species[index - 1].radius)
+        ]
+        total = sum(share for share, _, _ in sizes)
+        if spec.target == "volumefraction_region":
+            lacking = spec.value * spec.region.volume() - float(
+                np.sum(4 / 3 * np.pi * arrays["radius"][inside] ** 3)
+            )
+            one = sum(share * volume for share, volume, _ in sizes) / total
+        else:
+            lacking = spec.value - float(np.sum(arrays["mass"][inside]))
+            one = sum(share * volume * density for share, volume, density in sizes) / total
+        return max(0, round(lacking / one)), False
 
     def _report_insertions(self, start: int) -> None:
         """Log the insertion events of the run that began at step ``start`` from LIGGGHTS'
@@ -397,27 +424,28 @@ class LiggghtsEngine(Engine):
                 spec.value,
             )
 
-    def _shortfall(self, event: InsertionEvent, spec: InsertSpec, asked: int | None) -> str:
+    def _shortfall(self, event: InsertionEvent, spec: InsertSpec, asked: tuple[int, bool] | None) -> str:
         """What LIGGGHTS' insertion ``event`` (of ``spec``) asked for and inserted, as the
-        placing engines say it. Asked: a by-pack target less the particles LIGGGHTS counted
-        as the run started, or what a batch by rate asks (``int(per + uniform)``, exact for a
-        whole number); else (a repeated by-pack insertion, a volume or mass target) the target."""
+        placing engines say it. ``asked``: what a by-pack insertion asked for as the run
+        started (see :meth:`_asked_by`); a batch by rate asks for ``int(per + uniform)`` (exact
+        for a whole number); otherwise (a repeated by-pack insertion) its target is named."""
         made = event.inserted
         where = f"the region {spec.region} is full"
         per = self._per_event.get(event.fix) if spec.mechanism == "by_rate" else None
-        if asked is None and per is not None and per.is_integer():
-            asked = int(per)
-        if asked is not None:
+        if asked is None and per is not None:
+            asked = round(per), per.is_integer()
+        if asked is not None and asked[0] > made:
+            number, exact = asked
+            about = "" if exact else "about "
             return (
-                f"insertion at step {event.step}: {made} of {asked} particles inserted, {where} "
-                f"(no free place for the other {asked - made})"
+                f"insertion at step {event.step}: {made} of {about}{number} particles inserted, {where} "
+                f"(no free place for the other {about}{number - made})"
             )
-        if per is not None:
-            wanted = f"of about {per:.3g} asked for"
-        else:
-            amount = f"{spec.value:g}" if spec.target == "particles_in_region" else f"{spec.value:.3g}"
-            wanted = f"fewer than its target ({spec.target} {amount}) needs"
-        return f"insertion at step {event.step}: {made} particles inserted, {wanted}, {where}"
+        amount = f"{spec.value:g}" if spec.target == "particles_in_region" else f"{spec.value:.3g}"
+        return (
+            f"insertion at step {event.step}: {made} particles inserted, fewer than its target "
+            f"({spec.target} {amount}) needs, {where}"
+        )
 
     def _lost_particles(self, count: int, x: np.ndarray, v: np.ndarray, duration: float) -> LostParticles:
         """``count`` particles lost in a run of ``duration``: those seen at its start (``x``,
