@@ -342,18 +342,18 @@ class LiggghtsEngine(Engine):
 
     def _asked_by(self, spec: InsertSpec) -> tuple[int, bool] | None:
         """The particles by-pack insertion ``spec`` asks for as the next run starts, as LIGGGHTS
-        counts them: its target less what its region holds (centres in it, or with ``all_in``
-        whole spheres; multisphere particles by their centres), exactly for a number of
-        particles; for a volume or mass, what lacks over the expected volume or mass of one
-        particle, to which LIGGGHTS adds a uniform draw before rounding down (about); ``None``
-        for the volume or mass of multisphere bodies, which LIGGGHTS computes."""
+        counts them: its target less what its region holds (the particles whose centres are in
+        it, also with ``all_in``, as LIGGGHTS 3.8 counts them; multisphere particles once),
+        exactly for a number of particles; for a volume or mass, what lacks over the expected
+        volume or mass of one particle, to which LIGGGHTS adds a uniform draw before rounding
+        down (about); ``None`` for the volume or mass of multisphere bodies, which LIGGGHTS
+        computes."""
         if self.commands.body_types:
             if spec.target != "particles_in_region":
                 return None
             return int(spec.value) - self._particles_in(spec.region), True
         arrays = self._request("gather", ["x", "radius", "mass"])
-        margin = arrays["radius"] if spec.all_in else 0.0
-        inside = spec.region.contains(arrays["x"].reshape(-1, 3), margin)
+        inside = spec.region.contains(arrays["x"].reshape(-1, 3))
         if spec.target == "particles_in_region":
             return int(spec.value) - int(np.count_nonzero(inside)), True
         sizes = [
