@@ -63,6 +63,10 @@ def test_two_insertions_into_one_region_before_a_run_both_insert(tmp_path):
         after = sim.engine.extract("type")
     assert np.bincount(types).tolist() == [0, 100, 100]
     assert np.bincount(after).tolist() == [0, 130, 100]
+    # logged as the placing engines log it: each asked for its own 100, then 30
+    log = (tmp_path / "pygran.log").read_text()
+    assert log.count("insert at step 1: 100 of 100 particles") == 2
+    assert "insert at step 11: 30 of 30 particles" in log
 
 
 def repeated(output, restart):
