@@ -1,7 +1,8 @@
 """Resuming runs that were really killed: a user's study script runs in a child process, is
 SIGKILLed (at seeded random moments, and at chosen points: inside a checkpoint's HDF5 write,
 between its seal and its rename, in the middle of an H5MD trajectory frame, while a resumed
-run cuts its trajectory back), then the same script is run again. Every file a kill leaves is
+run cuts its trajectory back; after its last checkpoint, as when a finished study is simply
+run again), then the same script is run again. Every file a kill leaves is
 readable (or a ``ReadError``, never a hang), and the run that finishes ends where an
 uninterrupted run ends: bitwise on the native engine (particles, monitor and every trajectory
 frame); on LIGGGHTS, which rebuilds its neighbour lists from its restart file, with the same
@@ -175,6 +176,7 @@ runpy.run_path(script, run_name="__main__")
 #: through every frame; checkpoints with read_checkpoint) and prints what happened as JSON.
 CHECKER = """
 import json, sys
+from pathlib import Path
 
 from pygran_core import analysis
 from pygran_core.errors import ReadError
@@ -183,7 +185,7 @@ from pygran_core.simulation.checkpoint import read_checkpoint
 results = {}
 for path in sys.argv[1:]:
     try:
-        if "/restart/" in path:
+        if Path(path).parent.name == "restart":
             results[path] = ["ok", read_checkpoint(path).step]
         else:
             with analysis.System(Particles=path) as system:
