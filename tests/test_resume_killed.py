@@ -429,6 +429,22 @@ def test_killed_at_a_chosen_point_resumes(scripts, straight, tmp_path, engine, p
 
 
 @pytest.mark.parametrize(
+    ("engine", "due", "resumes_from", "freq"), [("native", 9, 4000, 500), ("liggghts", 3, 1200, 600)]
+)
+def test_a_resumed_run_killed_again_resumes(scripts, straight, tmp_path, engine, due, resumes_from, freq):
+    """Killed between a checkpoint's seal and rename twice, the second time in the run that
+    resumed from the first kill (at its third checkpoint); the third run resumes from the
+    checkpoint before that."""
+    expected, _, _ = straight(engine)
+    output = tmp_path / "out"
+    kill_at(scripts, engine, output, "checkpoint-rename", due)
+    kill_at(scripts, engine, output, "checkpoint-rename", 3)
+    finish(scripts, engine, output)
+    assert resumed_from(output) == [resumes_from, resumes_from + 2 * freq]
+    SAME[engine](outcome(output), expected)
+
+
+@pytest.mark.parametrize(
     "engine",
     [
         "native",
