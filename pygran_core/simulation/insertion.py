@@ -474,13 +474,8 @@ class PlacingEngine(Engine):
             del self._schedules[label]
         for label, next_step, end_step, owed, target, rng in restored:
             schedule = self._schedules[label]
-            schedule.next_step, schedule.end_step, schedule.owed, schedule.target = (
-                next_step,
-                end_step,
-                owed,
-                target,
-            )
-            schedule.rng.bit_generator.state = rng.bit_generator.state
+            schedule.next_step, schedule.end_step = next_step, end_step
+            schedule.owed, schedule.target, schedule.rng = owed, target, rng
 
     def _remove(self, handle: Handle) -> None:
         if handle.kind != "insertion":
