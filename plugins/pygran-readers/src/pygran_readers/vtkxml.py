@@ -391,7 +391,11 @@ def read_xml(path: Path) -> Mesh:
     pieces = [c for c in dataset.children if c.tag == "Piece"]
     if not pieces:
         raise xml.fail(f"<{kind}> has no <Piece>", dataset.line)
-    points, cells, types, point_data, cell_data = [], [], [], [], []
+    points: list[np.ndarray] = []
+    cells: list[np.ndarray] = []
+    types: list[int] = []
+    point_data: list[dict[str, np.ndarray]] = []
+    cell_data: list[dict[str, np.ndarray]] = []
     for piece in pieces:
         n_points = xml.count(piece, "NumberOfPoints")
         points.append(_points(xml, piece, n_points))

@@ -130,7 +130,7 @@ def _spheres(path: Path, grid: vtk.Mesh) -> Frame:
             columns[COLUMNS.get(name, name)] = values if name in INTEGER else values.astype(np.float64)
     if "type" in columns:
         columns["type"] += 1
-    arrays = {name: columns.pop(name) for name in ("id", "type") if name in columns}
+    arrays: dict[str, np.ndarray] = {name: columns.pop(name) for name in ("id", "type") if name in columns}
     arrays.update({axis: points[:, j].copy() for j, axis in enumerate("xyz")})
     arrays["radius"] = columns.pop("radius")
     for name in sorted(columns, key=lambda name: name not in ("v", "omega")):
