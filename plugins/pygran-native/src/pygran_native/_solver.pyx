@@ -86,6 +86,11 @@ cdef enum:
     THORNTON_NING = 2
 
 cdef enum:
+    CDT = 0            # rolling resistance models (LIGGGHTS rolling_friction cdt, epsd, epsd2)
+    EPSD = 1
+    EPSD2 = 2
+
+cdef enum:
     NO_CONTACT = 0     # the history is cleared
     IN_CONTACT = 1
     MEMORY = 2         # Thornton-Ning: apart, plastic history kept while the bodies still overlap
@@ -147,6 +152,7 @@ cdef struct Coef:
     double coh      # cohesion energy (SJKR density or JKR surface energy)
     double py       # yield pressure (Thornton-Ning)
     double vchar    # characteristic velocity (hooke)
+    double rdamp    # epsd: rolling viscous damping ratio (coefficientRollingViscousDamping)
 
 
 cdef struct Halo:
@@ -172,7 +178,7 @@ cdef struct Tuner:
 
 
 cdef struct Ctx:
-    int n, cap, hs, whs, model, nt, nblocks, ncells, update, kick, fuse
+    int n, cap, hs, whs, model, rolling, roff, nt, nblocks, ncells, update, kick, fuse
     int nc[3]
     int ax[3]
     double cs[3]
@@ -353,15 +359,52 @@ cdef int tn_normal(const Coef* c, double delta, double Rs, double* hist, bint up
     return IN_CONTACT
 
 
-cdef inline int contact_force(int model, const Coef* c, double delta, double Rs, double ms,
-                              const double* n, const double* vr, const double* rw, const double* wrel,
-                              double* hist, double dt, bint update,
+cdef inline void elastic_plastic_rolling(int rolling, const Coef* c, double fn, double kn, double kt,
+                                         double Rs, double Ir, const double* n, const double* wrel,
+                                         double* h, double dt, bint update, double* Mr) noexcept nogil:
+    """Rolling torque on i of LIGGGHTS' ``rolling_friction epsd`` and ``epsd2`` (doc pages
+    gran_rolling_friction_epsd.html and gran_rolling_friction_epsd2.html; Ai et al., Powder
+    Technology 206 (2011) 269, and Iwashita & Oda 1998).
+
+    A spring torque ``M`` (history ``h``, 3 values) grows by ``k_r w_t dt`` with the relative
+    rotation rate about axes in the contact plane ``w_t``, and is limited to the full
+    mobilisation torque ``mu_r R* |F_n|``. ``k_r = 2.25 k_n mu_r^2 R*^2`` (epsd) or
+    ``k_t R*^2`` (epsd2), with the normal and tangential stiffness ``k_n, k_t`` of the normal
+    law. epsd adds, below the limit, the dashpot ``eta_r 2 sqrt(I_r k_r) w_t`` (``eta_r``:
+    coefficientRollingViscousDamping, ``I_r`` the rolling inertia of the pair).
+    """
+    cdef double wt[3]
+    cdef double M[3]
+    cdef double wn = dot3(wrel, n), kr, lim, mag2, ratio, cr = 0.0
+    cdef int k
+    kr = 2.25 * kn * c.mur * c.mur * Rs * Rs if rolling == EPSD else kt * Rs * Rs
+    for k in range(3):
+        wt[k] = wrel[k] - wn * n[k]
+        M[k] = h[k] + (dt * kr * wt[k] if update else 0.0)
+    mag2 = dot3(M, M)
+    lim = c.mur * Rs * fabs(fn)
+    if mag2 > lim * lim:
+        ratio = lim / sqrt(mag2)
+        for k in range(3):
+            M[k] *= ratio
+    elif rolling == EPSD:
+        cr = c.rdamp * 2.0 * sqrt(Ir * kr)
+    for k in range(3):
+        if update:
+            h[k] = M[k]
+        Mr[k] = -(M[k] + cr * wt[k])
+
+
+cdef inline int contact_force(int model, int rolling, int roff, const Coef* c, double delta, double Rs,
+                              double ms, double Ir, const double* n, const double* vr, const double* rw,
+                              const double* wrel, double* hist, double dt, bint update,
                               double* F, double* Ft, double* Mr) noexcept nogil:
     """Force on body i of a contact: IN_CONTACT, or NO_CONTACT / MEMORY with nothing set.
 
     ``n`` points from j to i, ``delta`` is the overlap, ``vr = v_i - v_j`` at the centres,
-    ``rw = r_i w_i + r_j w_j``, ``wrel = w_i - w_j``. Sets ``F`` (total force on i), ``Ft``
-    (its tangential part, for torques) and ``Mr`` (rolling torque on i); updates ``hist``.
+    ``rw = r_i w_i + r_j w_j``, ``wrel = w_i - w_j``, ``Ir`` the pair's rolling inertia
+    (epsd). Sets ``F`` (total force on i), ``Ft`` (its tangential part, for torques) and ``Mr``
+    (rolling torque on i); updates ``hist`` (the rolling spring's from ``roff``).
     """
     cdef double vn, a, kn, gn, kt, gt, fn, ftm, lim, ratio, s, wm
     cdef double vt[3]
@@ -392,8 +435,11 @@ cdef inline int contact_force(int model, const Coef* c, double delta, double Rs,
     else:
         res = tn_normal(c, delta, Rs, hist, update, &fn, &kt)
         if res != IN_CONTACT:
+            if res == MEMORY and update and rolling != CDT:
+                memset(&hist[roff], 0, 3 * sizeof(double))
             return res
         gt = 0.0
+        kn = kt * c.E / (6.0 * c.G)   # 4/3 E* a, as hertz (kt = 8 G* a)
     hist[3] = fn
     for k in range(3):
         F[k] = fn * n[k]
@@ -420,11 +466,17 @@ cdef inline int contact_force(int model, const Coef* c, double delta, double Rs,
         for k in range(3):
             F[k] += Ft[k]
     if c.mur > 0.0:
+        if rolling != CDT:
+            elastic_plastic_rolling(rolling, c, fn, kn, kt, Rs, Ir, n, wrel, &hist[roff], dt, update, Mr)
+            return IN_CONTACT
         wm = sqrt(dot3(wrel, wrel))
-        if wm > 0.0:
+        if wm > 0.0:   # as LIGGGHTS' cdt, without the torque's torsion part (along n)
             s = -c.mur * Rs * fabs(fn) / wm
             for k in range(3):
                 Mr[k] = s * wrel[k]
+            s = dot3(Mr, n)
+            for k in range(3):
+                Mr[k] -= s * n[k]
     return IN_CONTACT
 
 
@@ -620,6 +672,9 @@ cdef uint8_t carry_pair(const Ctx* c, int a, int b, double* h) noexcept nogil:
                 h[q] = sign * c.ob_h[k * c.hs + q]
             for q in range(3, c.hs):
                 h[q] = c.ob_h[k * c.hs + q]
+            if c.roff:   # the rolling spring torque, too, is i's for the other orientation
+                for q in range(c.roff, c.roff + 3):
+                    h[q] *= sign
             return c.ob_s[k] & TOUCH
     memset(h, 0, c.hs * sizeof(double))
     return 0
@@ -753,7 +808,8 @@ cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
     cdef const Halo* hb = &c.halos[b]
     cdef int own = c.pb[b + 1], near_end = hb.near_end
     cdef long long near = hb.near_off - own, far = hb.far_off - hb.far_lo   # row j's entries
-    cdef int hs = c.hs, model = c.model, update = c.update, k, j, q, res, kend = c.nb_start[i + 1]
+    cdef int hs = c.hs, model = c.model, rolling = c.rolling, roff = c.roff, update = c.update
+    cdef int k, j, q, res, kend = c.nb_start[i + 1]
     cdef int touching = 0, last = -1
     cdef double dt = c.dt
     cdef double d[3]
@@ -769,7 +825,7 @@ cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
     cdef double xi[3]
     cdef double vi[3]
     cdef double wi[3]
-    cdef double dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den
+    cdef double dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den, Ii = mi * ri * ri, Ir = 0.0
     cdef double* h
     cdef double* bj
     cdef const double* sv
@@ -788,7 +844,7 @@ cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
         rj = r[j]
         rs = ri + rj
         h = &nb_h[<long long>k * hs]
-        if dist2 >= rs * rs and not (hs > 4 and h[4] > 0.0):   # apart (adhesive contacts may stretch)
+        if dist2 >= rs * rs and not (model == THORNTON_NING and h[4] > 0.0):   # apart (adhesion stretches)
             if nb_s[k] & TOUCH:
                 memset(h, 0, hs * sizeof(double))
                 nb_s[k] &= ~TOUCH
@@ -803,8 +859,10 @@ cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
         den = 1.0 / (rs * (mi + mj))
         Rs = ri * rj * (mi + mj) * den
         ms = mi * mj * rs * den
-        res = contact_force(model, &coef[typ[j]], rs - dist2 * inv, Rs, ms, n, vr, rw, wrel, h, dt, update,
-                            F, Ft, Mr)
+        if rolling == EPSD:   # 1.4 (m_i r_i^2)(m_j r_j^2) / (m_i r_i^2 + m_j r_j^2), as LIGGGHTS
+            Ir = 1.4 * Ii * mj * rj * rj / (Ii + mj * rj * rj)
+        res = contact_force(model, rolling, roff, &coef[typ[j]], rs - dist2 * inv, Rs, ms, Ir, n, vr, rw,
+                            wrel, h, dt, update, F, Ft, Mr)
         if res != IN_CONTACT:
             if res == NO_CONTACT:
                 memset(h, 0, hs * sizeof(double))
@@ -869,8 +927,8 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
     for k in range(3):
         vr[k] = c.v[3 * i + k] - vw[k]
         rw[k] = ri * c.w[3 * i + k]
-    res = contact_force(c.model, &c.coef[c.type[i] * c.nt + c.etype[e]], delta, ri, c.m[i], n, vr, rw,
-                        &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
+    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.nt + c.etype[e]], delta, ri,
+                        c.m[i], 1.4 * c.m[i] * ri * ri, n, vr, rw, &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
     if res == NO_CONTACT:
         zero_hist(h, c.whs)
     if res != IN_CONTACT:
@@ -927,7 +985,7 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
             continue
         creg[nc] = closest_on_triangle(xi, g, g + 3, g + 6, &cq[3 * nc], &cfeat[nc])
         d2 = (xi[0] - cq[3 * nc]) ** 2 + (xi[1] - cq[3 * nc + 1]) ** 2 + (xi[2] - cq[3 * nc + 2]) ** 2
-        if (d2 >= ri * ri and not (hs > 4 and h[4] > 0.0)) or d2 == 0.0 or nc == MAXCAND:
+        if (d2 >= ri * ri and not (c.model == THORNTON_NING and h[4] > 0.0)) or d2 == 0.0 or nc == MAXCAND:
             zero_hist(h, c.whs)
             continue
         cd2[nc] = d2
@@ -1062,7 +1120,7 @@ cdef class Core:
     outputs by id and builds the contact tables.
     """
 
-    cdef public int n, cap, nthreads, hs, model, ntypes, dirty
+    cdef public int n, cap, nthreads, hs, model, rolling, roff, ntypes, dirty
     cdef public double time, skin
     # the clock: time = t_base + (step - step_base) dt_base, re-based when dt changes, so it
     # does not accumulate round-off step by step
@@ -1304,10 +1362,12 @@ cdef class Core:
         return 0
 
     # ------------------------------------------------------------------ set-up ----------
-    def set_model(self, int model, int hs, double[:, ::1] E, double[:, ::1] G, double[:, ::1] mu,
-                  double[:, ::1] mur, double[:, ::1] damp, double[:, ::1] coh, double[:, ::1] py,
-                  double vchar):
-        """Install the pair tables (ntypes x ntypes) of a contact model; resets histories."""
+    def set_model(self, int model, int hs, int rolling, double[:, ::1] E, double[:, ::1] G,
+                  double[:, ::1] mu, double[:, ::1] mur, double[:, ::1] damp, double[:, ::1] coh,
+                  double[:, ::1] py, double[:, ::1] rdamp, double vchar):
+        """Install the pair tables (ntypes x ntypes) of a contact model and its rolling model
+        (CDT, EPSD, EPSD2: those with a spring keep it in the last 3 of the ``hs`` history
+        values); a new history layout resets histories."""
         cdef int nt = E.shape[0], a, b
         cdef Coef* c = <Coef*>calloc(nt * nt, sizeof(Coef))
         cdef double* vis = <double*>calloc(nt, sizeof(double))
@@ -1326,6 +1386,7 @@ cdef class Core:
                 c[a * nt + b].coh = coh[a, b]
                 c[a * nt + b].py = py[a, b]
                 c[a * nt + b].vchar = vchar
+                c[a * nt + b].rdamp = rdamp[a, b]
         for a in range(min(nt, self.ntypes)):
             vis[a] = self.visc[a]
         free(self.coef)
@@ -1344,6 +1405,8 @@ cdef class Core:
             memset(self.wl_start, 0, (self.n + 1) * sizeof(int))
             self.hs = hs
         self.model = model
+        self.rolling = rolling
+        self.roff = 0 if rolling == CDT else hs - 3
         self.dirty = 1
 
     def set_viscous(self, double[::1] gamma):
@@ -1628,6 +1691,8 @@ cdef class Core:
         c.n = self.n
         c.cap = self.cap
         c.hs = self.hs
+        c.rolling = self.rolling
+        c.roff = self.roff
         c.whs = self.hs + 1
         c.model = self.model
         c.nt = self.ntypes
@@ -2268,7 +2333,7 @@ cdef class Core:
         return out_i, out_j, out_d, out_f
 
     cdef inline bint _in_contact(self, int k) noexcept nogil:
-        return self.nb_s[k] & TOUCH and (self.hs == 4 or self.nb_h[k * self.hs + 4] > 0.0)
+        return self.nb_s[k] & TOUCH and (self.model != THORNTON_NING or self.nb_h[k * self.hs + 4] > 0.0)
 
     def timings(self):
         """Seconds spent so far: wall clock per phase (``TIMERS``), and per-thread CPU time in

@@ -35,6 +35,8 @@ class NativeEngine(PlacingEngine):
             "thornton-ning",
             "cohesion",
             "rolling-friction",
+            "rolling-epsd",
+            "rolling-epsd2",
             "periodic",
             "primitive-walls",
             "mesh-walls",
@@ -81,6 +83,13 @@ class NativeEngine(PlacingEngine):
             "rolling_friction": column("coefficientRollingFriction", 0.0),
             "cohesion_energy": column("cohesionEnergyDensity", 0.0),
         }
+        # rolling resistance models other than the solver's are refused when a species has rolling
+        # friction (Engine._check_spec); without, no pair has any and the model does not matter
+        rolling = self.spec.model.rolling
+        arrays["rolling"] = rolling if rolling in ("epsd", "epsd2") else "cdt"
+        if arrays["rolling"] == "epsd":
+            needed = None if arrays["rolling_friction"].any() else 0.0
+            arrays["rolling_damping"] = column("coefficientRollingViscousDamping", needed)
         if kind == "thornton-ning":
             arrays["yield_pressure"] = column("yieldPress", None)
         else:

@@ -22,7 +22,9 @@ Conventions (LIGGGHTS):
   :mod:`pygran_core.simulation.models` (``SpringDashpot``, ``HertzMindlin``,
   ``ThorntonNing``), tangential history with the Coulomb limit, SJKR cohesion for
   hooke/hertz and JKR adhesion for Thornton-Ning when ``cohesion_energy > 0``, rolling
-  friction ``cdt`` when ``rolling_friction > 0``; pair values from
+  resistance when ``rolling_friction > 0``: LIGGGHTS' ``cdt`` (its torque's component along
+  the contact normal removed, as LIGGGHTS does), ``epsd`` or ``epsd2`` (the last two with a
+  spring torque in the contact history); pair values from
   :mod:`pygran_core.simulation.models.mixing`, a wall being a body of infinite radius and
   mass of its own type;
 - walls: two-sided planes (LIGGGHTS primitive planes: a contact pushes the particle back
@@ -51,6 +53,9 @@ __all__ = ["Solver", "default_threads"]
 
 _MODELS = {"hooke": 0, "hertz": 1, "thornton-ning": 2}
 _HISTORY = {"hooke": 4, "hertz": 4, "thornton-ning": 7}
+#: Rolling resistance models (LIGGGHTS ``rolling_friction``); those after cdt keep a spring
+#: torque: 3 more history values per contact.
+_ROLLING = {"cdt": 0, "epsd": 1, "epsd2": 2}
 _WALL_KINDS = ("plane", "cylinder", "mesh")
 #: The contact-model settings a checkpoint stores (the arguments of Solver.set_contact_model).
 _MODEL_KEYS = (
@@ -59,6 +64,7 @@ _MODEL_KEYS = (
     "restitution",
     "friction",
     "rolling_friction",
+    "rolling_damping",
     "cohesion_energy",
     "yield_pressure",
     "characteristic_velocity",
@@ -97,11 +103,15 @@ def _per_particle(value, name: str, n: int, dtype=float) -> np.ndarray:
     return _array(arr, name, (n,), dtype)
 
 
-def _model_tables(kind: str, *, restitution, yield_pressure, characteristic_velocity, **per_type_values):
+def _model_tables(
+    kind: str, *, rolling, restitution, yield_pressure, characteristic_velocity, **per_type_values
+):
     """The arguments of ``Core.set_model`` for a contact model, and the settings as given
     (see :meth:`Solver.set_contact_model`); a ConfigError naming a bad one."""
     if kind not in _MODELS:
         raise ConfigError(f"kind: unknown contact model {kind!r}; choose one of {', '.join(_MODELS)}.")
+    if rolling not in _ROLLING:
+        raise ConfigError(f"rolling: unknown rolling model {rolling!r}; choose one of {', '.join(_ROLLING)}.")
     E = _array(np.atleast_1d(per_type_values["youngs"]), "youngs", (-1,))
     nt = E.shape[0]
     if nt == 0:
@@ -122,6 +132,7 @@ def _model_tables(kind: str, *, restitution, yield_pressure, characteristic_velo
     mu = per_type(per_type_values["friction"], "friction", lambda a: a >= 0)
     mur = per_type(per_type_values["rolling_friction"], "rolling_friction", lambda a: a >= 0)
     coh = per_type(per_type_values["cohesion_energy"], "cohesion_energy", lambda a: a >= 0)
+    eta = per_type(per_type_values["rolling_damping"], "rolling_damping", lambda a: a >= 0)
     vchar = 0.0
     if kind == "thornton-ning":
         if yield_pressure is None:
@@ -148,6 +159,7 @@ def _model_tables(kind: str, *, restitution, yield_pressure, characteristic_velo
         np.asarray(damp, float) + np.zeros((nt, nt)),
         mixing.pair_table(mixing.pair_cohesion, coh),
         mixing.pair_table(mixing.pair_yield_pressure, py) if kind == "thornton-ning" else np.zeros((nt, nt)),
+        mixing.pair_table(mixing.pair_friction, eta),  # the smaller one, as the LIGGGHTS engine mixes it
     ]
     model = {
         "kind": kind,
@@ -155,12 +167,15 @@ def _model_tables(kind: str, *, restitution, yield_pressure, characteristic_velo
         "poisson": nu,
         "restitution": restitution,
         "friction": mu,
+        "rolling": rolling,
         "rolling_friction": mur,
+        "rolling_damping": eta,
         "cohesion_energy": coh,
         "yield_pressure": yield_pressure,
         "characteristic_velocity": characteristic_velocity,
     }
-    args = (_MODELS[kind], _HISTORY[kind], *(np.ascontiguousarray(t) for t in tables), vchar)
+    history = _HISTORY[kind] + (3 if rolling != "cdt" else 0)
+    args = (_MODELS[kind], history, _ROLLING[rolling], *(np.ascontiguousarray(t) for t in tables), vchar)
     return args, model
 
 
@@ -212,6 +227,8 @@ class Solver:
         restitution=None,
         friction=0.0,
         rolling_friction=0.0,
+        rolling: str = "cdt",
+        rolling_damping=0.0,
         cohesion_energy=0.0,
         yield_pressure=None,
         characteristic_velocity: float | None = None,
@@ -221,7 +238,9 @@ class Solver:
         ``kind``: ``"hooke"`` (needs ``restitution`` and ``characteristic_velocity``),
         ``"hertz"`` (needs ``restitution``) or ``"thornton-ning"`` (needs
         ``yield_pressure``; ``cohesion_energy`` is the JKR surface energy in J/m^2, for the
-        others the SJKR energy density in J/m^3). Particle and wall types index these
+        others the SJKR energy density in J/m^3). ``rolling``: the rolling resistance model,
+        ``"cdt"``, ``"epsd"`` (damped by ``rolling_damping``, LIGGGHTS'
+        coefficientRollingViscousDamping) or ``"epsd2"``. Particle and wall types index these
         arrays. Changing the model to one with another history layout clears histories.
         """
         tables, self._model = _model_tables(
@@ -231,6 +250,8 @@ class Solver:
             restitution=restitution,
             friction=friction,
             rolling_friction=rolling_friction,
+            rolling=rolling,
+            rolling_damping=rolling_damping,
             cohesion_energy=cohesion_energy,
             yield_pressure=yield_pressure,
             characteristic_velocity=characteristic_velocity,
@@ -551,6 +572,7 @@ class Solver:
         state = {f"core_{k}": v for k, v in self._core.get_state().items()}
         model = self._model
         state["model_kind"] = _encode(model["kind"])
+        state["model_rolling"] = _encode(model["rolling"])
         for key in _MODEL_KEYS:
             state[f"model_{key}"] = np.array(np.nan if model[key] is None else model[key], float)
         state["viscous"] = self._viscous.copy()
@@ -662,8 +684,11 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
         settings[key] = (
             None if value.ndim == 0 and np.isnan(value) else (float(value) if value.ndim == 0 else value)
         )
+    rolling = _text(state, "model_rolling")
+    if rolling not in _ROLLING:
+        raise _fail("model_rolling", f"one of {', '.join(_ROLLING)}", repr(rolling))
     try:
-        tables, model = _model_tables(kind, **settings)
+        tables, model = _model_tables(kind, rolling=rolling, **settings)
     except ConfigError as exc:  # "poisson: expected ..."
         name, _, problem = str(exc).partition(": ")
         types = np.size(settings["youngs"])
