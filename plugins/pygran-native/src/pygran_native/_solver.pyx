@@ -153,6 +153,7 @@ cdef struct Coef:
     double py       # yield pressure (Thornton-Ning)
     double vchar    # characteristic velocity (hooke)
     double rdamp    # epsd: rolling viscous damping ratio (coefficientRollingViscousDamping)
+    double limit    # hooke, hertz: 1 to keep the visco-elastic normal force >= 0 (limitForce)
 
 
 cdef struct Halo:
@@ -420,6 +421,8 @@ cdef inline int contact_force(int model, int rolling, int roff, const Coef* c, d
         kt = 8.0 * c.G * a
         gt = c.tdamp * gn
         fn = kn * delta + gn * vn
+        if fn < 0.0 and c.limit != 0.0:
+            fn = 0.0
         if c.coh > 0.0:
             fn -= c.coh * M_PI * delta * (2.0 * Rs - delta)
     elif model == HOOKE:
@@ -430,6 +433,8 @@ cdef inline int contact_force(int model, int rolling, int roff, const Coef* c, d
         kt = kn
         gt = gn
         fn = kn * delta + gn * vn
+        if fn < 0.0 and c.limit != 0.0:
+            fn = 0.0
         if c.coh > 0.0:
             fn -= c.coh * M_PI * delta * (2.0 * Rs - delta)
     else:
@@ -1362,12 +1367,12 @@ cdef class Core:
         return 0
 
     # ------------------------------------------------------------------ set-up ----------
-    def set_model(self, int model, int hs, int rolling, double[:, ::1] E, double[:, ::1] G,
+    def set_model(self, int model, int hs, int rolling, bint limit, double[:, ::1] E, double[:, ::1] G,
                   double[:, ::1] mu, double[:, ::1] mur, double[:, ::1] damp, double[:, ::1] coh,
                   double[:, ::1] py, double[:, ::1] rdamp, double vchar):
         """Install the pair tables (ntypes x ntypes) of a contact model and its rolling model
         (CDT, EPSD, EPSD2: those with a spring keep it in the last 3 of the ``hs`` history
-        values); a new history layout resets histories."""
+        values); ``limit``: LIGGGHTS' limitForce. A new history layout resets histories."""
         cdef int nt = E.shape[0], a, b
         cdef Coef* c = <Coef*>calloc(nt * nt, sizeof(Coef))
         cdef double* vis = <double*>calloc(nt, sizeof(double))
@@ -1387,6 +1392,7 @@ cdef class Core:
                 c[a * nt + b].py = py[a, b]
                 c[a * nt + b].vchar = vchar
                 c[a * nt + b].rdamp = rdamp[a, b]
+                c[a * nt + b].limit = 1.0 if limit else 0.0
         for a in range(min(nt, self.ntypes)):
             vis[a] = self.visc[a]
         free(self.coef)

@@ -37,6 +37,7 @@ class NativeEngine(PlacingEngine):
             "rolling-friction",
             "rolling-epsd",
             "rolling-epsd2",
+            "limit-force",
             "periodic",
             "primitive-walls",
             "mesh-walls",
@@ -87,6 +88,7 @@ class NativeEngine(PlacingEngine):
         # friction (Engine._check_spec); without, no pair has any and the model does not matter
         rolling = self.spec.model.rolling
         arrays["rolling"] = rolling if rolling in ("epsd", "epsd2") else "cdt"
+        arrays["limit_force"] = self.spec.model.limit_force
         if arrays["rolling"] == "epsd":
             needed = None if arrays["rolling_friction"].any() else 0.0
             arrays["rolling_damping"] = column("coefficientRollingViscousDamping", needed)

@@ -65,6 +65,7 @@ _MODEL_KEYS = (
     "friction",
     "rolling_friction",
     "rolling_damping",
+    "limit_force",
     "cohesion_energy",
     "yield_pressure",
     "characteristic_velocity",
@@ -104,7 +105,14 @@ def _per_particle(value, name: str, n: int, dtype=float) -> np.ndarray:
 
 
 def _model_tables(
-    kind: str, *, rolling, restitution, yield_pressure, characteristic_velocity, **per_type_values
+    kind: str,
+    *,
+    rolling,
+    limit_force,
+    restitution,
+    yield_pressure,
+    characteristic_velocity,
+    **per_type_values,
 ):
     """The arguments of ``Core.set_model`` for a contact model, and the settings as given
     (see :meth:`Solver.set_contact_model`); a ConfigError naming a bad one."""
@@ -112,6 +120,8 @@ def _model_tables(
         raise ConfigError(f"kind: unknown contact model {kind!r}; choose one of {', '.join(_MODELS)}.")
     if rolling not in _ROLLING:
         raise ConfigError(f"rolling: unknown rolling model {rolling!r}; choose one of {', '.join(_ROLLING)}.")
+    if limit_force not in (0, 1):  # True, False, or 1.0, 0.0 from a checkpoint
+        raise ConfigError(f"limit_force: must be True or False, got {limit_force!r}.")
     E = _array(np.atleast_1d(per_type_values["youngs"]), "youngs", (-1,))
     nt = E.shape[0]
     if nt == 0:
@@ -170,12 +180,20 @@ def _model_tables(
         "rolling": rolling,
         "rolling_friction": mur,
         "rolling_damping": eta,
+        "limit_force": bool(limit_force),
         "cohesion_energy": coh,
         "yield_pressure": yield_pressure,
         "characteristic_velocity": characteristic_velocity,
     }
     history = _HISTORY[kind] + (3 if rolling != "cdt" else 0)
-    args = (_MODELS[kind], history, _ROLLING[rolling], *(np.ascontiguousarray(t) for t in tables), vchar)
+    args = (
+        _MODELS[kind],
+        history,
+        _ROLLING[rolling],
+        bool(limit_force),
+        *(np.ascontiguousarray(t) for t in tables),
+        vchar,
+    )
     return args, model
 
 
@@ -229,6 +247,7 @@ class Solver:
         rolling_friction=0.0,
         rolling: str = "cdt",
         rolling_damping=0.0,
+        limit_force: bool = False,
         cohesion_energy=0.0,
         yield_pressure=None,
         characteristic_velocity: float | None = None,
@@ -240,7 +259,9 @@ class Solver:
         ``yield_pressure``; ``cohesion_energy`` is the JKR surface energy in J/m^2, for the
         others the SJKR energy density in J/m^3). ``rolling``: the rolling resistance model,
         ``"cdt"``, ``"epsd"`` (damped by ``rolling_damping``, LIGGGHTS'
-        coefficientRollingViscousDamping) or ``"epsd2"``. Particle and wall types index these
+        coefficientRollingViscousDamping) or ``"epsd2"``. ``limit_force``: keep the hooke and hertz
+        visco-elastic normal force from turning attractive (LIGGGHTS ``limitForce on``; cohesion
+        still attracts). Particle and wall types index these
         arrays. Changing the model to one with another history layout clears histories.
         """
         tables, self._model = _model_tables(
@@ -252,6 +273,7 @@ class Solver:
             rolling_friction=rolling_friction,
             rolling=rolling,
             rolling_damping=rolling_damping,
+            limit_force=limit_force,
             cohesion_energy=cohesion_energy,
             yield_pressure=yield_pressure,
             characteristic_velocity=characteristic_velocity,
