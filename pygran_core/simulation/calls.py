@@ -799,11 +799,13 @@ MONITOR_QUANTITIES = ("ke", "ke_rot", "n", "contacts", "time", "wall_force")
 
 @dataclass(frozen=True)
 class MonitorSpec:
-    """Scalars sampled every ``freq`` steps, kept in memory and written to ``file``."""
+    """Scalars sampled every ``freq`` steps, kept in memory and written to ``file``; of the
+    particles of ``species`` only (``None``: of every particle)."""
 
     quantities: tuple[str, ...]
     freq: int
     file: str
+    species: tuple[int, ...] | None = None
 
 
 def parse_monitor(kwargs: Mapping[str, Any], notes: list[str] | None = None) -> MonitorSpec:
@@ -844,9 +846,11 @@ class AverageSpec:
     nrepeat: int = 1
     nfreq: int = 1
 
-    def samples(self) -> MonitorSpec:
-        """The engine monitor this average reads: the quantity every ``nevery`` steps."""
-        return MonitorSpec((self.quantity,), self.nevery, f"{self.name}-samples.txt")
+    def samples(self, every_species: bool = True) -> MonitorSpec:
+        """The engine monitor this average reads: the quantity every ``nevery`` steps, of the
+        chosen species (of every particle when they are all the simulation's species)."""
+        species = None if every_species else self.species
+        return MonitorSpec((self.quantity,), self.nevery, f"{self.name}-samples.txt", species)
 
     def average(self, steps: np.ndarray, values: np.ndarray, since: int) -> tuple[np.ndarray, np.ndarray]:
         """The averages (steps, means) of the samples ``values`` taken at ``steps``, for the

@@ -252,12 +252,13 @@ class DEM:
             self._note(notes)
             return monitor
         spec = calls.parse_average(kwargs, self.spec, notes)
-        if set(spec.species) != {s.type for s in self.spec.species}:
+        every_species = set(spec.species) == {s.type for s in self.spec.species}
+        if not every_species:
             self.engine.require("monitor-species", "monitors of some species only")
         if spec.name in self._averages:
             raise ConfigError(f"monitor name {spec.name!r} is taken: give each monitor its own name=")
         averaged = AveragedMonitor(
-            spec, self.engine.monitor(spec.samples()), self.engine.output / spec.file, self.step
+            spec, self.engine.monitor(spec.samples(every_species)), self.engine.output / spec.file, self.step
         )
         self._averages[spec.name] = averaged
         self._note(notes)

@@ -787,7 +787,12 @@ class Engine(abc.ABC):
                 self._write("meshes", traj.mfile, self._mesh_frame)
         for monitor in self._monitors.values():
             if self.step % monitor.spec.freq == 0:
-                row = (float(self.step), self.time, *(self._scalar(q) for q in monitor.spec.quantities))
+                species = monitor.spec.species
+                values = (
+                    self._scalar(q) if species is None else self._species_scalar(q, species)
+                    for q in monitor.spec.quantities
+                )
+                row = (float(self.step), self.time, *values)
                 monitor.samples.append(row)
                 with monitor.path.open("a") as handle:
                     handle.write(" ".join(repr(v) for v in row) + "\n")
@@ -944,6 +949,26 @@ class Engine(abc.ABC):
             v = self._extract("v")
             return float(0.5 * np.sum(self._extract("mass") * np.einsum("ij,ij->i", v, v)))
         raise self._unsupported(f"the monitor quantity {quantity!r}")
+
+    def _species_scalar(self, quantity: str, species: tuple[int, ...]) -> float:
+        """A monitored scalar of the particles of ``species`` only (engines that declare
+        ``monitor-species``): ``n``, ``time``, ``ke`` and, for spheres, ``ke_rot``."""
+        if quantity == "time":
+            return self.time
+        chosen = np.isin(self._extract("type"), species)
+        if quantity == "n":
+            return float(np.count_nonzero(chosen))
+        if quantity in ("ke", "ke_rot"):
+            mass = self._extract("mass")[chosen]
+            if quantity == "ke":
+                speed = self._extract("v")[chosen]
+                return float(0.5 * np.sum(mass * np.einsum("ij,ij->i", speed, speed)))
+            if any(s.style == "multisphere" for s in self.spec.species if s.type in species):
+                raise self._unsupported("a ke_rot monitor of multisphere species")
+            spin = self._extract("omega")[chosen]
+            inertia = 0.4 * mass * self._extract("radius")[chosen] ** 2
+            return float(0.5 * np.sum(inertia * np.einsum("ij,ij->i", spin, spin)))
+        raise self._unsupported(f"the monitor quantity {quantity!r} of some species")
 
     def _frame(self) -> Frame:
         """The particles now (those of species ``traj`` ``sel`` unless ``"all"``), as a
