@@ -479,12 +479,6 @@ def test_killed_inside_a_checkpoint_write_leaves_the_previous_one(scripts, tmp_p
     assert left[str(output / "restart" / "restart.1500.h5")] == ["ok", 1500]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="Engine._cut_trajectory moves traj.h5 to traj.before-resume.h5 and copies the frames "
-    "back; killed while copying, the next resume moves the partial copy over the original and "
-    "the frames between the kill and the checkpoint are lost",
-)
 def test_killed_again_while_the_resumed_run_cuts_its_trajectory(scripts, straight, tmp_path):
     """The first kill leaves frames up to step 7250 past the checkpoint of step 7000; the
     resumed run is killed while it copies the frames it keeps; the third run finishes."""
@@ -647,11 +641,6 @@ def resume_damaged(engine: str, tmp_path: Path, damage: Any) -> tuple[Path, pyte
     return path, info
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="Engine._restore copies monitor samples without comparing their width with the "
-    "monitor's quantities: the resumed monitor file silently lacks a column",
-)
 @pytest.mark.parametrize("engine", ["native", "liggghts"])
 def test_a_monitor_table_of_another_width_is_a_read_error(tmp_path, engine):
     path, info = resume_damaged(

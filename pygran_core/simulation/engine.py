@@ -825,6 +825,13 @@ class Engine(abc.ABC):
         unknown = sorted(set(checkpoint.monitors) - set(self._monitors))
         if unknown:
             raise ReadError(f"{self._resume_path}: monitors {unknown} are not among the script's monitors")
+        for handle_id, samples in checkpoint.monitors.items():
+            quantities = self._monitors[handle_id].spec.quantities
+            if samples.ndim != 2 or samples.shape[1] != 2 + len(quantities):
+                raise ReadError(
+                    f"{self._resume_path}: monitor {handle_id} has samples of shape {samples.shape}, "
+                    f"not rows of {2 + len(quantities)} (step, time, {', '.join(quantities)})"
+                )
         if checkpoint.facts != self._facts():
             self.log(
                 "resuming with %s where the checkpoint had %s: the run continues, but not bitwise",
@@ -855,7 +862,10 @@ class Engine(abc.ABC):
         Files written a frame each need nothing: later frames are overwritten as they come.
         """
         before = path.with_name(f"{path.stem}.before-resume{path.suffix}")
-        os.replace(path, before)
+        if before.exists():  # an earlier resume was killed while copying: the original is there
+            path.unlink(missing_ok=True)
+        else:
+            os.replace(path, before)
         writer = self._writers[key] = open_writer(path)
         kept = 0
         try:
