@@ -12,6 +12,7 @@ RUFF = [sys.executable, "-m", "ruff"]
 TYPED = [
     "pygran_core",
     "plugins/pygran-readers/src/pygran_readers",
+    "plugins/pygran-yade/src/pygran_yade",
 ]
 
 

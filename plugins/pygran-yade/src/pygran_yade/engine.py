@@ -59,7 +59,7 @@ from pygran_core.io import Frame
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
-from pygran_core.simulation.models import mixing
+from pygran_core.simulation.models import SpringDashpot, mixing
 from pygran_core.simulation.specs import SimulationSpec
 from pygran_yade.client import Worker
 from pygran_yade.worker import from_bytes, to_bytes
@@ -245,7 +245,8 @@ class YadeEngine(PlacingEngine):
                         if i < n
                         else mi
                     )
-                    pair = {"kn": self.spec.model(mine, partner=partner).kn}
+                    # the spring-dashpot kernel runs SpringDashpot's law, with its stiffness
+                    pair = {"kn": SpringDashpot(mine, partner=partner).kn}
                 for name, value in pair.items():
                     values.setdefault(name, []).append((i, j, float(value)))
         return values
@@ -294,6 +295,8 @@ class YadeEngine(PlacingEngine):
         insertion's generator), the template's own, or a constant one."""
         orientation, rng = self._orienting
         if orientation == "random":
+            if rng is None:
+                raise ConfigError("random clump orientations need the insertion's random generator")
             q = rng.normal(size=(count, 4))
             return q / np.linalg.norm(q, axis=1, keepdims=True)
         if orientation == "template":
@@ -339,9 +342,11 @@ class YadeEngine(PlacingEngine):
             )
         if request.style != "random":
             return super()._create(request)
+        if request.region is None or request.count is None:
+            raise ConfigError("createParticles('random') needs a region and a count")
         rng = np.random.default_rng(request.seed)
         types = np.full(request.count, request.species)
-        velocities = np.tile(request.velocity, (request.count, 1))
+        velocities = np.tile(np.asarray(request.velocity, float), (request.count, 1))
         return self._place(request.region, types, self._radii(types, rng), rng, velocities, request.omega)
 
     def _held(self, request: InsertSpec) -> float:
@@ -391,6 +396,8 @@ class YadeEngine(PlacingEngine):
         if spec.kind != "mesh" and all(periodic):
             raise self._unsupported("primitive walls in a domain periodic along every axis")
         if spec.kind == "plane":
+            if spec.plane is None or spec.peq is None:
+                raise ConfigError(f"a plane wall needs plane and peq: {spec}")
             axis = "xyz".index(spec.plane[0])
             if periodic[axis]:
                 raise self._unsupported("a plane wall across a periodic axis")
@@ -402,6 +409,8 @@ class YadeEngine(PlacingEngine):
             self._obstacle[label] = ("plane", (point, normal))
             triangles = plane_triangle(axis, spec.peq, box, periodic)
         elif spec.kind == "cylinder":
+            if spec.axis is None or spec.centre is None or spec.radius is None:
+                raise ConfigError(f"a cylinder wall needs axis, centre and radius: {spec}")
             along = "xyz".index(spec.axis)
             span = box[along]
             if periodic[along]:
@@ -461,7 +470,7 @@ class YadeEngine(PlacingEngine):
             super()._remove(handle)
         elif label in self._walls:
             self.worker.call("erase", ids=self._walls.pop(label))
-            kind, value = self._obstacle.pop(label, (None, None))
+            kind, value = self._obstacle.pop(label, ("cylinder", None))  # cylinders are no obstacle
             if kind == "mesh":
                 del self._mesh_walls[value]
                 for motion in [k for k, name in self._motions.items() if name == value]:
@@ -479,15 +488,13 @@ class YadeEngine(PlacingEngine):
 
     # -- running and output ----------------------------------------------------------------
 
-    def run(
-        self, nsteps: int, dt: float | None = None, *, progress: bool | None = None, check_dt: bool = True
-    ) -> None:
+    def run(self, nsteps: int, dt: float | None = None, **options: Any) -> None:
         """As :meth:`Engine.run`; without any time step, a fifth of YADE's p-wave estimate
         (``utils.PWaveTimeStep``) for the particles present, logged."""
         if dt is None and self.dt is None:
             self.dt = 0.2 * float(self.worker.call("scalar", quantity="pwave_dt"))
             self.log("no time step given: using 0.2 x PWaveTimeStep = %g s", self.dt)
-        super().run(nsteps, dt, progress=progress, check_dt=check_dt)
+        super().run(nsteps, dt, **options)
 
     def _advance(self, nsteps: int) -> None:
         self._unreported += LostParticles(**self.worker.call("run", nsteps=nsteps, dt=self.dt))

@@ -322,6 +322,13 @@ class Simulation:
 
     # -- running and results ----------------------------------------------------------
 
+    @property
+    def box(self) -> np.ndarray:
+        """The fixed-boundary box ``(3, 2)`` that :meth:`setup` set."""
+        if self.bounds is None:
+            raise RuntimeError("the scene has no domain: call setup first")
+        return self.bounds
+
     def run(self, nsteps, dt):
         """Advance ``nsteps`` steps of ``dt``, then delete the spheres that left a fixed
         boundary or whose position or velocity is no longer finite (LIGGGHTS deletes them
@@ -340,7 +347,11 @@ class Simulation:
         the largest speed of those that left through a face (``None`` if none did). A lost
         clump member takes its whole clump, counted at the same place."""
         fixed = [axis for axis in range(3) if not self.periodic[axis]]
-        gone, where, speeds, taken = [], {}, [], set()
+        box = self.box
+        gone: list[int] = []
+        where: dict[str, int] = {}
+        speeds: list[float] = []
+        taken: set[int] = set()
         for i in self.species:
             if i in taken:
                 continue  # already going with its clump
@@ -349,8 +360,8 @@ class Simulation:
             if not all(math.isfinite(c) for c in pos + vel):
                 place = "non-finite"
             else:
-                low = [a for a in fixed if pos[a] < self.bounds[a, 0]]
-                high = [a for a in fixed if pos[a] > self.bounds[a, 1]]
+                low = [a for a in fixed if pos[a] < box[a, 0]]
+                high = [a for a in fixed if pos[a] > box[a, 1]]
                 if not low and not high:
                     continue
                 place = "xyz"[low[0]] + "-" if low else "xyz"[high[0]] + "+"
@@ -370,40 +381,42 @@ class Simulation:
         """Per-sphere ``quantity`` ordered by id (forces include gravity, as in LIGGGHTS)."""
         ids = sorted(self.species)
         bodies = [self.O.bodies[i] for i in ids]
+        rows: list
         if quantity == "x":
-            values = [b.state.pos for b in bodies]
-            values = np.array(values, float).reshape(-1, 3)
-            if self.O.periodic:
-                lo, length = self.bounds[:, 0], self.bounds[:, 1] - self.bounds[:, 0]
-                wrap = np.array(self.periodic)
-                values[:, wrap] = lo[wrap] + np.mod(values[:, wrap] - lo[wrap], length[wrap])
+            rows = [b.state.pos for b in bodies]
         elif quantity == "v":
-            values = [b.state.vel for b in bodies]
+            rows = [b.state.vel for b in bodies]
         elif quantity == "omega":
-            values = [b.state.angVel for b in bodies]
+            rows = [b.state.angVel for b in bodies]
         elif quantity == "f":  # a clump member's gravity is that of its own sphere
             g = np.asarray(self.O.engines[-1].gravity)
-            values = [
+            rows = [
                 np.asarray(self.O.forces.f(i)) + self.own_mass.get(i, b.state.mass) * g
                 for i, b in zip(ids, bodies)
             ]
         elif quantity == "torque":
-            values = [self.O.forces.t(i) for i in ids]
+            rows = [self.O.forces.t(i) for i in ids]
         elif quantity == "radius":
-            values = [b.shape.radius for b in bodies]
+            rows = [b.shape.radius for b in bodies]
         elif quantity == "mass":
-            values = [b.state.mass for b in bodies]
+            rows = [b.state.mass for b in bodies]
         elif quantity == "id":
-            values = np.array(ids, np.int64) + 1
+            rows = [i + 1 for i in ids]
         elif quantity == "type":
-            values = np.array([self.species[i] for i in ids], np.int64)
+            rows = [self.species[i] for i in ids]
         elif quantity == "body":
-            values = np.array([self.clump_of.get(i, -2) for i in ids], np.int64) + 1
+            rows = [self.clump_of.get(i, -2) + 1 for i in ids]
         else:
             raise ValueError(f"unknown quantity {quantity!r}")
-        values = np.asarray(values)
-        if quantity in ("x", "v", "omega", "f", "torque"):
-            values = values.astype(float).reshape(-1, 3)
+        if quantity in ("id", "type", "body"):
+            return to_bytes(np.array(rows, np.int64))
+        if quantity in ("radius", "mass"):
+            return to_bytes(np.array(rows, float))
+        values = np.array(rows, float).reshape(-1, 3)
+        if quantity == "x" and self.O.periodic:
+            box, wrap = self.box, np.array(self.periodic)
+            lo, length = box[:, 0], box[:, 1] - box[:, 0]
+            values[:, wrap] = lo[wrap] + np.mod(values[:, wrap] - lo[wrap], length[wrap])
         return to_bytes(values)
 
     def scalar(self, quantity):
