@@ -13,12 +13,6 @@ from pygran_core.testing.solvers import require_solver
 
 R = 1e-3
 
-pytestmark = pytest.mark.xfail(
-    strict=True,
-    reason="the front end does not pass a monitor's species to the engine yet (MonitorSpec has no species); "
-    "with that, LiggghtsEngine declares 'monitor-species'",
-)
-
 
 def test_monitors_of_one_species(tmp_path):
     """Three spheres of species 1 move at 0.1 m/s, two of species 2 (half the radius) spin

@@ -116,6 +116,7 @@ class LiggghtsEngine(Engine):
             "rolling-epsd3",
             "limit-force",
             "insert-by-rate",
+            "monitor-species",
             "mpi",
             "restart",
             "raw-commands",
