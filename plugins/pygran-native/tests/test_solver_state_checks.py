@@ -226,3 +226,19 @@ def test_a_resume_from_a_damaged_checkpoint_names_the_file(tmp_path):
         ReadError, match=rf"{path}: .*'core_x': expected 3 values \(3 per particle of core_r\), found 30"
     ):
         study(True)
+
+
+def test_a_state_taken_between_adding_particles_and_running_is_accepted():
+    """Particles added since the last run (lists and block bounds to be made anew: the bounds
+    still end at the old count) restore and continue bitwise."""
+    namespace: dict = {}
+    exec(SETUP, namespace)
+    solver, _ = namespace["real_state"]()
+    solver.add_particles([[2e-3, 2e-3, 0.013]], R, densities=RHO)
+    state = solver.get_state()
+    assert state["core_bounds"][-1] < len(state["core_r"])
+    restored = namespace["make"]()
+    restored.set_state(state)
+    for s in (solver, restored):
+        s.run(300, 1e-5)
+    np.testing.assert_array_equal(solver.positions, restored.positions)

@@ -796,8 +796,18 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
     if min(step, lost, rebuilds, step_base) < 0 or dirty not in (0, 1) or step_base > step:
         raise _fail("core_counters", "step, lost, rebuilds >= 0, dirty 0 or 1, 0 <= step base <= step")
     bounds = out["bounds"] = get("bounds", np.int32)
-    if bounds.shape[0] < 2 or bounds[0] != 0 or bounds[-1] != n or np.any(np.diff(bounds) < 0):
-        raise _fail("core_bounds", f"block bounds from 0, non-decreasing, up to the particle count {n}")
+    # the bounds of the last pair loop: they end at n unless particles were added since (dirty:
+    # the lists and bounds are made anew before the next pair loop)
+    if (
+        bounds.shape[0] < 2
+        or bounds[0] != 0
+        or np.any(np.diff(bounds) < 0)
+        or not (bounds[-1] == n or (dirty and bounds[-1] <= n))
+    ):
+        raise _fail(
+            "core_bounds",
+            f"block bounds from 0, non-decreasing, up to the particle count {n} (at most, if dirty)",
+        )
     # the solver's own entries
     next_id, next_wall, next_vertex = _entry(state, "counters", np.int64, 3).tolist()
     handles = _entry(state, "wall_handles", np.int64)
