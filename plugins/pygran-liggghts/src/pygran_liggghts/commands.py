@@ -17,6 +17,7 @@ import shutil
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
@@ -49,6 +50,17 @@ SIZE_CLASSES = 9
 DUMP_COLUMNS = frozenset(
     "id type x y z vx vy vz fx fy fz omegax omegay omegaz tqx tqy tqz radius mass".split()
 )
+
+
+T = TypeVar("T")
+
+
+def given(value: T | None, what: str) -> T:
+    """``value``, which ``what`` needs: the front end's parsing sets it for that kind of call,
+    a spec made by hand may lack it."""
+    if value is None:
+        raise ConfigError(f"{what} is not given")
+    return value
 
 
 def fmt(value: float) -> str:
@@ -114,7 +126,7 @@ class Commands:
         self.spec = spec
         self._counter = itertools.count(1)
         self._links: Path | None = None  # the directory of links to awkward directories
-        self.model = MODELS[spec.model.kernel]  # the engine refused kernels it lacks
+        self.model = MODELS[given(spec.model.kernel, "the contact model's kernel")]  # others refused
         #: The ``rolling_friction`` model (the model's ``rolling``, default the original's cdt).
         self.rolling_model = getattr(spec.model, "rolling", "cdt")
         if self.rolling_model not in ROLLING:
@@ -367,7 +379,7 @@ class Commands:
     def _dumps(self, append: bool = False) -> list[str]:
         """Particle and mesh dumps; ``append`` continues a particle dump (on resume)."""
         traj, lines = self.spec.traj, []
-        if native_particles(self.spec):
+        if traj.pfile is not None and native_particles(self.spec):
             unknown = [a for a in traj.args if a not in DUMP_COLUMNS]
             if unknown:
                 raise ConfigError(
@@ -382,7 +394,7 @@ class Commands:
                 lines.append(f"dump_modify pg_dump {' '.join(traj.dump_modify)}")
             if append and "*" not in traj.pfile.name:
                 lines.append("dump_modify pg_dump append yes")
-        if native_meshes(self.spec):
+        if traj.mfile is not None and native_meshes(self.spec):
             traj.mfile.parent.mkdir(parents=True, exist_ok=True)
             lines.append(
                 f"dump pg_mesh_dump all mesh/vtk {traj.freq} {self.path(traj.mfile)} {' '.join(traj.margs)}"
@@ -430,7 +442,7 @@ class Commands:
     def insert(self, spec: InsertSpec, dt: float | None) -> tuple[str, list[str]]:
         """``fix insert/pack`` or ``fix insert/rate/region``; by rate without ``freq``, every
         :attr:`~pygran_core.simulation.insertion.PlacingEngine.rate_interval` as other engines."""
-        every = spec.freq
+        every: int | str | None = spec.freq
         if spec.mechanism == "by_rate" and every is None:
             if dt is None:
                 raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
@@ -482,9 +494,12 @@ class Commands:
                 )
             return wid, []
         if spec.kind == "plane":
-            geometry = f"{spec.plane} {fmt(spec.peq)}"
+            peq = given(spec.peq, "a plane wall's peq")
+            geometry = f"{spec.plane} {fmt(peq)}"
         else:
-            geometry = f"{spec.axis}cylinder {fmt(spec.radius)} {fmt(spec.centre[0])} {fmt(spec.centre[1])}"
+            centre = given(spec.centre, "a cylinder wall's centre")
+            radius = given(spec.radius, "a cylinder wall's radius")
+            geometry = f"{spec.axis}cylinder {fmt(radius)} {fmt(centre[0])} {fmt(centre[1])}"
         return wid, [f"fix {wid} all wall/gran {self.granular} primitive type {spec.species} {geometry}"]
 
     def mesh_walls(self, meshes: Sequence[str]) -> tuple[str, list[str]]:
@@ -497,13 +512,15 @@ class Commands:
         mid = self.new_id("move")
         mesh = self.mesh_ids[spec.mesh]
         if spec.kind == "linear":
-            how = "linear " + " ".join(fmt(v) for v in spec.velocity)
+            how = "linear " + " ".join(fmt(v) for v in given(spec.velocity, "a linear motion's velocity"))
         elif spec.kind == "wiggle":
-            how = f"wiggle amplitude {' '.join(fmt(a) for a in spec.amplitude)} period {fmt(spec.period)}"
+            amplitude = given(spec.amplitude, "a wiggle motion's amplitude")
+            period = given(spec.period, "a wiggle motion's period")
+            how = f"wiggle amplitude {' '.join(fmt(a) for a in amplitude)} period {fmt(period)}"
         elif spec.kind in ("viblin", "vibrot"):
             # LIGGGHTS 3.8 reads one period per harmonic (and warns, wrongly, that the periods
             # after the first are ignored)
-            axis = " ".join(fmt(a) for a in spec.axis)
+            axis = " ".join(fmt(a) for a in given(spec.axis, f"a {spec.kind} motion's axis"))
             head = f"viblin axis {axis}"
             if spec.kind == "vibrot":
                 head = f"vibrot origin {' '.join(fmt(o) for o in spec.origin)} axis {axis}"
@@ -512,12 +529,13 @@ class Commands:
                 f"phase {' '.join(map(fmt, spec.phases))} period {' '.join(map(fmt, spec.periods))}"
             )
         else:
-            if spec.omega == 0:
+            omega = given(spec.omega, "a rotation's omega")
+            if omega == 0:
                 raise ConfigError("moveMesh(rotate=True) with omega=0 does not move the mesh")
-            axis = np.sign(spec.omega) * np.asarray(spec.axis)
+            axis = np.sign(omega) * np.asarray(given(spec.axis, "a rotation's axis"))
             how = (
                 f"rotate origin {' '.join(fmt(o) for o in spec.origin)} "
-                f"axis {' '.join(fmt(a) for a in axis)} period {fmt(2 * math.pi / abs(spec.omega))}"
+                f"axis {' '.join(fmt(a) for a in axis)} period {fmt(2 * math.pi / abs(omega))}"
             )
         return mid, [f"fix {mid} all move/mesh mesh {mesh} {how}"]
 
@@ -543,7 +561,7 @@ def servo_words(servo: ServoSpec | None) -> str:
         f"target_val {fmt(servo.target)} vel_max {fmt(servo.vel_max)}"
     )
     if servo.mode == "auto":
-        return f"{words} mode auto ratio {fmt(servo.ratio)}"
+        return f"{words} mode auto ratio {fmt(given(servo.ratio, 'the ratio of a servo in mode auto'))}"
     return f"{words} kp {fmt(servo.kp)} ki {fmt(servo.ki)} kd {fmt(servo.kd)}"
 
 
