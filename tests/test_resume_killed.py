@@ -449,15 +449,7 @@ def test_a_resumed_run_killed_again_resumes(scripts, straight, tmp_path, engine,
     [
         "native",
         "liggghts",
-        pytest.param(
-            "liggghts-dump",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="LiggghtsEngine._cut_trajectory drops the frame of the checkpoint's step from "
-                "the dump LIGGGHTS writes, for LIGGGHTS to write it again as the run continues; "
-                "resumed at the end of the last run, nothing runs and the last frame is lost",
-            ),
-        ),
+        "liggghts-dump",
     ],
 )
 def test_a_finished_study_run_again_resumes_at_its_end(scripts, straight, tmp_path, engine):
@@ -649,11 +641,6 @@ def test_a_monitor_table_of_another_width_is_a_read_error(tmp_path, engine):
     assert str(info.value).startswith(f"{path}: ") and "monitor" in str(info.value)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="LiggghtsEngine reads state['liggghts/restart'] unchecked: missing, a KeyError; not "
-    "text, a ConfigError about a garbled file name; a path out of the restart folder is followed",
-)
 @pytest.mark.parametrize(
     "entry",
     [None, np.zeros(3), encode_text("../../first/restart/restart.400.restart")],

@@ -31,14 +31,22 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, EngineError, InsertionWarning, PyGranWarning, UnsupportedFeature
-from pygran_core.simulation.checkpoint import decode_text, encode_text
+from pygran_core.errors import (
+    ConfigError,
+    EngineError,
+    InsertionWarning,
+    PyGranWarning,
+    ReadError,
+    UnsupportedFeature,
+)
+from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
 from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, launch_communicator
 from pygran_liggghts.commands import (
     BODY_ENERGY,
     Commands,
     fmt,
+    given,
     native_meshes,
     native_particles,
     size_classes,
@@ -57,7 +65,7 @@ if TYPE_CHECKING:
     )
     from pygran_core.simulation.engine import Handle
     from pygran_core.simulation.insertion import Obstacles
-    from pygran_core.simulation.specs import SimulationSpec
+    from pygran_core.simulation.specs import RestartSpec, SimulationSpec
 
 INPUT_NAME = "in.pygran"
 LOG_NAME = "liggghts.log"
@@ -155,6 +163,8 @@ class LiggghtsEngine(Engine):
         self._mesh_walls: dict[str, str] = {}  # label -> the mesh, in the order they were added
         self._mesh_fix: str | None = None  # the one fix wall/gran of all mesh walls
         self._restart_file: Path | None = None  # of the last checkpoint
+        #: Where the resumed step's frame starts in LIGGGHTS' ``.dump``, until a run writes it again
+        self._rewritten_frame: int | None = None
         self._replayed_once: set[str] = set()  # one-off insertions not redone on resume
         #: Insertion fixes in LIGGGHTS (label -> spec), whose counts are read
         self._insertions: dict[str, InsertSpec] = {}
@@ -281,13 +291,24 @@ class LiggghtsEngine(Engine):
             self._pending.append(f"set atom {atoms} {values}")
 
     def _resume_file(self) -> Path | None:
-        """The LIGGGHTS restart file of the checkpoint being resumed (read instead of a new box)."""
+        """The LIGGGHTS restart file of the checkpoint being resumed (read instead of a new box):
+        the checkpoint names a file beside it; anything else is a :class:`ReadError`."""
         if self._resume is None:
             return None
-        name = self.spec.restart.directory / decode_text(self._resume.state[RESTART_KEY])
-        if not name.is_file():
-            raise ConfigError(f"{self._resume_path} needs the LIGGGHTS restart file {name}, which is missing")
-        return name
+        entry = state_entry(self._resume_path, self._resume.state, RESTART_KEY, "u", (None,))
+        try:
+            name = decode_text(entry)
+        except UnicodeDecodeError:
+            name = ""
+        if not name or Path(name).name != name or name in (".", ".."):
+            raise ReadError(
+                f"{self._resume_path}: the checkpoint's state entry {RESTART_KEY!r} is "
+                f"{bytes(entry)[:80]!r}, not the name of a LIGGGHTS restart file beside it"
+            )
+        path = self._restart.directory / name
+        if not path.is_file():
+            raise ConfigError(f"{self._resume_path} needs the LIGGGHTS restart file {path}, which is missing")
+        return path
 
     # -- engine hooks ------------------------------------------------------------------------
 
@@ -303,7 +324,8 @@ class LiggghtsEngine(Engine):
                 )
 
     def _advance(self, nsteps: int) -> None:
-        self._check_servo_speeds(self.dt)
+        dt = given(self.dt, "the time step")  # run() refuses to start without one
+        self._check_servo_speeds(dt)
         idle = [m.name for m in self.spec.meshes if m.servo and m.name not in self._mesh_walls.values()]
         if idle:
             raise ConfigError(
@@ -314,9 +336,9 @@ class LiggghtsEngine(Engine):
         if self._ungrouped:
             lines.append(self.commands.regroup())
             self._ungrouped = False
-        if self.dt != self._timestep:
-            lines.append(f"timestep {fmt(self.dt)}")
-            self._timestep = self.dt
+        if dt != self._timestep:
+            lines.append(f"timestep {fmt(dt)}")
+            self._timestep = dt
         # pre no: nothing changed since the last run (no command in between), so LIGGGHTS
         # may skip its set-up (init, neighbour lists, forces): those of the last step hold;
         # except with a servo wall in mode auto, whose speed in contact LIGGGHTS derives at
@@ -333,10 +355,11 @@ class LiggghtsEngine(Engine):
         self._unplaced.clear()
         self._queue([*lines, f"run {nsteps} {pre}post no"])
         start = self.step
+        self._before_run()
         self._max_id, count, x, v = self._ask("run", self._take(), sorted(self._insertions))
         self._prepared = self._computed = True
         if count:
-            self._unreported += self._lost_particles(count, x, v, nsteps * self.dt)
+            self._unreported += self._lost_particles(count, x, v, nsteps, dt)
         self._report_insertions(start)
         if filling:
             self._log_fractions(filling, start + nsteps)
@@ -473,13 +496,15 @@ class LiggghtsEngine(Engine):
             f"({spec.target} {amount}) needs, {where}"
         )
 
-    def _lost_particles(self, count: int, x: np.ndarray, v: np.ndarray, duration: float) -> LostParticles:
-        """``count`` particles lost in a run of ``duration``: those seen at its start (``x``,
-        ``v``) placed as the front end places them; the others, inserted during it, ``unknown``."""
+    def _lost_particles(
+        self, count: int, x: np.ndarray, v: np.ndarray, nsteps: int, dt: float
+    ) -> LostParticles:
+        """``count`` particles lost in a run of ``nsteps`` steps of ``dt``: those seen at its start
+        (``x``, ``v``) placed as the front end places them; the others, inserted during it, ``unknown``."""
         where: dict[str, int] = {}
-        for place in [*exit_faces(self.spec, x, v, duration), *["unknown"] * (count - len(x))]:
+        for place in [*exit_faces(self.spec, x, v, nsteps * dt), *["unknown"] * (count - len(x))]:
             where[place] = where.get(place, 0) + 1
-        self.log("%d particles lost in the last %d steps: %s", count, round(duration / self.dt), where)
+        self.log("%d particles lost in the last %d steps: %s", count, nsteps, where)
         return LostParticles(count, where)
 
     def _lost_since_last(self) -> LostParticles:
@@ -545,6 +570,7 @@ class LiggghtsEngine(Engine):
             )
         if bodies and species is None:
             if not self._computed:  # LIGGGHTS sets its computes up as a run starts
+                self._before_run()
                 self._execute(["run 0 post no"])
                 self._computed = True
             energy += self._request("scalar", BODY_ENERGY[quantity])
@@ -575,7 +601,7 @@ class LiggghtsEngine(Engine):
         those that earlier by-pack insertions into the same region will place as the next run
         starts (LIGGGHTS inserts then; the placing engines at the call, whose counts the front
         end adds)."""
-        if self.replaying:
+        if self._resume is not None:  # replaying
             kept = self._resume.state.get(f"{TARGET_KEY}/{number}")
             return spec if kept is None else replace(spec, value=float(kept))
         if spec.target != "particles_in_region":
@@ -661,12 +687,14 @@ class LiggghtsEngine(Engine):
 
         rng = np.random.default_rng(spec.seed)
         species = self.spec.species[spec.species - 1]
+        count = given(spec.count, "createParticles 'random''s count")
         if spec.radius is not None:
-            radii = np.full(spec.count, spec.radius)
+            radii = np.full(count, spec.radius)
         else:
-            radii = species.radius.sample(spec.count, rng)
+            radii = species.radius.sample(count, rng)
         existing = (self._extract("x"), self._extract("radius"))
-        index, centres = place_spheres(spec.region, radii, rng, existing, self._obstacles())
+        region = given(spec.region, "createParticles 'random''s region")
+        index, centres = place_spheres(region, radii, rng, existing, self._obstacles())
         box = np.array(self.spec.domain.box, float)
         inside = np.all((centres > box[:, 0]) & (centres < box[:, 1]), axis=1)
         return centres[inside], radii[index][inside]
@@ -680,16 +708,17 @@ class LiggghtsEngine(Engine):
         points, normals, triangles = [], [], []
         for wall in self._walls.values():
             if wall.kind == "plane":
-                axis = "xyz".index(wall.plane[0])
-                points.append(np.eye(3)[axis] * wall.peq)
+                axis = "xyz".index(given(wall.plane, "a plane wall's plane")[0])
+                points.append(np.eye(3)[axis] * given(wall.peq, "a plane wall's peq"))
                 normals.append(np.eye(3)[axis])
             elif wall.kind == "mesh":
-                if wall.mesh in moving:
+                mesh = given(wall.mesh, "a mesh wall's mesh")
+                if mesh in moving:
                     raise UnsupportedFeature(
-                        f"createParticles 'random' on LIGGGHTS while mesh {wall.mesh!r} moves "
+                        f"createParticles 'random' on LIGGGHTS while mesh {mesh!r} moves "
                         "(its current position is LIGGGHTS'); create them before moveMesh or use insert()"
                     )
-                triangles.append(meshes[wall.mesh].triangles())
+                triangles.append(meshes[mesh].triangles())
         return Obstacles(
             np.reshape(points, (-1, 3)),
             np.reshape(normals, (-1, 3)),
@@ -736,7 +765,7 @@ class LiggghtsEngine(Engine):
             raise ConfigError(f"mesh {spec.mesh!r} is already a wall; remove that wall first")
         label, lines = self.commands.wall(spec)
         if spec.kind == "mesh":
-            self._mesh_walls[label] = spec.mesh
+            self._mesh_walls[label] = given(spec.mesh, "a mesh wall's mesh")
             lines = self._rebuild_mesh_walls()
         self._execute(lines)
         self._walls[label] = spec
@@ -799,46 +828,79 @@ class LiggghtsEngine(Engine):
         self._unplaced.pop(handle.label, None)
         self._targets.pop(handle.label, None)
 
+    @property
+    def _restart(self) -> RestartSpec:
+        """The checkpoint settings, which restart files are written and read with."""
+        return given(self.spec.restart, "restart=... (the checkpoint settings)")
+
     def _restart_name(self) -> str:
         """This step's LIGGGHTS restart file, named after the checkpoint's."""
-        stem = Path(self.spec.restart.fname.replace("*", "")).stem.rstrip(".")
+        stem = Path(self._restart.fname.replace("*", "")).stem.rstrip(".")
         return f"{stem}.{self.step}.restart"
 
     def _state(self) -> dict[str, np.ndarray]:
         """LIGGGHTS writes its own restart file (atoms, fix states by id) beside the checkpoint."""
-        self._execute(
-            [f"write_restart {self.commands.path(self.spec.restart.directory / self._restart_name())}"]
-        )
+        self._execute([f"write_restart {self.commands.path(self._restart.directory / self._restart_name())}"])
         targets = {f"{TARGET_KEY}/{number}": np.array(value) for number, value in self._targets.values()}
         return {**super()._state(), RESTART_KEY: encode_text(self._restart_name()), **targets}
 
     def _checkpoint(self, path: Any) -> None:
         previous = self._restart_file
         super()._checkpoint(path)
-        self._restart_file = self.spec.restart.directory / self._restart_name()
-        if "*" not in self.spec.restart.fname and previous not in (None, self._restart_file):
+        self._restart_file = self._restart.directory / self._restart_name()
+        if "*" not in self._restart.fname and previous not in (None, self._restart_file):
             previous.unlink(missing_ok=True)  # its checkpoint has just been replaced
 
     def _cut_trajectory(self, key: str, path: Any) -> None:
-        """A dump LIGGGHTS writes itself keeps the frames before this step; LIGGGHTS appends
-        from here, starting with this step's frame."""
+        """A ``.dump`` LIGGGHTS writes itself keeps its frames up to this step and is appended
+        to. LIGGGHTS writes this step's frame again as its next run starts (a new dump writes
+        the frame of the step it starts at): that frame is cut off then (see
+        :meth:`_before_run`), and stays if nothing more runs (a finished study run again).
+        A single ``.vtk`` of mesh frames keeps those before this step."""
         native = native_particles(self.spec) if key == "particles" else native_meshes(self.spec)
         if not native:
             super()._cut_trajectory(key, path)
             return
         if not self._root:
             return
+        from pygran_core.formats.dump import format_frame
         from pygran_core.io import open_trajectory, open_writer
 
         before = path.with_name(f"{path.stem}.before-resume{path.suffix}")
-        os.replace(path, before)
-        with open_writer(path) as writer, open_trajectory(before) as old:
-            for index in range(len(old)):
-                frame = old[index]
-                if frame.timestep >= self.step:
-                    break
-                writer.write_frame(frame)
+        if key == "meshes":
+            os.replace(path, before)
+            with open_writer(path) as writer, open_trajectory(before) as old:
+                for index in range(len(old)):
+                    frame = old[index]
+                    if frame.timestep is not None and frame.timestep >= self.step:
+                        break
+                    writer.write_frame(frame)
+            before.unlink()
+            return
+        if before.exists():  # an earlier resume was killed while cutting: the original is there
+            path.unlink(missing_ok=True)
+        else:
+            os.replace(path, before)
+        try:
+            with path.open("wb") as out, open_trajectory(before) as old:
+                for index in range(len(old)):
+                    frame = old[index]
+                    if frame.timestep is not None and frame.timestep > self.step:
+                        break
+                    if frame.timestep == self.step:
+                        self._rewritten_frame = out.tell()
+                    out.write(format_frame(frame, index).encode("ascii"))
+        except ReadError as exc:
+            self.log("resume: %s; the original is left as %s", exc, before, level=logging.WARNING)
+            return
         before.unlink()
+
+    def _before_run(self) -> None:
+        """Cut off the frame of the resumed step kept in LIGGGHTS' ``.dump``: the run about to
+        start writes it again."""
+        if self._rewritten_frame is not None and self.spec.traj.pfile is not None:
+            os.truncate(self.spec.traj.pfile, self._rewritten_frame)
+            self._rewritten_frame = None
 
     def _write(self, key: str, path: Any, make_frame: Any) -> None:
         # .dump particles and .vtk meshes are written by LIGGGHTS' own dump commands
