@@ -13,28 +13,30 @@ from pygran_native.solver import Solver
 
 from pygran_core import params, simulation
 from pygran_core.errors import ReadError
-from pygran_core.simulation.models import HertzMindlin
+from pygran_core.simulation.models import HertzMindlin, SpringDashpot
 from pygran_core.testing.solvers import require_solver
 
 R, G = 1e-3, 9.81
 
 
+@pytest.mark.parametrize("law", [HertzMindlin, SpringDashpot])
 @pytest.mark.parametrize("rolling", ["cdt", "epsd", "epsd2"])
-def test_a_ball_rolling_on_a_plane_stops_where_the_closed_form_says(tmp_path, rolling):
-    """A glass ball rolling without slipping (v = w R) on a floor, its rolling resistance
-    torque ``M = mu_r R |F_n|`` (the wall's R* is the ball's radius, F_n = m g) against the
-    rotation: about the contact point ``(I + m R^2) dw/dt = -M`` with ``I = 2/5 m R^2``, so
-    ``dv/dt = -5/7 mu_r g``, and it stops after ``d = 7 v0^2 / (10 mu_r g)`` at
-    ``t = 7 v0 / (5 mu_r g)``. For cdt this is exact. epsd and epsd2 reach it in their plastic
-    limit: the spring torque grows by ``k_r w dt`` up to the full mobilisation torque M within
-    a rotation ``M / k_r`` (epsd: ``k_r = 2.25 k_n mu_r^2 R^2``, so ``delta / (2.25 mu_r R)``
-    = 3e-6 rad here; epsd2: ``k_r = k_t R^2``, less), and stays there while the ball rolls,
-    without damping at full mobilisation: the same d, short by less than ``R M / k_r``."""
+def test_a_ball_rolling_on_a_plane_stops_where_the_closed_form_says(tmp_path, rolling, law):
+    """A glass ball (hertz or hooke) rolling without slipping (v = w R) on a floor, its rolling
+    resistance torque ``M = mu_r R |F_n|`` (the wall's R* is the ball's radius, F_n = m g)
+    against the rotation: about the contact point ``(I + m R^2) dw/dt = -M`` with
+    ``I = 2/5 m R^2``, so ``dv/dt = -5/7 mu_r g``, and it stops after
+    ``d = 7 v0^2 / (10 mu_r g)`` at ``t = 7 v0 / (5 mu_r g)``. For cdt this is exact. epsd and
+    epsd2 reach it in their plastic limit: the spring torque grows by ``k_r w dt`` up to the
+    full mobilisation torque M within a rotation ``M / k_r`` (epsd: ``k_r = 2.25 k_n mu_r^2
+    R^2``, so ``delta / (2.25 mu_r R)``, 3e-6 rad for hertz here, less for hooke; epsd2:
+    ``k_r = k_t R^2``, less), and stays there while the ball rolls, without damping at full
+    mobilisation: the same d, short by less than ``R M / k_r``."""
     mu_r, v0, dt = 0.3, 0.1, 2e-7
     distance, duration = 7 * v0**2 / (10 * mu_r * G), 7 * v0 / (5 * mu_r * G)  # 2.38 mm, 23.8 ms
     with simulation.DEM(
         engine="native",
-        model=HertzMindlin.configure(rolling=rolling),
+        model=law.configure(rolling=rolling),
         box=(-0.005, 0.01, -0.005, 0.005, 0, 0.005),
         species=({"material": dict(params.glass, coefficientRollingFriction=mu_r), "radius": R},),
         gravity=(G, 0, 0, -1),
