@@ -220,8 +220,7 @@ class YadeEngine(PlacingEngine):
             "frictionAngle": math.atan(material.get("coefficientFriction", 0.0)),
         }
         if self.spec.model.kernel == "spring-dashpot":
-            e = material["coefficientRestitution"]
-            props["betan"] = -math.log(e) / math.hypot(math.log(e), math.pi)
+            props["betan"] = float(mixing.damping_ratio(material["coefficientRestitution"]))
         return props
 
     def _pairs(self, materials: list[Any], n: int) -> dict[str, list[tuple[int, int, float]]]:
@@ -236,8 +235,8 @@ class YadeEngine(PlacingEngine):
                     e = float(
                         mixing.pair_restitution(mi["coefficientRestitution"], mj["coefficientRestitution"])
                     )
-                    beta = math.log(e) / math.hypot(math.log(e), math.pi)
-                    pair = {"betan": clamped_damping_ratio(e), "betas": -math.sqrt(5 / 6) * beta}
+                    betas = math.sqrt(5 / 6) * float(mixing.damping_ratio(e))
+                    pair = {"betan": clamped_damping_ratio(e), "betas": betas}
                 else:
                     mine = dict(mj, radius=species[j].radius.values[0], density=species[j].density)
                     partner = (
