@@ -9,6 +9,12 @@ over the installed packages. Nothing is downloaded at build time: no intersphinx
 from __future__ import annotations
 
 from importlib.metadata import version as _version
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from docutils.nodes import Element
+    from sphinx.application import Sphinx
+    from sphinx.domains import Domain
 
 project = "PyGran"
 author = "PyGran developers"
@@ -49,7 +55,7 @@ html_static_path: list[str] = []
 html_theme_options = {"description": "DEM simulation and analysis of granular materials"}
 
 
-def setup(app):  # noqa: ANN001, ANN201
+def setup(app: Sphinx) -> None:
     app.connect("warn-missing-reference", _quiet_missing_reference)
 
 
@@ -79,7 +85,7 @@ _EXTERNAL = (
 )
 
 
-def _quiet_missing_reference(app, domain, node):  # noqa: ANN001, ANN201
+def _quiet_missing_reference(app: Sphinx, domain: Domain, node: Element) -> bool | None:
     target = node.get("reftarget", "")
     if target.startswith(_EXTERNAL) or target in ("Path", "PathLike", "ModuleType", "Any"):
         return True

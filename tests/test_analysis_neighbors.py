@@ -4,13 +4,13 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
 
-from pygran_core.analysis import Particles, _neighbors, equilibrium  # noqa: E402
-from pygran_core.errors import ConfigError  # noqa: E402
-from pygran_core.testing.solvers import in_ci  # noqa: E402
+from pygran_core.analysis import Particles, _neighbors, equilibrium
+from pygran_core.errors import ConfigError
+from pygran_core.testing.solvers import in_ci
 
 R = 0.5
 
