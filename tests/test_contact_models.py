@@ -500,11 +500,11 @@ def test_configured_models_keep_their_options_and_engines_without_them_refuse(tm
     with pytest.raises(ConfigError, match="Did you mean 'epsd2'"):
         HertzMindlin.configure(rolling="epsd22")
     with pytest.raises(
-        UnsupportedFeature, match=r"rolling-friction model epsd2 \(capability 'rolling-epsd2'\)"
+        UnsupportedFeature, match=r"rolling-friction model epsd3 \(capability 'rolling-epsd3'\)"
     ):
         simulation.DEM(
             engine="native",
-            model=epsd2,
+            model=HertzMindlin.configure(rolling="epsd3"),
             box=(0, 1e-2, 0, 1e-2, 0, 1e-2),
             species=({"material": dict(params.organic, coefficientRollingFriction=0.05), "radius": 5e-4},),
             output=str(tmp_path / "out"),
