@@ -291,9 +291,10 @@ class Engine(abc.ABC):
                 self.require("polydisperse", "size distributions")
             if species.material.get("cohesionEnergyDensity", 0) > 0:
                 self.require("cohesion", "cohesion")
-            if species.material.get("coefficientRollingFriction", 0) > 0:
-                self.require("rolling-friction", "rolling friction")
-                if model.rolling != "cdt":
+            if species.material.get("coefficientRollingFriction", 0) > 0:  # cdt, or its own model
+                if model.rolling == "cdt":
+                    self.require("rolling-friction", "rolling friction")
+                else:
                     self.require(f"rolling-{model.rolling}", f"the rolling-friction model {model.rolling}")
 
     # -- common behaviour ------------------------------------------------------------
