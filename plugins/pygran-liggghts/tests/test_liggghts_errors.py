@@ -5,6 +5,10 @@ import math
 import os
 import re
 import signal
+import subprocess
+import sys
+import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -69,6 +73,63 @@ def test_worker_crash(tmp_path):
         with pytest.raises(EngineError, match=r"ended by SIGKILL \(Killed\)"):
             sim.run(10)
     works(tmp_path / "after")
+
+
+#: A script that starts a simulation on ``nprocs`` (``argv[2]``) ranks, prints its worker's
+#: socket folder, and waits to be killed.
+WAITING = """
+import sys, time
+from pygran_core import simulation
+from pygran_core.testing.validation import SOFT
+
+sim = simulation.DEM(
+    engine="liggghts", model="HertzMindlin", box=(0, 0.01, 0, 0.01, 0, 0.01), dt=1e-6, output=sys.argv[1],
+    species=({"material": SOFT, "radius": 1e-3},), nprocs=int(sys.argv[2]), progress=False,
+)
+sim.createParticles(1, "single", 0.005, 0.005, 0.005)
+sim.run(10)
+print(sim.engine._session._dir, flush=True)
+time.sleep(600)
+"""
+
+
+def session_processes(sid: int) -> list[int]:
+    """Processes of the session ``sid`` still running (Linux /proc)."""
+    left = []
+    for entry in os.listdir("/proc"):
+        try:
+            if entry.isdigit() and os.getsid(int(entry)) == sid:
+                left.append(int(entry))
+        except OSError:
+            pass
+    return left
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+def test_a_killed_script_leaves_no_worker_and_no_socket_folder(tmp_path, nprocs):
+    """The script SIGKILLed (nothing closes its simulation): its worker job sees the socket
+    close, ends on every rank, and removes the socket's folder."""
+    require_solver(find_library)
+    script = tmp_path / "waiting.py"
+    script.write_text(textwrap.dedent(WAITING))
+    child = subprocess.Popen(
+        [sys.executable, str(script), str(tmp_path / "out"), str(nprocs)],
+        stdout=subprocess.PIPE,
+        start_new_session=True,
+    )
+    try:
+        folder = Path(child.stdout.readline().decode().strip())
+        assert folder.name.startswith("pygran-liggghts-") and (folder / "socket").exists()
+        child.kill()
+        child.communicate(timeout=30)
+        deadline = time.monotonic() + 30
+        while (folder.exists() or session_processes(child.pid)) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not session_processes(child.pid)
+        assert not folder.exists()
+    finally:
+        for pid in session_processes(child.pid):
+            os.kill(pid, signal.SIGKILL)
 
 
 def test_worker_that_cannot_start(tmp_path, monkeypatch):

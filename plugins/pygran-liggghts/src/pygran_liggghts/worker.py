@@ -4,7 +4,9 @@ Run alone or under ``mpirun -np N``. Once LIGGGHTS is loaded, rank 0 connects to
 engine at the Unix socket ``SOCKET``, receives ``(request, params)`` pairs and broadcasts
 them; every rank executes each request on the shared LIGGGHTS instance (a
 :class:`Session`), and rank 0 sends back ``("ok", result)`` or ``("error", message)``. A
-LIGGGHTS error ends the job, which the engine notices.
+LIGGGHTS error ends the job, which the engine notices. When the engine goes away without
+closing (its process killed), rank 0 removes the socket and its folder, which the engine
+would have removed, and the job ends.
 
 This module imports nothing of ``pygran_core``, so that a worker starts in the time of
 numpy, mpi4py and the library.
@@ -12,6 +14,7 @@ numpy, mpi4py and the library.
 
 from __future__ import annotations
 
+import os
 import socket
 import sys
 from collections.abc import Sequence
@@ -100,17 +103,22 @@ def main(argv: list[str]) -> None:
     address, args = argv[0], argv[1:]
     session = Session(args, comm, root=0)  # before connecting: connected means ready
     connection = None
+    gone = False  # whether the engine went away without closing
     if comm.rank == 0:
         client = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        client.connect(address)
-        connection = Connection(client.detach())
+        try:
+            client.connect(address)
+            connection = Connection(client.detach())
+        except OSError:  # the engine went away before the worker started
+            client.close()
+            gone = True
     while True:
         request = None
-        if connection is not None:
+        if comm.rank == 0:
             try:
-                request = connection.recv()
-            except EOFError:  # the engine went away: shut down
-                request = ("close", ())
+                request = ("close", ()) if connection is None else connection.recv()
+            except (EOFError, OSError):  # the engine went away: shut down
+                request, gone = ("close", ()), True
         name, params = comm.bcast(request, root=0)
         try:
             if name not in Session.requests:
@@ -118,13 +126,24 @@ def main(argv: list[str]) -> None:
             reply = ("ok", getattr(session, name)(*params))
         except Exception as exc:  # reported to the engine, which raises EngineError
             reply = ("error", f"{type(exc).__name__}: {exc}")
-        if connection is not None and not connection.closed:
+        if connection is not None and not gone:
             try:
                 connection.send(reply)
             except OSError:
                 pass
         if name == "close":
             break
+    if gone:
+        remove_socket(address)
+
+
+def remove_socket(address: str) -> None:
+    """Remove the socket ``address`` and its folder (the engine's, which holds nothing else)."""
+    for remove, path in ((os.unlink, address), (os.rmdir, os.path.dirname(address))):
+        try:
+            remove(path)
+        except OSError:
+            pass
 
 
 if __name__ == "__main__":
