@@ -24,7 +24,7 @@ from pygran_core.errors import ConfigError, InsertionWarning, ReadError
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
 from pygran_core.simulation.checkpoint import encode_text, state_entry, state_json
 from pygran_core.simulation.engine import Engine, Handle
-from pygran_core.simulation.specs import SimulationSpec, positive_float, positive_int
+from pygran_core.simulation.specs import SimulationSpec, given, positive_float, positive_int
 
 
 @dataclass(frozen=True)
@@ -346,7 +346,8 @@ class PlacingEngine(Engine):
         if request.mechanism == "by_pack":
             self._insert_now(schedule, self._lacking(schedule))
         else:
-            schedule.owed += request.value * schedule.freq * (dt or self.dt)
+            interval = given(schedule.freq, "an insertion by rate's freq") * given(dt or self.dt, "dt")
+            schedule.owed += request.value * interval
             schedule.owed -= self._insert_now(schedule, schedule.owed)
         following = None if schedule.freq is None else schedule.next_step + schedule.freq
         if following is None or (schedule.end_step is not None and following >= schedule.end_step):
@@ -386,18 +387,14 @@ class PlacingEngine(Engine):
             centres = request.centres
             radii = np.full(len(centres), request.radius or species.radius.mean)
         else:
-            radii = (
-                np.full(request.count, request.radius)
-                if request.radius
-                else species.radius.sample(request.count, rng)
-            )
-            types = np.full(request.count, request.species)
+            count = given(request.count, "createParticles('random')'s count")
+            radii = np.full(count, request.radius) if request.radius else species.radius.sample(count, rng)
             return self._place(
-                request.region,
-                types,
+                given(request.region, "createParticles('random')'s region"),
+                np.full(count, request.species),
                 radii,
                 rng,
-                np.tile(request.velocity, (request.count, 1)),
+                np.tile(np.asarray(request.velocity, float), (count, 1)),
                 request.omega,
             )
         if len(radii):

@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from numbers import Integral, Real
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -33,6 +33,17 @@ BOUNDARY_FLAGS = frozenset("pfsm")
 
 
 # -- small validators --------------------------------------------------------------------
+
+
+T = TypeVar("T")
+
+
+def given(value: T | None, what: str) -> T:
+    """``value``, which ``what`` needs: the front end's parsing sets it for that kind of call
+    (a wall's plane, an insertion's count), a spec made by hand may lack it."""
+    if value is None:
+        raise ConfigError(f"{what} is not given")
+    return value
 
 
 def is_real(value: Any) -> bool:
