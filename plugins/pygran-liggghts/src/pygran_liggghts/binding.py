@@ -58,7 +58,7 @@ def _declare(lib: ctypes.CDLL, comm_type: type) -> ctypes.CDLL:
     return lib
 
 
-def _comm_type() -> type:
+def _comm_type() -> type[ctypes.c_int] | type[ctypes.c_void_p]:
     """The C type of ``MPI_Comm`` in the MPI library mpi4py runs on (int or pointer)."""
     from mpi4py import MPI
 
@@ -93,10 +93,13 @@ class Liggghts:
         c_comm = comm_type.from_address(MPI._addressof(comm))
         self._handle = ctypes.c_void_p()
         self._lib.lammps_open(len(argv), c_argv, c_comm, ctypes.byref(self._handle))
+        if self._handle.value is None:
+            raise RuntimeError(f"lammps_open made no LIGGGHTS instance (arguments {list(args)})")
+        instance = self._handle.value
         self._screen = None
         if "-screen" in args and args[args.index("-screen") + 1] != "none":
             path = Path(args[args.index("-screen") + 1])
-            self._screen = capture_screen(self._handle.value, comm, path, echo)
+            self._screen = capture_screen(instance, comm, path, echo)
 
     def command(self, line: str) -> None:
         """Execute one input line."""

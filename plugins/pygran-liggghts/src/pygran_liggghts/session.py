@@ -143,7 +143,7 @@ class WorkerSession:
                 self._accept()
         return self.connection is not None
 
-    def _accept(self) -> None:
+    def _accept(self) -> Connection:
         """Wait for the worker to connect; fail if it exits or does not connect in time."""
         while not select.select([self._server], [], [], 0.05)[0]:
             if self.process.poll() is not None:
@@ -156,6 +156,7 @@ class WorkerSession:
         client.setblocking(True)
         self.connection = Connection(client.detach())
         self._server.close()
+        return self.connection
 
     def post(self, name: str, *params: Any) -> None:
         """Send request ``name`` without waiting: the worker runs it while this process goes
@@ -165,9 +166,9 @@ class WorkerSession:
 
     def request(self, name: str, *params: Any) -> Any:
         """Run request ``name`` on every rank of the worker and return rank 0's answer."""
-        self._send((name, params))
+        connection = self._send((name, params))
         try:
-            replies = [self.connection.recv() for _ in range(self._posted + 1)]
+            replies = [connection.recv() for _ in range(self._posted + 1)]
         except (EOFError, OSError):
             raise self._failure("stopped") from None
         finally:
@@ -177,13 +178,14 @@ class WorkerSession:
                 raise EngineError(value)
         return replies[-1][1]
 
-    def _send(self, message: tuple[str, tuple[Any, ...]]) -> None:
-        if self.connection is None:
-            self._accept()
+    def _send(self, message: tuple[str, tuple[Any, ...]]) -> Connection:
+        """Send ``message`` (waiting for the worker to connect); returns the connection."""
+        connection = self.connection if self.connection is not None else self._accept()
         try:
-            self.connection.send(message)
+            connection.send(message)
         except OSError:
             raise self._failure("stopped") from None
+        return connection
 
     def _failure(self, what: str) -> EngineError:
         """The worker died: an :class:`EngineError` with LIGGGHTS' own message (and source
