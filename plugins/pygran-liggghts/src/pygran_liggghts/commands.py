@@ -17,7 +17,6 @@ import shutil
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TypeVar
 
 import numpy as np
 
@@ -30,7 +29,7 @@ from pygran_core.simulation.calls import (
     WallSpec,
 )
 from pygran_core.simulation.models import mixing
-from pygran_core.simulation.specs import RadiusDistribution, ServoSpec, SimulationSpec
+from pygran_core.simulation.specs import RadiusDistribution, ServoSpec, SimulationSpec, given
 
 #: Contact-model kernel (``ContactModel.kernel``) -> LIGGGHTS' ``gran model``.
 MODELS = {"spring-dashpot": "hooke", "hertz-mindlin": "hertz"}
@@ -50,17 +49,6 @@ SIZE_CLASSES = 9
 DUMP_COLUMNS = frozenset(
     "id type x y z vx vy vz fx fy fz omegax omegay omegaz tqx tqy tqz radius mass".split()
 )
-
-
-T = TypeVar("T")
-
-
-def given(value: T | None, what: str) -> T:
-    """``value``, which ``what`` needs: the front end's parsing sets it for that kind of call,
-    a spec made by hand may lack it."""
-    if value is None:
-        raise ConfigError(f"{what} is not given")
-    return value
 
 
 def fmt(value: float) -> str:

@@ -41,12 +41,11 @@ from pygran_core.errors import (
 )
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
 from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
-from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, launch_communicator
+from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, given, launch_communicator
 from pygran_liggghts.commands import (
     BODY_ENERGY,
     Commands,
     fmt,
-    given,
     native_meshes,
     native_particles,
     size_classes,
