@@ -124,7 +124,7 @@ def main(argv: list[str]) -> None:
             if name not in Session.requests:
                 raise ValueError(f"unknown request {name!r}")
             reply = ("ok", getattr(session, name)(*params))
-        except Exception as exc:  # reported to the engine, which raises EngineError
+        except Exception as exc:  # noqa: BLE001 - reported to the engine, which raises EngineError
             reply = ("error", f"{type(exc).__name__}: {exc}")
         if connection is not None and not gone:
             try:
