@@ -13,6 +13,7 @@ TYPED = [
     "pygran_core",
     "plugins/pygran-readers/src/pygran_readers",
     "plugins/pygran-yade/src/pygran_yade",
+    "plugins/pygran-liggghts/src/pygran_liggghts",
 ]
 
 
