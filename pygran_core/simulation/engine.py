@@ -24,6 +24,7 @@ import sys
 import warnings
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import FrameType
 from typing import Any, ClassVar
 
@@ -83,6 +84,12 @@ FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
 FAST_FACTOR = 10.0
 #: How deep (a fraction of the smaller radius) particles created at given positions may overlap.
 CREATE_OVERLAP_TOLERANCE = 1e-3
+
+
+def before_resume(path: Path) -> Path:
+    """Where a resume keeps a single-file trajectory while it copies back the frames it keeps
+    (``traj.h5`` -> ``traj.before-resume.h5``)."""
+    return path.with_name(f"{path.stem}.before-resume{path.suffix}")
 
 
 @dataclass(frozen=True)
@@ -853,7 +860,7 @@ class Engine(abc.ABC):
             )
         traj = self.spec.traj
         for key, path in (("particles", traj.pfile), ("meshes", traj.mfile)):
-            if path is not None and path.is_file():
+            if path is not None and (path.is_file() or before_resume(path).is_file()):
                 self._cut_trajectory(key, path)
         self.log("resumed from %s at step %d", self._resume_path, self.step)
 
@@ -862,7 +869,7 @@ class Engine(abc.ABC):
 
         Files written a frame each need nothing: later frames are overwritten as they come.
         """
-        before = path.with_name(f"{path.stem}.before-resume{path.suffix}")
+        before = before_resume(path)
         if before.exists():  # an earlier resume was killed while copying: the original is there
             path.unlink(missing_ok=True)
         else:

@@ -40,7 +40,7 @@ from pygran_core.errors import (
     UnsupportedFeature,
 )
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
-from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
+from pygran_core.simulation.engine import Engine, LostParticles, before_resume, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, given, launch_communicator
 from pygran_liggghts.commands import (
     BODY_ENERGY,
@@ -865,7 +865,7 @@ class LiggghtsEngine(Engine):
         from pygran_core.formats.dump import format_frame
         from pygran_core.io import open_trajectory, open_writer
 
-        before = path.with_name(f"{path.stem}.before-resume{path.suffix}")
+        before = before_resume(path)
         if key == "meshes":
             os.replace(path, before)
             with open_writer(path) as writer, open_trajectory(before) as old:
