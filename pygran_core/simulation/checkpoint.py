@@ -60,6 +60,10 @@ def decode_text(array: np.ndarray) -> str:
     return np.asarray(array, dtype=np.uint8).tobytes().decode()
 
 
+#: What :func:`state_entry` calls the dtype kinds it is asked for (any other: numbers).
+KIND_NAMES = {"iu": "integers", "u": "text (UTF-8 bytes, see encode_text)"}
+
+
 def state_entry(
     path: Path, state: dict[str, np.ndarray], key: str, kinds: str, shape: tuple[int | None, ...]
 ) -> np.ndarray:
@@ -75,7 +79,7 @@ def state_entry(
         expected = " x ".join("any" if n is None else str(n) for n in shape) or "a scalar"
         raise ReadError(
             f"{path}: the checkpoint's state entry {key!r} is {value.dtype} of shape {value.shape}, "
-            f"not {'integers' if kinds == 'iu' else 'numbers'} of shape {expected}"
+            f"not {KIND_NAMES.get(kinds, 'numbers')} of shape {expected}"
         )
     return value
 
