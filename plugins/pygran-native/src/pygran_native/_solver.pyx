@@ -70,6 +70,8 @@ DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force
 DEF WRAP = 0x40    # flag bit of nb_s: the partner is across the periodic boundary of axis ax[0]
 DEF IMAGE = 0x1f   # bits of nb_s: the periodic image code
 DEF NMOT = 14      # motion values per wall element, see motion_origin
+DEF NSLOT = 34     # values per stress mesh (a mesh whose force is summed, maybe a servo), see Slot
+DEF SACC = 8       # values per stress mesh in a pair block's sums: force (3), torque (3), contacts
 DEF WROW = 5       # work of a row of the pair loop, a touching pair and a wall entry in units of
 DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
 
@@ -124,6 +126,7 @@ cdef enum:
 
 MAX_THREADS = MAXTHREADS
 MOTION_VALUES = NMOT
+SLOT_VALUES = NSLOT
 #: Where :meth:`Core.take_lost` counts lost particles: the faces of the box, then non-finite.
 LOST_PLACES = ("x-", "x+", "y-", "y+", "z-", "z+", "non-finite")
 
@@ -141,6 +144,34 @@ cdef enum:
     P_COPY_BACK = 7
     P_COUNT = 8
     P_FILL = 9
+
+# A stress mesh's values (NSLOT doubles): the particles' force on it is summed each step (LIGGGHTS
+# mesh/surface/stress); a servo moves it by LIGGGHTS' controller (mesh/surface/stress/servo,
+# mesh_module_stress_servo.cpp), see Core.servo_control.
+cdef enum:
+    S_WALL = 0         # the mesh's wall handle
+    S_CONTROL = 1      # 0: stress only, 1: servo on the force, 2: servo on the torque
+    S_AUTO = 2         # 1: mode auto (piecewise P controller), 0: PID
+    S_SP = 3           # set point: -target (the particles' force acts against the servo's push)
+    S_VMAX = 4         # vel_max (m/s)
+    S_KP = 5
+    S_KI = 6
+    S_KD = 7
+    S_RATIO = 8        # mode auto: speed in contact ratio r_min / dt
+    S_OPMAX = 9        # largest output: vel_max, or vel_max / (largest node distance from the axis)
+    S_RPA = 10         # 1, or the largest node distance from the axis (torque)
+    S_OPMIN = 11       # mode auto: ratio r_min / dt / S_RPA, set as each run starts
+    S_AXIS = 12        # the unit axis (3)
+    S_XCM = 15         # the reference point (com), moving with a force servo (3)
+    S_XCM0 = 18        # com when the servo was set (the mesh's reference vertices belong to it) (3)
+    S_VEL = 21         # the controller's output: velocity or angular velocity (3)
+    S_PHI = 24         # torque: angle turned since the servo was set
+    S_SUM = 25         # integral of the error
+    S_OLDPV = 26       # the process value of the previous step
+    S_FORCE = 27       # the particles' force on the mesh at the last step (3)
+    S_TORQUE = 30      # ... their torque about S_XCM (3)
+    S_CONTACTS = 33    # ... and the number of contacts
+
 
 cdef struct Coef:
     double E        # effective modulus E*
@@ -232,6 +263,10 @@ cdef struct Ctx:
     int *emoving
     double *egeo
     double *emot
+    int *ewall
+    int nslots
+    double *slots
+    double *sacc
     Coef *coef
     double *visc
     double *cpu
@@ -891,7 +926,7 @@ cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
     for q in range(3):   # walls after the loop, into other arrays: fi can live in registers there
         F[q] = 0.0
         Ft[q] = 0.0
-    wall_row(c, i, F, Ft)
+    wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
     for q in range(3):
         buf[i * 6 + q] += fi[q] + F[q]
         buf[i * 6 + 3 + q] += fi[3 + q] + Ft[q]
@@ -900,11 +935,21 @@ cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
     return row_work(kend - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
 
 
+cdef inline int slot_of(const Ctx* c, int e) noexcept nogil:
+    """The stress mesh (index into ``slots``) wall element e belongs to, -1 for none."""
+    cdef int s
+    for s in range(c.nslots):
+        if c.slots[NSLOT * s + S_WALL] == c.ewall[e]:
+            return s
+    return -1
+
+
 cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const double* n,
-                      const double* q, double* F, double* T) noexcept nogil:
+                      const double* q, double* F, double* T, double* sa) noexcept nogil:
     """Force of wall element e on particle i (contact point q, NULL for a fixed primitive).
 
-    Returns the :func:`contact_force` result; clears the history on NO_CONTACT.
+    Returns the :func:`contact_force` result; clears the history on NO_CONTACT. The force on
+    a stress mesh's element is added, reversed, to the block's sums ``sa`` (see Slot).
     """
     cdef double vr[3]
     cdef double rw[3]
@@ -917,11 +962,21 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
     cdef double cx[3]
     cdef double rel[3]
     cdef const double* mot
-    cdef int k, res
+    cdef const double* sl = NULL
+    cdef int k, res, slot = slot_of(c, e) if q != NULL else -1
     cdef double ri = c.r[i]
     for k in range(3):
         vw[k] = 0.0
-    if q != NULL and c.emoving[e]:
+    if slot >= 0:
+        sl = &c.slots[NSLOT * slot]
+    if sl != NULL and sl[S_CONTROL] == 1.0:   # a force servo translates at its output
+        for k in range(3):
+            vw[k] = sl[S_VEL + k]
+    elif sl != NULL and sl[S_CONTROL] == 2.0:   # a torque servo turns about its axis through com
+        for k in range(3):
+            rel[k] = q[k] - sl[S_XCM + k]
+        cross3(&sl[S_VEL], rel, vw)
+    elif q != NULL and c.emoving[e]:
         mot = &c.emot[NMOT * e]
         motion_origin(mot, c.time - mot[9], o, vo)
         for k in range(3):
@@ -942,6 +997,16 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
     for k in range(3):
         F[k] += Fc[k]
         T[k] += Mr[k] - ri * cx[k]
+    if sl != NULL:   # LIGGGHTS: the reversed force, and its torque about com at the contact point
+        sa = &sa[SACC * slot]
+        for k in range(3):
+            rel[k] = q[k] - sl[S_XCM + k]
+            Fc[k] = -Fc[k]
+        cross3(rel, Fc, cx)
+        for k in range(3):
+            sa[k] += Fc[k]
+            sa[3 + k] += cx[k]
+        sa[6] += 1.0
     return IN_CONTACT
 
 
@@ -949,7 +1014,7 @@ cdef inline bint has_vertex(const int* vid, int u) noexcept nogil:
     return vid[0] == u or vid[1] == u or vid[2] == u
 
 
-cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
+cdef void wall_row(const Ctx* c, int i, double* F, double* T, double* sa) noexcept nogil:
     """Wall forces on particle i; mesh contacts without double counting.
 
     Candidates are the triangles whose closest point is within reach, classified as
@@ -984,7 +1049,7 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
                     nrm[a] *= side
             if gap < -ri:   # behind the wall: passed through it
                 zero_hist(h, c.whs)
-            elif wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T) != NO_CONTACT and c.ekind[e] == PLANE \
+            elif wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T, sa) != NO_CONTACT and c.ekind[e] == PLANE \
                     and c.update:
                 h[hs] = side
             continue
@@ -1018,7 +1083,7 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T) noexcept nogil:
             dist = sqrt(cd2[a])
             for b in range(3):
                 nrm[b] = (xi[b] - cq[3 * a + b]) / dist
-            if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T) == IN_CONTACT:
+            if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T, sa) == IN_CONTACT:
                 acc[nacc] = a
                 nacc += 1
 
@@ -1092,6 +1157,8 @@ cdef void pair_block(const Ctx* c, int b) noexcept nogil:
     """Block b's rows of the pair loop; records their work and the last row of its halo."""
     cdef int i, hmax = -1
     cdef long long total = 0
+    if c.nslots:
+        memset(&c.sacc[<long long>SACC * c.nslots * b], 0, SACC * c.nslots * sizeof(double))
     for i in range(c.pb[b], c.pb[b + 1]):
         c.work[i] = pair_row(c, i, b, &hmax)
         total += c.work[i]
@@ -1209,6 +1276,9 @@ cdef class Core:
     cdef double *eref       # triangle vertices at the motion's start
     cdef double *ebuilt     # triangle vertices at the last rebuild
     cdef double *emot       # NMOT per element, see motion_origin
+    cdef public int nslots  # stress meshes (see Slot)
+    cdef double *slots      # NSLOT per stress mesh
+    cdef double *sacc       # the pair blocks' sums over stress meshes: SACC per mesh per block
     # contact tables
     cdef Coef *coef
     cdef double *visc
@@ -1278,6 +1348,7 @@ cdef class Core:
                   <size_t>self.cell_start, <size_t>self.ctri_start, <size_t>self.ctri, <size_t>self.ekind,
                   <size_t>self.etype, <size_t>self.ewall, <size_t>self.evid, <size_t>self.emoving,
                   <size_t>self.egeo, <size_t>self.eref, <size_t>self.ebuilt, <size_t>self.emot,
+                  <size_t>self.slots, <size_t>self.sacc,
                   <size_t>self.coef, <size_t>self.visc, <size_t>self.tmax,
                   <size_t>self.pb, <size_t>self.work, <size_t>self.tstat, <size_t>self.cpu):
             free(<void*>p)
@@ -1534,6 +1605,7 @@ cdef class Core:
         free(newidx)
         self.dirty = 1
         self.binned_dirty = 1
+        self.set_slots(np.array([v for v in self.get_slots() if v[S_WALL] != wall]).reshape(-1, NSLOT))
 
     def set_motion(self, int wall, double[::1] vel, double[::1] omega, double[::1] origin,
                    double[::1] amplitude, double period):
@@ -1556,6 +1628,40 @@ cdef class Core:
             self.emot[NMOT * e + 9] = self.time
             self.emot[NMOT * e + 13] = period
             self.emoving[e] = moving
+        self.dirty = 1
+        self.binned_dirty = 1
+
+    def get_slots(self):
+        """The stress meshes' values, (nslots, NSLOT) (see Slot)."""
+        return _copy_d(self.slots, NSLOT * self.nslots).reshape(self.nslots, NSLOT)
+
+    def set_slots(self, double[:, ::1] values):
+        """Replace the stress meshes' values; a servo's triangles move from their positions now
+        (their reference), and move with the wall list's rebuilds."""
+        cdef int k = values.shape[0], e, s, d
+        cdef size_t nbytes = max(k, 1) * NSLOT * sizeof(double)
+        cdef void* p = calloc(max(k, 1) * self.nblocks * SACC, sizeof(double))
+        cdef void* q = malloc(nbytes)
+        if p == NULL or q == NULL:
+            free(p)
+            free(q)
+            raise MemoryError()
+        if k:
+            memcpy(q, &values[0, 0], k * NSLOT * sizeof(double))
+        free(self.sacc)
+        free(self.slots)
+        self.sacc = <double*>p
+        self.slots = <double*>q
+        self.nslots = k
+        for s in range(k):
+            if self.slots[NSLOT * s + S_CONTROL] == 0.0:
+                continue
+            for e in range(self.ne):
+                if self.ewall[e] == <int>self.slots[NSLOT * s + S_WALL] and self.ekind[e] == TRIANGLE \
+                        and not self.emoving[e]:
+                    for d in range(9):
+                        self.eref[9 * e + d] = self.egeo[9 * e + d]
+                    self.emoving[e] = 1
         self.dirty = 1
         self.binned_dirty = 1
 
@@ -1758,6 +1864,10 @@ cdef class Core:
         c.emoving = self.emoving
         c.egeo = self.egeo
         c.emot = self.emot
+        c.ewall = self.ewall
+        c.nslots = self.nslots
+        c.slots = self.slots
+        c.sacc = self.sacc
         c.coef = self.coef
         c.visc = self.visc
         c.cpu = self.cpu
@@ -1991,30 +2101,47 @@ cdef class Core:
         return False
 
     cdef double move_walls(self) noexcept nogil:
-        """Place moving triangles at the current time; largest vertex move since the rebuild."""
-        cdef int e, k, d, last = -1
+        """Place moving triangles at the current time (a servo's where its controller has
+        taken it); largest vertex move since the rebuild."""
+        cdef int e, k, d, last = -1, slot
         cdef double dmax = 0.0, dd, s
         cdef double Rm[9]
         cdef double rel[3]
         cdef double o[3]
         cdef double vo[3]
+        cdef double o0[3]
         cdef double* mot
         cdef double* ref
         cdef double* cur
+        cdef double* sl
         memset(o, 0, 3 * sizeof(double))   # set at each wall's first element
+        memset(o0, 0, 3 * sizeof(double))
         for e in range(self.ne):
             if not self.emoving[e]:
                 continue
-            mot = &self.emot[NMOT * e]
             if self.ewall[e] != last:
-                motion_origin(mot, self.time - mot[9], o, vo)
-                rotation(&mot[3], self.time - mot[9], Rm)
                 last = self.ewall[e]
+                slot = -1
+                for k in range(self.nslots):
+                    if self.slots[NSLOT * k + S_WALL] == last and self.slots[NSLOT * k + S_CONTROL] != 0.0:
+                        slot = k
+                if slot >= 0:   # a force servo translates by com - com0, a torque servo turns by phi
+                    sl = &self.slots[NSLOT * slot]
+                    for d in range(3):
+                        o[d] = sl[S_XCM + d]
+                        o0[d] = sl[S_XCM0 + d]
+                    rotation(&sl[S_AXIS], sl[S_PHI] if sl[S_CONTROL] == 2.0 else 0.0, Rm)
+                else:
+                    mot = &self.emot[NMOT * e]
+                    motion_origin(mot, self.time - mot[9], o, vo)
+                    rotation(&mot[3], self.time - mot[9], Rm)
+                    for d in range(3):
+                        o0[d] = mot[6 + d]
             for k in range(3):
                 ref = &self.eref[9 * e + 3 * k]
                 cur = &self.egeo[9 * e + 3 * k]
                 for d in range(3):
-                    rel[d] = ref[d] - mot[6 + d]
+                    rel[d] = ref[d] - o0[d]
                 dd = 0.0
                 for d in range(3):
                     cur[d] = o[d] + Rm[3 * d] * rel[0] + Rm[3 * d + 1] * rel[1] + Rm[3 * d + 2] * rel[2]
@@ -2023,6 +2150,87 @@ cdef class Core:
                 if dd > dmax:
                     dmax = dd
         return sqrt(dmax)
+
+    cdef void servo_move(self, double dt) noexcept nogil:
+        """The servos' move at the start of a step (LIGGGHTS' initial_integrate): com by
+        dt times the velocity, or the angle by dt times the angular velocity along the axis."""
+        cdef int s, d
+        cdef double* sl
+        for s in range(self.nslots):
+            sl = &self.slots[NSLOT * s]
+            if sl[S_CONTROL] == 1.0:
+                for d in range(3):
+                    sl[S_XCM + d] += dt * sl[S_VEL + d]
+            elif sl[S_CONTROL] == 2.0:
+                sl[S_PHI] += dt * dot3(&sl[S_VEL], &sl[S_AXIS])
+
+    cdef void servo_sums(self) noexcept nogil:
+        """The particles' force, torque and contacts on each stress mesh: the pair blocks'
+        sums, added in block order (the same bits whichever thread ran a block)."""
+        cdef int s, b, k
+        cdef double* sl
+        cdef const double* a
+        for s in range(self.nslots):
+            sl = &self.slots[NSLOT * s]
+            for k in range(7):
+                sl[S_FORCE + k] = 0.0
+            for b in range(self.nblocks):
+                a = &self.sacc[SACC * (self.nslots * b + s)]
+                for k in range(7):
+                    sl[S_FORCE + k] += a[k]
+
+    cdef void servo_control(self, double dt) noexcept nogil:
+        """The servos' new output at the end of a step: LIGGGHTS' final_integrate and limit_vel
+        of mesh_module_stress_servo.cpp (its PID law on the force or torque along the axis, the
+        piecewise P law of mode auto, the saturation and the integral's anti-windup)."""
+        cdef int s, d
+        cdef double* sl
+        cdef double pv, err, kp, mag, vmag, limit, spinv, low = 0.9, high = 1.0, scale = 0.1
+        for s in range(self.nslots):
+            sl = &self.slots[NSLOT * s]
+            if sl[S_CONTROL] == 0.0:
+                continue
+            pv = dot3(&sl[S_FORCE if sl[S_CONTROL] == 1.0 else S_TORQUE], &sl[S_AXIS])
+            spinv = 1.0 / fabs(sl[S_SP])
+            if sl[S_AUTO] != 0.0:
+                err = (sl[S_SP] - pv) * spinv
+                if sl[S_CONTACTS] == 0.0:   # cruise
+                    kp = sl[S_OPMAX]
+                elif fabs(err) <= low:
+                    kp = scale * sl[S_OPMIN]
+                elif fabs(err) >= high:
+                    kp = sl[S_OPMIN]
+                else:
+                    kp = scale * sl[S_OPMIN] + (1.0 - scale) * sl[S_OPMIN] * (fabs(err) - low) / (high - low)
+                mag = -kp * err
+            else:
+                err = sl[S_SP] - pv
+                sl[S_SUM] += err * dt
+                # the derivative of the force, not of the error (no spike when the set point changes)
+                mag = -sl[S_OPMAX] * (err * sl[S_KP] + sl[S_SUM] * sl[S_KI]
+                                      - (pv - sl[S_OLDPV]) / dt * sl[S_KD]) * spinv
+                sl[S_OLDPV] = pv
+            for d in range(3):
+                sl[S_VEL + d] = sl[S_AXIS + d] * mag
+            vmag = sqrt(dot3(&sl[S_VEL], &sl[S_VEL]))
+            limit = sl[S_OPMIN] if sl[S_AUTO] != 0.0 and sl[S_CONTACTS] > 0.0 else sl[S_OPMAX]
+            if vmag > limit and vmag != 0.0:
+                for d in range(3):
+                    sl[S_VEL + d] *= limit / vmag
+                if sl[S_KI] > 0.0:   # anti-windup: LIGGGHTS' inverted controller equation
+                    mag = dot3(&sl[S_VEL], &sl[S_AXIS])
+                    sl[S_SUM] = (-((mag > 0.0) - (mag < 0.0)) * sl[S_SP] - err * sl[S_KP]) / sl[S_KI]
+
+    cdef void servo_start(self, double dt) noexcept nogil:
+        """As a run starts (LIGGGHTS' init): mode auto's speed in contact from the smallest
+        particle present (a radius of 1e6 m without particles, as LIGGGHTS)."""
+        cdef int s, i
+        cdef double rmin = 1e6
+        for i in range(self.n):
+            rmin = min(rmin, self.r[i])
+        for s in range(self.nslots):
+            self.slots[NSLOT * s + S_OPMIN] = self.slots[NSLOT * s + S_RATIO] * rmin / dt \
+                / self.slots[NSLOT * s + S_RPA]
 
     cdef inline int estimated_work(self, int i) noexcept nogil:
         """Row i's work in the pair loop, counting the pairs that touched at the last step."""
@@ -2093,6 +2301,10 @@ cdef class Core:
             self.cpu[PAD * t + 2] = 0.0
             self.cpu[PAD * t + 3] = 0.0
         self.run_phase(P_PAIRS, self.nblocks)
+        if self.nslots:
+            self.servo_sums()
+            if update:
+                self.servo_control(dt)
         t0 = self.lap(T_PAIRS, t0)
         self.run_phase(P_PARTICLES, self.nblocks)
         self.rebalance()
@@ -2253,6 +2465,8 @@ cdef class Core:
             self.t_base = self.time
             self.step_base = self.step
             self.dt_base = dt
+        if self.nslots:
+            self.servo_start(dt)
         if self.dirty:
             if self.rebuild() < 0:
                 return -1
@@ -2267,6 +2481,7 @@ cdef class Core:
             self.step += 1
             self.time = self.t_base + (self.step - self.step_base) * dt
             t1 = pg_now()
+            self.servo_move(dt)
             dw = self.move_walls()
             self.lap(T_WALLS, t1)
             if dp + dw > 0.5 * self.skin:
@@ -2385,6 +2600,7 @@ cdef class Core:
             "emoving": _copy_i(self.emoving, ne), "egeo": _copy_d(self.egeo, 9 * ne),
             "eref": _copy_d(self.eref, 9 * ne), "ebuilt": _copy_d(self.ebuilt, 9 * ne),
             "emot": _copy_d(self.emot, NMOT * ne), "visc": _copy_d(self.visc, self.ntypes),
+            "slots": _copy_d(self.slots, NSLOT * self.nslots),
             "scalars": np.array([self.time, self.t_base, self.dt_base, self.lost_speed], dtype=float),
             "lost": np.array([self.lost_at[k] for k in range(7)], dtype=np.int64),
             "counters": np.array([self.step, self.lost, self.rebuilds, self.dirty, self.step_base],
@@ -2412,6 +2628,7 @@ cdef class Core:
         _put_d(self.ebuilt, state["ebuilt"], 9 * ne)
         _put_d(self.emot, state["emot"], NMOT * ne)
         _put_i(self.emoving, state["emoving"], ne)
+        self.set_slots(np.ascontiguousarray(state["slots"], dtype=float).reshape(-1, NSLOT))
         for name, ptr, k in (("x", <size_t>self.x, 3 * n), ("v", <size_t>self.v, 3 * n),
                              ("w", <size_t>self.w, 3 * n), ("f", <size_t>self.f, 3 * n),
                              ("t", <size_t>self.t, 3 * n), ("x0", <size_t>self.x0, 3 * n),

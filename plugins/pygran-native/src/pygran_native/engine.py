@@ -42,6 +42,7 @@ class NativeEngine(PlacingEngine):
             "primitive-walls",
             "mesh-walls",
             "moving-mesh",
+            "servo-walls",
             "polydisperse",
             "insert-by-rate",
             "threads",
@@ -67,6 +68,19 @@ class NativeEngine(PlacingEngine):
         self._drags: dict[str, ViscousSpec] = {}
         self._labels = 0
         self.log("native solver: %d threads, skin %g m", self.solver.threads, spec.skin)
+        if spec.dt is not None:
+            self._check_servo_speeds(spec.dt)
+
+    def _check_servo_speeds(self, dt: float) -> None:
+        """As LIGGGHTS: a servo wall's ``vel_max`` below half the neighbour skin per step."""
+        limit = self.spec.skin / (2 * dt)
+        for mesh in self.spec.meshes:
+            if mesh.servo is not None and not mesh.servo.vel_max < limit:
+                raise ConfigError(
+                    f"mesh {mesh.name!r}: servo vel_max {mesh.servo.vel_max:g} m/s must be below "
+                    f"skin / (2 dt) = {limit:g} m/s (a servo wall moves at most half the neighbour "
+                    "skin per step, as on LIGGGHTS): lower vel_max or dt, or raise nns_skin"
+                )
 
     def _material_arrays(self, materials: list[Any]) -> dict[str, Any]:
         kind = SOLVER_LAW[self.spec.model.kernel]
@@ -162,10 +176,27 @@ class NativeEngine(PlacingEngine):
                 raise ConfigError(f"mesh {mesh.name!r} is already a wall")
             triangles = mesh.triangles()
             wall_type = self._mesh_types[mesh.name] if mesh.material else spec.species - 1
-            self._mesh_walls[mesh.name] = self.solver.add_mesh(
+            wall = self.solver.add_mesh(
                 triangles.reshape(-1, 3), np.arange(3 * len(triangles)).reshape(-1, 3), wall_type
             )
-            self._walls[label] = self._mesh_walls[mesh.name]
+            servo = mesh.servo
+            if servo is not None:
+                self.solver.set_servo(
+                    wall,
+                    control=servo.control,
+                    axis=servo.axis,
+                    target=servo.target,
+                    vel_max=servo.vel_max,
+                    com=servo.com,
+                    kp=servo.kp,
+                    ki=servo.ki,
+                    kd=servo.kd,
+                    mode=servo.mode,
+                    ratio=servo.ratio,
+                )
+            elif mesh.mtype != "mesh/surface":
+                self.solver.set_stress(wall)
+            self._mesh_walls[mesh.name] = self._walls[label] = wall
         return label
 
     def _move_mesh(self, spec: MotionSpec) -> str:
@@ -173,6 +204,11 @@ class NativeEngine(PlacingEngine):
             raise ConfigError(
                 f"mesh {spec.mesh!r} is not a wall yet: "
                 f"call setupWall(wtype='mesh', mesh={spec.mesh!r}) first"
+            )
+        if any(mesh.servo for mesh in self.spec.meshes if mesh.name == spec.mesh):
+            raise ConfigError(
+                f"mesh {spec.mesh!r} is a servo wall, which its controller moves: it cannot be moved "
+                "by moveMesh too (as on LIGGGHTS)"
             )
         if spec.mesh in self._motions.values():
             raise ConfigError(f"mesh {spec.mesh!r} already moves; remove() that motion first")
@@ -223,7 +259,26 @@ class NativeEngine(PlacingEngine):
     # -- running and output ----------------------------------------------------------------
 
     def _advance(self, nsteps: int) -> None:
+        idle = [m.name for m in self.spec.meshes if m.servo and m.name not in self._mesh_walls]
+        if idle:
+            raise ConfigError(
+                f"servo mesh {idle[0]!r} must be a wall while the simulation runs (its controller moves "
+                f"it by the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
+            )
+        self._check_servo_speeds(self.dt)
         self.solver.run(nsteps, self.dt)
+
+    def mesh_force(self, name: str) -> np.ndarray:
+        """The force (N, x y z) the particles exert on mesh ``name`` at the last step (``mtype``
+        ``mesh/surface/stress`` or ``mesh/surface/stress/servo``), as on LIGGGHTS."""
+        mesh = next((m for m in self.spec.meshes if m.name == name), None)
+        if mesh is None or mesh.mtype == "mesh/surface" or name not in self._mesh_walls:
+            stress = [m.name for m in self.spec.meshes if m.mtype != "mesh/surface"]
+            raise ConfigError(
+                f"mesh_force({name!r}): the force is summed on walls of mtype mesh/surface/stress or "
+                f"mesh/surface/stress/servo; such meshes here: {stress or 'none'}"
+            )
+        return self.solver.mesh_force(self._mesh_walls[name])[0]
 
     def _extract(self, quantity: str) -> np.ndarray:
         solver = self.solver

@@ -31,8 +31,10 @@ Conventions (LIGGGHTS):
   to the side its centre was on when the contact began, even if a deeply plastic contact
   lets the centre sink past the plane), cylinders (inside or outside), and triangle meshes
   (two-sided; face, edge and vertex contacts, a shared edge or vertex counted once) with
-  rigid motion: translation, rotation and wiggle. Meshes are not repeated across periodic
-  boundaries.
+  rigid motion: translation, rotation and wiggle, or a servo's (LIGGGHTS
+  ``mesh/surface/stress/servo``, :meth:`Solver.set_servo`). The particles' force on a stress
+  or servo mesh is summed at each step (:meth:`Solver.mesh_force`). Meshes are not repeated
+  across periodic boundaries.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ import numpy as np
 from pygran_core.errors import ConfigError, ReadError
 from pygran_core.simulation.models import mixing
 from pygran_native import _kernels
-from pygran_native._solver import LOST_PLACES, MAX_THREADS, MOTION_VALUES, Core
+from pygran_native._solver import LOST_PLACES, MAX_THREADS, MOTION_VALUES, SLOT_VALUES, Core
 
 __all__ = ["Solver", "default_threads"]
 
@@ -57,6 +59,31 @@ _HISTORY = {"hooke": 4, "hertz": 4, "thornton-ning": 7}
 #: torque: 3 more history values per contact.
 _ROLLING = {"cdt": 0, "epsd": 1, "epsd2": 2}
 _WALL_KINDS = ("plane", "cylinder", "mesh")
+#: Where a stress mesh's values lie in its row of Core.get_slots() (the Slot enum of _solver.pyx).
+_SLOT = {
+    "wall": 0,
+    "control": 1,
+    "auto": 2,
+    "set_point": 3,
+    "vel_max": 4,
+    "kp": 5,
+    "ki": 6,
+    "kd": 7,
+    "ratio": 8,
+    "output_max": 9,
+    "arm": 10,
+    "axis": slice(12, 15),
+    "com": slice(15, 18),
+    "com0": slice(18, 21),
+    "velocity": slice(21, 24),
+    "angle": 24,
+    "integral": 25,
+    "previous": 26,
+    "force": slice(27, 30),
+    "torque": slice(30, 33),
+    "contacts": 33,
+}
+_CONTROLS = ("stress", "force", "torque")
 #: The contact-model settings a checkpoint stores (the arguments of Solver.set_contact_model).
 _MODEL_KEYS = (
     "youngs",
@@ -462,6 +489,8 @@ class Solver:
         """
         if self._walls.get(mesh) != "mesh":
             raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
+        if self._slot(mesh) is not None and self._slot(mesh)[_SLOT["control"]] != 0:
+            raise ConfigError(f"mesh: {mesh!r} is a servo wall, which its controller moves.")
         amplitude = _array(amplitude, "amplitude", (3,))
         if period is not None and not (math.isfinite(period) and period > 0):
             raise ConfigError(f"period: must be > 0, got {period!r}.")
@@ -475,6 +504,117 @@ class Solver:
             amplitude,
             0.0 if period is None or not np.any(amplitude != 0) else float(period),
         )
+
+    def _slot(self, mesh: int) -> np.ndarray | None:
+        """The stress values of a mesh (see _SLOT), None if its force is not summed."""
+        rows = [row for row in self._core.get_slots() if row[_SLOT["wall"]] == mesh]
+        return rows[0] if rows else None
+
+    def _put_slot(self, row: np.ndarray) -> None:
+        slots = [r for r in self._core.get_slots() if r[_SLOT["wall"]] != row[_SLOT["wall"]]]
+        self._core.set_slots(np.ascontiguousarray(np.reshape([*slots, row], (-1, SLOT_VALUES))))
+
+    def set_stress(self, mesh: int, reference=(0.0, 0.0, 0.0)) -> None:
+        """Sum the force of the particles on a mesh, and their torque about ``reference``, at
+        every step (LIGGGHTS ``mesh/surface/stress``): :meth:`mesh_force`."""
+        if self._walls.get(mesh) != "mesh":
+            raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
+        if self._slot(mesh) is not None:
+            raise ConfigError(f"mesh: the force on mesh {mesh!r} is summed already.")
+        row = np.zeros(SLOT_VALUES)
+        row[_SLOT["wall"]] = mesh
+        row[_SLOT["com"]] = row[_SLOT["com0"]] = _array(reference, "reference", (3,))
+        row[_SLOT["arm"]] = 1.0
+        self._put_slot(row)
+
+    def set_servo(
+        self,
+        mesh: int,
+        *,
+        control: str,
+        axis,
+        target: float,
+        vel_max: float,
+        com,
+        kp: float = 0.01,
+        ki: float = 0.0,
+        kd: float = 0.0,
+        mode: str = "pid",
+        ratio: float | None = None,
+    ) -> None:
+        """Make a mesh a servo wall (LIGGGHTS ``mesh/surface/stress/servo``): it moves along
+        the unit ``axis`` (``control='force'``) or turns about it through ``com``
+        (``'torque'``) so that the particles' force (N), or torque about ``com`` (N m), along
+        the axis comes to ``target``, at up to ``vel_max`` m/s (at its farthest vertex from
+        the axis when turning). The controller is LIGGGHTS': PID with gains ``kp, ki, kd``
+        (mode ``'pid'``) or ``mode='auto'``, at ``ratio`` r_min / dt in contact. Its force and
+        state: :meth:`mesh_force`, :meth:`servo_state`."""
+        if self._walls.get(mesh) != "mesh":
+            raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
+        if self._slot(mesh) is not None:
+            raise ConfigError(f"mesh: mesh {mesh!r} is a stress or servo mesh already.")
+        if control not in ("force", "torque"):
+            raise ConfigError(f"control: 'force' or 'torque', got {control!r}.")
+        if mode not in ("pid", "auto"):
+            raise ConfigError(f"mode: 'pid' or 'auto', got {mode!r}.")
+        direction = _array(axis, "axis", (3,))
+        length = float(np.linalg.norm(direction))
+        if length == 0:
+            raise ConfigError("axis: must not be zero.")
+        direction = direction / length
+        centre = _array(com, "com", (3,))
+        for name, value in (("target", target), ("vel_max", vel_max), ("kp", kp), ("ki", ki), ("kd", kd)):
+            if not math.isfinite(value):
+                raise ConfigError(f"{name}: must be finite, got {value!r}.")
+        if target == 0:
+            raise ConfigError("target: the servo's force or torque must not be 0.")
+        if not vel_max > 0:
+            raise ConfigError(f"vel_max: must be > 0, got {vel_max!r}.")
+        if mode == "auto" and not (ratio is not None and math.isfinite(ratio) and ratio > 0):
+            raise ConfigError(f"ratio: mode 'auto' needs a ratio > 0, got {ratio!r}.")
+        if mode == "pid" and (min(kp, ki, kd) < 0 or kp == ki == kd == 0):
+            raise ConfigError(f"kp, ki, kd: must be >= 0, not all 0; got {kp!r}, {ki!r}, {kd!r}.")
+        arm = 1.0
+        if control == "torque":  # LIGGGHTS: the farthest vertex from the axis sets the top speed
+            corners = self.mesh_triangles(mesh).reshape(-1, 3)
+            arm = float(np.linalg.norm(np.cross(direction, corners - centre), axis=1).max())
+            if arm == 0:
+                raise ConfigError("com, axis: every vertex of the mesh lies on the servo's axis.")
+        row = np.zeros(SLOT_VALUES)
+        row[_SLOT["wall"]] = mesh
+        row[_SLOT["control"]] = _CONTROLS.index(control)
+        row[_SLOT["auto"]] = mode == "auto"
+        row[_SLOT["set_point"]] = -target  # LIGGGHTS: the particles' force acts against the push
+        row[_SLOT["vel_max"]] = vel_max
+        row[_SLOT["kp"]], row[_SLOT["ki"]], row[_SLOT["kd"]] = kp, ki, kd
+        row[_SLOT["ratio"]] = ratio or 0.0
+        row[_SLOT["arm"]] = arm
+        row[_SLOT["output_max"]] = vel_max / arm
+        row[_SLOT["axis"]] = direction
+        row[_SLOT["com"]] = row[_SLOT["com0"]] = centre
+        self._put_slot(row)
+
+    def mesh_force(self, mesh: int) -> tuple[np.ndarray, np.ndarray]:
+        """The particles' force (N) on a stress or servo mesh at the last step, and their
+        torque (N m) about its reference point (a servo's com)."""
+        row = self._slot(mesh)
+        if row is None:
+            raise ConfigError(f"mesh: {mesh!r} is not a stress or servo mesh of this solver (set_stress).")
+        return row[_SLOT["force"]].copy(), row[_SLOT["torque"]].copy()
+
+    def servo_state(self, mesh: int) -> dict[str, float | np.ndarray]:
+        """A servo's controller: its ``com`` (m), turned ``angle`` (rad), output ``velocity``
+        (m/s or rad/s, a vector), error ``integral`` and ``previous`` process value."""
+        row = self._slot(mesh)
+        if row is None or row[_SLOT["control"]] == 0:
+            raise ConfigError(f"mesh: {mesh!r} is not a servo mesh of this solver (set_servo).")
+        return {
+            "com": row[_SLOT["com"]].copy(),
+            "angle": float(row[_SLOT["angle"]]),
+            "velocity": row[_SLOT["velocity"]].copy(),
+            "integral": float(row[_SLOT["integral"]]),
+            "previous": float(row[_SLOT["previous"]]),
+        }
 
     def remove_wall(self, wall: int) -> None:
         """Delete a plane, cylinder or mesh (its contact histories go with it)."""
@@ -505,6 +645,13 @@ class Solver:
             raise ConfigError(f"dt: must be > 0, got {dt!r}.")
         if self._model is None:
             raise ConfigError("set_contact_model must be called before run.")
+        for row in self._core.get_slots():
+            if row[_SLOT["control"]] and not row[_SLOT["vel_max"]] < self._core.skin / (2 * dt):
+                raise ConfigError(
+                    f"vel_max: a servo's {row[_SLOT['vel_max']]:g} m/s must be below skin / (2 dt) = "
+                    f"{self._core.skin / (2 * dt):g} m/s (as LIGGGHTS: it moves at most half the skin "
+                    "per step); lower it or dt, or raise the skin."
+                )
         if self.n:
             reach = 2 * float(self._core.array("r").max()) + self._core.skin
             for d in range(3):
@@ -820,6 +967,23 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
     owner = [walls.get(int(w)) for w in out["ewall"]]
     if any(o is None or _WALL_KINDS.index(o) != k for o, k in zip(owner, ekind.tolist())):
         raise _fail("core_ewall", "the handle of a wall of the element's kind", "others")
+    # stress and servo meshes (absent from checkpoints written before there were any)
+    if "core_slots" not in state:
+        state = {**state, "core_slots": np.zeros(0)}
+    slots = out["slots"] = get("slots", float)
+    if slots.shape[0] % SLOT_VALUES:
+        raise _fail("core_slots", f"{SLOT_VALUES} values per stress mesh", slots.shape[0])
+    _within("core_slots", slots, -np.inf, np.inf, "finite values")
+    rows = slots.reshape(-1, SLOT_VALUES)
+    meshes = [walls.get(int(w)) == "mesh" and w == int(w) for w in rows[:, _SLOT["wall"]]]
+    if not all(meshes) or len(set(rows[:, _SLOT["wall"]])) != len(rows):
+        raise _fail("core_slots", "one row per stress mesh, each naming a mesh wall", "others")
+    if not np.all(np.isin(rows[:, _SLOT["control"]], (0.0, 1.0, 2.0))):
+        raise _fail("core_slots", "controls 0 (stress), 1 (force) or 2 (torque)", "others")
+    if np.any(rows[:, _SLOT["arm"]] <= 0) or np.any(
+        (rows[:, _SLOT["control"]] > 0) & (rows[:, _SLOT["set_point"]] == 0)
+    ):
+        raise _fail("core_slots", "lever arms > 0 and servo set points != 0", "others")
     if n and next_id <= ids.max() or ne and next_vertex <= out["evid"].max():
         raise _fail("counters", "next particle id and vertex beyond those in use", [next_id, next_vertex])
     try:

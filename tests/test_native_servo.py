@@ -1,0 +1,208 @@
+"""Servo walls (``mtype='mesh/surface/stress/servo'``) on the native engine.
+
+The script of ``tests/compat/test_plate_scripts.py``: a servo plate pressing a settled bed
+comes to rest where the bed pushes back with the target force, on native as on LIGGGHTS, at
+the same height; the controller is LIGGGHTS' (checked step by step on a plate alone against
+the law of ``mesh_module_stress_servo.cpp``), and checkpoints carry it.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pygran_native.solver import Solver
+
+from PyGran import simulation
+from pygran_core.errors import ConfigError
+
+MESHES = Path(__file__).resolve().parent / "data" / "meshes"
+R, G = 2e-4, 9.81
+SIDE = 1.2e-3  #: half the column's width (m); square.stl scaled by SIDE spans it at z = 3 SIDE
+WEIGHT = 100 * 4 / 3 * np.pi * R**3 * 1000 * G  #: the bed's weight (N): 100 spheres, 1000 kg/m^3
+
+
+def servo_press(engine, output):
+    """100 spheres created at random settle on the floor under a servo plate 4 mm up that moves
+    down at up to 2 cm/s until the bed pushes back with 10 times its weight; returns the mean
+    of 20 readings of the plate's force over the last 2000 steps, how far the bed's top moved
+    meanwhile, the bed's top and the simulation (closed)."""
+    from PyGran.params import cohesionless
+
+    cohesionless["coefficientRestitution"] = 0.5
+    servo = {"com": (0, 0, 4e-3), "ctrlPV": "force", "axis": (0, 0, -1), "target_val": 10 * WEIGHT}
+    params = {
+        "engine": engine,
+        "output": output,
+        "boundary": ("p", "p", "f"),
+        "box": (-SIDE, SIDE, -SIDE, SIDE, -R, 4.5e-3),
+        "species": ({"material": cohesionless, "radius": R},),
+        "gravity": (G, 0, 0, -1),
+        "dt": 2e-6,
+        "traj": {"pfile": None},
+        "mesh": {
+            "plate": {
+                "file": str(MESHES / "square.stl"),
+                "mtype": "mesh/surface/stress/servo",
+                "args": {"scale": SIDE, "move": (0, 0, 4e-3 - 3 * SIDE), **servo, "vel_max": 0.02, "kp": 1},
+            }
+        },
+        "region": ("block", -SIDE, SIDE, -SIDE, SIDE, 0, 3.5e-3),
+        "stages": {"press": 1e5, "read": 2e3},
+    }
+    sim = simulation.DEM(**params)
+    with sim:
+        sim.setupWall(species=1, wtype="primitive", plane="zplane", peq=0.0)
+        assert sim.createParticles(1, "random", 100, region=params["region"]) == 100
+        sim.run(params["stages"]["press"], params["dt"])
+        top = sim.extractCoords()[:, 2].max() + R
+        forces = []
+        for _ in range(20):
+            sim.run(params["stages"]["read"] / 20, params["dt"])
+            forces.append(sim.engine.mesh_force("plate"))
+        now = sim.extractCoords()[:, 2].max() + R
+    return np.mean(forces, axis=0), abs(now - top), now, sim
+
+
+@pytest.fixture(scope="module")
+def pressed(tmp_path_factory):
+    runs = {}
+
+    def run(engine):
+        if engine not in runs:
+            if engine == "liggghts":
+                from pygran_liggghts.library import find_library
+
+                from pygran_core.testing.solvers import require_solver
+
+                require_solver(find_library)
+            runs[engine] = servo_press(engine, str(tmp_path_factory.mktemp(engine) / "out"))
+        return runs[engine]
+
+    return run
+
+
+def test_a_servo_plate_comes_to_rest_at_its_target_force(pressed):
+    """Native: the mean force of the bed on the plate is the target within 5 % (measured:
+    1.00001 times it), the bed's top moves less than 1 % of a radius over the readings, and
+    the plate rests on it (its height within a tenth of a radius of the bed's top)."""
+    force, moved, top, sim = pressed("native")
+    assert force[2] == pytest.approx(10 * WEIGHT, rel=0.05)
+    assert abs(force[0]) + abs(force[1]) < 0.05 * force[2]
+    assert moved < 0.01 * R
+    solver = sim.engine.solver
+    plate = solver.mesh_triangles(sim.engine._mesh_walls["plate"])[:, :, 2]
+    assert np.ptp(plate) < 1e-12  # it moved along its axis only: still flat
+    assert plate.mean() == pytest.approx(top, abs=0.1 * R)
+
+
+def test_native_and_liggghts_agree_on_the_plates_height(pressed):
+    """The same script on both engines: the plate rests on the bed's top at heights within 3 %
+    (measured: 1.082 mm on native, 1.102 mm on LIGGGHTS, 1.8 %; the random beds differ)."""
+    native, liggghts = pressed("native"), pressed("liggghts")
+    assert liggghts[0][2] == pytest.approx(10 * WEIGHT, rel=0.05)
+    assert native[2] == pytest.approx(liggghts[2], rel=0.03)
+
+
+def plate(threads=1, height=1e-3, **servo):
+    """A solver with a square plate (two triangles, 2 mm wide) at ``height`` as a servo
+    along -z (com at its centre)."""
+    solver = Solver(
+        [[-2e-3, -2e-3, 0], [2e-3, 2e-3, 4e-3]], gravity=(0, 0, -9.81), skin=2e-4, threads=threads
+    )
+    solver.set_contact_model("hertz", youngs=1e7, poisson=0.25, restitution=0.5, friction=0.5)
+    corners = np.array(
+        [[-1e-3, -1e-3, height], [1e-3, -1e-3, height], [1e-3, 1e-3, height], [-1e-3, 1e-3, height]]
+    )
+    mesh = solver.add_mesh(corners, [[0, 1, 2], [0, 2, 3]])
+    settings = {
+        "control": "force",
+        "axis": (0, 0, -2),
+        "target": 1e-3,
+        "vel_max": 0.02,
+        "com": (0, 0, height),
+    }
+    solver.set_servo(mesh, **(settings | servo))
+    return solver, mesh
+
+
+def test_the_controller_is_liggghts_pid_law_step_by_step():
+    """A plate touching nothing: the process value is 0, so LIGGGHTS' law gives the speed
+    ``v_max (kp e + ki sum(e dt)) / |target|`` along the axis with ``e = target`` (the set point
+    is -target), saturated at v_max, after which the integral is reset by LIGGGHTS' inverted
+    controller equation ``(-sign(v) sp - e kp) / ki``; the plate moves by dt times the speed of
+    the step before. Compared step by step with that recurrence, to rounding."""
+    dt, vmax, target, kp, ki = 1e-6, 0.02, 1e-3, 0.25, 2e5
+    solver, mesh = plate(kp=kp, ki=ki)
+    sp, z, v, integral = -target, 1e-3, 0.0, 0.0
+    outputs = []
+    for _ in range(12):
+        solver.run(1, dt)
+        z -= dt * v  # moves at the last output first, then the controller runs
+        err = sp - 0.0
+        integral += err * dt
+        v = -vmax * (err * kp + integral * ki) / target
+        if abs(v) > vmax:
+            v = np.sign(v) * vmax
+            integral = (-np.sign(v) * sp - err * kp) / ki
+        state = solver.servo_state(mesh)
+        assert state["velocity"] == pytest.approx([0, 0, -v], rel=1e-12, abs=1e-18)
+        assert state["integral"] == pytest.approx(integral, rel=1e-12)
+        assert state["com"][2] == pytest.approx(z, rel=1e-12)
+        assert solver.mesh_triangles(mesh)[:, :, 2] == pytest.approx(np.full((2, 3), z), rel=1e-12)
+        outputs.append(v)
+    assert max(outputs) == vmax  # saturated at step 4 ...
+    assert min(outputs) < 0  # ... when LIGGGHTS' anti-windup turns a PI servo back: reproduced
+
+
+def test_a_torque_servo_turns_about_its_axis_through_com():
+    """ctrlPV torque: touching nothing, the plate turns about the axis through com at
+    ``kp vel_max / (largest vertex distance from the axis)`` rad/s; its vertices stay at
+    their distance from the axis."""
+    solver, mesh = plate(control="torque", axis=(0, 0, 1), kp=0.5)
+    solver.run(1000, 1e-6)
+    omega = 0.5 * 0.02 / np.sqrt(2e-6)  # the corners are sqrt(2) mm from the axis
+    state = solver.servo_state(mesh)
+    assert state["velocity"] == pytest.approx([0, 0, omega], rel=1e-12)
+    assert state["angle"] == pytest.approx(999 * 1e-6 * omega, rel=1e-9)  # the first step at rest
+    corners = solver.mesh_triangles(mesh).reshape(-1, 3)
+    assert np.hypot(corners[:, 0], corners[:, 1]) == pytest.approx(np.sqrt(2e-6), rel=1e-12)
+    turned = np.arctan2(corners[1, 1], corners[1, 0]) - np.arctan2(-1, 1)
+    assert turned == pytest.approx(state["angle"], rel=1e-9)
+
+
+def test_checkpoints_carry_the_controller_bitwise():
+    """A plate pressing 25 spheres on 2 threads: stopped half-way and resumed from its state in
+    a new solver, it ends bitwise where the uninterrupted run ends (the controller's integral,
+    previous force and position travel with the state)."""
+
+    def start():
+        solver, mesh = plate(threads=2, height=3.03e-4, kp=0.5, ki=10.0, kd=1e-9)
+        solver.add_plane((0, 0, 0), (0, 0, 1))
+        grid = np.stack(np.meshgrid(*[np.arange(-2, 3) * 4e-4] * 2, indexing="ij"), -1).reshape(-1, 2)
+        solver.add_particles(np.column_stack([grid, np.full(len(grid), 1.5e-4)]), 1.5e-4, densities=2500)
+        return solver, mesh
+
+    whole, mesh = start()
+    whole.run(3000, 1e-6)
+    half, _ = start()
+    half.run(1500, 1e-6)
+    resumed, _ = start()
+    resumed.set_state(half.get_state())
+    resumed.run(1500, 1e-6)
+    assert whole.mesh_force(mesh)[0][2] > 0  # pressing
+    for a, b in zip(whole.mesh_force(mesh), resumed.mesh_force(mesh)):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(whole.positions, resumed.positions)
+    assert whole.servo_state(mesh)["integral"] == resumed.servo_state(mesh)["integral"] != 0
+
+
+def test_servo_mistakes_are_config_errors():
+    solver, mesh = plate()
+    with pytest.raises(ConfigError, match="vel_max"):
+        solver.run(1, 1e-2)  # 0.02 m/s x 10 ms is more than half the skin
+    with pytest.raises(ConfigError, match="servo wall"):
+        solver.set_mesh_motion(mesh, velocity=(0, 0, 1))
+    with pytest.raises(ConfigError, match="kp, ki, kd"):
+        plate(kp=0.0)
+    with pytest.raises(ConfigError, match="ratio"):
+        plate(mode="auto")
