@@ -168,10 +168,12 @@ def pygran_engines() -> Iterable[EngineSpec]:
         from pygran_core.hookspecs import EngineSpec
 
         class ToyEngine(Engine):
-            # Particles that fly in straight lines: a complete, if useless, engine.
+            # Particles that fly in straight lines, without contacts: it runs no model's
+            # kernel, so it declares none (tests/plugins/pygran-toy is an engine with
+            # spring-dashpot contacts that declares "spring-dashpot").
 
             name = "toy"
-            capabilities = frozenset({"spring-dashpot", "periodic"})
+            capabilities = frozenset({"periodic"})
 
             def __init__(self, spec):  # spec: pygran_core.simulation.specs.SimulationSpec
                 super().__init__(spec)
@@ -208,7 +210,9 @@ def pygran_models() -> Iterable[ModelSpec]:
         from pygran_core.simulation.models import SpringDashpot
 
         class StiffSpring(SpringDashpot):
-            '''A spring-dashpot with ten times the stiffness.'''
+            '''A spring-dashpot with ten times the stiffness: a reference model for
+            contactTime() and displacement(); it overrides normal_force, so it has no
+            kernel and engines refuse it (see ContactModel.kernel).'''
 
             def normal_force(self, overlap, overlap_rate):
                 return 10 * super().normal_force(overlap, overlap_rate)

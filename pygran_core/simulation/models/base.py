@@ -35,8 +35,10 @@ ROLLING_MODELS: Mapping[str, str] = MappingProxyType(
 )
 
 
-#: The methods that define a model's force law (see :attr:`ContactModel.kernel`).
+#: The methods that define a model's force law (see :attr:`ContactModel.kernel`); ``__init__``
+#: because it may change the coefficients, which engines compute from the materials themselves.
 FORCE_LAW = (
+    "__init__",
     "normal_force",
     "tangential_force",
     "rolling_torque",

@@ -1,14 +1,16 @@
 import numpy as np
 
 from pygran_core import Engine, hookimpl
+from pygran_core.errors import EngineError
 from pygran_core.hookspecs import EngineSpec
 
 
 class BallisticEngine(Engine):
-    """Spheres in free flight under gravity; contacts are ignored."""
+    """Spheres in free flight under gravity. It has no contact forces: it runs the
+    spring-dashpot model only as long as no two spheres touch, and raises when they do."""
 
     name = "ballistic"
-    capabilities = frozenset({"spring-dashpot"})  # accepts the default model (and ignores it)
+    capabilities = frozenset({"spring-dashpot"})  # honoured while nothing touches (see _advance)
 
     def __init__(self, spec):  # spec: pygran_core.simulation.specs.SimulationSpec
         super().__init__(spec)
@@ -29,6 +31,10 @@ class BallisticEngine(Engine):
     def _advance(self, nsteps):  # exact for constant acceleration
         t = nsteps * self.dt
         self.x, self.v = self.x + self.v * t + 0.5 * self.g * t**2, self.v + self.g * t
+        gaps = np.linalg.norm(self.x[:, None] - self.x[None], axis=-1) - (self.r[:, None] + self.r[None])
+        np.fill_diagonal(gaps, np.inf)
+        if (gaps < 0).any():  # checked at the end of each stretch of steps the front end runs
+            raise EngineError(f"ballistic engine: no contact forces, and spheres touch at step {self.step}.")
 
     def _extract(self, quantity):  # per-particle arrays, ordered by id
         n, zeros = len(self.x), np.zeros((len(self.x), 3))
