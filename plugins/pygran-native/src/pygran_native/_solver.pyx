@@ -71,6 +71,8 @@ DEF WRAP = 0x40    # flag bit of nb_s: the partner is across the periodic bounda
 DEF IMAGE = 0x1f   # bits of nb_s: the periodic image code
 DEF NMOT = 14      # motion values per wall element, see motion_origin
 DEF NSLOT = 34     # values per stress mesh (a mesh whose force is summed, maybe a servo), see Slot
+DEF NVIB = 96      # values per vibrating mesh: wall, kind, order, axis (3), then per harmonic (30)
+                   # amplitudes, phases and angular frequencies, see vibration
 DEF SACC = 8       # values per stress mesh in a pair block's sums: force (3), torque (3), contacts
 DEF WROW = 5       # work of a row of the pair loop, a touching pair and a wall entry in units of
 DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
@@ -127,6 +129,7 @@ cdef enum:
 MAX_THREADS = MAXTHREADS
 MOTION_VALUES = NMOT
 SLOT_VALUES = NSLOT
+VIBRATION_VALUES = NVIB
 #: Where :meth:`Core.take_lost` counts lost particles: the faces of the box, then non-finite.
 LOST_PLACES = ("x-", "x+", "y-", "y+", "z-", "z+", "non-finite")
 
@@ -266,6 +269,8 @@ cdef struct Ctx:
     int *ewall
     int nslots
     double *slots
+    int nvib
+    double *vib
     double *sacc
     Coef *coef
     double *visc
@@ -639,6 +644,31 @@ cdef inline void motion_origin(const double* mot, double tau, double* o, double*
         vo[k] = mot[k] + mot[10 + k] * cw
 
 
+cdef inline const double* vibration_of(const double* vib, int nvib, int wall) noexcept nogil:
+    """The vibration of a wall (its row of ``vib``), NULL for none."""
+    cdef int k
+    for k in range(nvib):
+        if vib[NVIB * k] == wall:
+            return &vib[NVIB * k]
+    return NULL
+
+
+cdef inline void vibration(const double* row, double tau, double* s, double* ds) noexcept nogil:
+    """Displacement along the axis (viblin, m) or angle about it (vibrot, rad) ``tau`` after
+    the motion started, and its rate: LIGGGHTS' ``move/mesh viblin`` and ``vibrot``, whose rate
+    is ``-sum_j A_j w_j sin(w_j tau + phi_j)``, in closed form
+    ``s = sum_j A_j (cos(w_j tau + phi_j) - cos(phi_j))``. ``row``: wall, kind (1 viblin, 2
+    vibrot), order, axis (3), amplitudes A, phases phi and angular frequencies w (30 each)."""
+    cdef int j
+    cdef double a
+    s[0] = 0.0
+    ds[0] = 0.0
+    for j in range(<int>row[2]):
+        a = row[66 + j] * tau + row[36 + j]
+        s[0] += row[6 + j] * (cos(a) - cos(row[36 + j]))
+        ds[0] -= row[6 + j] * row[66 + j] * sin(a)
+
+
 cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogil:
     """Rotation matrix (row major) of angle |w| tau about w (Rodrigues)."""
     cdef double wm = sqrt(dot3(w, w)), th, c, s, k0, k1, k2, C
@@ -963,8 +993,9 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
     cdef double rel[3]
     cdef const double* mot
     cdef const double* sl = NULL
+    cdef const double* vb
     cdef int k, res, slot = slot_of(c, e) if q != NULL else -1
-    cdef double ri = c.r[i]
+    cdef double ri = c.r[i], sv, dsv
     for k in range(3):
         vw[k] = 0.0
     if slot >= 0:
@@ -984,6 +1015,18 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
         cross3(&mot[3], rel, vw)
         for k in range(3):
             vw[k] += vo[k]
+        vb = vibration_of(c.vib, c.nvib, c.ewall[e]) if c.nvib else NULL
+        if vb != NULL:   # along the axis, or about it through the origin
+            vibration(vb, c.time - mot[9], &sv, &dsv)
+            for k in range(3):
+                o[k] = dsv * vb[3 + k]
+            if vb[1] == 1.0:
+                for k in range(3):
+                    vw[k] += o[k]
+            else:
+                cross3(o, rel, vo)
+                for k in range(3):
+                    vw[k] += vo[k]
     for k in range(3):
         vr[k] = c.v[3 * i + k] - vw[k]
         rw[k] = ri * c.w[3 * i + k]
@@ -1279,6 +1322,8 @@ cdef class Core:
     cdef public int nslots  # stress meshes (see Slot)
     cdef double *slots      # NSLOT per stress mesh
     cdef double *sacc       # the pair blocks' sums over stress meshes: SACC per mesh per block
+    cdef public int nvib    # vibrating meshes (viblin, vibrot)
+    cdef double *vib        # NVIB per vibrating mesh, see vibration
     # contact tables
     cdef Coef *coef
     cdef double *visc
@@ -1348,7 +1393,7 @@ cdef class Core:
                   <size_t>self.cell_start, <size_t>self.ctri_start, <size_t>self.ctri, <size_t>self.ekind,
                   <size_t>self.etype, <size_t>self.ewall, <size_t>self.evid, <size_t>self.emoving,
                   <size_t>self.egeo, <size_t>self.eref, <size_t>self.ebuilt, <size_t>self.emot,
-                  <size_t>self.slots, <size_t>self.sacc,
+                  <size_t>self.slots, <size_t>self.sacc, <size_t>self.vib,
                   <size_t>self.coef, <size_t>self.visc, <size_t>self.tmax,
                   <size_t>self.pb, <size_t>self.work, <size_t>self.tstat, <size_t>self.cpu):
             free(<void*>p)
@@ -1606,6 +1651,7 @@ cdef class Core:
         self.dirty = 1
         self.binned_dirty = 1
         self.set_slots(np.array([v for v in self.get_slots() if v[S_WALL] != wall]).reshape(-1, NSLOT))
+        self.set_vibrations(np.array([v for v in self.get_vibrations() if v[0] != wall]).reshape(-1, NVIB))
 
     def set_motion(self, int wall, double[::1] vel, double[::1] omega, double[::1] origin,
                    double[::1] amplitude, double period):
@@ -1628,6 +1674,29 @@ cdef class Core:
             self.emot[NMOT * e + 9] = self.time
             self.emot[NMOT * e + 13] = period
             self.emoving[e] = moving
+        self.dirty = 1
+        self.binned_dirty = 1
+
+    def get_vibrations(self):
+        """The vibrating meshes' values, (nvib, NVIB) (see vibration)."""
+        return _copy_d(self.vib, NVIB * self.nvib).reshape(self.nvib, NVIB)
+
+    def set_vibrations(self, double[:, ::1] values):
+        """Replace the vibrating meshes' values; their triangles vibrate about their positions
+        at the start of their motion (set_motion, with no other motion)."""
+        cdef int k = values.shape[0], e, s
+        cdef void* q = malloc(max(k, 1) * NVIB * sizeof(double))
+        if q == NULL:
+            raise MemoryError()
+        if k:
+            memcpy(q, &values[0, 0], k * NVIB * sizeof(double))
+        free(self.vib)
+        self.vib = <double*>q
+        self.nvib = k
+        for s in range(k):
+            for e in range(self.ne):
+                if self.ewall[e] == <int>self.vib[NVIB * s] and self.ekind[e] == TRIANGLE:
+                    self.emoving[e] = 1
         self.dirty = 1
         self.binned_dirty = 1
 
@@ -1868,6 +1937,8 @@ cdef class Core:
         c.nslots = self.nslots
         c.slots = self.slots
         c.sacc = self.sacc
+        c.nvib = self.nvib
+        c.vib = self.vib
         c.coef = self.coef
         c.visc = self.visc
         c.cpu = self.cpu
@@ -2114,6 +2185,8 @@ cdef class Core:
         cdef double* ref
         cdef double* cur
         cdef double* sl
+        cdef const double* vb
+        cdef double sv, dsv
         memset(o, 0, 3 * sizeof(double))   # set at each wall's first element
         memset(o0, 0, 3 * sizeof(double))
         for e in range(self.ne):
@@ -2137,6 +2210,14 @@ cdef class Core:
                     rotation(&mot[3], self.time - mot[9], Rm)
                     for d in range(3):
                         o0[d] = mot[6 + d]
+                    vb = vibration_of(self.vib, self.nvib, last) if self.nvib else NULL
+                    if vb != NULL:   # viblin: the origin moves along the axis; vibrot: turns about it
+                        vibration(vb, self.time - mot[9], &sv, &dsv)
+                        if vb[1] == 1.0:
+                            for d in range(3):
+                                o[d] += sv * vb[3 + d]
+                        else:
+                            rotation(&vb[3], sv, Rm)
             for k in range(3):
                 ref = &self.eref[9 * e + 3 * k]
                 cur = &self.egeo[9 * e + 3 * k]
@@ -2601,6 +2682,7 @@ cdef class Core:
             "eref": _copy_d(self.eref, 9 * ne), "ebuilt": _copy_d(self.ebuilt, 9 * ne),
             "emot": _copy_d(self.emot, NMOT * ne), "visc": _copy_d(self.visc, self.ntypes),
             "slots": _copy_d(self.slots, NSLOT * self.nslots),
+            "vib": _copy_d(self.vib, NVIB * self.nvib),
             "scalars": np.array([self.time, self.t_base, self.dt_base, self.lost_speed], dtype=float),
             "lost": np.array([self.lost_at[k] for k in range(7)], dtype=np.int64),
             "counters": np.array([self.step, self.lost, self.rebuilds, self.dirty, self.step_base],
@@ -2629,6 +2711,7 @@ cdef class Core:
         _put_d(self.emot, state["emot"], NMOT * ne)
         _put_i(self.emoving, state["emoving"], ne)
         self.set_slots(np.ascontiguousarray(state["slots"], dtype=float).reshape(-1, NSLOT))
+        self.set_vibrations(np.ascontiguousarray(state["vib"], dtype=float).reshape(-1, NVIB))
         for name, ptr, k in (("x", <size_t>self.x, 3 * n), ("v", <size_t>self.v, 3 * n),
                              ("w", <size_t>self.w, 3 * n), ("f", <size_t>self.f, 3 * n),
                              ("t", <size_t>self.t, 3 * n), ("x0", <size_t>self.x0, 3 * n),

@@ -42,6 +42,7 @@ class NativeEngine(PlacingEngine):
             "primitive-walls",
             "mesh-walls",
             "moving-mesh",
+            "mesh-vibration",
             "servo-walls",
             "polydisperse",
             "insert-by-rate",
@@ -219,6 +220,10 @@ class NativeEngine(PlacingEngine):
             )
         elif spec.kind == "wiggle":
             self.solver.set_mesh_motion(wall, amplitude=spec.amplitude, period=spec.period)
+        elif spec.kind in ("viblin", "vibrot"):
+            self.solver.set_mesh_vibration(
+                wall, spec.kind, spec.axis, spec.amplitudes, spec.phases, spec.periods, spec.origin
+            )
         else:
             self.solver.set_mesh_motion(wall, velocity=spec.velocity)
         label = self._label("motion")

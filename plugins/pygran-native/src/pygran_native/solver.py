@@ -31,7 +31,8 @@ Conventions (LIGGGHTS):
   to the side its centre was on when the contact began, even if a deeply plastic contact
   lets the centre sink past the plane), cylinders (inside or outside), and triangle meshes
   (two-sided; face, edge and vertex contacts, a shared edge or vertex counted once) with
-  rigid motion: translation, rotation and wiggle, or a servo's (LIGGGHTS
+  rigid motion: translation, rotation, wiggle, LIGGGHTS' viblin and vibrot
+  (:meth:`Solver.set_mesh_vibration`), or a servo's (LIGGGHTS
   ``mesh/surface/stress/servo``, :meth:`Solver.set_servo`). The particles' force on a stress
   or servo mesh is summed at each step (:meth:`Solver.mesh_force`). Meshes are not repeated
   across periodic boundaries.
@@ -49,7 +50,14 @@ import numpy as np
 from pygran_core.errors import ConfigError, ReadError
 from pygran_core.simulation.models import mixing
 from pygran_native import _kernels
-from pygran_native._solver import LOST_PLACES, MAX_THREADS, MOTION_VALUES, SLOT_VALUES, Core
+from pygran_native._solver import (
+    LOST_PLACES,
+    MAX_THREADS,
+    MOTION_VALUES,
+    SLOT_VALUES,
+    VIBRATION_VALUES,
+    Core,
+)
 
 __all__ = ["Solver", "default_threads"]
 
@@ -84,6 +92,9 @@ _SLOT = {
     "contacts": 33,
 }
 _CONTROLS = ("stress", "force", "torque")
+#: Vibrations (LIGGGHTS move/mesh viblin, vibrot): their kinds, and their harmonics at most.
+_VIBRATIONS = ("viblin", "vibrot")
+_HARMONICS = 30
 #: The contact-model settings a checkpoint stores (the arguments of Solver.set_contact_model).
 _MODEL_KEYS = (
     "youngs",
@@ -496,6 +507,7 @@ class Solver:
             raise ConfigError(f"period: must be > 0, got {period!r}.")
         if np.any(amplitude != 0) and period is None:
             raise ConfigError("period: a wiggle amplitude needs a period.")
+        self._set_vibration(mesh, None)
         self._core.set_motion(
             mesh,
             _array(velocity, "velocity", (3,)),
@@ -615,6 +627,50 @@ class Solver:
             "integral": float(row[_SLOT["integral"]]),
             "previous": float(row[_SLOT["previous"]]),
         }
+
+    def set_mesh_vibration(
+        self, mesh: int, kind: str, axis, amplitudes, phases, periods, origin=(0.0, 0.0, 0.0)
+    ) -> None:
+        """Vibration of a mesh from now on (time ``t0``), replacing any earlier motion: LIGGGHTS'
+        ``move/mesh viblin`` (``kind='viblin'``, along the unit ``axis``) or ``vibrot`` (about
+        ``axis`` through ``origin``) of order ``n = len(amplitudes)``: velocity (m/s, or angular
+        velocity in rad/s) ``-sum_j A_j w_j sin(w_j (t - t0) + phi_j)``, ``w_j = 2 pi / T_j``,
+        with amplitudes ``A_j`` (m or rad), ``phases`` ``phi_j`` (rad) and ``periods`` ``T_j``
+        (s). Positions come from the closed form ``sum_j A_j (cos(w_j (t - t0) + phi_j) -
+        cos(phi_j))``, so nothing drifts."""
+        if self._walls.get(mesh) != "mesh":
+            raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
+        if kind not in _VIBRATIONS:
+            raise ConfigError(f"kind: 'viblin' or 'vibrot', got {kind!r}.")
+        slot = self._slot(mesh)
+        if slot is not None and slot[_SLOT["control"]] != 0:
+            raise ConfigError(f"mesh: {mesh!r} is a servo wall, which its controller moves.")
+        direction = _array(axis, "axis", (3,))
+        if not np.any(direction != 0):
+            raise ConfigError("axis: must not be zero.")
+        amp = _array(np.atleast_1d(amplitudes), "amplitudes", (-1,))
+        order = amp.shape[0]
+        if not 1 <= order <= _HARMONICS:
+            raise ConfigError(f"amplitudes: 1 to {_HARMONICS} harmonics, got {order}.")
+        phase = _array(np.atleast_1d(phases), "phases", (order,))
+        period = _array(np.atleast_1d(periods), "periods", (order,))
+        if np.any(period <= 0):
+            raise ConfigError(f"periods: must be > 0, got {period.tolist()}.")
+        row = np.zeros(VIBRATION_VALUES)
+        row[:3] = mesh, 1 + _VIBRATIONS.index(kind), order
+        row[3:6] = direction / np.linalg.norm(direction)
+        row[6 : 6 + order] = amp
+        row[6 + _HARMONICS : 6 + _HARMONICS + order] = phase
+        row[6 + 2 * _HARMONICS : 6 + 2 * _HARMONICS + order] = 2 * np.pi / period
+        zero = np.zeros(3)
+        self._set_vibration(mesh, None)
+        self._core.set_motion(mesh, zero, zero, _array(origin, "origin", (3,)), zero, 0.0)
+        self._set_vibration(mesh, row)
+
+    def _set_vibration(self, mesh: int, row: np.ndarray | None) -> None:
+        """Replace the vibration of a mesh by ``row`` (None: no vibration)."""
+        rows = [r for r in self._core.get_vibrations() if r[0] != mesh] + ([] if row is None else [row])
+        self._core.set_vibrations(np.ascontiguousarray(np.reshape(rows, (-1, VIBRATION_VALUES))))
 
     def remove_wall(self, wall: int) -> None:
         """Delete a plane, cylinder or mesh (its contact histories go with it)."""
@@ -984,6 +1040,22 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
         (rows[:, _SLOT["control"]] > 0) & (rows[:, _SLOT["set_point"]] == 0)
     ):
         raise _fail("core_slots", "lever arms > 0 and servo set points != 0", "others")
+    if "core_vib" not in state:  # nor vibrating ones
+        state = {**state, "core_vib": np.zeros(0)}
+    vib = out["vib"] = get("vib", float)
+    if vib.shape[0] % VIBRATION_VALUES:
+        raise _fail("core_vib", f"{VIBRATION_VALUES} values per vibrating mesh", vib.shape[0])
+    _within("core_vib", vib, -np.inf, np.inf, "finite values")
+    rows = vib.reshape(-1, VIBRATION_VALUES)
+    if (
+        not all(walls.get(int(w)) == "mesh" and w == int(w) for w in rows[:, 0])
+        or len(set(rows[:, 0])) != len(rows)
+        or not np.all(np.isin(rows[:, 1], (1.0, 2.0)))
+        or not np.all(np.isin(rows[:, 2], np.arange(1, _HARMONICS + 1)))
+    ):
+        raise _fail(
+            "core_vib", "one row per vibrating mesh: its wall, kind 1 or 2, 1 to 30 harmonics", "others"
+        )
     if n and next_id <= ids.max() or ne and next_vertex <= out["evid"].max():
         raise _fail("counters", "next particle id and vertex beyond those in use", [next_id, next_vertex])
     try:
