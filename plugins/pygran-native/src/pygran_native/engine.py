@@ -43,6 +43,7 @@ class NativeEngine(PlacingEngine):
             "mesh-walls",
             "moving-mesh",
             "mesh-vibration",
+            "monitor-species",
             "servo-walls",
             "polydisperse",
             "insert-by-rate",
