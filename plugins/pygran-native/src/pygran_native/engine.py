@@ -17,7 +17,7 @@ from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
-from pygran_core.simulation.specs import SimulationSpec
+from pygran_core.simulation.specs import SimulationSpec, given
 from pygran_native.solver import Solver
 
 #: Contact-model kernel (``ContactModel.kernel``) -> the solver's force law.
@@ -54,6 +54,7 @@ class NativeEngine(PlacingEngine):
 
     def __init__(self, spec: SimulationSpec) -> None:
         super().__init__(spec)  # refuses a model whose kernel is not among the capabilities
+        self._law = SOLVER_LAW[given(spec.model.kernel, f"the {spec.model.__name__} model's kernel")]
         gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
         self.solver = Solver(
             np.array(spec.domain.box).T, spec.domain.periodic, gravity, spec.skin, spec.threads, spec.seed
@@ -62,7 +63,7 @@ class NativeEngine(PlacingEngine):
         materials = [s.material for s in spec.species] + [
             m.material or spec.species[0].material for m in spec.meshes
         ]
-        self.solver.set_contact_model(SOLVER_LAW[spec.model.kernel], **self._material_arrays(materials))
+        self.solver.set_contact_model(self._law, **self._material_arrays(materials))
         self._walls: dict[str, int] = {}
         self._planes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._mesh_walls: dict[str, int] = {}
@@ -85,7 +86,7 @@ class NativeEngine(PlacingEngine):
                 )
 
     def _material_arrays(self, materials: list[Any]) -> dict[str, Any]:
-        kind = SOLVER_LAW[self.spec.model.kernel]
+        kind = self._law
 
         def column(key: str, default: float | None) -> np.ndarray:
             values = [m.get(key, default) for m in materials]
@@ -159,18 +160,22 @@ class NativeEngine(PlacingEngine):
     def _wall(self, spec: WallSpec) -> str:
         label = self._label("wall")
         if spec.kind == "plane":
-            axis = "xyz".index(spec.plane[0])
+            axis = "xyz".index(given(spec.plane, "a plane wall's plane")[0])
+            peq = given(spec.peq, "a plane wall's position peq")
             lo, hi = self.spec.domain.box[axis]
             normal = np.zeros(3)
-            normal[axis] = 1.0 if spec.peq - lo <= hi - spec.peq else -1.0
+            normal[axis] = 1.0 if peq - lo <= hi - peq else -1.0
             point = np.zeros(3)
-            point[axis] = spec.peq
+            point[axis] = peq
             wall = self.solver.add_plane(point, normal, spec.species - 1)
             self._planes[wall] = (point, normal)
             self._walls[label] = wall
         elif spec.kind == "cylinder":
             self._walls[label] = self.solver.add_cylinder(
-                spec.axis, spec.centre, spec.radius, spec.species - 1
+                given(spec.axis, "a cylinder wall's axis"),
+                given(spec.centre, "a cylinder wall's centre"),
+                given(spec.radius, "a cylinder wall's radius"),
+                spec.species - 1,
             )
         else:
             mesh = next(m for m in self.spec.meshes if m.name == spec.mesh)
@@ -271,8 +276,9 @@ class NativeEngine(PlacingEngine):
                 f"servo mesh {idle[0]!r} must be a wall while the simulation runs (its controller moves "
                 f"it by the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
             )
-        self._check_servo_speeds(self.dt)
-        self.solver.run(nsteps, self.dt)
+        dt = given(self.dt, "the time step")  # run() refuses to start without one
+        self._check_servo_speeds(dt)
+        self.solver.run(nsteps, dt)
 
     def mesh_force(self, name: str) -> np.ndarray:
         """The force (N, x y z) the particles exert on mesh ``name`` at the last step (``mtype``

@@ -67,30 +67,35 @@ _HISTORY = {"hooke": 4, "hertz": 4, "thornton-ning": 7}
 #: torque: 3 more history values per contact.
 _ROLLING = {"cdt": 0, "epsd": 1, "epsd2": 2}
 _WALL_KINDS = ("plane", "cylinder", "mesh")
-#: Where a stress mesh's values lie in its row of Core.get_slots() (the Slot enum of _solver.pyx).
-_SLOT = {
-    "wall": 0,
-    "control": 1,
-    "auto": 2,
-    "set_point": 3,
-    "vel_max": 4,
-    "kp": 5,
-    "ki": 6,
-    "kd": 7,
-    "ratio": 8,
-    "output_max": 9,
-    "arm": 10,
-    "axis": slice(12, 15),
-    "com": slice(15, 18),
-    "com0": slice(18, 21),
-    "velocity": slice(21, 24),
-    "angle": 24,
-    "integral": 25,
-    "previous": 26,
-    "force": slice(27, 30),
-    "torque": slice(30, 33),
-    "contacts": 33,
-}
+
+
+class _S:
+    """Where a stress mesh's values lie in its row of ``Core.get_slots()`` (the Slot enum of
+    _solver.pyx)."""
+
+    WALL = 0
+    CONTROL = 1
+    AUTO = 2
+    SET_POINT = 3
+    VEL_MAX = 4
+    KP = 5
+    KI = 6
+    KD = 7
+    RATIO = 8
+    OUTPUT_MAX = 9
+    ARM = 10
+    AXIS = slice(12, 15)
+    COM = slice(15, 18)
+    COM0 = slice(18, 21)
+    VELOCITY = slice(21, 24)
+    ANGLE = 24
+    INTEGRAL = 25
+    PREVIOUS = 26
+    FORCE = slice(27, 30)
+    TORQUE = slice(30, 33)
+    CONTACTS = 33
+
+
 _CONTROLS = ("stress", "force", "torque")
 #: Vibrations (LIGGGHTS move/mesh viblin, vibrot): their kinds, and their harmonics at most.
 _VIBRATIONS = ("viblin", "vibrot")
@@ -500,7 +505,8 @@ class Solver:
         """
         if self._walls.get(mesh) != "mesh":
             raise ConfigError(f"mesh: {mesh!r} is not a mesh of this solver.")
-        if self._slot(mesh) is not None and self._slot(mesh)[_SLOT["control"]] != 0:
+        slot = self._slot(mesh)
+        if slot is not None and slot[_S.CONTROL] != 0:
             raise ConfigError(f"mesh: {mesh!r} is a servo wall, which its controller moves.")
         amplitude = _array(amplitude, "amplitude", (3,))
         if period is not None and not (math.isfinite(period) and period > 0):
@@ -518,12 +524,12 @@ class Solver:
         )
 
     def _slot(self, mesh: int) -> np.ndarray | None:
-        """The stress values of a mesh (see _SLOT), None if its force is not summed."""
-        rows = [row for row in self._core.get_slots() if row[_SLOT["wall"]] == mesh]
+        """The stress values of a mesh (see _S), None if its force is not summed."""
+        rows = [row for row in self._core.get_slots() if row[_S.WALL] == mesh]
         return rows[0] if rows else None
 
     def _put_slot(self, row: np.ndarray) -> None:
-        slots = [r for r in self._core.get_slots() if r[_SLOT["wall"]] != row[_SLOT["wall"]]]
+        slots = [r for r in self._core.get_slots() if r[_S.WALL] != row[_S.WALL]]
         self._core.set_slots(np.ascontiguousarray(np.reshape([*slots, row], (-1, SLOT_VALUES))))
 
     def set_stress(self, mesh: int, reference=(0.0, 0.0, 0.0)) -> None:
@@ -534,9 +540,9 @@ class Solver:
         if self._slot(mesh) is not None:
             raise ConfigError(f"mesh: the force on mesh {mesh!r} is summed already.")
         row = np.zeros(SLOT_VALUES)
-        row[_SLOT["wall"]] = mesh
-        row[_SLOT["com"]] = row[_SLOT["com0"]] = _array(reference, "reference", (3,))
-        row[_SLOT["arm"]] = 1.0
+        row[_S.WALL] = mesh
+        row[_S.COM] = row[_S.COM0] = _array(reference, "reference", (3,))
+        row[_S.ARM] = 1.0
         self._put_slot(row)
 
     def set_servo(
@@ -593,17 +599,17 @@ class Solver:
             if arm == 0:
                 raise ConfigError("com, axis: every vertex of the mesh lies on the servo's axis.")
         row = np.zeros(SLOT_VALUES)
-        row[_SLOT["wall"]] = mesh
-        row[_SLOT["control"]] = _CONTROLS.index(control)
-        row[_SLOT["auto"]] = mode == "auto"
-        row[_SLOT["set_point"]] = -target  # LIGGGHTS: the particles' force acts against the push
-        row[_SLOT["vel_max"]] = vel_max
-        row[_SLOT["kp"]], row[_SLOT["ki"]], row[_SLOT["kd"]] = kp, ki, kd
-        row[_SLOT["ratio"]] = ratio or 0.0
-        row[_SLOT["arm"]] = arm
-        row[_SLOT["output_max"]] = vel_max / arm
-        row[_SLOT["axis"]] = direction
-        row[_SLOT["com"]] = row[_SLOT["com0"]] = centre
+        row[_S.WALL] = mesh
+        row[_S.CONTROL] = _CONTROLS.index(control)
+        row[_S.AUTO] = mode == "auto"
+        row[_S.SET_POINT] = -target  # LIGGGHTS: the particles' force acts against the push
+        row[_S.VEL_MAX] = vel_max
+        row[_S.KP], row[_S.KI], row[_S.KD] = kp, ki, kd
+        row[_S.RATIO] = ratio or 0.0
+        row[_S.ARM] = arm
+        row[_S.OUTPUT_MAX] = vel_max / arm
+        row[_S.AXIS] = direction
+        row[_S.COM] = row[_S.COM0] = centre
         self._put_slot(row)
 
     def mesh_force(self, mesh: int) -> tuple[np.ndarray, np.ndarray]:
@@ -612,20 +618,20 @@ class Solver:
         row = self._slot(mesh)
         if row is None:
             raise ConfigError(f"mesh: {mesh!r} is not a stress or servo mesh of this solver (set_stress).")
-        return row[_SLOT["force"]].copy(), row[_SLOT["torque"]].copy()
+        return row[_S.FORCE].copy(), row[_S.TORQUE].copy()
 
     def servo_state(self, mesh: int) -> dict[str, float | np.ndarray]:
         """A servo's controller: its ``com`` (m), turned ``angle`` (rad), output ``velocity``
         (m/s or rad/s, a vector), error ``integral`` and ``previous`` process value."""
         row = self._slot(mesh)
-        if row is None or row[_SLOT["control"]] == 0:
+        if row is None or row[_S.CONTROL] == 0:
             raise ConfigError(f"mesh: {mesh!r} is not a servo mesh of this solver (set_servo).")
         return {
-            "com": row[_SLOT["com"]].copy(),
-            "angle": float(row[_SLOT["angle"]]),
-            "velocity": row[_SLOT["velocity"]].copy(),
-            "integral": float(row[_SLOT["integral"]]),
-            "previous": float(row[_SLOT["previous"]]),
+            "com": row[_S.COM].copy(),
+            "angle": float(row[_S.ANGLE]),
+            "velocity": row[_S.VELOCITY].copy(),
+            "integral": float(row[_S.INTEGRAL]),
+            "previous": float(row[_S.PREVIOUS]),
         }
 
     def set_mesh_vibration(
@@ -643,7 +649,7 @@ class Solver:
         if kind not in _VIBRATIONS:
             raise ConfigError(f"kind: 'viblin' or 'vibrot', got {kind!r}.")
         slot = self._slot(mesh)
-        if slot is not None and slot[_SLOT["control"]] != 0:
+        if slot is not None and slot[_S.CONTROL] != 0:
             raise ConfigError(f"mesh: {mesh!r} is a servo wall, which its controller moves.")
         direction = _array(axis, "axis", (3,))
         if not np.any(direction != 0):
@@ -702,9 +708,9 @@ class Solver:
         if self._model is None:
             raise ConfigError("set_contact_model must be called before run.")
         for row in self._core.get_slots():
-            if row[_SLOT["control"]] and not row[_SLOT["vel_max"]] < self._core.skin / (2 * dt):
+            if row[_S.CONTROL] and not row[_S.VEL_MAX] < self._core.skin / (2 * dt):
                 raise ConfigError(
-                    f"vel_max: a servo's {row[_SLOT['vel_max']]:g} m/s must be below skin / (2 dt) = "
+                    f"vel_max: a servo's {row[_S.VEL_MAX]:g} m/s must be below skin / (2 dt) = "
                     f"{self._core.skin / (2 * dt):g} m/s (as LIGGGHTS: it moves at most half the skin "
                     "per step); lower it or dt, or raise the skin."
                 )
@@ -916,7 +922,8 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
         tables, model = _model_tables(kind, rolling=rolling, **settings)
     except ConfigError as exc:  # "poisson: expected ..."
         name, _, problem = str(exc).partition(": ")
-        types = np.size(settings["youngs"])
+        youngs = settings["youngs"]
+        types = 0 if youngs is None else np.size(youngs)
         raise ReadError(
             f"checkpoint state entry 'model_{name}': {problem} (model_youngs gives {types} types)"
         ) from None
@@ -1031,14 +1038,12 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
         raise _fail("core_slots", f"{SLOT_VALUES} values per stress mesh", slots.shape[0])
     _within("core_slots", slots, -np.inf, np.inf, "finite values")
     rows = slots.reshape(-1, SLOT_VALUES)
-    meshes = [walls.get(int(w)) == "mesh" and w == int(w) for w in rows[:, _SLOT["wall"]]]
-    if not all(meshes) or len(set(rows[:, _SLOT["wall"]])) != len(rows):
+    meshes = [walls.get(int(w)) == "mesh" and w == int(w) for w in rows[:, _S.WALL]]
+    if not all(meshes) or len(set(rows[:, _S.WALL])) != len(rows):
         raise _fail("core_slots", "one row per stress mesh, each naming a mesh wall", "others")
-    if not np.all(np.isin(rows[:, _SLOT["control"]], (0.0, 1.0, 2.0))):
+    if not np.all(np.isin(rows[:, _S.CONTROL], (0.0, 1.0, 2.0))):
         raise _fail("core_slots", "controls 0 (stress), 1 (force) or 2 (torque)", "others")
-    if np.any(rows[:, _SLOT["arm"]] <= 0) or np.any(
-        (rows[:, _SLOT["control"]] > 0) & (rows[:, _SLOT["set_point"]] == 0)
-    ):
+    if np.any(rows[:, _S.ARM] <= 0) or np.any((rows[:, _S.CONTROL] > 0) & (rows[:, _S.SET_POINT] == 0)):
         raise _fail("core_slots", "lever arms > 0 and servo set points != 0", "others")
     if "core_vib" not in state:  # nor vibrating ones
         state = {**state, "core_vib": np.zeros(0)}

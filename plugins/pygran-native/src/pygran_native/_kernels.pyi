@@ -1,0 +1,3 @@
+"""Type stub of the compiled module ``_kernels`` (see _kernels.pyx)."""
+
+def openmp_threads() -> int: ...

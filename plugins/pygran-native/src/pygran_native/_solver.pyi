@@ -1,0 +1,98 @@
+"""Type stub of the compiled module ``_solver`` (see _solver.pyx for the layout and rules)."""
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+MAX_THREADS: int
+MOTION_VALUES: int
+SLOT_VALUES: int
+VIBRATION_VALUES: int
+LOST_PLACES: tuple[str, ...]
+TIMERS: tuple[str, ...]
+
+class Core:
+    n: int
+    cap: int
+    nthreads: int
+    hs: int
+    model: int
+    rolling: int
+    roff: int
+    ntypes: int
+    dirty: int
+    time: float
+    skin: float
+    step: int
+    lost: int
+    rebuilds: int
+    ne: int
+    nslots: int
+    nvib: int
+    def __init__(
+        self,
+        lo: Sequence[float] | np.ndarray,
+        hi: Sequence[float] | np.ndarray,
+        periodic: Sequence[bool],
+        gravity: Sequence[float] | np.ndarray,
+        skin: float,
+        threads: int,
+    ) -> None: ...
+    def set_model(
+        self,
+        model: int,
+        hs: int,
+        rolling: int,
+        limit: bool,
+        E: np.ndarray,
+        G: np.ndarray,
+        mu: np.ndarray,
+        mur: np.ndarray,
+        damp: np.ndarray,
+        coh: np.ndarray,
+        py: np.ndarray,
+        rdamp: np.ndarray,
+        vchar: float,
+    ) -> None: ...
+    def set_viscous(self, gamma: np.ndarray) -> None: ...
+    def add_particles(
+        self,
+        x: np.ndarray,
+        r: np.ndarray,
+        m: np.ndarray,
+        typ: np.ndarray,
+        v: np.ndarray,
+        w: np.ndarray,
+        ids: np.ndarray,
+    ) -> None: ...
+    def mark_removed(self, mask: np.ndarray) -> None: ...
+    def set_vectors(self, name: str, index: np.ndarray, values: np.ndarray) -> None: ...
+    def set_radii(self, index: np.ndarray, r: np.ndarray, m: np.ndarray) -> None: ...
+    def add_elements(
+        self, kind: np.ndarray, etype: np.ndarray, wall: np.ndarray, geo: np.ndarray, vid: np.ndarray
+    ) -> None: ...
+    def remove_elements(self, wall: int) -> None: ...
+    def set_motion(
+        self,
+        wall: int,
+        vel: np.ndarray,
+        omega: np.ndarray,
+        origin: np.ndarray,
+        amplitude: np.ndarray,
+        period: float,
+    ) -> None: ...
+    def get_vibrations(self) -> np.ndarray: ...
+    def set_vibrations(self, values: np.ndarray) -> None: ...
+    def get_slots(self) -> np.ndarray: ...
+    def set_slots(self, values: np.ndarray) -> None: ...
+    def take_lost(self) -> tuple[np.ndarray, float]: ...
+    def run(self, nsteps: int, dt: float) -> None: ...
+    def array(self, name: str) -> np.ndarray: ...
+    def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+    def timings(self) -> dict[str, Any]: ...
+    def pair_count(self) -> tuple[int, int]: ...
+    def memory_bytes(self) -> int: ...
+    def elements(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+    def get_state(self) -> dict[str, np.ndarray]: ...
+    def set_state(self, state: Mapping[str, np.ndarray]) -> None: ...
