@@ -197,9 +197,9 @@ def _model_tables(
             raise ConfigError(f"restitution: required by the {kind} model.")
         e = per_type(restitution, "restitution", lambda a: (a > 0) & (a <= 1))
         py = np.zeros(nt)
-        log_e = np.log(mixing.pair_table(mixing.pair_restitution, e))
-        beta = log_e / np.hypot(log_e, np.pi)
-        damp = (-2 * math.sqrt(5 / 6) if kind == "hertz" else -2.0) * beta
+        # LIGGGHTS' beta is -zeta
+        zeta = np.asarray(mixing.damping_ratio(mixing.pair_table(mixing.pair_restitution, e)), float)
+        damp = (2 * math.sqrt(5 / 6) if kind == "hertz" else 2.0) * zeta
         if kind == "hooke":
             if characteristic_velocity is None or not characteristic_velocity > 0:
                 raise ConfigError("characteristic_velocity: the hooke model needs a value > 0.")
