@@ -64,6 +64,24 @@ def test_flat_mesh_counts_shared_edges_and_vertices_once(where):
     np.testing.assert_allclose(s.forces[0], [0, 0, wall_force()], rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.parametrize(
+    "where", [(2e-5, 1e-5), (3e-5, 0.0), (0.0, 0.0)], ids=["near-centre", "on-a-spoke", "centre"]
+)
+def test_flat_fan_of_triangles_around_a_sphere_gives_one_contact(where):
+    """Eight triangles meeting at the origin (like a meshed square's centre): a sphere near the
+    centre reaches all of them, with closest points on edges of triangles not sharing an edge
+    with the one under it; the flat surface still pushes once, as the plane."""
+    angles = np.arange(8) * np.pi / 4
+    rim = np.column_stack([np.cos(angles), np.sin(angles), np.zeros(8)]) * 1e-3
+    vertices = np.vstack([[0, 0, 0], rim])
+    triangles = [[0, 1 + k, 1 + (k + 1) % 8] for k in range(8)]
+    s = solver()
+    s.add_mesh(vertices, triangles)
+    s.add_particles([[where[0], where[1], R - OVERLAP]], R, densities=RHO)
+    s.run(0, 1e-6)
+    np.testing.assert_allclose(s.forces[0], [0, 0, wall_force()], rtol=1e-9, atol=1e-12)
+
+
 @pytest.mark.parametrize("direction", [(1, 1, 0), (1, 0, 1), (1, 1, 1)], ids=["edge", "edge2", "corner"])
 def test_convex_edges_and_corners_of_a_cube_give_one_contact(direction):
     s = solver()

@@ -1057,20 +1057,45 @@ cdef inline bint has_vertex(const int* vid, int u) noexcept nogil:
     return vid[0] == u or vid[1] == u or vid[2] == u
 
 
+cdef inline bint coplanar(const double* g, const double* f, const double* q, double tol) noexcept nogil:
+    """Whether triangle g lies in the plane of triangle f and point q on it (to ``tol``)."""
+    cdef double a[3]
+    cdef double b[3]
+    cdef double ng[3]
+    cdef double nf[3]
+    cdef int k
+    for k in range(3):
+        a[k] = g[3 + k] - g[k]
+        b[k] = g[6 + k] - g[k]
+    cross3(a, b, ng)
+    for k in range(3):
+        a[k] = f[3 + k] - f[k]
+        b[k] = f[6 + k] - f[k]
+    cross3(a, b, nf)
+    for k in range(3):
+        a[k] = q[k] - f[k]
+    return fabs(dot3(ng, nf)) >= (1.0 - 1e-12) * sqrt(dot3(ng, ng) * dot3(nf, nf)) \
+        and fabs(dot3(a, nf)) <= tol * sqrt(dot3(nf, nf))
+
+
 cdef void wall_row(const Ctx* c, int i, double* F, double* T, double* sa) noexcept nogil:
     """Wall forces on particle i; mesh contacts without double counting.
 
     Candidates are the triangles whose closest point is within reach, classified as
-    face, edge or vertex contacts. Faces are taken first; an edge contact is dropped when
-    an accepted contact's triangle has that edge, a vertex contact when it has that
-    vertex (a shared edge or vertex of a flat or convex surface counts once; concave
-    corners give one contact per face).
+    face, edge or vertex contacts, taken faces first, each kind nearest first. A face contact
+    is dropped when an accepted one has the same contact point (to 1e-9 of the radius: a
+    centre right above the edge two coplanar triangles share, which rounding may put inside
+    both); an edge or vertex contact when an accepted contact's triangle has that edge or
+    vertex, or lies in the plane of this one's triangle with this contact point on it (a
+    flat surface is touched once however many of its triangles the sphere reaches; a shared
+    edge or vertex of a convex surface counts once; concave corners give one contact per face).
     """
     cdef int k, e, a, b, nc = 0, nacc = 0, reg, u, w2, ok, hs = c.hs
     cdef int ck[MAXCAND]
     cdef int creg[MAXCAND]
     cdef int cfeat[MAXCAND]
     cdef int acc[MAXCAND]
+    cdef uint8_t done[MAXCAND]
     cdef double cq[3 * MAXCAND]
     cdef double cd2[MAXCAND]
     cdef double gap, d2, dist, side = 1.0
@@ -1104,20 +1129,34 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T, double* sa) noexce
         cd2[nc] = d2
         ck[nc] = k
         nc += 1
+    memset(done, 0, MAXCAND)
     for reg in range(3):
-        for a in range(nc):
-            if creg[a] != reg:
-                continue
+        while True:   # the nearest candidate of this kind not taken yet
+            a = -1
+            for b in range(nc):
+                if creg[b] == reg and not done[b] and (a < 0 or cd2[b] < cd2[a]):
+                    a = b
+            if a < 0:
+                break
+            done[a] = 1
             k = ck[a]
             e = c.wl_e[k]
             h = &c.wl_h[<long long>k * c.whs]
             ok = 1
-            if reg != FACE:
+            if reg == FACE:
+                for b in range(nacc):
+                    d2 = ((cq[3 * a] - cq[3 * acc[b]]) ** 2 + (cq[3 * a + 1] - cq[3 * acc[b] + 1]) ** 2
+                          + (cq[3 * a + 2] - cq[3 * acc[b] + 2]) ** 2)
+                    if d2 <= 1e-18 * ri * ri:
+                        ok = 0
+                        break
+            else:
                 u = c.evid[3 * e + cfeat[a]]
                 w2 = c.evid[3 * e + (cfeat[a] + 1) % 3]
                 for b in range(nacc):
                     if has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], u) and (
-                            reg == VERTEX or has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], w2)):
+                            reg == VERTEX or has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], w2)) \
+                            or coplanar(&c.egeo[9 * e], &c.egeo[9 * c.wl_e[ck[acc[b]]]], &cq[3 * a], 1e-9 * ri):
                         ok = 0
                         break
             if not ok:
