@@ -6,6 +6,9 @@ the same height; the controller is LIGGGHTS' (checked step by step on a plate al
 the law of ``mesh_module_stress_servo.cpp``), and checkpoints carry it.
 """
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -206,3 +209,71 @@ def test_servo_mistakes_are_config_errors():
         plate(kp=0.0)
     with pytest.raises(ConfigError, match="ratio"):
         plate(mode="auto")
+
+
+def test_a_stress_mesh_carries_the_weight_of_the_bed_on_it(tmp_path):
+    """``mtype='mesh/surface/stress'``: 30 spheres settled on a mesh floor (square.stl) push it
+    down with their weight (force along -z, 1 %), and a plain mesh has no force summed."""
+    from PyGran.params import cohesionless
+
+    cohesionless["coefficientRestitution"] = 0.3
+    floor = {"file": str(MESHES / "square.stl"), "args": {"scale": SIDE, "move": (0, 0, -3 * SIDE)}}
+    params = {
+        "engine": "native",
+        "output": str(tmp_path / "out"),
+        "boundary": ("p", "p", "f"),
+        "box": (-SIDE, SIDE, -SIDE, SIDE, -R, 3e-3),
+        "species": ({"material": cohesionless, "radius": R},),
+        "gravity": (G, 0, 0, -1),
+        "dt": 2e-6,
+        "traj": {"pfile": None},
+        "mesh": {
+            "floor": floor | {"mtype": "mesh/surface/stress"},
+            "lid": floor | {"args": {"scale": SIDE, "move": (0, 0, -SIDE)}},
+        },
+    }
+    with simulation.DEM(**params) as sim:
+        sim.createParticles(1, "random", 30, region=("block", -SIDE, SIDE, -SIDE, SIDE, R, 2e-3))
+        sim.run(6e4, params["dt"])
+        force = sim.engine.mesh_force("floor")
+        weight = sim.engine.extract("mass").sum() * G
+        with pytest.raises(ConfigError, match="mesh/surface/stress"):
+            sim.engine.mesh_force("lid")
+    assert force == pytest.approx([0, 0, -weight], rel=1e-2, abs=1e-2 * weight)  # measured: 0.15 %
+
+
+# The servo plate of ``plate`` pressing spheres on 3 threads (on one CPU when told to): the plate's
+# force and the spheres' positions to a .npy file.
+THREADS = """
+import os, sys
+import numpy as np
+from pygran_native.solver import Solver
+
+if sys.argv[2] == "one-cpu":
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+s = Solver([[-2e-3, -2e-3, 0], [2e-3, 2e-3, 4e-3]], gravity=(0, 0, -9.81), skin=2e-4, threads=3)
+s.set_contact_model("hertz", youngs=1e7, poisson=0.25, restitution=0.5, friction=0.5)
+corners = np.array([[-2e-3, -2e-3, 0], [2e-3, -2e-3, 0], [2e-3, 2e-3, 0], [-2e-3, 2e-3, 0]]) + [0, 0, 3.05e-4]
+mesh = s.add_mesh(corners, [[0, 1, 2], [0, 2, 3]])
+s.set_servo(mesh, control="force", axis=(0, 0, -1), target=1e-3, vel_max=0.02, com=(0, 0, 3.05e-4), kp=0.5)
+s.add_plane((0, 0, 0), (0, 0, 1))
+grid = np.stack(np.meshgrid(*[np.arange(-4, 5) * 4.2e-4] * 2, indexing="ij"), -1).reshape(-1, 2)
+s.add_particles(np.column_stack([grid, np.full(len(grid), 1.5e-4)]), 1.5e-4, densities=2500)
+s.run(4000, 1e-6)
+np.save(sys.argv[1], np.vstack([s.mesh_force(mesh)[0], s.positions]))
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this system")
+def test_the_servo_force_does_not_depend_on_which_thread_runs_a_block(tmp_path):
+    """The plate's force is summed over the blocks in block order: on 3 threads, the same bits
+    whether the threads share one CPU or not."""
+
+    def press(cpus):
+        out = tmp_path / f"{cpus}.npy"
+        subprocess.run([sys.executable, "-c", THREADS, str(out), cpus], check=True)
+        return np.load(out)
+
+    spread = press("all")
+    assert spread[0, 2] > 0  # pressing
+    np.testing.assert_array_equal(press("one-cpu"), spread)
