@@ -277,3 +277,35 @@ def test_the_servo_force_does_not_depend_on_which_thread_runs_a_block(tmp_path):
     spread = press("all")
     assert spread[0, 2] > 0  # pressing
     np.testing.assert_array_equal(press("one-cpu"), spread)
+
+
+def test_mode_auto_cruises_at_vel_max_then_follows_liggghts_piecewise_law():
+    """mode auto: touching nothing the plate cruises at vel_max; in contact its speed is
+    ``-kp(e) e`` with ``e = (sp - F.axis) / |sp|`` and LIGGGHTS' piecewise gain ``kp`` from
+    0.1 to 1 times ``ratio r_min / dt`` as |e| goes from 0.9 to 1 (checked at every step of a
+    plate pressing 25 spheres against its reading of the force, to rounding)."""
+    dt, ratio, r = 1e-6, 1e-3, 1.5e-4
+    solver, mesh = plate(height=3.2e-4, mode="auto", ratio=ratio, target=1e-4)
+    grid = np.stack(np.meshgrid(*[np.arange(-2, 3) * 4e-4] * 2, indexing="ij"), -1).reshape(-1, 2)
+    solver.add_particles(np.column_stack([grid, np.full(len(grid), r)]), r, densities=2500)
+    solver.add_plane((0, 0, 0), (0, 0, 1))
+    solver.run(1, dt)
+    assert solver.servo_state(mesh)["velocity"] == pytest.approx([0, 0, -0.02], rel=1e-12)  # cruise
+    slow, touched = ratio * r / dt, 0
+    for _ in range(3000):
+        solver.run(1, dt)
+        force = solver.mesh_force(mesh)[0]
+        if force[2] == 0:
+            continue
+        touched += 1
+        err = (-1e-4 + force[2]) / 1e-4  # the axis is -z
+        gain = (
+            0.1 * slow
+            if abs(err) <= 0.9
+            else slow
+            if abs(err) >= 1
+            else 0.1 * slow + 0.9 * slow * (abs(err) - 0.9) / 0.1
+        )
+        speed = min(abs(gain * err), slow) * np.sign(-gain * err)
+        assert solver.servo_state(mesh)["velocity"] == pytest.approx([0, 0, -speed], rel=1e-9, abs=1e-15)
+    assert touched > 100
