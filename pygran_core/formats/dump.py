@@ -6,15 +6,25 @@ reads the frame's bytes in one call and parses the atom block in one pass into a
 column-major table: with pygran-native's compiled parser when it is installed, else (and for
 anything that parser does not accept) with ``numpy.loadtxt``. Both round every number
 correctly, so they give the same values; there is no Python loop per line or per field.
+
+A ``.dump.gz`` cannot be seeked, so its scan decompresses it (with zlib, once) and keeps the
+text of its first frames, up to :data:`GZIP_KEEP_BYTES` per trajectory; with the compiled
+parser and more than one CPU, a second thread parses the atom rows of the frames kept while
+the scan goes on (their tables count in the same budget). A frame kept is let go once read;
+any other is decompressed again from the nearest restart point (one every ``_RESTART_SPAN``
+bytes of text), or from where the last read stopped when reading in order.
 """
 
 from __future__ import annotations
 
 import gzip
 import io
+import os
 import re
 import zlib
+from collections import deque
 from collections.abc import Iterable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -46,6 +56,16 @@ SCALED = {
     "zsu": ("zu", 2),
 }
 _CHUNK = 1 << 24
+#: Decompressed text of ``.dump.gz`` files that opening a trajectory keeps, in all: each frame
+#: kept is served from memory (one decompression in all) and let go once read; the text past it
+#: is decompressed again when read, from the nearest restart point.
+GZIP_KEEP_BYTES = 256 << 20
+#: Decompressed bytes between two restart points of a ``.dump.gz`` (each a copy of zlib's
+#: state, about 40 kB), so reading any frame decompresses at most this much besides it.
+_RESTART_SPAN = 32 << 20
+#: Compressed bytes given to zlib at a time.
+_FEED = 1 << 18
+_GZIP_MAGIC = b"\x1f\x8b"
 #: What reading a damaged or truncated file raises (gzip.BadGzipFile is an OSError).
 _STREAM_ERRORS = (OSError, EOFError, zlib.error)
 _FRAME_START = re.compile(rb"^(ITEM: TIME(?:STEP)?)[ \t\r]*$", re.MULTILINE)
@@ -63,35 +83,242 @@ class _Block:
     problem: str | None = None  # known before parsing, e.g. a truncated gzip stream
 
 
-def _open_binary(path: Path) -> io.BufferedIOBase:
-    if path.name.lower().endswith(".gz"):
-        return gzip.open(path, "rb")
-    return open(path, "rb")
+def _is_gzip(path: Path) -> bool:
+    return path.name.lower().endswith(".gz")
+
+
+@dataclass(frozen=True)
+class _Restart:
+    """A point a gzip file can be decompressed from: the decompressed offset, the file offset of
+    the next compressed bytes, zlib's state (None before the first member) and its unread input."""
+
+    position: int
+    offset: int
+    state: zlib._Decompress | None
+    pending: bytes
+
+
+class _Inflater:
+    """Decompresses a gzip file with zlib, from its start or from a restart point, as gzip.open
+    reads it (every member, zero padding between them, the same errors), in pieces of at most
+    ``_CHUNK`` bytes: one pass, no copy of the text."""
+
+    def __init__(self, path: Path, restart: _Restart | None = None) -> None:
+        start = restart or _Restart(0, 0, None, b"")
+        self._file = open(path, "rb")
+        self._file.seek(start.offset)
+        self.position = start.position  # decompressed offset of the next byte read() returns
+        self._state: zlib._Decompress | None = None if start.state is None else start.state.copy()
+        self._pending = start.pending
+        self._started = start.state is not None
+        self._ahead = b""
+        self._damage: zlib.error | None = None  # raised by the next read()
+
+    def close(self) -> None:
+        self._file.close()
+
+    def __enter__(self) -> _Inflater:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def restart(self) -> _Restart | None:
+        """A restart point at the current position (None between two members)."""
+        if self._state is None or self._ahead:
+            return None
+        return _Restart(self.position, self._file.tell(), self._state.copy(), self._pending)
+
+    def unread(self, data: bytes) -> None:
+        """Give back the end of the last piece: the next read() returns it first."""
+        self._ahead = data
+        self.position -= len(data)
+
+    def read(self) -> bytes:
+        """The next decompressed bytes; b"" at the end of the file."""
+        if self._ahead:
+            out, self._ahead = self._ahead, b""
+            self.position += len(out)
+            return out
+        if self._damage is not None:
+            raise self._damage
+        while True:
+            state = self._state or self._next_member()
+            if state is None:
+                return b""
+            data = self._pending or self._file.read(_FEED)
+            if not data:
+                raise EOFError("Compressed file ended before the end-of-stream marker was reached")
+            before = state.copy()
+            try:
+                out = state.decompress(data, _CHUNK)
+            except zlib.error as exc:
+                out, self._damage = self._salvage(before, data), exc
+                if not out:
+                    raise
+                self.position += len(out)
+                return out
+            self._pending = state.unconsumed_tail
+            if state.eof:
+                self._pending, self._state = state.unused_data, None
+            if out:
+                self.position += len(out)
+                return out
+
+    @staticmethod
+    def _salvage(state: zlib._Decompress, data: bytes) -> bytes:
+        """The text before the damage in ``data`` (zlib gives none when a call meets damage)."""
+        out: list[bytes] = []
+        for start in range(0, len(data), 256):
+            try:
+                out.append(state.decompress(data[start : start + 256]))
+            except zlib.error:
+                break
+        return b"".join(out)
+
+    def _next_member(self) -> zlib._Decompress | None:
+        """Start the next member; None at the end of the file."""
+        data = self._pending
+        while True:
+            if self._started:  # zero bytes may pad a file after a member
+                data = data.lstrip(b"\0")
+            if len(data) >= 2:
+                break
+            more = self._file.read(_FEED)
+            if not more:
+                break
+            data += more
+        if not data:
+            return None
+        if data[:2] != _GZIP_MAGIC:
+            raise gzip.BadGzipFile(f"Not a gzipped file ({data[:2]!r})")
+        self._state, self._pending, self._started = zlib.decompressobj(31), data, True
+        return self._state
+
+
+#: An atom table parsed ahead: (offset of the rows in the frame's text, columns, rows), the result.
+_Ahead = tuple[tuple[int, int, int], "Future[np.ndarray | None]"]
+
+
+class _Kept:
+    """What the scan of a gzip file keeps: the text of its first frames (at most ``budget``
+    bytes, each let go once read), the atom tables of those frames parsed ahead on a second
+    thread by the compiled parser (counted in the budget), and restart points."""
+
+    def __init__(self, budget: int, ahead: ThreadPoolExecutor | None) -> None:
+        self.budget = budget
+        self.size = 0
+        self.texts: dict[int, bytes] = {}  # frame start -> its whole text
+        self.tables: dict[int, _Ahead] = {}
+        self.restarts: list[_Restart] = [_Restart(0, 0, None, b"")]
+        self._ahead = ahead
+        self._pid = os.getpid()
+        self._pending: deque[bytes] = deque()  # the text from _start on, while it fits
+        self._waiting = 0  # its length
+        self._start = 0
+        self._full = False
+
+    def add(self, piece: bytes, inflater: _Inflater) -> None:
+        """Called by the scan with every piece of text in order."""
+        if not self._full and self.size + self._waiting > self.budget:
+            self._stop()
+        if not self._full:  # pending text is at most one piece past the budget
+            self._pending.append(piece)
+            self._waiting += len(piece)
+        if inflater.position - self.restarts[-1].position >= _RESTART_SPAN:
+            point = inflater.restart()
+            if point is not None:
+                self.restarts.append(point)
+
+    def cut(self, end: int) -> None:
+        """The frame from the last cut (or the start) ends at ``end``."""
+        length = end - self._start
+        if not self._full and self.size + length > self.budget:
+            self._stop()
+        if self._full:
+            return
+        self.size += length
+        self._waiting -= length
+        parts, size = [], 0
+        while size < length:
+            piece = self._pending.popleft()
+            if size + len(piece) > length:
+                rest = length - size
+                self._pending.appendleft(piece[rest:])
+                piece = piece[:rest]
+            parts.append(piece)
+            size += len(piece)
+        text = parts[0] if len(parts) == 1 else b"".join(parts)
+        self.texts[self._start] = text
+        self._parse_ahead(text)
+        self._start = end
+
+    def _stop(self) -> None:
+        """Keep nothing more: the budget is spent."""
+        self._full = True
+        self._pending.clear()
+
+    def _parse_ahead(self, text: bytes) -> None:
+        """Queue the compiled parser on the atom rows of the frame ``text``, if it fits."""
+        if self._ahead is None or _accel is None:
+            return
+        shape = _atoms_at(text)
+        if shape is None or shape[2] == 0 or self.size + shape[1] * shape[2] * 8 > self.budget:
+            return
+        self.size += shape[1] * shape[2] * 8
+        body = memoryview(text)[shape[0] :]
+        self.tables[self._start] = (shape, self._ahead.submit(_accel.parse_table, body, *shape[1:]))
+
+    def take(self, start: int) -> _Ahead | None:
+        """Let go of the frame at ``start`` (it is being read); its table parsed ahead, if any
+        (none in a process forked since: the thread that parses them is not there)."""
+        self.texts.pop(start, None)
+        ahead = self.tables.pop(start, None)
+        return ahead if os.getpid() == self._pid else None
+
+    def close(self) -> None:
+        for _, future in self.tables.values():
+            future.cancel()
+        self.texts.clear()
+        self.tables.clear()
+
+    def nearest(self, position: int) -> _Restart:
+        """The last restart point at or before ``position``."""
+        return max((r for r in self.restarts if r.position <= position), key=lambda r: r.position)
+
+
+_ATOM_COUNT = re.compile(rb"^ITEM: NUMBER OF ATOMS[ \t\r]*\n[ \t]*(\d+)[ \t\r]*$", re.MULTILINE)
+
+
+def _atoms_at(text: bytes) -> tuple[int, int, int] | None:
+    """Where a frame's atom rows start, how many columns and rows its header names, or None:
+    enough to parse the rows ahead (the header is checked when the frame is read)."""
+    head = text[:65536]
+    count = _ATOM_COUNT.search(head)
+    atoms = head.find(b"\nITEM: ATOMS", count.end()) if count else -1
+    end = head.find(b"\n", atoms + 1) if atoms >= 0 else -1
+    if count is None or end < 0:
+        return None
+    return end + 1, len(head[atoms + 12 : end].split()), int(count.group(1))
 
 
 def can_open(path: Path) -> bool:
     """True when the file's first bytes are a dump ``ITEM:`` line."""
     try:
-        with _open_binary(path) as handle:
-            return handle.read(64).lstrip().startswith(b"ITEM:")
+        if _is_gzip(path):
+            with _Inflater(path) as inflater:
+                head = inflater.read()[:64]
+        else:
+            with open(path, "rb") as handle:
+                head = handle.read(64)
+        return head.lstrip().startswith(b"ITEM:")
     except Exception:  # noqa: BLE001 - a hint must never raise
         return False
 
 
-def _read_chunk(handle: io.BufferedIOBase) -> tuple[bytes, str | None]:
-    """Up to ``_CHUNK`` bytes, and what went wrong if the (compressed) stream broke off."""
-    parts: list[bytes] = []
-    size = 0
-    try:
-        while size < _CHUNK:
-            part = handle.read1(_CHUNK - size)
-            if not part:
-                break
-            parts.append(part)
-            size += len(part)
-    except _STREAM_ERRORS as exc:
-        return b"".join(parts), f"the compressed stream is damaged ({exc})"
-    return b"".join(parts), None
+def _cpus() -> int:
+    """CPUs this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def _newlines(buf: bytes, start: int, stop: int) -> int:
@@ -99,25 +326,52 @@ def _newlines(buf: bytes, start: int, stop: int) -> int:
     return int(np.count_nonzero(np.frombuffer(buf, np.uint8, max(stop - start, 0), start) == 10))
 
 
-def _scan(path: Path, file_index: int) -> list[_Block]:
-    """Blocks of one file: every frame starts with the same line as the file's first line."""
+def _scan(
+    path: Path, file_index: int, budget: int, ahead: ThreadPoolExecutor | None
+) -> tuple[list[_Block], _Kept | None]:
+    """Blocks of one file: every frame starts with the same line as the file's first line. Of a
+    gzip file, also what it keeps (at most ``budget`` bytes, tables parsed ``ahead``)."""
+    kept = _Kept(budget, ahead) if _is_gzip(path) else None
+    problem: str | None = None
     try:
-        with _open_binary(path) as handle:
-            head, problem = _read_chunk(handle)
+        with _Inflater(path) if kept is not None else open(path, "rb") as handle:
+
+            def read() -> bytes:
+                """The next piece of text; b"" at the end or once the stream broke off."""
+                nonlocal problem
+                if problem is not None:
+                    return b""
+                try:
+                    if not isinstance(handle, _Inflater):
+                        return handle.read(_CHUNK)
+                    piece = handle.read()
+                except _STREAM_ERRORS as exc:
+                    problem = f"the compressed stream is damaged ({exc})"
+                    return b""
+                if kept is not None and piece:
+                    kept.add(piece, handle)
+                return piece
+
+            head = read()
+            while 0 < len(head) < _CHUNK and b"\n" not in head:
+                more = read()
+                if not more:
+                    break
+                head += more
             first_line = head.split(b"\n", 1)[0].rstrip()
             if not first_line.startswith(b"ITEM:") or (problem and b"\n" not in head):
                 reason = problem or (
                     f"not a LAMMPS dump: the first line is {first_line[:60].decode('latin-1')!r}, "
                     "not an ITEM: line"
                 )
-                return [_Block(file_index, 0, len(head), 1, reason)]
+                return [_Block(file_index, 0, len(head), 1, reason)], None
             # A frame starts at ITEM: TIME when present (LAMMPS writes it before the
             # timestep), else at ITEM: TIMESTEP; ITEM: UNITS appears in the first frame only.
             found = _FRAME_START.search(head)
             marker = b"\n" + (found.group(1) if found else first_line)
             skip = 0 if head.startswith(marker[1:]) else 1
             starts, lines = [0], [1]
-            buf, base, counted, line = head, 0, 0, 1  # buf = file[base:base+len(buf)]
+            buf, base, counted, line = head, 0, 0, 1  # buf = text[base:base+len(buf)]
             while True:
                 pos = buf.find(marker)
                 while pos >= 0:
@@ -129,13 +383,14 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
                         counted = pos + 1
                         starts.append(base + pos + 1)
                         lines.append(line)
+                        if kept is not None:
+                            kept.cut(base + pos + 1)
                     pos = buf.find(marker, pos + 1)
-                chunk, problem = (b"", problem) if problem else _read_chunk(handle)
+                chunk = read()
                 if not chunk:
                     end = base + len(buf)
                     break
-                keep = len(marker)
-                cut = max(len(buf) - keep, 0)
+                cut = max(len(buf) - len(marker), 0)
                 line += _newlines(buf, counted, cut)
                 base, buf, counted = base + cut, buf[cut:] + chunk, 0
     except _STREAM_ERRORS as exc:
@@ -144,7 +399,9 @@ def _scan(path: Path, file_index: int) -> list[_Block]:
     blocks = [_Block(file_index, s, e, ln) for s, e, ln in zip(starts, ends, lines)]
     if problem is not None:
         blocks[-1] = _Block(file_index, blocks[-1].start, blocks[-1].end, blocks[-1].line, problem)
-    return blocks
+    if kept is not None and problem is None:
+        kept.cut(end)
+    return blocks, kept
 
 
 @dataclass
@@ -174,15 +431,33 @@ class DumpTrajectory(Trajectory):
         self.paths = [Path(p) for p in paths]
         self.extra_columns = frozenset(extra_columns)
         self._blocks: list[_Block] = []
-        for index, path in enumerate(self.paths):
-            self._blocks.extend(_scan(path, index))
-        self._gz: tuple[int, io.BufferedIOBase] | None = None
+        self._kept: dict[int, _Kept] = {}
+        budget = GZIP_KEEP_BYTES
+        ahead = None
+        if _accel is not None and _cpus() > 1 and any(_is_gzip(path) for path in self.paths):
+            ahead = ThreadPoolExecutor(1, thread_name_prefix="pygran-dump")
+        try:
+            for index, path in enumerate(self.paths):
+                blocks, kept = _scan(path, index, budget, ahead)
+                self._blocks.extend(blocks)
+                if kept is not None:
+                    self._kept[index] = kept
+                    budget -= kept.size
+        finally:
+            if ahead is not None:
+                ahead.shutdown(wait=False)  # its thread ends once the tables queued are parsed
+        self._gz: tuple[int, _Inflater] | None = None
 
     @property
     def n_frames(self) -> int:
         return len(self._blocks)
 
     def close(self) -> None:
+        self._close_stream()
+        for kept in self._kept.values():
+            kept.close()
+
+    def _close_stream(self) -> None:
         if self._gz is not None:
             self._gz[1].close()
             self._gz = None
@@ -191,19 +466,45 @@ class DumpTrajectory(Trajectory):
         """The bytes of ``block`` (frame ``index``, or its start)."""
         path = self.paths[block.file]
         try:
-            if path.name.lower().endswith(".gz"):
-                if self._gz is None or self._gz[0] != block.file:
-                    self.close()
-                    self._gz = (block.file, gzip.open(path, "rb"))
-                handle = self._gz[1]
-                handle.seek(block.start)
-                return handle.read(block.end - block.start)
+            if block.file in self._kept:
+                return self._inflate(block)
             with open(path, "rb") as handle:
                 handle.seek(block.start)
                 return handle.read(block.end - block.start)
         except _STREAM_ERRORS as exc:
-            self.close()
+            self._close_stream()
             raise self._error(index, block.line, f"cannot read the frame: {exc}") from exc
+
+    def _inflate(self, block: _Block) -> bytes:
+        """The text of ``block`` in a gzip file: kept by the scan, else decompressed from the open
+        stream when it is not past the block, else from the nearest restart point."""
+        kept = self._kept[block.file]
+        text = kept.texts.get(block.start)
+        if text is not None:
+            return text[: block.end - block.start]
+        point = kept.nearest(block.start)
+        if (
+            self._gz is None
+            or self._gz[0] != block.file
+            or not point.position <= self._gz[1].position <= block.start
+        ):
+            self._close_stream()
+            self._gz = (block.file, _Inflater(self.paths[block.file], point))
+        inflater = self._gz[1]
+        parts: list[memoryview] = []
+        position = block.start
+        while position < block.end:
+            at = inflater.position
+            piece = inflater.read()
+            if not piece:
+                break
+            lo, hi = max(position - at, 0), min(block.end - at, len(piece))
+            if lo < hi:
+                parts.append(memoryview(piece)[lo:hi])
+                position = at + hi
+            if hi < len(piece):
+                inflater.unread(piece[hi:])
+        return b"".join(parts)
 
     def _error(self, index: int, line: int, message: str) -> ReadError:
         block = self._blocks[index]
@@ -214,8 +515,10 @@ class DumpTrajectory(Trajectory):
         if block.problem is not None:
             raise self._error(index, block.line, block.problem)
         data = self._read_bytes(index, block)
+        kept = self._kept.get(block.file)
+        ahead = None if kept is None else kept.take(block.start)
         header = self._parse_header(index, data)
-        table = self._parse_atoms(index, data, header)
+        table = self._parse_atoms(index, data, header, ahead)
         return self._build_frame(index, header, table)
 
     def read_header(self, index: int) -> dict[str, Any]:
@@ -316,7 +619,7 @@ class DumpTrajectory(Trajectory):
         if not columns:
             raise self._error(index, line, "ITEM: ATOMS names no columns")
 
-    def _parse_atoms(self, index: int, data: bytes, header: _Header) -> np.ndarray:
+    def _parse_atoms(self, index: int, data: bytes, header: _Header, ahead: _Ahead | None) -> np.ndarray:
         assert header.columns is not None and header.natoms is not None
         body = memoryview(data)[header.body :]
         ncols, natoms = len(header.columns), header.natoms
@@ -324,7 +627,10 @@ class DumpTrajectory(Trajectory):
             if _NOT_BLANK.search(body):
                 raise self._error(index, header.body_line, "the header says 0 atoms but rows follow")
             return np.empty((0, ncols))
-        table = None if _accel is None else _accel.parse_table(body, ncols, natoms)
+        if ahead is not None and ahead[0] == (header.body, ncols, natoms):
+            table = ahead[1].result()  # the same call, made while the file was scanned
+        else:
+            table = None if _accel is None else _accel.parse_table(body, ncols, natoms)
         if table is None:
             table = self._loadtxt(index, body, header)
         if table.shape[1] != ncols:

@@ -1,7 +1,11 @@
 """LIGGGHTS/LAMMPS text dumps: conformance, the real hopper run, column handling and errors."""
 
 import gzip
+import os
 import shutil
+import signal
+import threading
+import types
 
 import numpy as np
 import pytest
@@ -316,3 +320,127 @@ def test_numbers_are_read_as_python_reads_them(table_parser, tmp_path, suffix, o
         np.testing.assert_array_equal(
             frame.arrays[name].astype(np.float64).view(np.int64), expected.view(np.int64)
         )
+
+
+class CountingInflater(dump._Inflater):
+    """The reader's gzip stream, counting the streams opened and the bytes decompressed."""
+
+    opened = 0
+    inflated = 0
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        CountingInflater.opened += 1
+
+    def read(self):
+        out = super().read()
+        CountingInflater.inflated += len(out)
+        return out
+
+    def unread(self, data):
+        super().unread(data)
+        CountingInflater.inflated -= len(data)  # handed out again, not decompressed again
+
+
+@pytest.fixture
+def counting(monkeypatch):
+    monkeypatch.setattr(dump, "_Inflater", CountingInflater)
+    CountingInflater.opened = CountingInflater.inflated = 0
+    return CountingInflater
+
+
+def gzip_sample(tmp_path, rows=(3000, 0, 2500, 4000, 1000)):
+    text = dump_text(list(rows), "id type x y z radius vx").encode()
+    (tmp_path / "t.dump").write_bytes(text)
+    (tmp_path / "t.dump.gz").write_bytes(gzip.compress(text, mtime=0))
+    return text, open_trajectory(tmp_path / "t.dump")
+
+
+@pytest.mark.parametrize("cpus", [1, 2])
+def test_a_gzip_dump_read_in_order_is_decompressed_once(table_parser, tmp_path, counting, monkeypatch, cpus):
+    """Opening decompresses the file once and keeps its frames (parsed ahead on a second thread
+    with the compiled parser and two CPUs); reading them decompresses nothing more and lets each
+    go; the values are those of the plain file, bit for bit."""
+    monkeypatch.setattr(dump, "_cpus", lambda: cpus)
+    text, plain = gzip_sample(tmp_path)
+    trajectory = DumpTrajectory([tmp_path / "t.dump.gz"])
+    assert (counting.opened, counting.inflated) == (1, len(text))
+    kept = trajectory._kept[0]
+    assert len(kept.texts) == 5 and len(kept.tables) == (4 if cpus == 2 and table_parser == "compiled" else 0)
+    for frame, expected in zip(trajectory, plain, strict=True):
+        assert_frames_equal(frame, expected)
+    assert (counting.opened, counting.inflated) == (1, len(text))
+    assert not kept.texts and not kept.tables
+    assert_frames_equal(trajectory[2], plain[2])  # read again: decompressed again
+    assert counting.opened == 2 and len(text) < counting.inflated < 2 * len(text)
+
+
+def test_a_gzip_dump_past_the_budget(tmp_path, counting, monkeypatch):
+    """Frames past the text kept are decompressed again: in order, from where the last read
+    stopped; out of order, from the nearest restart point (at most a span before the frame)."""
+    monkeypatch.setattr(dump, "GZIP_KEEP_BYTES", 100_000)  # frames 0 (about 80 kB) and 1 (empty)
+    monkeypatch.setattr(dump, "_RESTART_SPAN", 20_000)
+    monkeypatch.setattr(dump, "_FEED", 1024)  # pieces of a few kB, so restart points that close
+    text, plain = gzip_sample(tmp_path)
+    trajectory = DumpTrajectory([tmp_path / "t.dump.gz"])
+    assert list(trajectory._kept[0].texts) == [block.start for block in trajectory._blocks[:2]]
+    for frame, expected in zip(trajectory, plain, strict=True):
+        assert_frames_equal(frame, expected)
+    assert counting.opened == 2 and counting.inflated < 2 * len(text)
+    blocks = trajectory._blocks
+    for k in (4, 0, 3, 1, 2):
+        before = counting.inflated
+        assert_frames_equal(trajectory[k], plain[k])
+        size = blocks[k].end - blocks[k].start
+        assert size <= counting.inflated - before < size + 20_000 + len(dump_text([1000]))
+
+
+def test_gzip_members_and_padding(tmp_path):
+    """Several gzip members with zero padding read as gzip.open reads them; bytes after the last
+    member that do not start one are damage, named in the last frame's error."""
+    first, second = dump_text([3, 2]), dump_text([4], step=500)
+    plain = tmp_path / "t.dump"
+    plain.write_text(first + second)
+    packed = gzip.compress(first.encode(), mtime=0) + gzip.compress(second.encode(), mtime=0)
+    (tmp_path / "m.dump.gz").write_bytes(packed + b"\0" * 7)
+    for frame, expected in zip(open_trajectory(tmp_path / "m.dump.gz"), open_trajectory(plain), strict=True):
+        assert_frames_equal(frame, expected)
+    (tmp_path / "j.dump.gz").write_bytes(packed + b"junk")
+    trajectory = open_trajectory(tmp_path / "j.dump.gz")
+    assert [len(trajectory[k].arrays["id"]) for k in (0, 1)] == [3, 2]
+    with pytest.raises(
+        ReadError,
+        match=r"j\.dump\.gz: frame 2, line 24: the compressed stream is damaged \(Not a gzipped file \(b'ju'",
+    ):
+        trajectory[2]
+
+
+def test_a_gzip_dump_read_in_a_forked_process(table_parser, tmp_path, monkeypatch):
+    """A process forked while the tables are being parsed ahead (a multiprocessing pool, say)
+    reads every frame: it parses them itself rather than wait for the parent's thread."""
+    monkeypatch.setattr(dump, "_cpus", lambda: 2)
+    parent, forked = os.getpid(), threading.Event()
+    if table_parser == "compiled":
+        compiled = dump._accel
+
+        def parse_table(*args):  # holds the parent's thread until the child is forked
+            if os.getpid() == parent:
+                forked.wait(10)
+            return compiled.parse_table(*args)
+
+        monkeypatch.setattr(dump, "_accel", types.SimpleNamespace(parse_table=parse_table))
+    text, plain = gzip_sample(tmp_path)
+    trajectory = open_trajectory(tmp_path / "t.dump.gz")
+    pid = os.fork()
+    if pid == 0:  # the child: exit status 0 when every frame is read right within 5 s
+        signal.alarm(5)
+        try:
+            same = all(
+                np.array_equal(frame.arrays["x"], expected.arrays["x"])
+                for frame, expected in zip(trajectory, plain, strict=True)
+            )
+        finally:
+            os._exit(0 if same else 1)
+    forked.set()
+    assert os.waitpid(pid, 0)[1] == 0
+    assert [len(frame.arrays["id"]) for frame in trajectory] == [3000, 0, 2500, 4000, 1000]
