@@ -4,10 +4,13 @@ Writes a synthetic LIGGGHTS dump (id type x y z radius vx vy vz fx fy fz; 5 fram
 200,000 particles, 131 MB), then times reading every frame with each reader, in turn within
 each repetition (best of ``--repeats``, so a busy machine slows them alike), and prints MB/s
 of dump text and the ratios. PyGran runs as installed (with pygran-native's compiled parser
-when it is importable) and on the core's numpy path. numpy.loadtxt gets each frame's atom
-rows as bytes (its fastest input). Every reader's values are checked bit for bit against
-numpy.loadtxt's. MDAnalysis is optional: used when importable here, or through another
-interpreter that has it (``--mdanalysis-python /path/to/venv/bin/python``).
+when it is importable; for the .dump.gz, it then parses frames on a second thread while it
+decompresses, when this process may use more than one CPU) and on the core's numpy path.
+numpy.loadtxt gets each frame's atom rows as bytes (its fastest input); for the .dump.gz
+its time includes decompressing the file once, with ``gzip.open(path).read()`` (one call, the
+standard library's fastest way), and splitting it into frames. Every reader's values are
+checked bit for bit against numpy.loadtxt's. MDAnalysis is optional: used when importable
+here, or through another interpreter that has it (``--mdanalysis-python /path/to/python``).
 
     python benchmarks/read_dump.py [--particles 200000] [--frames 5] [--repeats 3]
 """
@@ -132,6 +135,7 @@ def main() -> None:
     args = parser.parse_args()
     parser_name = "pygran-native's compiled parser" if dump._accel is not None else "numpy (no pygran-native)"
     print(f"pygran: as installed, {parser_name}; pygran-numpy: the core's numpy path; best of {args.repeats}")
+    print(f"CPUs this process may use: {dump._cpus()}")
     with tempfile.TemporaryDirectory() as folder:
         plain = Path(folder) / "bench.dump"
         make_dump(plain, args.particles, args.frames)
