@@ -309,3 +309,53 @@ def test_mode_auto_cruises_at_vel_max_then_follows_liggghts_piecewise_law():
         speed = min(abs(gain * err), slow) * np.sign(-gain * err)
         assert solver.servo_state(mesh)["velocity"] == pytest.approx([0, 0, -speed], rel=1e-9, abs=1e-15)
     assert touched > 100
+
+
+def servo_study(output, restart):
+    """A servo plate pressing 30 spheres through the front end, with checkpoints; the end state."""
+    from PyGran.params import cohesionless
+
+    servo = {"com": (0, 0, 9e-4), "ctrlPV": "force", "axis": (0, 0, -1), "target_val": 2 * WEIGHT}
+    params = {
+        "engine": "native",
+        "output": str(output),
+        "boundary": ("p", "p", "f"),
+        "box": (-SIDE, SIDE, -SIDE, SIDE, -R, 2e-3),
+        "species": ({"material": cohesionless, "radius": R},),
+        "gravity": (G, 0, 0, -1),
+        "dt": 2e-6,
+        "traj": {"pfile": None},
+        "restart": restart,
+        "threads": 2,
+        "mesh": {
+            "plate": {
+                "file": str(MESHES / "square.stl"),
+                "mtype": "mesh/surface/stress/servo",
+                "args": {"scale": SIDE, "move": (0, 0, 9e-4 - 3 * SIDE), **servo, "vel_max": 0.05, "kp": 1},
+            }
+        },
+    }
+    with simulation.DEM(**params) as sim:
+        sim.setupWall(species=1, wtype="primitive", plane="zplane", peq=0.0)
+        sim.createParticles(1, "random", 30, region=("block", -SIDE, SIDE, -SIDE, SIDE, R, 8e-4))
+        sim.run(3000)
+        sim.run(3000)
+        return (
+            sim.extractCoords(),
+            sim.engine.mesh_force("plate"),
+            sim.engine.solver.mesh_triangles(sim.engine._mesh_walls["plate"]),
+        )
+
+
+def test_a_servo_study_resumes_bitwise_from_its_checkpoint(tmp_path):
+    """Through the front end: resumed from the checkpoint of step 4500 (the plate pressing the
+    bed), the spheres, the plate's force and its triangles end bitwise as the whole run's."""
+    whole = servo_study(tmp_path / "a", (1500, "restart", "restart.*.h5"))
+    resumed = tmp_path / "b"
+    (resumed / "restart").mkdir(parents=True)
+    name = "restart.4500.h5"
+    (resumed / "restart" / name).write_bytes((tmp_path / "a" / "restart" / name).read_bytes())
+    again = servo_study(resumed, (1500, "restart", "restart.*.h5", True, name))
+    assert whole[1][2] > 0  # pressing
+    for a, b in zip(whole, again):
+        np.testing.assert_array_equal(a, b)
