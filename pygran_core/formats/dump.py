@@ -305,13 +305,8 @@ def _atoms_at(text: bytes) -> tuple[int, int, int] | None:
 def can_open(path: Path) -> bool:
     """True when the file's first bytes are a dump ``ITEM:`` line."""
     try:
-        if _is_gzip(path):
-            with _Inflater(path) as inflater:
-                head = inflater.read()[:64]
-        else:
-            with open(path, "rb") as handle:
-                head = handle.read(64)
-        return head.lstrip().startswith(b"ITEM:")
+        with gzip.open(path, "rb") if _is_gzip(path) else open(path, "rb") as handle:
+            return handle.read(64).lstrip().startswith(b"ITEM:")
     except Exception:  # noqa: BLE001 - a hint must never raise
         return False
 
