@@ -359,3 +359,35 @@ def test_a_servo_study_resumes_bitwise_from_its_checkpoint(tmp_path):
     assert whole[1][2] > 0  # pressing
     for a, b in zip(whole, again):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("mistake", ["fast", "moved", "not-a-wall"])
+def test_servo_mistakes_in_a_script_are_config_errors(tmp_path, mistake):
+    """As on LIGGGHTS: vel_max >= skin / (2 dt) (at DEM()), moveMesh on a servo plate, and a
+    run while the servo plate is not a wall ('import': False) are ConfigErrors naming the fix."""
+    from PyGran.params import cohesionless
+
+    servo = {"com": (0, 0, 1e-3), "ctrlPV": "force", "axis": (0, 0, -1), "target_val": 1e-4}
+    plate = {
+        "file": str(MESHES / "square.stl"),
+        "mtype": "mesh/surface/stress/servo",
+        "args": {"scale": SIDE, "move": (0, 0, 1e-3 - 3 * SIDE), **servo, "kp": 1},
+    }
+    plate["args"]["vel_max"] = 1e3 if mistake == "fast" else 0.02
+    if mistake == "not-a-wall":
+        plate["import"] = False
+    params = {
+        "engine": "native",
+        "output": str(tmp_path / "out"),
+        "box": (-SIDE, SIDE, -SIDE, SIDE, -R, 2e-3),
+        "species": ({"material": cohesionless, "radius": R},),
+        "dt": 2e-6,
+        "traj": {"pfile": None},
+        "mesh": {"plate": plate},
+    }
+    message = {"fast": "vel_max", "moved": "servo wall", "not-a-wall": "setupWall"}[mistake]
+    with pytest.raises(ConfigError, match=message):
+        with simulation.DEM(**params) as sim:
+            if mistake == "moved":
+                sim.moveMesh("plate", linear=(0, 0, -0.01))
+            sim.run(10)
