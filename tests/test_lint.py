@@ -14,6 +14,7 @@ TYPED = [
     "plugins/pygran-readers/src/pygran_readers",
     "plugins/pygran-yade/src/pygran_yade",
     "plugins/pygran-liggghts/src/pygran_liggghts",
+    "plugins/pygran-native/src/pygran_native",
 ]
 
 

@@ -618,7 +618,7 @@ def test_servo_walls_are_refused_before_anything_else_until_an_engine_has_them(t
         "args": {"com": (0, 0, 0)},
     }  # incomplete, too
     with pytest.raises(UnsupportedFeature, match="servo walls .*capability 'servo-walls'"):
-        simulation.DEM(engine="native", **BASE, mesh={"plate": servo}, output=str(tmp_path))
+        simulation.DEM(engine="yade", **BASE, mesh={"plate": servo}, output=str(tmp_path))
 
 
 def test_create_wall_motion_viscous_monitor_specs():

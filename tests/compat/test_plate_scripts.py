@@ -3,7 +3,7 @@
 A plate moved down at constant speed (``moveMesh(name, linear=...)``) compresses the bed,
 and the two engines agree on its height; a servo plate (``mtype``
 ``mesh/surface/stress/servo``) driven to a target force comes to rest where the bed pushes
-back with that force (LIGGGHTS; the native engine refuses servo walls).
+back with that force (on native and LIGGGHTS).
 """
 
 from pathlib import Path
@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from PyGran import simulation
-from pygran_core.errors import UnsupportedFeature
 
 MESHES = Path(__file__).resolve().parents[1] / "data" / "meshes"
 ENGINES = ["native", "liggghts"]
@@ -141,13 +140,9 @@ def test_a_servo_plate_comes_to_rest_at_its_target_force(engine, tmp_path):
     """Ten times the bed's weight as target (the plate's damping by the contacts at vel_max is
     then well below it, so the plate does not chatter): at rest, the mean of 20 readings of the
     force the spheres exert on the plate over 2000 steps is the target within 5 %, and the bed
-    no longer moves. The native engine has no servo walls yet: it says so at DEM()."""
+    no longer moves."""
     require(engine)
     weight = 100 * 4 / 3 * np.pi * R**3 * 1000 * G  # cohesionless: 1000 kg/m^3
-    if engine == "native":
-        with pytest.raises(UnsupportedFeature, match="'servo-walls'"):
-            servo_press(engine, str(tmp_path / "out"), 10 * weight)
-        return
     sim, params = servo_press(engine, str(tmp_path / "out"), 10 * weight)
     with sim:
         sim.setupWall(species=1, wtype="primitive", plane="zplane", peq=0.0)
