@@ -1,5 +1,7 @@
 """Build of the compiled kernels (metadata lives in pyproject.toml)."""
 
+from glob import glob
+
 import numpy
 from Cython.Build import cythonize
 from setuptools import Extension, setup
@@ -17,7 +19,7 @@ extensions = [
     Extension(  # its own threads (team.h), not OpenMP's
         "pygran_native._solver",
         ["src/pygran_native/_solver.pyx"],
-        depends=["src/pygran_native/team.h"],
+        depends=["src/pygran_native/team.h", *sorted(glob("src/pygran_native/_*.pxi"))],  # its include files
         include_dirs=[numpy.get_include()],
         define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
         extra_compile_args=["-O3", "-fno-math-errno", "-pthread"],

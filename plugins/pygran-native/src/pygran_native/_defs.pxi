@@ -1,0 +1,104 @@
+# Compile-time constants and enums of the native solver (included by _solver.pyx).
+
+DEF MAXCAND = 64
+DEF MAXTHREADS = 1024   # a team's block numbers must stay below 65536 (team.h)
+DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
+DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
+DEF WRAP = 0x40    # flag bit of nb_s: the partner is across the periodic boundary of axis ax[0]
+DEF IMAGE = 0x1f   # bits of nb_s: the periodic image code
+DEF NMOT = 14      # motion values per wall element, see motion_origin
+DEF NSLOT = 34     # values per stress mesh (a mesh whose force is summed, maybe a servo), see Slot
+DEF NVIB = 96      # values per vibrating mesh: wall, kind, order, axis (3), then per harmonic (30)
+                   # amplitudes, phases and angular frequencies, see vibration
+DEF SACC = 8       # values per stress mesh in a pair block's sums: force (3), torque (3), contacts
+DEF WROW = 5       # work of a row of the pair loop, a touching pair and a wall entry in units of
+DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
+
+DEF BLOCKS = 4     # blocks of the pair loop per thread (more threads than one): a thread
+                   # kept from its core holds up at most 1 / (BLOCKS threads) of a pass
+DEF SPIN = 1e-4    # seconds a waiting thread spins before it sleeps (when not contended)
+DEF TUNE_WINDOW = 0.02   # seconds: shortest window the Tuner times
+DEF TUNE_MIN = 0.1       # seconds between the Tuner's comparisons, at first and after a change
+DEF TUNE_MAX = 2.0       # ... at most
+
+cdef enum:
+    HOOKE = 0
+    HERTZ = 1
+    THORNTON_NING = 2
+
+cdef enum:
+    CDT = 0            # rolling resistance models (LIGGGHTS rolling_friction cdt, epsd, epsd2)
+    EPSD = 1
+    EPSD2 = 2
+
+cdef enum:
+    NO_CONTACT = 0     # the history is cleared
+    IN_CONTACT = 1
+    MEMORY = 2         # Thornton-Ning: apart, plastic history kept while the bodies still overlap
+
+cdef enum:
+    PLANE = 0
+    CYLINDER = 1
+    TRIANGLE = 2
+
+cdef enum:
+    FACE = 0
+    EDGE = 1
+    VERTEX = 2
+
+# wall-clock timers of the time-step loop's phases (seconds), in the order of TIMERS
+cdef enum:
+    T_RUN = 0
+    T_DRIFT = 1
+    T_WALLS = 2
+    T_PAIRS = 3
+    T_PARTICLES = 4
+    T_REBUILD = 5
+    T_CELLS = 6
+    T_SORT = 7
+    T_PERMUTE = 8
+    T_COUNT = 9
+    T_FILL = 10
+    T_PAIRS_SPAN = 11
+    T_PARTICLES_SPAN = 12
+    NTIMERS = 13
+
+
+# phases of a run on the team (see Core.take)
+cdef enum:
+    P_DRIFT = 1
+    P_PAIRS = 2
+    P_PARTICLES = 3
+    P_PLACE = 4
+    P_GATHER = 5
+    P_GATHER_SCALARS = 6
+    P_COPY_BACK = 7
+    P_COUNT = 8
+    P_FILL = 9
+
+# A stress mesh's values (NSLOT doubles): the particles' force on it is summed each step (LIGGGHTS
+# mesh/surface/stress); a servo moves it by LIGGGHTS' controller (mesh/surface/stress/servo,
+# mesh_module_stress_servo.cpp), see Core.servo_control.
+cdef enum:
+    S_WALL = 0         # the mesh's wall handle
+    S_CONTROL = 1      # 0: stress only, 1: servo on the force, 2: servo on the torque
+    S_AUTO = 2         # 1: mode auto (piecewise P controller), 0: PID
+    S_SP = 3           # set point: -target (the particles' force acts against the servo's push)
+    S_VMAX = 4         # vel_max (m/s)
+    S_KP = 5
+    S_KI = 6
+    S_KD = 7
+    S_RATIO = 8        # mode auto: speed in contact ratio r_min / dt
+    S_OPMAX = 9        # largest output: vel_max, or vel_max / (largest node distance from the axis)
+    S_RPA = 10         # 1, or the largest node distance from the axis (torque)
+    S_OPMIN = 11       # mode auto: ratio r_min / dt / S_RPA, set as each run starts
+    S_AXIS = 12        # the unit axis (3)
+    S_XCM = 15         # the reference point (com), moving with a force servo (3)
+    S_XCM0 = 18        # com when the servo was set (the mesh's reference vertices belong to it) (3)
+    S_VEL = 21         # the controller's output: velocity or angular velocity (3)
+    S_PHI = 24         # torque: angle turned since the servo was set
+    S_SUM = 25         # integral of the error
+    S_OLDPV = 26       # the process value of the previous step
+    S_FORCE = 27       # the particles' force on the mesh at the last step (3)
+    S_TORQUE = 30      # ... their torque about S_XCM (3)
+    S_CONTACTS = 33    # ... and the number of contacts

@@ -1,0 +1,197 @@
+# Wall elements: closest points and gaps of planes, cylinders and triangles, and their
+# rigid motion (translation, rotation, wiggle, viblin, vibrot).
+
+# --- geometry of wall elements ----------------------------------------------------------
+cdef inline int closest_on_triangle(const double* p, const double* A, const double* B, const double* C,
+                                    double* q, int* feature) noexcept nogil:
+    """Closest point q on triangle ABC to p; returns FACE/EDGE/VERTEX and the feature index.
+
+    Feature: for VERTEX 0/1/2 = A/B/C; for EDGE 0/1/2 = AB/BC/CA (Voronoi regions).
+    """
+    cdef double d1, d2, d3, d4, d5, d6, va, vb, vc, den, vv, ww
+    cdef double ab[3]
+    cdef double ac[3]
+    cdef double ap[3]
+    cdef double bp[3]
+    cdef double cp[3]
+    cdef int k
+    for k in range(3):
+        ab[k] = B[k] - A[k]
+        ac[k] = C[k] - A[k]
+        ap[k] = p[k] - A[k]
+    d1 = dot3(ab, ap)
+    d2 = dot3(ac, ap)
+    if d1 <= 0.0 and d2 <= 0.0:
+        memcpy(q, A, 3 * sizeof(double))
+        feature[0] = 0
+        return VERTEX
+    for k in range(3):
+        bp[k] = p[k] - B[k]
+    d3 = dot3(ab, bp)
+    d4 = dot3(ac, bp)
+    if d3 >= 0.0 and d4 <= d3:
+        memcpy(q, B, 3 * sizeof(double))
+        feature[0] = 1
+        return VERTEX
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        vv = d1 / (d1 - d3)
+        for k in range(3):
+            q[k] = A[k] + vv * ab[k]
+        feature[0] = 0
+        return EDGE
+    for k in range(3):
+        cp[k] = p[k] - C[k]
+    d5 = dot3(ab, cp)
+    d6 = dot3(ac, cp)
+    if d6 >= 0.0 and d5 <= d6:
+        memcpy(q, C, 3 * sizeof(double))
+        feature[0] = 2
+        return VERTEX
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        ww = d2 / (d2 - d6)
+        for k in range(3):
+            q[k] = A[k] + ww * ac[k]
+        feature[0] = 2
+        return EDGE
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        ww = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        for k in range(3):
+            q[k] = B[k] + ww * (C[k] - B[k])
+        feature[0] = 1
+        return EDGE
+    den = 1.0 / (va + vb + vc)
+    vv = vb * den
+    ww = vc * den
+    for k in range(3):
+        q[k] = A[k] + ab[k] * vv + ac[k] * ww
+    feature[0] = 0
+    return FACE
+
+
+cdef inline double primitive_gap(int kind, const double* g, const double* p, double* nrm) noexcept nogil:
+    """Distance from p to a plane or cylinder surface and the unit normal: negative behind
+    a cylinder's surface; for a plane, negative on the side its normal points away from."""
+    cdef double d, rho, u0, u1
+    cdef int ax, a0, a1
+    if kind == PLANE:
+        d = (p[0] - g[0]) * g[3] + (p[1] - g[1]) * g[4] + (p[2] - g[2]) * g[5]
+        nrm[0] = g[3]
+        nrm[1] = g[4]
+        nrm[2] = g[5]
+        return d
+    ax = <int>g[0]
+    a0 = (ax + 1) % 3
+    a1 = (ax + 2) % 3
+    u0 = p[a0] - g[1]
+    u1 = p[a1] - g[2]
+    rho = sqrt(u0 * u0 + u1 * u1)
+    nrm[ax] = 0.0
+    if rho > 0.0:
+        nrm[a0] = u0 / rho
+        nrm[a1] = u1 / rho
+    else:
+        nrm[a0] = 1.0
+        nrm[a1] = 0.0
+    if g[4] != 0.0:   # inside
+        nrm[a0] = -nrm[a0]
+        nrm[a1] = -nrm[a1]
+        return g[3] - rho
+    return rho - g[3]
+
+
+cdef inline void motion_origin(const double* mot, double tau, double* o, double* vo) noexcept nogil:
+    """Position and velocity of a moving wall's origin ``tau`` after its motion started.
+
+    ``mot``: velocity V (3), angular velocity W (3), origin o0 (3), start time, wiggle
+    amplitude A (3) and period T (0: no wiggle); the origin is at
+    ``o0 + V tau + A sin(2 pi tau / T)``, and the wall at ``o + R(W tau)(X - o0)``.
+    """
+    cdef double ph, s = 0.0, cw = 0.0
+    cdef int k
+    if mot[13] > 0.0:
+        ph = 2.0 * M_PI * tau / mot[13]
+        s = sin(ph)
+        cw = 2.0 * M_PI / mot[13] * cos(ph)
+    for k in range(3):
+        o[k] = mot[6 + k] + mot[k] * tau + mot[10 + k] * s
+        vo[k] = mot[k] + mot[10 + k] * cw
+
+
+cdef inline const double* vibration_of(const double* vib, int nvib, int wall) noexcept nogil:
+    """The vibration of a wall (its row of ``vib``), NULL for none."""
+    cdef int k
+    for k in range(nvib):
+        if vib[NVIB * k] == wall:
+            return &vib[NVIB * k]
+    return NULL
+
+
+cdef inline void vibration(const double* row, double tau, double* s, double* ds) noexcept nogil:
+    """Displacement along the axis (viblin, m) or angle about it (vibrot, rad) ``tau`` after
+    the motion started, and its rate: LIGGGHTS' ``move/mesh viblin`` and ``vibrot``, whose rate
+    is ``-sum_j A_j w_j sin(w_j tau + phi_j)``, in closed form
+    ``s = sum_j A_j (cos(w_j tau + phi_j) - cos(phi_j))``. ``row``: wall, kind (1 viblin, 2
+    vibrot), order, axis (3), amplitudes A, phases phi and angular frequencies w (30 each)."""
+    cdef int j
+    cdef double a
+    s[0] = 0.0
+    ds[0] = 0.0
+    for j in range(<int>row[2]):
+        a = row[66 + j] * tau + row[36 + j]
+        s[0] += row[6 + j] * (cos(a) - cos(row[36 + j]))
+        ds[0] -= row[6 + j] * row[66 + j] * sin(a)
+
+
+cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogil:
+    """Rotation matrix (row major) of angle |w| tau about w (Rodrigues)."""
+    cdef double wm = sqrt(dot3(w, w)), th, c, s, k0, k1, k2, C
+    if wm == 0.0:
+        memset(Rm, 0, 9 * sizeof(double))
+        Rm[0] = 1.0
+        Rm[4] = 1.0
+        Rm[8] = 1.0
+        return
+    th = wm * tau
+    c = cos(th)
+    s = sin(th)
+    C = 1.0 - c
+    k0 = w[0] / wm
+    k1 = w[1] / wm
+    k2 = w[2] / wm
+    Rm[0] = c + k0 * k0 * C
+    Rm[1] = k0 * k1 * C - k2 * s
+    Rm[2] = k0 * k2 * C + k1 * s
+    Rm[3] = k1 * k0 * C + k2 * s
+    Rm[4] = c + k1 * k1 * C
+    Rm[5] = k1 * k2 * C - k0 * s
+    Rm[6] = k2 * k0 * C - k1 * s
+    Rm[7] = k2 * k1 * C + k0 * s
+    Rm[8] = c + k2 * k2 * C
+
+
+cdef inline bint has_vertex(const int* vid, int u) noexcept nogil:
+    return vid[0] == u or vid[1] == u or vid[2] == u
+
+
+cdef inline bint coplanar(const double* g, const double* f, const double* q, double tol) noexcept nogil:
+    """Whether triangle g lies in the plane of triangle f and point q on it (to ``tol``)."""
+    cdef double a[3]
+    cdef double b[3]
+    cdef double ng[3]
+    cdef double nf[3]
+    cdef int k
+    for k in range(3):
+        a[k] = g[3 + k] - g[k]
+        b[k] = g[6 + k] - g[k]
+    cross3(a, b, ng)
+    for k in range(3):
+        a[k] = f[3 + k] - f[k]
+        b[k] = f[6 + k] - f[k]
+    cross3(a, b, nf)
+    for k in range(3):
+        a[k] = q[k] - f[k]
+    return fabs(dot3(ng, nf)) >= (1.0 - 1e-12) * sqrt(dot3(ng, ng) * dot3(nf, nf)) \
+        and fabs(dot3(a, nf)) <= tol * sqrt(dot3(nf, nf))

@@ -1,0 +1,309 @@
+# The pair loop: forces of a particle's listed pairs and wall elements, per block.
+
+cdef inline int row_work(int listed, int touching, int walls) noexcept nogil:
+    """Work of a row of the pair loop, in units of a listed pair that is apart."""
+    return WROW + listed + WTOUCH * (touching + walls)
+
+
+cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
+    """Forces of particle i's half-list contacts and walls; returns the row's work.
+
+    Block ``b`` owns the rows up to ``pb[b + 1]``: forces on them go to the shared buffer
+    ``buf``, forces on later rows to the block's halo buffers in ``halo`` (see Halo; ``hmax``:
+    the last row it wrote to the near one).
+    """
+    # locals: the flag store through uint8_t* may alias anything, including *c
+    cdef const double* x = c.x
+    cdef const double* v = c.v
+    cdef const double* w = c.w
+    cdef const double* r = c.r
+    cdef const double* m = c.m
+    cdef const int* typ = c.type
+    cdef const int* nb_j = c.nb_j
+    cdef uint8_t* nb_s = c.nb_s
+    cdef double* nb_h = c.nb_h
+    cdef const double* shiftv = c.shiftv
+    cdef const Coef* coef = c.coef + c.type[i] * c.nt
+    cdef double* buf = c.buf
+    cdef double* halo = c.halo
+    cdef const Halo* hb = &c.halos[b]
+    cdef int own = c.pb[b + 1], near_end = hb.near_end
+    cdef long long near = hb.near_off - own, far = hb.far_off - hb.far_lo   # row j's entries
+    cdef int hs = c.hs, model = c.model, rolling = c.rolling, roff = c.roff, update = c.update
+    cdef int k, j, q, res, kend = c.nb_start[i + 1]
+    cdef int touching = 0, last = -1
+    cdef double dt = c.dt
+    cdef double d[3]
+    cdef double n[3]
+    cdef double vr[3]
+    cdef double rw[3]
+    cdef double wrel[3]
+    cdef double F[3]
+    cdef double Ft[3]
+    cdef double Mr[3]
+    cdef double cx[3]
+    cdef double fi[6]
+    cdef double xi[3]
+    cdef double vi[3]
+    cdef double wi[3]
+    cdef double dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den, Ii = mi * ri * ri, Ir = 0.0
+    cdef double* h
+    cdef double* bj
+    cdef const double* sv
+    for q in range(3):
+        xi[q] = x[3 * i + q]
+        vi[q] = v[3 * i + q]
+        wi[q] = w[3 * i + q]
+    for q in range(6):
+        fi[q] = 0.0
+    for k in range(c.nb_start[i], kend):
+        j = nb_j[k]
+        sv = &shiftv[3 * (nb_s[k] & IMAGE)]
+        for q in range(3):
+            d[q] = xi[q] - x[3 * j + q] + sv[q]
+        dist2 = dot3(d, d)
+        rj = r[j]
+        rs = ri + rj
+        h = &nb_h[<long long>k * hs]
+        if dist2 >= rs * rs and not (model == THORNTON_NING and h[4] > 0.0):   # apart (adhesion stretches)
+            if nb_s[k] & TOUCH:
+                memset(h, 0, hs * sizeof(double))
+                nb_s[k] &= ~TOUCH
+            continue
+        inv = 1.0 / sqrt(dist2)
+        mj = m[j]
+        for q in range(3):
+            n[q] = d[q] * inv
+            vr[q] = vi[q] - v[3 * j + q]
+            rw[q] = ri * wi[q] + rj * w[3 * j + q]
+            wrel[q] = wi[q] - w[3 * j + q]
+        den = 1.0 / (rs * (mi + mj))
+        Rs = ri * rj * (mi + mj) * den
+        ms = mi * mj * rs * den
+        if rolling == EPSD:   # 1.4 (m_i r_i^2)(m_j r_j^2) / (m_i r_i^2 + m_j r_j^2), as LIGGGHTS
+            Ir = 1.4 * Ii * mj * rj * rj / (Ii + mj * rj * rj)
+        res = contact_force(model, rolling, roff, &coef[typ[j]], rs - dist2 * inv, Rs, ms, Ir, n, vr, rw,
+                            wrel, h, dt, update, F, Ft, Mr)
+        if res != IN_CONTACT:
+            if res == NO_CONTACT:
+                memset(h, 0, hs * sizeof(double))
+                nb_s[k] &= ~TOUCH
+            continue
+        nb_s[k] |= TOUCH
+        touching += 1
+        cross3(n, Ft, cx)
+        if j < own:
+            bj = &buf[j * 6]
+        elif j <= near_end:
+            bj = &halo[(near + j) * 6]
+            last = j if j > last else last
+        else:
+            bj = &halo[(far + j) * 6]
+        for q in range(3):
+            fi[q] += F[q]
+            fi[3 + q] += Mr[q] - ri * cx[q]
+            bj[q] -= F[q]
+            bj[3 + q] -= Mr[q] + rj * cx[q]
+    for q in range(3):   # walls after the loop, into other arrays: fi can live in registers there
+        F[q] = 0.0
+        Ft[q] = 0.0
+    wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
+    for q in range(3):
+        buf[i * 6 + q] += fi[q] + F[q]
+        buf[i * 6 + 3 + q] += fi[3 + q] + Ft[q]
+    if last > hmax[0]:
+        hmax[0] = last
+    return row_work(kend - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
+
+
+cdef inline int slot_of(const Ctx* c, int e) noexcept nogil:
+    """The stress mesh (index into ``slots``) wall element e belongs to, -1 for none."""
+    cdef int s
+    for s in range(c.nslots):
+        if c.slots[NSLOT * s + S_WALL] == c.ewall[e]:
+            return s
+    return -1
+
+
+cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const double* n,
+                      const double* q, double* F, double* T, double* sa) noexcept nogil:
+    """Force of wall element e on particle i (contact point q, NULL for a fixed primitive).
+
+    Returns the :func:`contact_force` result; clears the history on NO_CONTACT. The force on
+    a stress mesh's element is added, reversed, to the block's sums ``sa`` (see Slot).
+    """
+    cdef double vr[3]
+    cdef double rw[3]
+    cdef double vw[3]
+    cdef double o[3]
+    cdef double vo[3]
+    cdef double Fc[3]
+    cdef double Ft[3]
+    cdef double Mr[3]
+    cdef double cx[3]
+    cdef double rel[3]
+    cdef const double* mot
+    cdef const double* sl = NULL
+    cdef const double* vb
+    cdef int k, res, slot = slot_of(c, e) if q != NULL else -1
+    cdef double ri = c.r[i], sv, dsv
+    for k in range(3):
+        vw[k] = 0.0
+    if slot >= 0:
+        sl = &c.slots[NSLOT * slot]
+    if sl != NULL and sl[S_CONTROL] == 1.0:   # a force servo translates at its output
+        for k in range(3):
+            vw[k] = sl[S_VEL + k]
+    elif sl != NULL and sl[S_CONTROL] == 2.0:   # a torque servo turns about its axis through com
+        for k in range(3):
+            rel[k] = q[k] - sl[S_XCM + k]
+        cross3(&sl[S_VEL], rel, vw)
+    elif q != NULL and c.emoving[e]:
+        mot = &c.emot[NMOT * e]
+        motion_origin(mot, c.time - mot[9], o, vo)
+        for k in range(3):
+            rel[k] = q[k] - o[k]
+        cross3(&mot[3], rel, vw)
+        for k in range(3):
+            vw[k] += vo[k]
+        vb = vibration_of(c.vib, c.nvib, c.ewall[e]) if c.nvib else NULL
+        if vb != NULL:   # along the axis, or about it through the origin
+            vibration(vb, c.time - mot[9], &sv, &dsv)
+            for k in range(3):
+                o[k] = dsv * vb[3 + k]
+            if vb[1] == 1.0:
+                for k in range(3):
+                    vw[k] += o[k]
+            else:
+                cross3(o, rel, vo)
+                for k in range(3):
+                    vw[k] += vo[k]
+    for k in range(3):
+        vr[k] = c.v[3 * i + k] - vw[k]
+        rw[k] = ri * c.w[3 * i + k]
+    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.nt + c.etype[e]], delta, ri,
+                        c.m[i], 1.4 * c.m[i] * ri * ri, n, vr, rw, &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
+    if res == NO_CONTACT:
+        zero_hist(h, c.whs)
+    if res != IN_CONTACT:
+        return res
+    cross3(n, Ft, cx)
+    for k in range(3):
+        F[k] += Fc[k]
+        T[k] += Mr[k] - ri * cx[k]
+    if sl != NULL:   # LIGGGHTS: the reversed force, and its torque about com at the contact point
+        sa = &sa[SACC * slot]
+        for k in range(3):
+            rel[k] = q[k] - sl[S_XCM + k]
+            Fc[k] = -Fc[k]
+        cross3(rel, Fc, cx)
+        for k in range(3):
+            sa[k] += Fc[k]
+            sa[3 + k] += cx[k]
+        sa[6] += 1.0
+    return IN_CONTACT
+
+
+cdef void wall_row(const Ctx* c, int i, double* F, double* T, double* sa) noexcept nogil:
+    """Wall forces on particle i; mesh contacts without double counting.
+
+    Candidates are the triangles whose closest point is within reach, classified as
+    face, edge or vertex contacts, taken faces first, each kind nearest first. A face contact
+    is dropped when an accepted one has the same contact point (to 1e-9 of the radius: a
+    centre right above the edge two coplanar triangles share, which rounding may put inside
+    both); an edge or vertex contact when an accepted contact's triangle has that edge or
+    vertex, or lies in the plane of this one's triangle with this contact point on it (a
+    flat surface is touched once however many of its triangles the sphere reaches; a shared
+    edge or vertex of a convex surface counts once; concave corners give one contact per face).
+    """
+    cdef int k, e, a, b, nc = 0, nacc = 0, reg, u, w2, ok, hs = c.hs
+    cdef int ck[MAXCAND]
+    cdef int creg[MAXCAND]
+    cdef int cfeat[MAXCAND]
+    cdef int acc[MAXCAND]
+    cdef uint8_t done[MAXCAND]
+    cdef double cq[3 * MAXCAND]
+    cdef double cd2[MAXCAND]
+    cdef double gap, d2, dist, side = 1.0
+    cdef double nrm[3]
+    cdef double* h
+    cdef const double* g
+    cdef const double* xi = &c.x[3 * i]
+    cdef double ri = c.r[i]
+    for k in range(c.wl_start[i], c.wl_start[i + 1]):
+        e = c.wl_e[k]
+        h = &c.wl_h[<long long>k * c.whs]
+        g = &c.egeo[9 * e]
+        if c.ekind[e] != TRIANGLE:
+            gap = primitive_gap(c.ekind[e], g, xi, nrm)
+            if c.ekind[e] == PLANE:   # the contact's side, or the centre's for a new contact
+                side = h[hs] if h[hs] != 0.0 else (1.0 if gap >= 0.0 else -1.0)
+                gap *= side
+                for a in range(3):
+                    nrm[a] *= side
+            if gap < -ri:   # behind the wall: passed through it
+                zero_hist(h, c.whs)
+            elif wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T, sa) != NO_CONTACT and c.ekind[e] == PLANE \
+                    and c.update:
+                h[hs] = side
+            continue
+        creg[nc] = closest_on_triangle(xi, g, g + 3, g + 6, &cq[3 * nc], &cfeat[nc])
+        d2 = (xi[0] - cq[3 * nc]) ** 2 + (xi[1] - cq[3 * nc + 1]) ** 2 + (xi[2] - cq[3 * nc + 2]) ** 2
+        if (d2 >= ri * ri and not (c.model == THORNTON_NING and h[4] > 0.0)) or d2 == 0.0 or nc == MAXCAND:
+            zero_hist(h, c.whs)
+            continue
+        cd2[nc] = d2
+        ck[nc] = k
+        nc += 1
+    memset(done, 0, MAXCAND)
+    for reg in range(3):
+        while True:   # the nearest candidate of this kind not taken yet
+            a = -1
+            for b in range(nc):
+                if creg[b] == reg and not done[b] and (a < 0 or cd2[b] < cd2[a]):
+                    a = b
+            if a < 0:
+                break
+            done[a] = 1
+            k = ck[a]
+            e = c.wl_e[k]
+            h = &c.wl_h[<long long>k * c.whs]
+            ok = 1
+            if reg == FACE:
+                for b in range(nacc):
+                    d2 = ((cq[3 * a] - cq[3 * acc[b]]) ** 2 + (cq[3 * a + 1] - cq[3 * acc[b] + 1]) ** 2
+                          + (cq[3 * a + 2] - cq[3 * acc[b] + 2]) ** 2)
+                    if d2 <= 1e-18 * ri * ri:
+                        ok = 0
+                        break
+            else:
+                u = c.evid[3 * e + cfeat[a]]
+                w2 = c.evid[3 * e + (cfeat[a] + 1) % 3]
+                for b in range(nacc):
+                    if has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], u) and (
+                            reg == VERTEX or has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], w2)) \
+                            or coplanar(&c.egeo[9 * e], &c.egeo[9 * c.wl_e[ck[acc[b]]]], &cq[3 * a], 1e-9 * ri):
+                        ok = 0
+                        break
+            if not ok:
+                zero_hist(h, c.whs)
+                continue
+            dist = sqrt(cd2[a])
+            for b in range(3):
+                nrm[b] = (xi[b] - cq[3 * a + b]) / dist
+            if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T, sa) == IN_CONTACT:
+                acc[nacc] = a
+                nacc += 1
+
+
+cdef void pair_block(const Ctx* c, int b) noexcept nogil:
+    """Block b's rows of the pair loop; records their work and the last row of its halo."""
+    cdef int i, hmax = -1
+    cdef long long total = 0
+    if c.nslots:
+        memset(&c.sacc[<long long>SACC * c.nslots * b], 0, SACC * c.nslots * sizeof(double))
+    for i in range(c.pb[b], c.pb[b + 1]):
+        c.work[i] = pair_row(c, i, b, &hmax)
+        total += c.work[i]
+    c.tstat[PAD * b] = total
+    c.tstat[PAD * b + 1] = hmax
