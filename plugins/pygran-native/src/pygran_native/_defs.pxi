@@ -64,7 +64,7 @@ cdef enum:
     NTIMERS = 13
 
 
-# phases of a run on the team (see Core.take)
+# phases of a run on the team (see take)
 cdef enum:
     P_DRIFT = 1
     P_PAIRS = 2
@@ -78,7 +78,7 @@ cdef enum:
 
 # A stress mesh's values (NSLOT doubles): the particles' force on it is summed each step (LIGGGHTS
 # mesh/surface/stress); a servo moves it by LIGGGHTS' controller (mesh/surface/stress/servo,
-# mesh_module_stress_servo.cpp), see Core.servo_control.
+# mesh_module_stress_servo.cpp), see servo_control.
 cdef enum:
     S_WALL = 0         # the mesh's wall handle
     S_CONTROL = 1      # 0: stress only, 1: servo on the force, 2: servo on the torque

@@ -1,7 +1,7 @@
 # Integration: the particle loop (summing the pair loop's buffers, gravity, viscous
 # forces, velocity Verlet kicks) and the drift.
 
-cdef inline void drift_row(const Ctx* c, int i, int tid, const double* F, const double* T) noexcept nogil:
+cdef inline void drift_row(const State* c, int i, int tid, const double* F, const double* T) noexcept nogil:
     """First half kick (force F, torque T) and drift of particle i; its squared displacement
     since the rebuild raises thread ``tid``'s maximum (per-thread maxima are a cache line apart)."""
     cdef int d
@@ -16,7 +16,7 @@ cdef inline void drift_row(const Ctx* c, int i, int tid, const double* F, const 
         c.tmax[PAD * tid] = dd if isfinite(dd) else INFINITY
 
 
-cdef void particle_row(const Ctx* c, int i, int tid, int first, int end) noexcept nogil:
+cdef void particle_row(const State* c, int i, int tid, int first, int end) noexcept nogil:
     """Sum the buffers (the shared one, then the near halos of the pair blocks ``first`` to
     ``end - 1`` that wrote row i, then the far halos holding it, each in block order) and
     clear them, add gravity and viscous forces; second half kick, and with ``fuse`` the first
@@ -66,7 +66,7 @@ cdef void particle_row(const Ctx* c, int i, int tid, int first, int end) noexcep
         drift_row(c, i, tid, F, T)
 
 
-cdef void particle_block(const Ctx* c, int lo, int hi, int tid) noexcept nogil:
+cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil:
     """Rows [lo, hi) of the particle loop. The pair blocks whose near halo can hold row i
     are among ``first`` to ``end - 1``: those ending at or before i whose rows have a near
     partner at or after i (``last``); both bounds move forward with i."""
@@ -79,7 +79,107 @@ cdef void particle_block(const Ctx* c, int lo, int hi, int tid) noexcept nogil:
         particle_row(c, i, tid, first, end)
 
 
-cdef void drift_block(const Ctx* c, int lo, int hi, int t) noexcept nogil:
+cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:
     cdef int i
     for i in range(lo, hi):
         drift_row(c, i, t, &c.f[3 * i], &c.t[3 * i])
+
+
+cdef double max_displacement(State* sim) noexcept nogil:
+    cdef int i
+    cdef double dmax = 0.0
+    for i in range(sim.nthreads):
+        if sim.tmax[PAD * i] > dmax:
+            dmax = sim.tmax[PAD * i]
+    return sqrt(dmax)
+
+
+cdef double drift(State* sim, double dt) noexcept nogil:
+    """First half kick and drift; the largest displacement since the last rebuild."""
+    cdef int t
+    cdef double t0 = pg_now()
+    sim.dt = dt
+    for t in range(sim.nthreads):
+        sim.tmax[PAD * t] = 0.0
+    parallel_rows(sim, P_DRIFT, sim.n)
+    lap(sim, T_DRIFT, t0)
+    return max_displacement(sim)
+
+
+cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexcept nogil:
+    """Forces (pair loop, then per particle), second half kick; ``fuse``: see particle_row.
+    -1 when out of memory.
+
+    The pair loop's blocks (see pair_row) fix the order of the sums and depend only on the
+    state: results are deterministic for a given thread count, whichever thread runs a
+    block. The particle loop takes the same blocks of rows, so a thread that ran a block
+    of the pair loop usually sums and integrates the same rows.
+    """
+    cdef int t, T = sim.nthreads
+    cdef double t0 = pg_now()
+    cdef double span[2]
+    span[0] = span[1] = 0.0
+    if place_halos(sim) < 0:
+        return -1
+    sim.dt = dt
+    sim.update = update
+    sim.kick = kick
+    sim.fuse = fuse
+    for t in range(T):
+        sim.tmax[PAD * t] = 0.0
+        sim.cpu[PAD * t + 2] = 0.0
+        sim.cpu[PAD * t + 3] = 0.0
+    run_phase(sim, P_PAIRS, sim.nblocks)
+    if sim.nslots:
+        servo_sums(sim)
+        if update:
+            servo_control(sim, dt)
+    t0 = lap(sim, T_PAIRS, t0)
+    run_phase(sim, P_PARTICLES, sim.nblocks)
+    rebalance(sim)
+    lap(sim, T_PARTICLES, t0)
+    for t in range(T):   # the busiest thread's CPU time: the loops' wall time on idle cores
+        sim.cpu[PAD * t] += sim.cpu[PAD * t + 2]
+        sim.cpu[PAD * t + 1] += sim.cpu[PAD * t + 3]
+        span[0] = max(span[0], sim.cpu[PAD * t + 2])
+        span[1] = max(span[1], sim.cpu[PAD * t + 3])
+    sim.timers[T_PAIRS_SPAN] += span[0]
+    sim.timers[T_PARTICLES_SPAN] += span[1]
+    return 0
+
+
+cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
+    cdef long long s
+    cdef double dp, dw, t0 = pg_now(), t1
+    cdef bint fused = False
+    if dt != sim.dt_base:
+        sim.t_base = sim.time
+        sim.step_base = sim.step
+        sim.dt_base = dt
+    if sim.nslots:
+        servo_start(sim, dt)
+    if sim.dirty:
+        if rebuild(sim) < 0:
+            return -1
+        if forces(sim, dt, False, False, False) < 0:
+            return -1
+        sim.dirty = 0
+    sim.tuner.start = t0
+    for s in range(nsteps):
+        if sim.nthreads > 1:
+            tune(sim)
+        dp = max_displacement(sim) if fused else drift(sim, dt)
+        sim.step += 1
+        sim.time = sim.t_base + (sim.step - sim.step_base) * dt
+        t1 = pg_now()
+        servo_move(sim, dt)
+        dw = move_walls(sim)
+        lap(sim, T_WALLS, t1)
+        if dp + dw > 0.5 * sim.skin:
+            if rebuild(sim) < 0:
+                return -1
+        fused = s + 1 < nsteps   # the last step ends after its second half kick
+        if forces(sim, dt, True, True, fused) < 0:
+            return -1
+    sim.tuner.elapsed += lap(sim, T_RUN, t0) - sim.tuner.start
+    return 0

@@ -30,7 +30,7 @@ cdef inline int locate(const double* p, const double* lo, const double* cs, cons
     return cell_id(nc, ax, cc)
 
 
-cdef uint8_t carry_pair(const Ctx* c, int a, int b, double* h) noexcept nogil:
+cdef uint8_t carry_pair(const State* c, int a, int b, double* h) noexcept nogil:
     """History of new pair (a, b) from the previous list (old indices through ``perm``).
 
     Returns the previous touching flag (``TOUCH`` or 0).
@@ -55,7 +55,7 @@ cdef uint8_t carry_pair(const Ctx* c, int a, int b, double* h) noexcept nogil:
     return 0
 
 
-cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
+cdef int scan_pairs(const State* c, int i, bint fill) noexcept nogil:
     """Partners j > i within r_i + r_j + skin: counted, or written from ``nb_start[i]``."""
     cdef int d0, d1, d2, j, code, cid, cnt = 0, pos, wrap
     cdef int cc[3]
@@ -112,7 +112,7 @@ cdef int scan_pairs(const Ctx* c, int i, bint fill) noexcept nogil:
     return cnt
 
 
-cdef int scan_walls(const Ctx* c, int i, bint fill) noexcept nogil:
+cdef int scan_walls(const State* c, int i, bint fill) noexcept nogil:
     """Wall elements within r_i + skin of particle i: counted, or written from ``wl_start[i]``."""
     cdef int e, k, q, cid, feat, cnt = 0, pos, oi
     cdef int cc[3]
@@ -152,3 +152,407 @@ cdef int scan_walls(const Ctx* c, int i, bint fill) noexcept nogil:
                     memcpy(&c.wl_h[(pos + k) * c.whs], &c.ow_h[q * c.whs], c.whs * sizeof(double))
                     break
     return cnt
+
+
+cdef int reserve_pairs(State* sim, long long need) noexcept nogil:
+    """Grow the current neighbour list to ``need`` pairs; -1 when out of memory."""
+    cdef long long cap
+    cdef void *a
+    cdef void *b
+    cdef void *c
+    if need <= sim.nb_cap:
+        return 0
+    cap = need + need // 10 + 64
+    a = grow(sim.nb_j, cap * sizeof(int))
+    if a == NULL:
+        return -1
+    sim.nb_j = <int*>a
+    b = grow(sim.nb_s, cap * sizeof(uint8_t))
+    if b == NULL:
+        return -1
+    sim.nb_s = <uint8_t*>b
+    c = grow(sim.nb_h, cap * sim.hs * sizeof(double))
+    if c == NULL:
+        return -1
+    sim.nb_h = <double*>c
+    sim.nb_cap = cap
+    return 0
+
+
+cdef int reserve_walls(State* sim, long long need) noexcept nogil:
+    cdef long long cap
+    cdef void *a
+    cdef void *b
+    if need <= sim.wl_cap:
+        return 0
+    cap = need + need // 10 + 64
+    a = grow(sim.wl_e, cap * sizeof(int))
+    if a == NULL:
+        return -1
+    sim.wl_e = <int*>a
+    b = grow(sim.wl_h, cap * (sim.hs + 1) * sizeof(double))
+    if b == NULL:
+        return -1
+    sim.wl_h = <double*>b
+    sim.wl_cap = cap
+    return 0
+
+
+cdef int setup_cells(State* sim, double rmax) noexcept nogil:
+    """Cell grid of side >= 2 rmax + skin over the box; -1 when out of memory."""
+    cdef double cut, size
+    cdef int d, k
+    cdef long long total
+    cdef void* p
+    cut = 2.0 * rmax + sim.skin
+    size = cut
+    while True:
+        total = 1
+        for d in range(3):
+            sim.nc[d] = <int>floor(sim.L[d] / size)
+            if sim.nc[d] < 1:
+                sim.nc[d] = 1
+            sim.cs[d] = sim.L[d] / sim.nc[d]
+            total *= sim.nc[d]
+        if total <= 4 * <long long>sim.n + 4096:
+            break
+        size *= 1.26
+    sim.ncells = <int>total
+    # axes by decreasing cell count (ties: z before y before x)
+    sim.ax[0], sim.ax[1], sim.ax[2] = 2, 1, 0
+    for d in range(2):
+        for k in range(2 - d):
+            if sim.nc[sim.ax[k + 1]] > sim.nc[sim.ax[k]]:
+                sim.ax[k], sim.ax[k + 1] = sim.ax[k + 1], sim.ax[k]
+    if sim.ncells + 2 > sim.cell_cap:
+        p = grow(sim.cell_start, (sim.ncells + 2) * sizeof(int))
+        if p == NULL:
+            return -1
+        sim.cell_start = <int*>p
+        p = grow(sim.ctri_start, (sim.ncells + 2) * sizeof(int))
+        if p == NULL:
+            return -1
+        sim.ctri_start = <int*>p
+        sim.cell_cap = sim.ncells + 2
+    return 0
+
+
+cdef inline int cell_of(State* sim, const double* p) noexcept nogil:
+    cdef int cc[3]
+    return locate(p, sim.lo, sim.cs, sim.nc, sim.ax, cc)
+
+
+cdef void tri_cells(State* sim, int e, double reach, int* lo3, int* hi3) noexcept nogil:
+    """Range of cells within ``reach`` of triangle e's bounding box."""
+    cdef double mn, mx, val
+    cdef int a, d
+    for d in range(3):
+        mn = sim.egeo[9 * e + d]
+        mx = mn
+        for a in range(1, 3):
+            val = sim.egeo[9 * e + 3 * a + d]
+            if val < mn:
+                mn = val
+            if val > mx:
+                mx = val
+        lo3[d] = <int>floor((mn - reach - sim.lo[d]) / sim.cs[d])
+        hi3[d] = <int>floor((mx + reach - sim.lo[d]) / sim.cs[d])
+        if lo3[d] < 0:
+            lo3[d] = 0
+        if hi3[d] >= sim.nc[d]:
+            hi3[d] = sim.nc[d] - 1
+
+
+cdef inline bint tri_near_cell(State* sim, int e, int a, int b, int c, double reach) noexcept nogil:
+    """Whether cell (a, b, c) comes within ``reach`` of triangle e's plane."""
+    cdef double half, ln
+    cdef double u[3]
+    cdef double v[3]
+    cdef double nrm[3]
+    cdef double ctr[3]
+    cdef const double* g = &sim.egeo[9 * e]
+    cdef int d
+    for d in range(3):
+        u[d] = g[3 + d] - g[d]
+        v[d] = g[6 + d] - g[d]
+    cross3(u, v, nrm)
+    ln = sqrt(dot3(nrm, nrm))
+    ctr[0] = sim.lo[0] + (a + 0.5) * sim.cs[0] - g[0]
+    ctr[1] = sim.lo[1] + (b + 0.5) * sim.cs[1] - g[1]
+    ctr[2] = sim.lo[2] + (c + 0.5) * sim.cs[2] - g[2]
+    half = 0.5 * sqrt(sim.cs[0] * sim.cs[0] + sim.cs[1] * sim.cs[1] + sim.cs[2] * sim.cs[2])
+    return fabs(dot3(nrm, ctr)) <= (reach + half) * ln
+
+
+cdef int bin_triangles(State* sim, double reach) noexcept nogil:
+    """CSR (``ctri_start``, ``ctri``) of the triangles within ``reach`` of each cell.
+
+    A triangle goes to the cells of its bounding box (grown by ``reach``) that come
+    within ``reach`` of its plane. Uses ``cell_start`` as fill cursor: call before the
+    particles are binned.
+    """
+    cdef int e, a, b, c, cc
+    cdef int lo3[3]
+    cdef int hi3[3]
+    cdef int abc[3]
+    cdef long long total
+    cdef void* p
+    memset(sim.ctri_start, 0, (sim.ncells + 1) * sizeof(int))
+    for e in range(sim.ne):
+        if sim.ekind[e] == TRIANGLE:
+            tri_cells(sim, e, reach, lo3, hi3)
+            for c in range(lo3[2], hi3[2] + 1):
+                for b in range(lo3[1], hi3[1] + 1):
+                    for a in range(lo3[0], hi3[0] + 1):
+                        if tri_near_cell(sim, e, a, b, c, reach):
+                            abc[0] = a
+                            abc[1] = b
+                            abc[2] = c
+                            sim.ctri_start[cell_id(sim.nc, sim.ax, abc) + 1] += 1
+    for c in range(sim.ncells):
+        sim.ctri_start[c + 1] += sim.ctri_start[c]
+    total = sim.ctri_start[sim.ncells]
+    if total + 1 > sim.ctri_cap:
+        p = grow(sim.ctri, (total + 1) * sizeof(int))
+        if p == NULL:
+            return -1
+        sim.ctri = <int*>p
+        sim.ctri_cap = total + 1
+    memcpy(sim.cell_start, sim.ctri_start, (sim.ncells + 1) * sizeof(int))
+    for e in range(sim.ne):
+        if sim.ekind[e] == TRIANGLE:
+            tri_cells(sim, e, reach, lo3, hi3)
+            for c in range(lo3[2], hi3[2] + 1):
+                for b in range(lo3[1], hi3[1] + 1):
+                    for a in range(lo3[0], hi3[0] + 1):
+                        if tri_near_cell(sim, e, a, b, c, reach):
+                            abc[0] = a
+                            abc[1] = b
+                            abc[2] = c
+                            cc = cell_id(sim.nc, sim.ax, abc)
+                            sim.ctri[sim.cell_start[cc]] = e
+                            sim.cell_start[cc] += 1
+    return 0
+
+
+cdef inline int place_particle(State* sim, int i) noexcept nogil:
+    """Wrap particle i into the periodic box; its cell, -1 if lost, -2 if removed."""
+    cdef int d
+    cdef double p
+    if sim.type[i] < 0:
+        return -2
+    for d in range(3):
+        p = sim.x[3 * i + d]
+        if not isfinite(p):
+            return -1
+        if sim.per[d]:
+            if p < sim.lo[d] or p >= sim.hi[d]:
+                p -= sim.L[d] * floor((p - sim.lo[d]) / sim.L[d])
+                if p >= sim.hi[d]:
+                    p = sim.lo[d]
+                sim.x[3 * i + d] = p
+        elif p < sim.lo[d] or p > sim.hi[d]:
+            return -1
+    return cell_of(sim, &sim.x[3 * i])
+
+
+cdef void count_lost(State* sim, int i) noexcept nogil:
+    """Count lost particle i at the face of the box it is furthest beyond (or as non-finite),
+    and its speed."""
+    cdef int d, place = 6
+    cdef double p, beyond = 0.0, speed = 0.0
+    for d in range(3):
+        if not (isfinite(sim.x[3 * i + d]) and isfinite(sim.v[3 * i + d])):
+            sim.lost_at[6] += 1
+            return
+        speed += sim.v[3 * i + d] * sim.v[3 * i + d]
+    for d in range(3):
+        p = sim.x[3 * i + d]
+        if sim.per[d]:
+            continue
+        if sim.lo[d] - p > beyond:
+            beyond = sim.lo[d] - p
+            place = 2 * d
+        elif p - sim.hi[d] > beyond:
+            beyond = p - sim.hi[d]
+            place = 2 * d + 1
+    sim.lost_at[place] += 1
+    if sqrt(speed) > sim.lost_speed:
+        sim.lost_speed = sqrt(speed)
+
+
+cdef bint any_moving(State* sim) noexcept nogil:
+    cdef int e
+    for e in range(sim.ne):
+        if sim.emoving[e]:
+            return True
+    return False
+
+
+cdef void permute(State* sim, int n) noexcept nogil:
+    """Reorder the particle arrays by ``perm`` in three parallel passes. f, t and x0 are
+    recomputed after a rebuild, so they serve as scratch: x, v and w are gathered into them
+    and swapped with them; r, m, type and pid are gathered into the old x and v, then
+    copied back while x0 becomes a copy of x (see rebuild_rows)."""
+    cdef double* p
+    parallel_rows(sim, P_GATHER, n)
+    p = sim.x; sim.x = sim.f; sim.f = p
+    p = sim.v; sim.v = sim.t; sim.t = p
+    p = sim.w; sim.w = sim.x0; sim.x0 = p
+    parallel_rows(sim, P_GATHER_SCALARS, n)
+    parallel_rows(sim, P_COPY_BACK, n)
+
+
+cdef void rebuild_rows(State* sim, int phase, int lo, int hi) noexcept nogil:
+    """Rows [lo, hi) of a parallel pass of the rebuild."""
+    cdef int i, d, n = sim.rows
+    cdef int* perm = sim.perm
+    cdef double* sr = sim.f
+    cdef double* sm = sim.f + n
+    cdef int* st = <int*>(sim.f + 2 * n)
+    cdef int64_t* sp = <int64_t*>sim.t
+    if phase == P_PLACE:
+        for i in range(lo, hi):
+            sim.cell[i] = place_particle(sim, i)
+    elif phase == P_GATHER:   # into f, t, x0 (swapped with x, v, w afterwards)
+        for i in range(lo, hi):
+            for d in range(3):
+                sim.f[3 * i + d] = sim.x[3 * perm[i] + d]
+                sim.t[3 * i + d] = sim.v[3 * perm[i] + d]
+                sim.x0[3 * i + d] = sim.w[3 * perm[i] + d]
+    elif phase == P_GATHER_SCALARS:
+        for i in range(lo, hi):
+            sr[i] = sim.r[perm[i]]
+            sm[i] = sim.m[perm[i]]
+            st[i] = sim.type[perm[i]]
+            sp[i] = sim.pid[perm[i]]
+    elif phase == P_COPY_BACK:
+        for i in range(lo, hi):
+            sim.r[i] = sr[i]
+            sim.m[i] = sm[i]
+            sim.type[i] = st[i]
+            sim.pid[i] = sp[i]
+            for d in range(3):
+                sim.x0[3 * i + d] = sim.x[3 * i + d]
+    elif phase == P_COUNT:
+        for i in range(lo, hi):
+            sim.nb_start[i + 1] = scan_pairs(sim, i, False)
+            sim.wl_start[i + 1] = scan_walls(sim, i, False)
+    elif phase == P_FILL:
+        for i in range(lo, hi):
+            scan_pairs(sim, i, True)
+            scan_walls(sim, i, True)
+            sim.work[i] = estimated_work(sim, i)
+            find_partners(sim, i)
+
+
+cdef inline void find_partners(State* sim, int i) noexcept nogil:
+    """Row i's largest near partner (``last``, -1: none) and its smallest and largest far
+    partner (``flo``, ``fhi``; INT_MAX and -1: none), see Halo."""
+    cdef int k, j
+    sim.last[i] = -1
+    sim.flo[i] = INT_MAX
+    sim.fhi[i] = -1
+    for k in range(sim.nb_start[i], sim.nb_start[i + 1]):
+        j = sim.nb_j[k]
+        if sim.nb_s[k] & WRAP:
+            sim.flo[i] = min(sim.flo[i], j)
+            sim.fhi[i] = max(sim.fhi[i], j)
+        elif j > sim.last[i]:
+            sim.last[i] = j
+
+
+cdef void prefix_last(State* sim) noexcept nogil:
+    """``last``: from each row's largest near partner to the largest of the rows up to it;
+    ``nfar`` after the last row with a far partner."""
+    cdef int i
+    sim.nfar = 0
+    for i in range(sim.n):
+        if i > 0 and sim.last[i - 1] > sim.last[i]:
+            sim.last[i] = sim.last[i - 1]
+        if sim.fhi[i] >= 0:
+            sim.nfar = i + 1
+
+
+cdef int rebuild(State* sim) noexcept nogil:
+    """Wrap, drop lost particles, sort into cells, rebuild both lists carrying histories."""
+    cdef int i, d, n = sim.n, nnew
+    cdef long long lost = 0
+    cdef double rmax = 0.0
+    cdef int *ip
+    cdef uint8_t *bp
+    cdef double *dp
+    cdef long long cap
+    cdef double t0 = pg_now(), t1
+    for i in range(n):
+        if sim.r[i] > rmax:
+            rmax = sim.r[i]
+    if setup_cells(sim, rmax) < 0:
+        return -1
+    if sim.binned_dirty or sim.binned_reach != rmax + sim.skin or any_moving(sim) \
+            or sim.binned_nc[0] != sim.nc[0] or sim.binned_nc[1] != sim.nc[1] or sim.binned_nc[2] != sim.nc[2]:
+        if bin_triangles(sim, rmax + sim.skin) < 0:
+            return -1
+        sim.binned_dirty = 0
+        sim.binned_reach = rmax + sim.skin
+        for d in range(3):
+            sim.binned_nc[d] = sim.nc[d]
+    t1 = lap(sim, T_CELLS, t0)
+    # wrap periodic coordinates, mark particles outside a fixed boundary (or removed) lost
+    parallel_rows(sim, P_PLACE, n)
+    for i in range(n):
+        if sim.cell[i] < 0:
+            if sim.cell[i] == -1:
+                lost += 1
+                count_lost(sim, i)
+            sim.cell[i] = sim.ncells
+    sim.lost += lost
+    # counting sort by cell (lost ones in the sentinel cell ncells)
+    memset(sim.cell_start, 0, (sim.ncells + 2) * sizeof(int))
+    for i in range(n):
+        sim.cell_start[sim.cell[i] + 1] += 1
+    for i in range(sim.ncells + 1):
+        sim.cell_start[i + 1] += sim.cell_start[i]
+    for i in range(n):
+        sim.perm[sim.cell_start[sim.cell[i]]] = i
+        sim.cell_start[sim.cell[i]] += 1
+    for i in range(sim.ncells + 1, 0, -1):
+        sim.cell_start[i] = sim.cell_start[i - 1]
+    sim.cell_start[0] = 0
+    nnew = sim.cell_start[sim.ncells]
+    t1 = lap(sim, T_SORT, t1)
+    permute(sim, nnew)
+    t1 = lap(sim, T_PERMUTE, t1)
+    # the current lists become the previous ones
+    ip = sim.ob_start; sim.ob_start = sim.nb_start; sim.nb_start = ip
+    ip = sim.ob_j; sim.ob_j = sim.nb_j; sim.nb_j = ip
+    bp = sim.ob_s; sim.ob_s = sim.nb_s; sim.nb_s = bp
+    dp = sim.ob_h; sim.ob_h = sim.nb_h; sim.nb_h = dp
+    cap = sim.ob_cap; sim.ob_cap = sim.nb_cap; sim.nb_cap = cap
+    ip = sim.ow_start; sim.ow_start = sim.wl_start; sim.wl_start = ip
+    ip = sim.ow_e; sim.ow_e = sim.wl_e; sim.wl_e = ip
+    dp = sim.ow_h; sim.ow_h = sim.wl_h; sim.wl_h = dp
+    cap = sim.ow_cap; sim.ow_cap = sim.wl_cap; sim.wl_cap = cap
+    sim.n = nnew
+    parallel_rows(sim, P_COUNT, nnew)
+    sim.nb_start[0] = 0
+    sim.wl_start[0] = 0
+    for i in range(nnew):
+        sim.nb_start[i + 1] += sim.nb_start[i]
+        sim.wl_start[i + 1] += sim.wl_start[i]
+    if reserve_pairs(sim, sim.nb_start[nnew]) < 0 or reserve_walls(sim, sim.wl_start[nnew]) < 0:
+        return -1
+    t1 = lap(sim, T_COUNT, t1)
+    parallel_rows(sim, P_FILL, nnew)
+    prefix_last(sim)
+    for i in range(9 * sim.ne):
+        sim.ebuilt[i] = sim.egeo[i]
+    balance(sim)
+    lap(sim, T_FILL, t1)
+    lap(sim, T_REBUILD, t0)
+    sim.rebuilds += 1
+    return 0
+
+
+cdef inline bint in_contact(State* sim, int k) noexcept nogil:
+    return sim.nb_s[k] & TOUCH and (sim.model != THORNTON_NING or sim.nb_h[k * sim.hs + 4] > 0.0)

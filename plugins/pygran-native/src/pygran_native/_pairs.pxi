@@ -5,7 +5,7 @@ cdef inline int row_work(int listed, int touching, int walls) noexcept nogil:
     return WROW + listed + WTOUCH * (touching + walls)
 
 
-cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
+cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     """Forces of particle i's half-list contacts and walls; returns the row's work.
 
     Block ``b`` owns the rows up to ``pb[b + 1]``: forces on them go to the shared buffer
@@ -22,8 +22,8 @@ cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
     cdef const int* nb_j = c.nb_j
     cdef uint8_t* nb_s = c.nb_s
     cdef double* nb_h = c.nb_h
-    cdef const double* shiftv = c.shiftv
-    cdef const Coef* coef = c.coef + c.type[i] * c.nt
+    cdef const double* shiftv = &c.shiftv[0]
+    cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
     cdef double* buf = c.buf
     cdef double* halo = c.halo
     cdef const Halo* hb = &c.halos[b]
@@ -116,7 +116,7 @@ cdef int pair_row(const Ctx* c, int i, int b, int* hmax) noexcept nogil:
     return row_work(kend - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
 
 
-cdef inline int slot_of(const Ctx* c, int e) noexcept nogil:
+cdef inline int slot_of(const State* c, int e) noexcept nogil:
     """The stress mesh (index into ``slots``) wall element e belongs to, -1 for none."""
     cdef int s
     for s in range(c.nslots):
@@ -125,7 +125,7 @@ cdef inline int slot_of(const Ctx* c, int e) noexcept nogil:
     return -1
 
 
-cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const double* n,
+cdef int wall_contact(const State* c, int i, int e, double* h, double delta, const double* n,
                       const double* q, double* F, double* T, double* sa) noexcept nogil:
     """Force of wall element e on particle i (contact point q, NULL for a fixed primitive).
 
@@ -181,7 +181,7 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
     for k in range(3):
         vr[k] = c.v[3 * i + k] - vw[k]
         rw[k] = ri * c.w[3 * i + k]
-    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.nt + c.etype[e]], delta, ri,
+    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.ntypes + c.etype[e]], delta, ri,
                         c.m[i], 1.4 * c.m[i] * ri * ri, n, vr, rw, &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
     if res == NO_CONTACT:
         zero_hist(h, c.whs)
@@ -204,7 +204,7 @@ cdef int wall_contact(const Ctx* c, int i, int e, double* h, double delta, const
     return IN_CONTACT
 
 
-cdef void wall_row(const Ctx* c, int i, double* F, double* T, double* sa) noexcept nogil:
+cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noexcept nogil:
     """Wall forces on particle i; mesh contacts without double counting.
 
     Candidates are the triangles whose closest point is within reach, classified as
@@ -296,7 +296,7 @@ cdef void wall_row(const Ctx* c, int i, double* F, double* T, double* sa) noexce
                 nacc += 1
 
 
-cdef void pair_block(const Ctx* c, int b) noexcept nogil:
+cdef void pair_block(const State* c, int b) noexcept nogil:
     """Block b's rows of the pair loop; records their work and the last row of its halo."""
     cdef int i, hmax = -1
     cdef long long total = 0
@@ -307,3 +307,40 @@ cdef void pair_block(const Ctx* c, int b) noexcept nogil:
         total += c.work[i]
     c.tstat[PAD * b] = total
     c.tstat[PAD * b + 1] = hmax
+
+
+cdef int place_halos(State* sim) noexcept nogil:
+    """The pair blocks' halos (see Halo) for the current bounds; -1 when out of memory."""
+    cdef int b, i, start, end
+    cdef long long total = 0
+    cdef Halo* h
+    cdef void* p
+    sim.nfarblocks = 0
+    for b in range(sim.nblocks):
+        h = &sim.halos[b]
+        start = sim.pb[b]
+        end = sim.pb[b + 1]
+        h.near_off = total
+        h.near_end = end - 1
+        if end > start and end < sim.n and sim.last[end - 1] >= end:
+            h.near_end = sim.last[end - 1]
+            total += h.near_end - end + 1
+        h.far_lo = INT_MAX
+        h.far_hi = -1
+        for i in range(start, min(end, sim.nfar)):
+            if sim.fhi[i] > h.near_end:
+                h.far_lo = min(h.far_lo, max(sim.flo[i], h.near_end + 1))
+                h.far_hi = max(h.far_hi, sim.fhi[i])
+        h.far_off = total
+        if h.far_hi >= h.far_lo:
+            total += h.far_hi - h.far_lo + 1
+        if start < sim.nfar:
+            sim.nfarblocks = b + 1
+    if total > sim.halo_cap:   # the buffers are all zero between steps: start afresh
+        p = calloc(6 * (total + total // 4), sizeof(double))
+        if p == NULL:
+            return -1
+        free(sim.halo)
+        sim.halo = <double*>p
+        sim.halo_cap = total + total // 4
+    return 0

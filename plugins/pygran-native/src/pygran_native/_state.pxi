@@ -1,4 +1,4 @@
-# The solver's structs: contact coefficients, halos, the tuner and the state the
+# The solver's structs: contact coefficients, halos, the tuner and the one State the
 # time-step loop's kernels work on.
 
 cdef struct Coef:
@@ -37,66 +37,114 @@ cdef struct Tuner:
     double per_step[2]  # seconds per step with the team [0] and solo [1], when last timed
 
 
-cdef struct Ctx:
-    int n, cap, hs, whs, model, rolling, roff, nt, nblocks, ncells, update, kick, fuse
-    int nc[3]
-    int ax[3]
-    double cs[3]
+cdef struct State:
+    # The one copy of the solver's state: Core holds it, the kernels and the time-step loop
+    # work on it (through a pointer, as the team's threads do).
+    int n, cap, nthreads, hs, model, rolling, roff, ntypes, dirty
+    int whs            # history values per wall-list entry: hs + 1 (see wall_row)
+    double time, skin
+    # the clock: time = t_base + (step - step_base) dt_base, re-based when dt changes, so it
+    # does not accumulate round-off step by step
+    double t_base, dt_base
+    long long step_base
+    long long step, lost, rebuilds
+    # particles lost since the last take_lost: through each face x-, x+, y-, y+, z-, z+ of the
+    # box and non-finite (LOST_PLACES), and the largest speed of those lost through a face
+    long long lost_at[7]
+    double lost_speed
     double lo[3]
+    double hi[3]
+    double L[3]
+    int per[3]
     double grav[3]
-    double skin, dt, time
+    double shiftv[81]
+    # particles
     double *x
     double *v
     double *w
     double *f
     double *t
     double *x0
-    double *tmax
     double *r
     double *m
     int *type
-    double *buf
-    double *halo
+    int64_t *pid
+    double *buf        # forces and torques of the pair loop, cap * 6 (see pair_row)
+    double *halo       # the pair blocks' halo buffers, 6 per row (see Halo)
+    long long halo_cap
     Halo *halos
-    int nfarblocks
-    int *last
-    int *pb
-    int *work
-    long long *tstat
+    int nfarblocks     # the blocks that can have far halos: those starting before row nfar
+    int *last          # the largest near partner (see Halo) of the rows up to i
+    int *flo           # row i's smallest and largest far partner (INT_MAX, -1: none)
+    int *fhi
+    int nfar           # rows after the first nfar have no far partners
     int *perm
     int *cell
+    # neighbour list (current and previous)
     int *nb_start
     int *nb_j
     uint8_t *nb_s
     double *nb_h
+    long long nb_cap
     int *ob_start
     int *ob_j
     uint8_t *ob_s
     double *ob_h
+    long long ob_cap
+    # wall list (current and previous)
     int *wl_start
     int *wl_e
     double *wl_h
+    long long wl_cap
     int *ow_start
     int *ow_e
     double *ow_h
+    long long ow_cap
+    # cells
+    int nc[3]
+    int ax[3]          # axes from the slowest-varying in the cell index, see cell_id
+    double cs[3]
+    int ncells
     int *cell_start
+    int cell_cap
     int *ctri_start
     int *ctri
-    int *per
-    double *shiftv
+    long long ctri_cap
+    int binned_dirty   # triangles added, removed or set in motion since the last binning
+    double binned_reach
+    int binned_nc[3]
+    # wall elements
     int ne
+    int ecap
     int *ekind
     int *etype
+    int *ewall
     int *evid
     int *emoving
-    double *egeo
-    double *emot
-    int *ewall
-    int nslots
-    double *slots
-    int nvib
-    double *vib
-    double *sacc
+    double *egeo       # 9 per element: plane p,n; cylinder axis,c0,c1,R,inside; triangle vertices
+    double *eref       # triangle vertices at the motion's start
+    double *ebuilt     # triangle vertices at the last rebuild
+    double *emot       # NMOT per element, see motion_origin
+    int nslots         # stress meshes (see Slot)
+    double *slots      # NSLOT per stress mesh
+    double *sacc       # the pair blocks' sums over stress meshes: SACC per mesh per block
+    int nvib           # vibrating meshes (viblin, vibrot)
+    double *vib        # NVIB per vibrating mesh, see vibration
+    # contact tables
     Coef *coef
     double *visc
-    double *cpu
+    double *tmax       # per thread (PAD apart): largest squared displacement
+    int nblocks        # blocks of the pair loop
+    int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
+    int *work          # work of each row in the last pair loop (see row_work)
+    long long *tstat   # per block (PAD apart): work of its rows, last row of its halo
+    pg_team *team      # the threads of a run (see pg_team)
+    int rows           # rows of the current row phase
+    Tuner tuner        # whether the master runs the phases with the team or alone
+    double timers[NTIMERS]
+    double *cpu        # per thread (PAD apart): CPU seconds in the pair and particle loops,
+                       # in total and in the last step
+    # the force evaluation under way (see forces): step, whether histories advance, whether
+    # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
+    double dt
+    int update, kick, fuse

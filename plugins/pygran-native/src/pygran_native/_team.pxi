@@ -1,0 +1,147 @@
+# The team: parallel phases handed out in blocks to the solver's threads (team.h), the
+# balance of the pair loop's blocks, the choice between team and one thread (Tuner), timers.
+
+cdef inline double lap(State* sim, int k, double since) noexcept nogil:
+    """Add the wall-clock time since ``since`` to timer k; returns now."""
+    cdef double now = pg_now()
+    sim.timers[k] += now - since
+    return now
+
+
+cdef void parallel_rows(State* sim, int phase, int rows) noexcept nogil:
+    """Run a phase over rows [0, rows) in ``nblocks`` equal blocks on the team."""
+    sim.rows = rows
+    run_phase(sim, phase, sim.nblocks)
+
+
+cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
+    """Master: open a phase, take blocks of it like the other threads, and return when
+    all its blocks are done (whichever threads ran them); alone, run them in order."""
+    cdef int b
+    cdef double t0
+    if sim.nthreads == 1 or sim.tuner.solo:
+        t0 = thread_cpu() if phase == P_PAIRS or phase == P_PARTICLES else 0.0
+        for b in range(nblocks):
+            run_block(sim, phase, b, nblocks, 0)
+        if phase == P_PAIRS or phase == P_PARTICLES:
+            sim.cpu[2 if phase == P_PAIRS else 3] += thread_cpu() - t0
+        return
+    pg_begin(sim.team, phase, nblocks)
+    take(sim, pg_epoch(sim.team), phase, nblocks, 0)
+    pg_wait_done(sim.team, nblocks)
+
+
+cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid) noexcept nogil:
+    """Block b of a phase, run by thread ``tid``."""
+    cdef long long lo, hi
+    if phase == P_PAIRS:
+        pair_block(sim, b)
+    elif phase == P_PARTICLES:
+        particle_block(sim, sim.pb[b], sim.pb[b + 1], tid)
+    else:
+        lo = <long long>sim.rows * b // nblocks
+        hi = <long long>sim.rows * (b + 1) // nblocks
+        if phase == P_DRIFT:
+            drift_block(sim, <int>lo, <int>hi, tid)
+        else:
+            rebuild_rows(sim, phase, <int>lo, <int>hi)
+
+
+cdef void take(State* sim, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
+    """Claim and run blocks of phase ``epoch`` until none is left, then report them done;
+    the CPU time of the pair and particle loops goes to thread ``tid``'s counters."""
+    cdef int b, k = 0
+    cdef double t0 = 0.0
+    b = pg_claim(sim.team, epoch, tid)
+    if b < 0:
+        return
+    if phase == P_PAIRS or phase == P_PARTICLES:
+        t0 = thread_cpu()
+    while b >= 0:
+        run_block(sim, phase, b, nblocks, tid)
+        k += 1
+        b = pg_claim(sim.team, epoch, tid)
+    if phase == P_PAIRS or phase == P_PARTICLES:
+        sim.cpu[PAD * tid + (2 if phase == P_PAIRS else 3)] += thread_cpu() - t0
+    pg_finished(sim.team, k, nblocks)
+
+
+cdef void team_task(void* owner, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
+    """What the team's threads run: their part of a phase of ``owner``, a :class:`State`."""
+    take(<State*>owner, epoch, phase, nblocks, tid)
+
+
+cdef void tune(State* sim) noexcept nogil:
+    """Before a step: time the window that ends here and choose how to run the next
+    one (see Tuner)."""
+    cdef Tuner* u = &sim.tuner
+    cdef double now = pg_now(), window = u.elapsed + now - u.start
+    cdef int probe
+    if u.interval == 0.0:   # the first step with a team
+        u.interval = TUNE_MIN
+        u.next_probe = now + TUNE_WINDOW
+    if u.steps > 0 and window >= TUNE_WINDOW:
+        probe = 1 if u.solo else 0
+        u.per_step[probe] = window / u.steps
+        if u.probing:   # keep the faster mode; compare less often while the choice stands
+            u.probing = False
+            if u.per_step[probe] < u.per_step[1 - probe]:
+                u.interval = TUNE_MIN
+            else:
+                u.solo = not u.solo
+                u.interval = min(2.0 * u.interval, TUNE_MAX)
+            u.next_probe = now + u.interval
+        elif now >= u.next_probe:
+            u.probing = True
+            u.solo = not u.solo
+        u.steps = 0
+        u.elapsed = 0.0
+        u.start = now
+    u.steps += 1
+
+
+cdef inline int estimated_work(State* sim, int i) noexcept nogil:
+    """Row i's work in the pair loop, counting the pairs that touched at the last step."""
+    cdef int k, touching = 0
+    for k in range(sim.nb_start[i], sim.nb_start[i + 1]):
+        touching += (sim.nb_s[k] & TOUCH) != 0
+    return row_work(sim.nb_start[i + 1] - sim.nb_start[i], touching,
+                    sim.wl_start[i + 1] - sim.wl_start[i])
+
+
+cdef void balance(State* sim) noexcept nogil:
+    """Split the (cell-sorted) rows of the pair loop into ``nblocks`` blocks of about equal
+    ``work``: each a spatial slab, so few neighbours belong to another block."""
+    cdef int t, i = 0, n = sim.n, T = sim.nblocks
+    cdef long long total = 0, prefix = 0
+    for t in range(n):
+        total += sim.work[t]
+    for t in range(1, T):
+        while i < n and prefix < total * t // T:
+            prefix += sim.work[i]
+            i += 1
+        sim.pb[t] = i
+    sim.pb[0] = 0
+    sim.pb[T] = n
+
+
+cdef void rebalance(State* sim) noexcept nogil:
+    """Move each bound of the pair loop to where the work of the loop just run splits
+    evenly (the first row where its prefix reaches ``total t / T``), walking from where the
+    bound was: the partition follows contacts as they form, and depends only on the state."""
+    cdef int t, b, T = sim.nblocks
+    cdef long long total = 0, old = 0, prefix, target
+    for t in range(T):
+        total += sim.tstat[PAD * t]
+    for t in range(1, T):
+        old += sim.tstat[PAD * (t - 1)]   # the work before the old bound t
+        target = total * t // T
+        b = sim.pb[t]
+        prefix = old
+        while b > 0 and prefix - sim.work[b - 1] >= target:
+            b -= 1
+            prefix -= sim.work[b]
+        while b < sim.n and prefix < target:
+            prefix += sim.work[b]
+            b += 1
+        sim.pb[t] = b
