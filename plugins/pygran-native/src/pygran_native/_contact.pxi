@@ -64,37 +64,37 @@ cdef int tn_normal(const Coef* c, double delta, double Rs, double* hist, bint up
                    double* fn, double* kt) noexcept nogil:
     """Thornton-Ning normal force and tangential stiffness, updating the normal history.
 
-    ``hist[4]`` is the largest overlap (negated while the contact is broken but the bodies
-    still overlap: the plastic offset ``hist[6]`` is remembered and the contact forms again
-    when the overlap reaches it), ``hist[5]`` the unloading curvature radius, ``hist[6]``
+    ``hist[H_DMAX]`` is the largest overlap (negated while the contact is broken but the bodies
+    still overlap: the plastic offset ``hist[H_DP]`` is remembered and the contact forms again
+    when the overlap reaches it), ``hist[H_RP]`` the unloading curvature radius, ``hist[H_DP]``
     the plastic offset.
     """
-    cdef double dm = hist[4], Rp, dp, a
+    cdef double dm = hist[H_DMAX], Rp, dp, a
     if dm < 0.0:
         if delta <= 0.0:
             return NO_CONTACT
-        if delta < hist[6]:
+        if delta < hist[H_DP]:
             return MEMORY
         dm = -dm
         if update:
-            hist[4] = dm
+            hist[H_DMAX] = dm
     elif dm == 0.0 and delta <= 0.0:
         return NO_CONTACT
-    Rp = hist[5]
-    dp = hist[6]
+    Rp = hist[H_RP]
+    dp = hist[H_DP]
     if delta > dm:
         tn_unloading(delta, Rs, c, &Rp, &dp)
         if update:
-            hist[4] = delta
-            hist[5] = Rp
-            hist[6] = dp
+            hist[H_DMAX] = delta
+            hist[H_RP] = Rp
+            hist[H_DP] = dp
     a = tn_contact_radius(delta - dp, Rp, c.E, c.coh)
     if a < 0.0:
         if delta <= 0.0:
             return NO_CONTACT
         if update:
-            hist[4] = -(delta if delta > dm else dm)
-            hist[0] = hist[1] = hist[2] = hist[3] = 0.0
+            hist[H_DMAX] = -(delta if delta > dm else dm)
+            hist[H_SHEAR] = hist[H_SHEAR + 1] = hist[H_SHEAR + 2] = hist[H_FN] = 0.0
         return MEMORY
     fn[0] = tn_force(a, Rp, c.E, c.coh)
     kt[0] = 8.0 * c.G * a
@@ -186,7 +186,7 @@ cdef inline int contact_force(int model, int rolling, int roff, const Coef* c, d
             return res
         gt = 0.0
         kn = kt * c.E / (6.0 * c.G)   # 4/3 E* a, as hertz (kt = 8 G* a)
-    hist[3] = fn
+    hist[H_FN] = fn
     for k in range(3):
         F[k] = fn * n[k]
         Ft[k] = 0.0
@@ -196,11 +196,11 @@ cdef inline int contact_force(int model, int rolling, int roff, const Coef* c, d
         for k in range(3):
             vt[k] = vr[k] + vn * n[k] - cw[k]
         if update:
-            s = dot3(hist, n)
+            s = dot3(&hist[H_SHEAR], n)
             for k in range(3):
-                hist[k] += vt[k] * dt - s * n[k]
+                hist[H_SHEAR + k] += vt[k] * dt - s * n[k]
         for k in range(3):
-            Ft[k] = -kt * hist[k] - gt * vt[k]
+            Ft[k] = -kt * hist[H_SHEAR + k] - gt * vt[k]
         ftm = dot3(Ft, Ft)
         lim = c.mu * fabs(fn)
         if ftm > lim * lim:
@@ -208,7 +208,7 @@ cdef inline int contact_force(int model, int rolling, int roff, const Coef* c, d
             for k in range(3):
                 Ft[k] *= ratio
                 if update and kt > 0.0:
-                    hist[k] = ratio * (hist[k] + gt * vt[k] / kt) - gt * vt[k] / kt
+                    hist[H_SHEAR + k] = ratio * (hist[H_SHEAR + k] + gt * vt[k] / kt) - gt * vt[k] / kt
         for k in range(3):
             F[k] += Ft[k]
     if c.mur > 0.0:

@@ -6,11 +6,11 @@ DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apa
 DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
 DEF WRAP = 0x40    # flag bit of nb_s: the partner is across the periodic boundary of axis ax[0]
 DEF IMAGE = 0x1f   # bits of nb_s: the periodic image code
-DEF NMOT = 14      # motion values per wall element, see motion_origin
+DEF NMOT = 14      # motion values per wall element, see Motion
 DEF NSLOT = 34     # values per stress mesh (a mesh whose force is summed, maybe a servo), see Slot
-DEF NVIB = 96      # values per vibrating mesh: wall, kind, order, axis (3), then per harmonic (30)
-                   # amplitudes, phases and angular frequencies, see vibration
-DEF SACC = 8       # values per stress mesh in a pair block's sums: force (3), torque (3), contacts
+DEF NVIB = 96      # values per vibrating mesh, see Vibration
+DEF NHARM = 30     # harmonics of a vibration at most
+DEF SACC = 8       # values per stress mesh in a pair block's sums, see Slot (A_FORCE...)
 DEF WROW = 5       # work of a row of the pair loop, a touching pair and a wall entry in units of
 DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
 
@@ -102,3 +102,44 @@ cdef enum:
     S_FORCE = 27       # the particles' force on the mesh at the last step (3)
     S_TORQUE = 30      # ... their torque about S_XCM (3)
     S_CONTACTS = 33    # ... and the number of contacts
+
+# The particles' sums over a stress mesh in a pair block (SACC per mesh), added up into its
+# S_FORCE, S_TORQUE and S_CONTACTS (in this order: servo_sums adds NACC values at once).
+cdef enum:
+    A_FORCE = 0        # force on the mesh (3)
+    A_TORQUE = 3       # its torque about S_XCM (3)
+    A_CONTACTS = 6     # contacts
+    NACC = 7
+
+# A contact's history values (hs per listed pair, hs + 1 per wall entry), see contact_force.
+cdef enum:
+    H_SHEAR = 0        # the tangential spring's displacement (3)
+    H_FN = 3           # the normal force at the last evaluation
+    H_DMAX = 4         # Thornton-Ning: the largest overlap (negated: broken, see tn_normal)
+    H_RP = 5           # ... the unloading curvature radius
+    H_DP = 6           # ... the plastic offset
+    # then, with rolling epsd or epsd2, the rolling spring's torque (3) from ``roff`` = hs - 3,
+    # and for a wall entry the side of a plane contact at ``hs`` (see wall_row)
+
+# A moving wall element's motion values (NMOT per element, see motion_origin).
+cdef enum:
+    M_VEL = 0          # translation velocity V (3)
+    M_OMEGA = 3        # angular velocity W (3)
+    M_ORIGIN = 6       # the origin o0 at the motion's start (3)
+    M_START = 9        # the motion's start time
+    M_AMP = 10         # wiggle amplitude A (3)
+    M_PERIOD = 13      # wiggle period T (0: no wiggle)
+
+# A vibrating mesh's values (NVIB per mesh, see vibration): LIGGGHTS' move/mesh viblin, vibrot.
+cdef enum:
+    V_WALL = 0         # the mesh's wall handle
+    V_KIND = 1         # VIBLIN or VIBROT
+    V_ORDER = 2        # harmonics
+    V_AXIS = 3         # the unit axis (3)
+    V_AMP = 6          # amplitudes A (NHARM)
+    V_PHASE = 36       # phases phi (NHARM)
+    V_FREQ = 66        # angular frequencies w (NHARM)
+
+cdef enum:
+    VIBLIN = 1
+    VIBROT = 2

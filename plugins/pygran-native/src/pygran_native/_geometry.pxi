@@ -105,26 +105,26 @@ cdef inline double primitive_gap(int kind, const double* g, const double* p, dou
 cdef inline void motion_origin(const double* mot, double tau, double* o, double* vo) noexcept nogil:
     """Position and velocity of a moving wall's origin ``tau`` after its motion started.
 
-    ``mot``: velocity V (3), angular velocity W (3), origin o0 (3), start time, wiggle
-    amplitude A (3) and period T (0: no wiggle); the origin is at
+    ``mot`` (offsets M_VEL...): velocity V (3), angular velocity W (3), origin o0 (3), start
+    time, wiggle amplitude A (3) and period T (0: no wiggle); the origin is at
     ``o0 + V tau + A sin(2 pi tau / T)``, and the wall at ``o + R(W tau)(X - o0)``.
     """
     cdef double ph, s = 0.0, cw = 0.0
     cdef int k
-    if mot[13] > 0.0:
-        ph = 2.0 * M_PI * tau / mot[13]
+    if mot[M_PERIOD] > 0.0:
+        ph = 2.0 * M_PI * tau / mot[M_PERIOD]
         s = sin(ph)
-        cw = 2.0 * M_PI / mot[13] * cos(ph)
+        cw = 2.0 * M_PI / mot[M_PERIOD] * cos(ph)
     for k in range(3):
-        o[k] = mot[6 + k] + mot[k] * tau + mot[10 + k] * s
-        vo[k] = mot[k] + mot[10 + k] * cw
+        o[k] = mot[M_ORIGIN + k] + mot[M_VEL + k] * tau + mot[M_AMP + k] * s
+        vo[k] = mot[M_VEL + k] + mot[M_AMP + k] * cw
 
 
 cdef inline const double* vibration_of(const double* vib, int nvib, int wall) noexcept nogil:
     """The vibration of a wall (its row of ``vib``), NULL for none."""
     cdef int k
     for k in range(nvib):
-        if vib[NVIB * k] == wall:
+        if vib[NVIB * k + V_WALL] == wall:
             return &vib[NVIB * k]
     return NULL
 
@@ -133,16 +133,16 @@ cdef inline void vibration(const double* row, double tau, double* s, double* ds)
     """Displacement along the axis (viblin, m) or angle about it (vibrot, rad) ``tau`` after
     the motion started, and its rate: LIGGGHTS' ``move/mesh viblin`` and ``vibrot``, whose rate
     is ``-sum_j A_j w_j sin(w_j tau + phi_j)``, in closed form
-    ``s = sum_j A_j (cos(w_j tau + phi_j) - cos(phi_j))``. ``row``: wall, kind (1 viblin, 2
-    vibrot), order, axis (3), amplitudes A, phases phi and angular frequencies w (30 each)."""
+    ``s = sum_j A_j (cos(w_j tau + phi_j) - cos(phi_j))``. ``row``: see V_WALL
+    and the other V_ offsets."""
     cdef int j
     cdef double a
     s[0] = 0.0
     ds[0] = 0.0
-    for j in range(<int>row[2]):
-        a = row[66 + j] * tau + row[36 + j]
-        s[0] += row[6 + j] * (cos(a) - cos(row[36 + j]))
-        ds[0] -= row[6 + j] * row[66 + j] * sin(a)
+    for j in range(<int>row[V_ORDER]):
+        a = row[V_FREQ + j] * tau + row[V_PHASE + j]
+        s[0] += row[V_AMP + j] * (cos(a) - cos(row[V_PHASE + j]))
+        ds[0] -= row[V_AMP + j] * row[V_FREQ + j] * sin(a)
 
 
 cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogil:

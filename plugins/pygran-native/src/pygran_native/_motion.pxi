@@ -36,18 +36,18 @@ cdef double move_walls(State* sim) noexcept nogil:
                 rotation(&sl[S_AXIS], sl[S_PHI] if sl[S_CONTROL] == 2.0 else 0.0, Rm)
             else:
                 mot = &sim.emot[NMOT * e]
-                motion_origin(mot, sim.time - mot[9], o, vo)
-                rotation(&mot[3], sim.time - mot[9], Rm)
+                motion_origin(mot, sim.time - mot[M_START], o, vo)
+                rotation(&mot[M_OMEGA], sim.time - mot[M_START], Rm)
                 for d in range(3):
-                    o0[d] = mot[6 + d]
+                    o0[d] = mot[M_ORIGIN + d]
                 vb = vibration_of(sim.vib, sim.nvib, last) if sim.nvib else NULL
                 if vb != NULL:   # viblin: the origin moves along the axis; vibrot: turns about it
-                    vibration(vb, sim.time - mot[9], &sv, &dsv)
-                    if vb[1] == 1.0:
+                    vibration(vb, sim.time - mot[M_START], &sv, &dsv)
+                    if vb[V_KIND] == VIBLIN:
                         for d in range(3):
-                            o[d] += sv * vb[3 + d]
+                            o[d] += sv * vb[V_AXIS + d]
                     else:
-                        rotation(&vb[3], sv, Rm)
+                        rotation(&vb[V_AXIS], sv, Rm)
         for k in range(3):
             ref = &sim.eref[9 * e + 3 * k]
             cur = &sim.egeo[9 * e + 3 * k]
@@ -85,12 +85,12 @@ cdef void servo_sums(State* sim) noexcept nogil:
     cdef const double* a
     for s in range(sim.nslots):
         sl = &sim.slots[NSLOT * s]
-        for k in range(7):
+        for k in range(NACC):
             sl[S_FORCE + k] = 0.0
         for b in range(sim.nblocks):
             a = &sim.sacc[SACC * (sim.nslots * b + s)]
-            for k in range(7):
-                sl[S_FORCE + k] += a[k]
+            for k in range(NACC):
+                sl[S_FORCE + k] += a[A_FORCE + k]
 
 
 cdef void servo_control(State* sim, double dt) noexcept nogil:

@@ -555,4 +555,4 @@ cdef int rebuild(State* sim) noexcept nogil:
 
 
 cdef inline bint in_contact(State* sim, int k) noexcept nogil:
-    return sim.nb_s[k] & TOUCH and (sim.model != THORNTON_NING or sim.nb_h[k * sim.hs + 4] > 0.0)
+    return sim.nb_s[k] & TOUCH and (sim.model != THORNTON_NING or sim.nb_h[k * sim.hs + H_DMAX] > 0.0)

@@ -65,7 +65,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         rj = r[j]
         rs = ri + rj
         h = &nb_h[<long long>k * hs]
-        if dist2 >= rs * rs and not (model == THORNTON_NING and h[4] > 0.0):   # apart (adhesion stretches)
+        if dist2 >= rs * rs and not (model == THORNTON_NING and h[H_DMAX] > 0.0):   # apart (adhesion stretches)
             if nb_s[k] & TOUCH:
                 memset(h, 0, hs * sizeof(double))
                 nb_s[k] &= ~TOUCH
@@ -160,18 +160,18 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
         cross3(&sl[S_VEL], rel, vw)
     elif q != NULL and c.emoving[e]:
         mot = &c.emot[NMOT * e]
-        motion_origin(mot, c.time - mot[9], o, vo)
+        motion_origin(mot, c.time - mot[M_START], o, vo)
         for k in range(3):
             rel[k] = q[k] - o[k]
-        cross3(&mot[3], rel, vw)
+        cross3(&mot[M_OMEGA], rel, vw)
         for k in range(3):
             vw[k] += vo[k]
         vb = vibration_of(c.vib, c.nvib, c.ewall[e]) if c.nvib else NULL
         if vb != NULL:   # along the axis, or about it through the origin
-            vibration(vb, c.time - mot[9], &sv, &dsv)
+            vibration(vb, c.time - mot[M_START], &sv, &dsv)
             for k in range(3):
-                o[k] = dsv * vb[3 + k]
-            if vb[1] == 1.0:
+                o[k] = dsv * vb[V_AXIS + k]
+            if vb[V_KIND] == VIBLIN:
                 for k in range(3):
                     vw[k] += o[k]
             else:
@@ -198,9 +198,9 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
             Fc[k] = -Fc[k]
         cross3(rel, Fc, cx)
         for k in range(3):
-            sa[k] += Fc[k]
-            sa[3 + k] += cx[k]
-        sa[6] += 1.0
+            sa[A_FORCE + k] += Fc[k]
+            sa[A_TORQUE + k] += cx[k]
+        sa[A_CONTACTS] += 1.0
     return IN_CONTACT
 
 
@@ -249,7 +249,7 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
             continue
         creg[nc] = closest_on_triangle(xi, g, g + 3, g + 6, &cq[3 * nc], &cfeat[nc])
         d2 = (xi[0] - cq[3 * nc]) ** 2 + (xi[1] - cq[3 * nc + 1]) ** 2 + (xi[2] - cq[3 * nc + 2]) ** 2
-        if (d2 >= ri * ri and not (c.model == THORNTON_NING and h[4] > 0.0)) or d2 == 0.0 or nc == MAXCAND:
+        if (d2 >= ri * ri and not (c.model == THORNTON_NING and h[H_DMAX] > 0.0)) or d2 == 0.0 or nc == MAXCAND:
             zero_hist(h, c.whs)
             continue
         cd2[nc] = d2

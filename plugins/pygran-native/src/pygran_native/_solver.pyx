@@ -442,7 +442,7 @@ cdef class Core:
         self.s.dirty = 1
         self.s.binned_dirty = 1
         self.set_slots(np.array([v for v in self.get_slots() if v[S_WALL] != wall]).reshape(-1, NSLOT))
-        self.set_vibrations(np.array([v for v in self.get_vibrations() if v[0] != wall]).reshape(-1, NVIB))
+        self.set_vibrations(np.array([v for v in self.get_vibrations() if v[V_WALL] != wall]).reshape(-1, NVIB))
 
     def set_motion(self, int wall, double[::1] vel, double[::1] omega, double[::1] origin,
                    double[::1] amplitude, double period):
@@ -458,12 +458,12 @@ cdef class Core:
             for d in range(9):
                 self.s.eref[9 * e + d] = self.s.egeo[9 * e + d]
             for d in range(3):
-                self.s.emot[NMOT * e + d] = vel[d]
-                self.s.emot[NMOT * e + 3 + d] = omega[d]
-                self.s.emot[NMOT * e + 6 + d] = origin[d]
-                self.s.emot[NMOT * e + 10 + d] = amplitude[d]
-            self.s.emot[NMOT * e + 9] = self.s.time
-            self.s.emot[NMOT * e + 13] = period
+                self.s.emot[NMOT * e + M_VEL + d] = vel[d]
+                self.s.emot[NMOT * e + M_OMEGA + d] = omega[d]
+                self.s.emot[NMOT * e + M_ORIGIN + d] = origin[d]
+                self.s.emot[NMOT * e + M_AMP + d] = amplitude[d]
+            self.s.emot[NMOT * e + M_START] = self.s.time
+            self.s.emot[NMOT * e + M_PERIOD] = period
             self.s.emoving[e] = moving
         self.s.dirty = 1
         self.s.binned_dirty = 1
@@ -486,7 +486,7 @@ cdef class Core:
         self.s.nvib = k
         for s in range(k):
             for e in range(self.s.ne):
-                if self.s.ewall[e] == <int>self.s.vib[NVIB * s] and self.s.ekind[e] == TRIANGLE:
+                if self.s.ewall[e] == <int>self.s.vib[NVIB * s + V_WALL] and self.s.ekind[e] == TRIANGLE:
                     self.s.emoving[e] = 1
         self.s.dirty = 1
         self.s.binned_dirty = 1
@@ -592,7 +592,7 @@ cdef class Core:
                 oi[cnt] = i
                 oj[cnt] = self.s.nb_j[k]
                 od[cnt] = self.s.r[i] + self.s.r[self.s.nb_j[k]] - sqrt(d2)
-                of[cnt] = self.s.nb_h[k * self.s.hs + 3]
+                of[cnt] = self.s.nb_h[k * self.s.hs + H_FN]
                 cnt += 1
         return out_i, out_j, out_d, out_f
 
