@@ -1,6 +1,7 @@
 # Compile-time constants and enums of the native solver (included by _solver.pyx).
 
 DEF MAXCAND = 64
+DEF NCOLUMNS = 21  # per-particle arrays, see particle_columns
 DEF MAXTHREADS = 1024   # a team's block numbers must stay below 65536 (team.h)
 DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
 DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation

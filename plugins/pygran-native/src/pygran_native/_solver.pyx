@@ -213,56 +213,44 @@ cdef class Core:
             raise MemoryError()
 
     def __dealloc__(self):
+        cdef Column cols[NCOLUMNS]
+        cdef int k
         pg_destroy(self.s.team)
-        for p in (<size_t>self.s.x, <size_t>self.s.v, <size_t>self.s.w, <size_t>self.s.f, <size_t>self.s.t,
-                  <size_t>self.s.x0, <size_t>self.s.r, <size_t>self.s.m, <size_t>self.s.type, <size_t>self.s.pid,
-                  <size_t>self.s.buf, <size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.last,
-                  <size_t>self.s.flo, <size_t>self.s.fhi,
-                  <size_t>self.s.perm, <size_t>self.s.cell, <size_t>self.s.nb_start, <size_t>self.s.nb_j,
-                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.ob_start, <size_t>self.s.ob_j,
-                  <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_start, <size_t>self.s.wl_e,
-                  <size_t>self.s.wl_h, <size_t>self.s.ow_start, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
+        particle_columns(&self.s, cols)
+        for k in range(NCOLUMNS):
+            free(cols[k].p[0])
+        for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.nb_j,
+                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.ob_j,
+                  <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
+                  <size_t>self.s.wl_h, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
                   <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri, <size_t>self.s.ekind,
                   <size_t>self.s.etype, <size_t>self.s.ewall, <size_t>self.s.evid, <size_t>self.s.emoving,
                   <size_t>self.s.egeo, <size_t>self.s.eref, <size_t>self.s.ebuilt, <size_t>self.s.emot,
                   <size_t>self.s.slots, <size_t>self.s.sacc, <size_t>self.s.vib,
                   <size_t>self.s.coef, <size_t>self.s.visc, <size_t>self.s.tmax,
-                  <size_t>self.s.pb, <size_t>self.s.work, <size_t>self.s.tstat, <size_t>self.s.cpu):
+                  <size_t>self.s.pb, <size_t>self.s.tstat, <size_t>self.s.cpu):
             free(<void*>p)
 
     # ------------------------------------------------------------------ memory ----------
     cdef int reserve(self, int need) except -1:
-        """Grow every per-particle array to hold ``need`` particles."""
-        cdef int cap = self.s.cap
+        """Grow every per-particle array (the allocation table, see particle_columns) to hold
+        ``need`` particles."""
+        cdef int cap = self.s.cap, k
         cdef size_t c
+        cdef Column cols[NCOLUMNS]
         if need <= cap:
             return 0
         cap = max(need, 2 * cap, 64)
         c = cap
-        self.s.x = <double*>self._grow(self.s.x, 3 * c * sizeof(double))
-        self.s.v = <double*>self._grow(self.s.v, 3 * c * sizeof(double))
-        self.s.w = <double*>self._grow(self.s.w, 3 * c * sizeof(double))
-        self.s.f = <double*>self._grow(self.s.f, 3 * c * sizeof(double))
-        self.s.t = <double*>self._grow(self.s.t, 3 * c * sizeof(double))
-        self.s.x0 = <double*>self._grow(self.s.x0, 3 * c * sizeof(double))
-        self.s.r = <double*>self._grow(self.s.r, c * sizeof(double))
-        self.s.m = <double*>self._grow(self.s.m, c * sizeof(double))
-        self.s.type = <int*>self._grow(self.s.type, c * sizeof(int))
-        self.s.perm = <int*>self._grow(self.s.perm, c * sizeof(int))
-        self.s.cell = <int*>self._grow(self.s.cell, c * sizeof(int))
-        self.s.work = <int*>self._grow(self.s.work, c * sizeof(int))
-        self.s.pid = <int64_t*>self._grow(self.s.pid, c * sizeof(int64_t))
-        self.s.nb_start = <int*>self._grow(self.s.nb_start, (c + 1) * sizeof(int))
-        self.s.ob_start = <int*>self._grow(self.s.ob_start, (c + 1) * sizeof(int))
-        self.s.wl_start = <int*>self._grow(self.s.wl_start, (c + 1) * sizeof(int))
-        self.s.ow_start = <int*>self._grow(self.s.ow_start, (c + 1) * sizeof(int))
-        self.s.last = <int*>self._grow(self.s.last, c * sizeof(int))
-        self.s.flo = <int*>self._grow(self.s.flo, c * sizeof(int))
-        self.s.fhi = <int*>self._grow(self.s.fhi, c * sizeof(int))
-        free(self.s.buf)
-        self.s.buf = <double*>calloc(c * 6, sizeof(double))
-        if self.s.buf == NULL:
-            raise MemoryError()
+        particle_columns(&self.s, cols)
+        for k in range(NCOLUMNS):
+            if cols[k].zeroed:
+                free(cols[k].p[0])
+                cols[k].p[0] = calloc(c + cols[k].extra, cols[k].size)
+                if cols[k].p[0] == NULL:
+                    raise MemoryError()
+            else:
+                cols[k].p[0] = self._grow(cols[k].p[0], (c + cols[k].extra) * cols[k].size)
         self.s.cap = cap
         return 0
 
@@ -610,7 +598,13 @@ cdef class Core:
 
     def memory_bytes(self):
         """Bytes held by the per-particle arrays and lists (allocated capacity)."""
-        return (self.s.cap * (18 * 8 + 2 * 8 + 4 * 4 + 8 + 7 * 4 + 6 * 8) + self.s.halo_cap * 6 * 8
+        cdef Column cols[NCOLUMNS]
+        cdef size_t per_particle = 0
+        cdef int k
+        particle_columns(&self.s, cols)
+        for k in range(NCOLUMNS):
+            per_particle += cols[k].size
+        return (self.s.cap * per_particle + self.s.halo_cap * 6 * 8
                 + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs)
                 + self.s.wl_cap * (12 + 8 * self.s.hs) + self.s.ow_cap * (12 + 8 * self.s.hs)
                 + self.s.cell_cap * 8 + self.s.ctri_cap * 4)

@@ -148,3 +148,44 @@ cdef struct State:
     # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
     double dt
     int update, kick, fuse
+
+
+cdef struct Column:
+    # A per-particle array of the State in the allocation table (see particle_columns).
+    void** p           # where the State keeps its pointer
+    size_t size        # bytes per particle
+    int extra          # entries beyond one per particle (a CSR start array has cap + 1)
+    bint zeroed        # reallocated zero-filled, not grown (contents not kept)
+
+
+cdef inline void column(Column* c, void** p, size_t size, int extra, bint zeroed) noexcept nogil:
+    c.p = p
+    c.size = size
+    c.extra = extra
+    c.zeroed = zeroed
+
+
+cdef void particle_columns(State* s, Column* c) noexcept nogil:
+    """The allocation table: the NCOLUMNS per-particle arrays of the State, which Core grows
+    together (reserve), frees (dealloc) and counts (memory_bytes)."""
+    column(&c[0], <void**>&s.x, 3 * sizeof(double), 0, False)
+    column(&c[1], <void**>&s.v, 3 * sizeof(double), 0, False)
+    column(&c[2], <void**>&s.w, 3 * sizeof(double), 0, False)
+    column(&c[3], <void**>&s.f, 3 * sizeof(double), 0, False)
+    column(&c[4], <void**>&s.t, 3 * sizeof(double), 0, False)
+    column(&c[5], <void**>&s.x0, 3 * sizeof(double), 0, False)
+    column(&c[6], <void**>&s.r, sizeof(double), 0, False)
+    column(&c[7], <void**>&s.m, sizeof(double), 0, False)
+    column(&c[8], <void**>&s.type, sizeof(int), 0, False)
+    column(&c[9], <void**>&s.perm, sizeof(int), 0, False)
+    column(&c[10], <void**>&s.cell, sizeof(int), 0, False)
+    column(&c[11], <void**>&s.work, sizeof(int), 0, False)
+    column(&c[12], <void**>&s.pid, sizeof(int64_t), 0, False)
+    column(&c[13], <void**>&s.nb_start, sizeof(int), 1, False)
+    column(&c[14], <void**>&s.ob_start, sizeof(int), 1, False)
+    column(&c[15], <void**>&s.wl_start, sizeof(int), 1, False)
+    column(&c[16], <void**>&s.ow_start, sizeof(int), 1, False)
+    column(&c[17], <void**>&s.last, sizeof(int), 0, False)
+    column(&c[18], <void**>&s.flo, sizeof(int), 0, False)
+    column(&c[19], <void**>&s.fhi, sizeof(int), 0, False)
+    column(&c[20], <void**>&s.buf, 6 * sizeof(double), 0, True)   # the pair loop's, zero between steps
