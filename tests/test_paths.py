@@ -1,5 +1,6 @@
 """Output folders and mesh files whose names a solver's input could misread (spaces, '#',
-'$', quotes), on every engine: a small simulation writes its trajectory (dump and H5MD), its
+'$', quotes, and '*' and '%', which LIGGGHTS reads in a file name as the step and the
+processor), on every engine: a small simulation writes its trajectory (dump and H5MD), its
 mesh frames and its checkpoints there, analysis.System reads them back with the particles
 where the engine has them, and an engine with ``restart`` resumes from that folder."""
 
@@ -15,7 +16,7 @@ from pygran_core import analysis, params, registry, simulation
 from pygran_core.testing.solvers import require_solver
 
 PLATE = Path(__file__).parent / "data" / "meshes" / "square.stl"  # 10 mm square at z = 3 mm
-NAMES = ["my run", "run#1", "run$x", "it's", "all $ # ' \" of them"]
+NAMES = ["my run", "run#1", "run$x", "it's", 'say "hi"', "star*", "pct%d", "all $ # ' \" * % of them"]
 ENGINES = ["native", "liggghts", "yade"]
 START = np.array([[-5e-4, 0, 3.2e-3], [5e-4, 0, 3.2e-3], [0, 5e-4, 3.5e-3]])
 G, DT, STEPS = 9.81, 1e-6, 300

@@ -87,7 +87,7 @@ def size_classes(radius: RadiusDistribution) -> list[tuple[float, float]]:
 
 
 #: Paths LIGGGHTS reads as they are; others are quoted or linked (:meth:`Commands.path`).
-PLAIN_PATH = re.compile(r"[\w./+,:=@%~-]+")
+PLAIN_PATH = re.compile(r"[\w./+,:=@~-]+")
 
 
 #: Every region's ``volume_limit`` (m^3): LIGGGHTS' default, 1e-10, refuses to insert into
@@ -150,14 +150,16 @@ class Commands:
 
     def path(self, path: Path) -> str:
         """``path`` as a word of a LIGGGHTS input line: as it is when plain; in quotes when it
-        has spaces, ``#`` or one kind of quote; when it has ``$`` (which LIGGGHTS 3.8
-        substitutes even inside quotes) or both kinds of quote, through a symbolic link of a
-        plain name to its directory, in a private temporary directory removed by :meth:`close`.
+        has spaces, ``#`` or one kind of quote; through a symbolic link of a plain name to its
+        directory (in a private temporary directory removed by :meth:`close`) when it has ``$``
+        (which LIGGGHTS 3.8 substitutes even inside quotes) or both kinds of quote, or when its
+        directory has ``*`` or ``%`` (which LIGGGHTS reads in a file name as the step and the
+        processor). A ``*`` or ``%`` in the file name itself keeps LIGGGHTS' meaning.
         """
         text = str(path)
         if PLAIN_PATH.fullmatch(text):
             return text
-        if "$" in text or ('"' in text and "'" in text):
+        if "$" in text or ('"' in text and "'" in text) or any(c in str(path.parent) for c in "*%"):
             if "$" in path.name or ('"' in path.name and "'" in path.name):
                 raise ConfigError(
                     f"LIGGGHTS cannot read the file name {path.name!r} ('$' or both kinds of quote): "
