@@ -2,7 +2,8 @@
 """Compiled core of the native DEM solver: data in C arrays, the time-step loop nogil/threaded.
 
 One ``State`` struct holds everything (``_state.pxi``); :class:`Core` is its Python face and the
-kernels, in include files by concern, work on it: ``_contact.pxi`` (contact laws),
+kernels, in include files by concern, work on it: ``_contact.pxi`` (a contact's force from
+the sub-models in ``_contact_normal.pxi``, ``_contact_tangential.pxi``, ``_contact_rolling.pxi``),
 ``_geometry.pxi`` (wall elements), ``_motion.pxi`` (moving walls, servos), ``_neighbours.pxi``
 (cells, neighbour and wall lists, histories), ``_pairs.pxi`` (the pair loop), ``_integrate.pxi``
 (particle loop, drift, the time-step loop), ``_team.pxi`` (parallel phases on team.h's threads).
@@ -84,6 +85,9 @@ TIMERS = ("run", "drift", "walls", "pairs", "particles", "rebuild", "rebuild_cel
 
 include "_state.pxi"
 include "_common.pxi"
+include "_contact_normal.pxi"
+include "_contact_tangential.pxi"
+include "_contact_rolling.pxi"
 include "_contact.pxi"
 include "_geometry.pxi"
 include "_neighbours.pxi"

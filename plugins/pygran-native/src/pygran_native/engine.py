@@ -17,7 +17,7 @@ from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
-from pygran_core.simulation.specs import SimulationSpec, given
+from pygran_core.simulation.specs import SimulationSpec, given, rank_run
 from pygran_native.solver import Solver
 
 #: Contact-model kernel (``ContactModel.kernel``) -> the solver's force law.
@@ -53,6 +53,7 @@ class NativeEngine(PlacingEngine):
     )
 
     def __init__(self, spec: SimulationSpec) -> None:
+        spec = rank_run(spec)  # nSim: each MPI rank makes its own run, on its own threads
         super().__init__(spec)  # refuses a model whose kernel is not among the capabilities
         self._law = SOLVER_LAW[given(spec.model.kernel, f"the {spec.model.__name__} model's kernel")]
         gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
