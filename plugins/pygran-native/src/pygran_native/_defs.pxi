@@ -82,7 +82,7 @@ cdef enum:
 # mesh_module_stress_servo.cpp), see servo_control.
 cdef enum:
     S_WALL = 0         # the mesh's wall handle
-    S_CONTROL = 1      # 0: stress only, 1: servo on the force, 2: servo on the torque
+    S_CONTROL = 1      # STRESS_ONLY, FORCE_SERVO or TORQUE_SERVO
     S_AUTO = 2         # 1: mode auto (piecewise P controller), 0: PID
     S_SP = 3           # set point: -target (the particles' force acts against the servo's push)
     S_VMAX = 4         # vel_max (m/s)
@@ -144,3 +144,10 @@ cdef enum:
 cdef enum:
     VIBLIN = 1
     VIBROT = 2
+
+# What a stress mesh's S_CONTROL says: its force is summed only, or it is a servo on the
+# force along its axis (it translates) or on the torque about it (it turns).
+cdef enum:
+    STRESS_ONLY = 0
+    FORCE_SERVO = 1
+    TORQUE_SERVO = 2

@@ -1,7 +1,6 @@
-# Wall elements: closest points and gaps of planes, cylinders and triangles, and their
-# rigid motion (translation, rotation, wiggle, viblin, vibrot).
+# Wall elements: closest points and gaps of planes, cylinders and triangles.
 
-# --- geometry of wall elements ----------------------------------------------------------
+
 cdef inline int closest_on_triangle(const double* p, const double* A, const double* B, const double* C,
                                     double* q, int* feature) noexcept nogil:
     """Closest point q on triangle ABC to p; returns FACE/EDGE/VERTEX and the feature index.
@@ -100,76 +99,6 @@ cdef inline double primitive_gap(int kind, const double* g, const double* p, dou
         nrm[a1] = -nrm[a1]
         return g[3] - rho
     return rho - g[3]
-
-
-cdef inline void motion_origin(const double* mot, double tau, double* o, double* vo) noexcept nogil:
-    """Position and velocity of a moving wall's origin ``tau`` after its motion started.
-
-    ``mot`` (offsets M_VEL...): velocity V (3), angular velocity W (3), origin o0 (3), start
-    time, wiggle amplitude A (3) and period T (0: no wiggle); the origin is at
-    ``o0 + V tau + A sin(2 pi tau / T)``, and the wall at ``o + R(W tau)(X - o0)``.
-    """
-    cdef double ph, s = 0.0, cw = 0.0
-    cdef int k
-    if mot[M_PERIOD] > 0.0:
-        ph = 2.0 * M_PI * tau / mot[M_PERIOD]
-        s = sin(ph)
-        cw = 2.0 * M_PI / mot[M_PERIOD] * cos(ph)
-    for k in range(3):
-        o[k] = mot[M_ORIGIN + k] + mot[M_VEL + k] * tau + mot[M_AMP + k] * s
-        vo[k] = mot[M_VEL + k] + mot[M_AMP + k] * cw
-
-
-cdef inline const double* vibration_of(const double* vib, int nvib, int wall) noexcept nogil:
-    """The vibration of a wall (its row of ``vib``), NULL for none."""
-    cdef int k
-    for k in range(nvib):
-        if vib[NVIB * k + V_WALL] == wall:
-            return &vib[NVIB * k]
-    return NULL
-
-
-cdef inline void vibration(const double* row, double tau, double* s, double* ds) noexcept nogil:
-    """Displacement along the axis (viblin, m) or angle about it (vibrot, rad) ``tau`` after
-    the motion started, and its rate: LIGGGHTS' ``move/mesh viblin`` and ``vibrot``, whose rate
-    is ``-sum_j A_j w_j sin(w_j tau + phi_j)``, in closed form
-    ``s = sum_j A_j (cos(w_j tau + phi_j) - cos(phi_j))``. ``row``: see V_WALL
-    and the other V_ offsets."""
-    cdef int j
-    cdef double a
-    s[0] = 0.0
-    ds[0] = 0.0
-    for j in range(<int>row[V_ORDER]):
-        a = row[V_FREQ + j] * tau + row[V_PHASE + j]
-        s[0] += row[V_AMP + j] * (cos(a) - cos(row[V_PHASE + j]))
-        ds[0] -= row[V_AMP + j] * row[V_FREQ + j] * sin(a)
-
-
-cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogil:
-    """Rotation matrix (row major) of angle |w| tau about w (Rodrigues)."""
-    cdef double wm = sqrt(dot3(w, w)), th, c, s, k0, k1, k2, C
-    if wm == 0.0:
-        memset(Rm, 0, 9 * sizeof(double))
-        Rm[0] = 1.0
-        Rm[4] = 1.0
-        Rm[8] = 1.0
-        return
-    th = wm * tau
-    c = cos(th)
-    s = sin(th)
-    C = 1.0 - c
-    k0 = w[0] / wm
-    k1 = w[1] / wm
-    k2 = w[2] / wm
-    Rm[0] = c + k0 * k0 * C
-    Rm[1] = k0 * k1 * C - k2 * s
-    Rm[2] = k0 * k2 * C + k1 * s
-    Rm[3] = k1 * k0 * C + k2 * s
-    Rm[4] = c + k1 * k1 * C
-    Rm[5] = k1 * k2 * C - k0 * s
-    Rm[6] = k2 * k0 * C - k1 * s
-    Rm[7] = k2 * k1 * C + k0 * s
-    Rm[8] = c + k2 * k2 * C
 
 
 cdef inline bint has_vertex(const int* vid, int u) noexcept nogil:

@@ -1,5 +1,128 @@
-# Moving walls: triangles placed at the current time by their rigid motion, vibration or
-# servo, and the servos' controller (LIGGGHTS mesh/surface/stress/servo).
+# Moving walls: rigid motion (translation, rotation, wiggle) and vibration (viblin, vibrot)
+# in closed form, the velocity of a wall at a contact, triangles placed at the current time,
+# and stress meshes and servos (LIGGGHTS mesh/surface/stress/servo) with their controller.
+
+cdef inline void motion_origin(const double* mot, double tau, double* o, double* vo) noexcept nogil:
+    """Position and velocity of a moving wall's origin ``tau`` after its motion started.
+
+    ``mot`` (offsets M_VEL...): velocity V (3), angular velocity W (3), origin o0 (3), start
+    time, wiggle amplitude A (3) and period T (0: no wiggle); the origin is at
+    ``o0 + V tau + A sin(2 pi tau / T)``, and the wall at ``o + R(W tau)(X - o0)``.
+    """
+    cdef double ph, s = 0.0, cw = 0.0
+    cdef int k
+    if mot[M_PERIOD] > 0.0:
+        ph = 2.0 * M_PI * tau / mot[M_PERIOD]
+        s = sin(ph)
+        cw = 2.0 * M_PI / mot[M_PERIOD] * cos(ph)
+    for k in range(3):
+        o[k] = mot[M_ORIGIN + k] + mot[M_VEL + k] * tau + mot[M_AMP + k] * s
+        vo[k] = mot[M_VEL + k] + mot[M_AMP + k] * cw
+
+
+cdef inline const double* vibration_of(const double* vib, int nvib, int wall) noexcept nogil:
+    """The vibration of a wall (its row of ``vib``), NULL for none."""
+    cdef int k
+    for k in range(nvib):
+        if vib[NVIB * k + V_WALL] == wall:
+            return &vib[NVIB * k]
+    return NULL
+
+
+cdef inline void vibration(const double* row, double tau, double* s, double* ds) noexcept nogil:
+    """Displacement along the axis (viblin, m) or angle about it (vibrot, rad) ``tau`` after
+    the motion started, and its rate: LIGGGHTS' ``move/mesh viblin`` and ``vibrot``, whose rate
+    is ``-sum_j A_j w_j sin(w_j tau + phi_j)``, in closed form
+    ``s = sum_j A_j (cos(w_j tau + phi_j) - cos(phi_j))``. ``row``: see V_WALL
+    and the other V_ offsets."""
+    cdef int j
+    cdef double a
+    s[0] = 0.0
+    ds[0] = 0.0
+    for j in range(<int>row[V_ORDER]):
+        a = row[V_FREQ + j] * tau + row[V_PHASE + j]
+        s[0] += row[V_AMP + j] * (cos(a) - cos(row[V_PHASE + j]))
+        ds[0] -= row[V_AMP + j] * row[V_FREQ + j] * sin(a)
+
+
+cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogil:
+    """Rotation matrix (row major) of angle |w| tau about w (Rodrigues)."""
+    cdef double wm = sqrt(dot3(w, w)), th, c, s, k0, k1, k2, C
+    if wm == 0.0:
+        memset(Rm, 0, 9 * sizeof(double))
+        Rm[0] = 1.0
+        Rm[4] = 1.0
+        Rm[8] = 1.0
+        return
+    th = wm * tau
+    c = cos(th)
+    s = sin(th)
+    C = 1.0 - c
+    k0 = w[0] / wm
+    k1 = w[1] / wm
+    k2 = w[2] / wm
+    Rm[0] = c + k0 * k0 * C
+    Rm[1] = k0 * k1 * C - k2 * s
+    Rm[2] = k0 * k2 * C + k1 * s
+    Rm[3] = k1 * k0 * C + k2 * s
+    Rm[4] = c + k1 * k1 * C
+    Rm[5] = k1 * k2 * C - k0 * s
+    Rm[6] = k2 * k0 * C - k1 * s
+    Rm[7] = k2 * k1 * C + k0 * s
+    Rm[8] = c + k2 * k2 * C
+
+
+cdef inline int slot_of(const State* c, int e) noexcept nogil:
+    """The stress mesh (index into ``slots``) wall element e belongs to, -1 for none."""
+    cdef int s
+    for s in range(c.nslots):
+        if c.slots[NSLOT * s + S_WALL] == c.ewall[e]:
+            return s
+    return -1
+
+
+cdef inline void wall_velocity(const State* c, int e, const double* q, const double* sl,
+                               double* vw) noexcept nogil:
+    """Velocity ``vw`` of wall element e at point ``q`` (NULL: a fixed primitive, at rest): a
+    servo's (``sl``: its stress mesh's values, NULL for none), or its rigid motion's and
+    vibration's."""
+    cdef double o[3]
+    cdef double vo[3]
+    cdef double rel[3]
+    cdef const double* mot
+    cdef const double* vb
+    cdef double sv, dsv
+    cdef int k
+    for k in range(3):
+        vw[k] = 0.0
+    if sl != NULL and sl[S_CONTROL] == FORCE_SERVO:   # a force servo translates at its output
+        for k in range(3):
+            vw[k] = sl[S_VEL + k]
+    elif sl != NULL and sl[S_CONTROL] == TORQUE_SERVO:   # a torque servo turns about its axis through com
+        for k in range(3):
+            rel[k] = q[k] - sl[S_XCM + k]
+        cross3(&sl[S_VEL], rel, vw)
+    elif q != NULL and c.emoving[e]:
+        mot = &c.emot[NMOT * e]
+        motion_origin(mot, c.time - mot[M_START], o, vo)
+        for k in range(3):
+            rel[k] = q[k] - o[k]
+        cross3(&mot[M_OMEGA], rel, vw)
+        for k in range(3):
+            vw[k] += vo[k]
+        vb = vibration_of(c.vib, c.nvib, c.ewall[e]) if c.nvib else NULL
+        if vb != NULL:   # along the axis, or about it through the origin
+            vibration(vb, c.time - mot[M_START], &sv, &dsv)
+            for k in range(3):
+                o[k] = dsv * vb[V_AXIS + k]
+            if vb[V_KIND] == VIBLIN:
+                for k in range(3):
+                    vw[k] += o[k]
+            else:
+                cross3(o, rel, vo)
+                for k in range(3):
+                    vw[k] += vo[k]
+
 
 cdef double move_walls(State* sim) noexcept nogil:
     """Place moving triangles at the current time (a servo's where its controller has
@@ -26,14 +149,14 @@ cdef double move_walls(State* sim) noexcept nogil:
             last = sim.ewall[e]
             slot = -1
             for k in range(sim.nslots):
-                if sim.slots[NSLOT * k + S_WALL] == last and sim.slots[NSLOT * k + S_CONTROL] != 0.0:
+                if sim.slots[NSLOT * k + S_WALL] == last and sim.slots[NSLOT * k + S_CONTROL] != STRESS_ONLY:
                     slot = k
             if slot >= 0:   # a force servo translates by com - com0, a torque servo turns by phi
                 sl = &sim.slots[NSLOT * slot]
                 for d in range(3):
                     o[d] = sl[S_XCM + d]
                     o0[d] = sl[S_XCM0 + d]
-                rotation(&sl[S_AXIS], sl[S_PHI] if sl[S_CONTROL] == 2.0 else 0.0, Rm)
+                rotation(&sl[S_AXIS], sl[S_PHI] if sl[S_CONTROL] == TORQUE_SERVO else 0.0, Rm)
             else:
                 mot = &sim.emot[NMOT * e]
                 motion_origin(mot, sim.time - mot[M_START], o, vo)
@@ -70,10 +193,10 @@ cdef void servo_move(State* sim, double dt) noexcept nogil:
     cdef double* sl
     for s in range(sim.nslots):
         sl = &sim.slots[NSLOT * s]
-        if sl[S_CONTROL] == 1.0:
+        if sl[S_CONTROL] == FORCE_SERVO:
             for d in range(3):
                 sl[S_XCM + d] += dt * sl[S_VEL + d]
-        elif sl[S_CONTROL] == 2.0:
+        elif sl[S_CONTROL] == TORQUE_SERVO:
             sl[S_PHI] += dt * dot3(&sl[S_VEL], &sl[S_AXIS])
 
 
@@ -102,9 +225,9 @@ cdef void servo_control(State* sim, double dt) noexcept nogil:
     cdef double pv, err, kp, mag, vmag, limit, spinv, low = 0.9, high = 1.0, scale = 0.1
     for s in range(sim.nslots):
         sl = &sim.slots[NSLOT * s]
-        if sl[S_CONTROL] == 0.0:
+        if sl[S_CONTROL] == STRESS_ONLY:
             continue
-        pv = dot3(&sl[S_FORCE if sl[S_CONTROL] == 1.0 else S_TORQUE], &sl[S_AXIS])
+        pv = dot3(&sl[S_FORCE if sl[S_CONTROL] == FORCE_SERVO else S_TORQUE], &sl[S_AXIS])
         spinv = 1.0 / fabs(sl[S_SP])
         if sl[S_AUTO] != 0.0:
             err = (sl[S_SP] - pv) * spinv

@@ -116,15 +116,6 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     return row_work(kend - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
 
 
-cdef inline int slot_of(const State* c, int e) noexcept nogil:
-    """The stress mesh (index into ``slots``) wall element e belongs to, -1 for none."""
-    cdef int s
-    for s in range(c.nslots):
-        if c.slots[NSLOT * s + S_WALL] == c.ewall[e]:
-            return s
-    return -1
-
-
 cdef int wall_contact(const State* c, int i, int e, double* h, double delta, const double* n,
                       const double* q, double* F, double* T, double* sa) noexcept nogil:
     """Force of wall element e on particle i (contact point q, NULL for a fixed primitive).
@@ -135,49 +126,17 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
     cdef double vr[3]
     cdef double rw[3]
     cdef double vw[3]
-    cdef double o[3]
-    cdef double vo[3]
     cdef double Fc[3]
     cdef double Ft[3]
     cdef double Mr[3]
     cdef double cx[3]
     cdef double rel[3]
-    cdef const double* mot
     cdef const double* sl = NULL
-    cdef const double* vb
     cdef int k, res, slot = slot_of(c, e) if q != NULL else -1
-    cdef double ri = c.r[i], sv, dsv
-    for k in range(3):
-        vw[k] = 0.0
+    cdef double ri = c.r[i]
     if slot >= 0:
         sl = &c.slots[NSLOT * slot]
-    if sl != NULL and sl[S_CONTROL] == 1.0:   # a force servo translates at its output
-        for k in range(3):
-            vw[k] = sl[S_VEL + k]
-    elif sl != NULL and sl[S_CONTROL] == 2.0:   # a torque servo turns about its axis through com
-        for k in range(3):
-            rel[k] = q[k] - sl[S_XCM + k]
-        cross3(&sl[S_VEL], rel, vw)
-    elif q != NULL and c.emoving[e]:
-        mot = &c.emot[NMOT * e]
-        motion_origin(mot, c.time - mot[M_START], o, vo)
-        for k in range(3):
-            rel[k] = q[k] - o[k]
-        cross3(&mot[M_OMEGA], rel, vw)
-        for k in range(3):
-            vw[k] += vo[k]
-        vb = vibration_of(c.vib, c.nvib, c.ewall[e]) if c.nvib else NULL
-        if vb != NULL:   # along the axis, or about it through the origin
-            vibration(vb, c.time - mot[M_START], &sv, &dsv)
-            for k in range(3):
-                o[k] = dsv * vb[V_AXIS + k]
-            if vb[V_KIND] == VIBLIN:
-                for k in range(3):
-                    vw[k] += o[k]
-            else:
-                cross3(o, rel, vo)
-                for k in range(3):
-                    vw[k] += vo[k]
+    wall_velocity(c, e, q, sl, vw)
     for k in range(3):
         vr[k] = c.v[3 * i + k] - vw[k]
         rw[k] = ri * c.w[3 * i + k]

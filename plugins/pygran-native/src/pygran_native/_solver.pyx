@@ -212,8 +212,8 @@ cdef class Core:
         self.s.coef = <Coef*>calloc(1, sizeof(Coef))
         self.s.visc = <double*>calloc(1, sizeof(double))
         self.s.ntypes = 1
-        if not (self.s.nb_start and self.s.ob_start and self.s.wl_start and self.s.ow_start and self.s.tmax and self.s.pb
-                and self.s.tstat and self.s.cpu and self.s.halos and self.s.team):
+        if not (self.s.nb_start and self.s.ob_start and self.s.wl_start and self.s.ow_start and self.s.tmax
+                and self.s.pb and self.s.tstat and self.s.cpu and self.s.halos and self.s.team):
             raise MemoryError()
 
     def __dealloc__(self):
@@ -227,7 +227,8 @@ cdef class Core:
                   <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.ob_j,
                   <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
                   <size_t>self.s.wl_h, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
-                  <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri, <size_t>self.s.ekind,
+                  <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri,
+                  <size_t>self.s.ekind,
                   <size_t>self.s.etype, <size_t>self.s.ewall, <size_t>self.s.evid, <size_t>self.s.emoving,
                   <size_t>self.s.egeo, <size_t>self.s.eref, <size_t>self.s.ebuilt, <size_t>self.s.emot,
                   <size_t>self.s.slots, <size_t>self.s.sacc, <size_t>self.s.vib,
@@ -434,7 +435,8 @@ cdef class Core:
         self.s.dirty = 1
         self.s.binned_dirty = 1
         self.set_slots(np.array([v for v in self.get_slots() if v[S_WALL] != wall]).reshape(-1, NSLOT))
-        self.set_vibrations(np.array([v for v in self.get_vibrations() if v[V_WALL] != wall]).reshape(-1, NVIB))
+        self.set_vibrations(
+            np.array([v for v in self.get_vibrations() if v[V_WALL] != wall]).reshape(-1, NVIB))
 
     def set_motion(self, int wall, double[::1] vel, double[::1] omega, double[::1] origin,
                    double[::1] amplitude, double period):
@@ -506,7 +508,7 @@ cdef class Core:
         self.s.slots = <double*>q
         self.s.nslots = k
         for s in range(k):
-            if self.s.slots[NSLOT * s + S_CONTROL] == 0.0:
+            if self.s.slots[NSLOT * s + S_CONTROL] == STRESS_ONLY:
                 continue
             for e in range(self.s.ne):
                 if self.s.ewall[e] == <int>self.s.slots[NSLOT * s + S_WALL] and self.s.ekind[e] == TRIANGLE \
@@ -677,7 +679,8 @@ cdef class Core:
                              ("wl_h", <size_t>self.s.wl_h, nwall * (self.s.hs + 1))):
             _put_d(<double*><size_t>ptr, state[name], k)
         for name, ptr, k in (("type", <size_t>self.s.type, n), ("nb_start", <size_t>self.s.nb_start, n + 1),
-                             ("nb_j", <size_t>self.s.nb_j, npair), ("wl_start", <size_t>self.s.wl_start, n + 1),
+                             ("nb_j", <size_t>self.s.nb_j, npair),
+                             ("wl_start", <size_t>self.s.wl_start, n + 1),
                              ("wl_e", <size_t>self.s.wl_e, nwall)):
             _put_i(<int*><size_t>ptr, state[name], k)
         ids = np.ascontiguousarray(state["id"], dtype=np.int64)
@@ -693,7 +696,8 @@ cdef class Core:
         self.s.time, self.s.t_base, self.s.dt_base, self.s.lost_speed = (float(k) for k in state["scalars"])
         for i in range(7):
             self.s.lost_at[i] = state["lost"][i]
-        self.s.step, self.s.lost, self.s.rebuilds, self.s.dirty, self.s.step_base = (int(k) for k in state["counters"])
+        self.s.step, self.s.lost, self.s.rebuilds, self.s.dirty, self.s.step_base = (
+            int(k) for k in state["counters"])
         if state["bounds"].shape[0] == self.s.nblocks + 1:
             _put_i(self.s.pb, state["bounds"], self.s.nblocks + 1)
         else:   # another thread count: sums in another order anyway
