@@ -987,6 +987,21 @@ def launch_communicator() -> Any:
     return MPI.COMM_WORLD if MPI.COMM_WORLD.size > 1 else None
 
 
+def rank_run(spec: SimulationSpec) -> SimulationSpec:
+    """This process's run of ``nSim`` runs, for an engine that makes each run on one MPI rank
+    (under ``mpirun -np nSim``, rank k makes run k); ``spec`` itself when ``nSim`` is 1."""
+    if spec.nsim == 1:
+        return spec
+    world = launch_communicator()
+    if world is None or world.size != spec.nsim:
+        started = "" if world is None else f", not {world.size}"
+        raise ConfigError(
+            f"nSim={spec.nsim} makes one run per MPI rank on the {spec.engine} engine: start the "
+            f"script with mpirun -np {spec.nsim}{started}"
+        )
+    return spec.runs[world.rank]
+
+
 def default_output(model: type) -> str:
     """The manual's default output folder: the model's name and the time of day. Under
     ``mpirun`` rank 0 reads the clock and every rank takes its name, so that all ranks (and
