@@ -1,33 +1,12 @@
-# Neighbour search: cells, the half neighbour list and the wall list, with contact
-# histories carried over from the previous lists.
+# Neighbour search: the rebuild (wrap, drop lost particles, sort by cell, permute), the half
+# neighbour list and the wall list, with contact histories carried over from the previous lists.
 
-# --- per-row work of the parallel loops ---------------------------------------------------
 cdef inline void zero_hist(double* h, int hs) noexcept nogil:
     cdef int k
     for k in range(hs):
         if h[k] != 0.0:
             memset(h, 0, hs * sizeof(double))
             return
-
-
-cdef inline int cell_id(const int* nc, const int* ax, const int* cc) noexcept nogil:
-    """Index of the cell of coordinates cc. Axis ax[0] varies slowest: a block of consecutive
-    cells, such as a thread's, is a slab across the axis with the most cells (the smallest
-    interface between threads, and in a bed each slab has the bed's full height)."""
-    return (cc[ax[0]] * nc[ax[1]] + cc[ax[1]]) * nc[ax[2]] + cc[ax[2]]
-
-
-cdef inline int locate(const double* p, const double* lo, const double* cs, const int* nc, const int* ax,
-                       int* cc) noexcept nogil:
-    """Cell coordinates cc (clamped to the grid) and index of point p."""
-    cdef int d
-    for d in range(3):
-        cc[d] = <int>floor((p[d] - lo[d]) / cs[d])
-        if cc[d] < 0:
-            cc[d] = 0
-        elif cc[d] >= nc[d]:
-            cc[d] = nc[d] - 1
-    return cell_id(nc, ax, cc)
 
 
 cdef uint8_t carry_pair(const State* c, int a, int b, double* h) noexcept nogil:
@@ -195,143 +174,6 @@ cdef int reserve_walls(State* sim, long long need) noexcept nogil:
         return -1
     sim.wl_h = <double*>b
     sim.wl_cap = cap
-    return 0
-
-
-cdef int setup_cells(State* sim, double rmax) noexcept nogil:
-    """Cell grid of side >= 2 rmax + skin over the box; -1 when out of memory."""
-    cdef double cut, size
-    cdef int d, k
-    cdef long long total
-    cdef void* p
-    cut = 2.0 * rmax + sim.skin
-    size = cut
-    while True:
-        total = 1
-        for d in range(3):
-            sim.nc[d] = <int>floor(sim.L[d] / size)
-            if sim.nc[d] < 1:
-                sim.nc[d] = 1
-            sim.cs[d] = sim.L[d] / sim.nc[d]
-            total *= sim.nc[d]
-        if total <= 4 * <long long>sim.n + 4096:
-            break
-        size *= 1.26
-    sim.ncells = <int>total
-    # axes by decreasing cell count (ties: z before y before x)
-    sim.ax[0], sim.ax[1], sim.ax[2] = 2, 1, 0
-    for d in range(2):
-        for k in range(2 - d):
-            if sim.nc[sim.ax[k + 1]] > sim.nc[sim.ax[k]]:
-                sim.ax[k], sim.ax[k + 1] = sim.ax[k + 1], sim.ax[k]
-    if sim.ncells + 2 > sim.cell_cap:
-        p = grow(sim.cell_start, (sim.ncells + 2) * sizeof(int))
-        if p == NULL:
-            return -1
-        sim.cell_start = <int*>p
-        p = grow(sim.ctri_start, (sim.ncells + 2) * sizeof(int))
-        if p == NULL:
-            return -1
-        sim.ctri_start = <int*>p
-        sim.cell_cap = sim.ncells + 2
-    return 0
-
-
-cdef inline int cell_of(State* sim, const double* p) noexcept nogil:
-    cdef int cc[3]
-    return locate(p, sim.lo, sim.cs, sim.nc, sim.ax, cc)
-
-
-cdef void tri_cells(State* sim, int e, double reach, int* lo3, int* hi3) noexcept nogil:
-    """Range of cells within ``reach`` of triangle e's bounding box."""
-    cdef double mn, mx, val
-    cdef int a, d
-    for d in range(3):
-        mn = sim.egeo[9 * e + d]
-        mx = mn
-        for a in range(1, 3):
-            val = sim.egeo[9 * e + 3 * a + d]
-            if val < mn:
-                mn = val
-            if val > mx:
-                mx = val
-        lo3[d] = <int>floor((mn - reach - sim.lo[d]) / sim.cs[d])
-        hi3[d] = <int>floor((mx + reach - sim.lo[d]) / sim.cs[d])
-        if lo3[d] < 0:
-            lo3[d] = 0
-        if hi3[d] >= sim.nc[d]:
-            hi3[d] = sim.nc[d] - 1
-
-
-cdef inline bint tri_near_cell(State* sim, int e, int a, int b, int c, double reach) noexcept nogil:
-    """Whether cell (a, b, c) comes within ``reach`` of triangle e's plane."""
-    cdef double half, ln
-    cdef double u[3]
-    cdef double v[3]
-    cdef double nrm[3]
-    cdef double ctr[3]
-    cdef const double* g = &sim.egeo[9 * e]
-    cdef int d
-    for d in range(3):
-        u[d] = g[3 + d] - g[d]
-        v[d] = g[6 + d] - g[d]
-    cross3(u, v, nrm)
-    ln = sqrt(dot3(nrm, nrm))
-    ctr[0] = sim.lo[0] + (a + 0.5) * sim.cs[0] - g[0]
-    ctr[1] = sim.lo[1] + (b + 0.5) * sim.cs[1] - g[1]
-    ctr[2] = sim.lo[2] + (c + 0.5) * sim.cs[2] - g[2]
-    half = 0.5 * sqrt(sim.cs[0] * sim.cs[0] + sim.cs[1] * sim.cs[1] + sim.cs[2] * sim.cs[2])
-    return fabs(dot3(nrm, ctr)) <= (reach + half) * ln
-
-
-cdef int bin_triangles(State* sim, double reach) noexcept nogil:
-    """CSR (``ctri_start``, ``ctri``) of the triangles within ``reach`` of each cell.
-
-    A triangle goes to the cells of its bounding box (grown by ``reach``) that come
-    within ``reach`` of its plane. Uses ``cell_start`` as fill cursor: call before the
-    particles are binned.
-    """
-    cdef int e, a, b, c, cc
-    cdef int lo3[3]
-    cdef int hi3[3]
-    cdef int abc[3]
-    cdef long long total
-    cdef void* p
-    memset(sim.ctri_start, 0, (sim.ncells + 1) * sizeof(int))
-    for e in range(sim.ne):
-        if sim.ekind[e] == TRIANGLE:
-            tri_cells(sim, e, reach, lo3, hi3)
-            for c in range(lo3[2], hi3[2] + 1):
-                for b in range(lo3[1], hi3[1] + 1):
-                    for a in range(lo3[0], hi3[0] + 1):
-                        if tri_near_cell(sim, e, a, b, c, reach):
-                            abc[0] = a
-                            abc[1] = b
-                            abc[2] = c
-                            sim.ctri_start[cell_id(sim.nc, sim.ax, abc) + 1] += 1
-    for c in range(sim.ncells):
-        sim.ctri_start[c + 1] += sim.ctri_start[c]
-    total = sim.ctri_start[sim.ncells]
-    if total + 1 > sim.ctri_cap:
-        p = grow(sim.ctri, (total + 1) * sizeof(int))
-        if p == NULL:
-            return -1
-        sim.ctri = <int*>p
-        sim.ctri_cap = total + 1
-    memcpy(sim.cell_start, sim.ctri_start, (sim.ncells + 1) * sizeof(int))
-    for e in range(sim.ne):
-        if sim.ekind[e] == TRIANGLE:
-            tri_cells(sim, e, reach, lo3, hi3)
-            for c in range(lo3[2], hi3[2] + 1):
-                for b in range(lo3[1], hi3[1] + 1):
-                    for a in range(lo3[0], hi3[0] + 1):
-                        if tri_near_cell(sim, e, a, b, c, reach):
-                            abc[0] = a
-                            abc[1] = b
-                            abc[2] = c
-                            cc = cell_id(sim.nc, sim.ax, abc)
-                            sim.ctri[sim.cell_start[cc]] = e
-                            sim.cell_start[cc] += 1
     return 0
 
 

@@ -1,12 +1,20 @@
 # cython: boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """Compiled core of the native DEM solver: data in C arrays, the time-step loop nogil/threaded.
 
-One ``State`` struct holds everything (``_state.pxi``); :class:`Core` is its Python face and the
-kernels, in include files by concern, work on it: ``_contact.pxi`` (a contact's force from
-the sub-models in ``_contact_normal.pxi``, ``_contact_tangential.pxi``, ``_contact_rolling.pxi``),
-``_geometry.pxi`` (wall elements), ``_motion.pxi`` (moving walls, servos), ``_neighbours.pxi``
-(cells, neighbour and wall lists, histories), ``_pairs.pxi`` (the pair loop), ``_integrate.pxi``
-(particle loop, drift, the time-step loop), ``_team.pxi`` (parallel phases on team.h's threads).
+One ``State`` struct holds everything (``_state.pxi``, with the allocation table of the
+per-particle arrays); :class:`Core` is its Python face, and the kernels, in include files by
+concern, work on it:
+
+- ``_defs.pxi``: constants, and the named offsets of histories, motions, vibrations, slots;
+- ``_contact.pxi``: a contact's force from its sub-models, ``_contact_normal.pxi`` (hooke,
+  hertz, Thornton-Ning; damping, cohesion), ``_contact_tangential.pxi``, ``_contact_rolling.pxi``;
+- ``_geometry.pxi``: wall elements (planes, cylinders, triangles);
+- ``_motion.pxi``: moving walls (rigid motion, vibration), stress meshes and servos;
+- ``_cells.pxi``: the cell grid and the triangles near each cell;
+- ``_neighbours.pxi``: the rebuild, the neighbour and wall lists and their histories;
+- ``_pairs.pxi``: the pair loop (pair and wall forces) and its halos;
+- ``_integrate.pxi``: the particle loop, the drift and the time-step loop;
+- ``_team.pxi``: parallel phases on team.h's threads, block balance, the Tuner, timers.
 
 Layout (struct of arrays, particles stored in cell order, re-sorted at every neighbour
 rebuild):
@@ -90,6 +98,7 @@ include "_contact_tangential.pxi"
 include "_contact_rolling.pxi"
 include "_contact.pxi"
 include "_geometry.pxi"
+include "_cells.pxi"
 include "_neighbours.pxi"
 include "_pairs.pxi"
 include "_integrate.pxi"
