@@ -7,14 +7,14 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RUFF = [sys.executable, "-m", "ruff"]
-#: What mypy checks. The plugins' packages join this list, one line each, once mypy is clean
-#: on them: "plugins/pygran-native/src/pygran_native", "plugins/pygran-liggghts/src/pygran_liggghts".
+#: What mypy checks: the core, every plugin package and the test suite's toy engine plugin.
 TYPED = [
     "pygran_core",
     "plugins/pygran-readers/src/pygran_readers",
     "plugins/pygran-yade/src/pygran_yade",
     "plugins/pygran-liggghts/src/pygran_liggghts",
     "plugins/pygran-native/src/pygran_native",
+    "tests/plugins/pygran-toy/src/pygran_toy",
 ]
 
 

@@ -423,7 +423,7 @@ def check_restitution(
     """Realised restitution of a wall impact for each model: ``e``, or Thornton's formula."""
     results = []
     for model, material in (IMPACT_MATERIALS if materials is None else materials).items():
-        if model is ThorntonNing:
+        if model.kernel == "thornton-ning":
             expected, notes = thornton_restitution(material, RADIUS, IMPACT_SPEED), "Thornton (1997)"
         else:
             expected, notes = material["coefficientRestitution"], "material e"

@@ -131,6 +131,8 @@ class ContactModel(abc.ABC):
     #: :data:`FORCE_LAW` has no kernel unless it declares one (an engine plugin that runs
     #: its law declares the same capability), so no engine runs the parent's law instead.
     kernel: ClassVar[str | None] = None
+    #: The method whose override took the parent's kernel away (for the engines' refusal).
+    kernel_lost_by: ClassVar[str | None] = None
     #: Material keys a model cannot do without (``density`` or ``mass`` is always needed).
     required: ClassVar[tuple[str, ...]] = ("youngsModulus", "poissonsRatio", "radius")
     #: The rolling-resistance model, a key of :data:`ROLLING_MODELS`.
@@ -140,8 +142,10 @@ class ContactModel(abc.ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if "kernel" not in vars(cls) and any(name in vars(cls) for name in FORCE_LAW):
+        overridden = [name for name in FORCE_LAW if name in vars(cls)]
+        if "kernel" not in vars(cls) and overridden:
             cls.kernel = None
+            cls.kernel_lost_by = f"{cls.__name__}.{overridden[0]}"
 
     @classmethod
     def configure(cls, *, rolling: str | None = None, limitForce: bool | None = None) -> type[ContactModel]:

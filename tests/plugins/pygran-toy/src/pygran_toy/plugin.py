@@ -17,11 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from pygran_core import Engine, hookimpl
-from pygran_core.errors import UnsupportedFeature
 from pygran_core.hookspecs import EngineSpec, ReaderSpec, WriterSpec
 from pygran_core.io import Frame, Trajectory, TrajectoryWriter
 from pygran_core.simulation.engine import LostParticles
-from pygran_core.simulation.models import SpringDashpot
+from pygran_core.simulation.specs import given
 
 
 class ToyEngine(Engine):
@@ -43,13 +42,6 @@ class ToyEngine(Engine):
         self._forces_stale = False  # spheres were added since the forces were computed
         self._next_id = 1  # ids are never reused, as in LIGGGHTS
         self._unreported = LostParticles()
-
-    def _check_spec(self, spec):
-        super()._check_spec(spec)
-        if not issubclass(spec.model, SpringDashpot):
-            raise UnsupportedFeature(
-                f"The toy engine integrates the SpringDashpot contact model only, not {spec.model.__name__}"
-            )
 
     def _create(self, request):
         if request.style != "single":
@@ -76,7 +68,7 @@ class ToyEngine(Engine):
         if self._forces_stale:
             self._compute_forces(0.0)
             self._forces_stale = False
-        dt = self.dt
+        dt = given(self.dt, "the toy engine's time step")
         for _ in range(nsteps):  # velocity Verlet
             self._kick(0.5 * dt)
             self.x = self.x + dt * self.v
@@ -150,12 +142,12 @@ class ToyEngine(Engine):
     def _drop_lost(self):
         """Delete the spheres whose centre left the box, or whose position or velocity is not finite."""
         box = np.asarray(self.spec.domain.box, float)
-        finite = np.isfinite(self.x).all(axis=1) & np.isfinite(self.v).all(axis=1)
+        finite = np.asarray(np.isfinite(self.x).all(axis=1) & np.isfinite(self.v).all(axis=1))
         below, above = self.x < box[:, 0], self.x > box[:, 1]
         gone = ~finite | (below | above).any(axis=1)
         if not gone.any():
             return
-        where = {}
+        where: dict[str, int] = {}
         for k in np.flatnonzero(gone):
             if not finite[k]:
                 place = "non-finite"
