@@ -292,8 +292,25 @@ def test_mesh_motion_in_liggghts_move_mesh_forms():
     words = calls.parse_motion("impeller", {"rotate": "origin 0.001 0 0 axis 0 0 1 period 0.05"}, s)
     assert words == original
     assert (
-        calls.parse_motion("impeller", {"rotate": True, "origin": (1e-3, 0, 0), "omega": -1.0}, s).omega == -1
+        calls.parse_motion(
+            "impeller", {"rotate": True, "origin": (1e-3, 0, 0), "axis": (0, 0, 1), "omega": -1.0}, s
+        ).omega
+        == -1
     )
+    with pytest.raises(ConfigError, match=r"moveMesh rotate needs axis=\(x, y, z\)"):  # as LIGGGHTS
+        calls.parse_motion("impeller", {"rotate": ("origin", 0, 0, 0), "period": 0.1}, s)
+    # PyGran 1.x's moveMesh(name, *args): LIGGGHTS' words, style first
+    assert (
+        calls.parse_motion(
+            "impeller",
+            calls.positional_motion(("rotate", "origin 0.001 0 0", "axis 0 0 1", "period 0.05")),
+            s,
+        )
+        == original
+    )
+    assert calls.positional_motion(("linear", 0, 0, "-1e-3")) == {"linear": (0.0, 0.0, -1e-3)}
+    with pytest.raises(ConfigError, match="a style .* first"):
+        calls.positional_motion(("axis 0 0 1", "viblin"))
     wiggle = calls.parse_motion("impeller", {"wiggle": ("amplitude", 0, 0, 1e-4), "period": 0.01}, s)
     assert (wiggle.amplitude, wiggle.period) == ((0, 0, 1e-4), 0.01)
     assert (

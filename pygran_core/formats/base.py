@@ -127,7 +127,7 @@ def expand_paths(pattern: PathLike | Sequence[PathLike]) -> list[Path]:
     """
     if isinstance(pattern, (str, os.PathLike)):
         text = os.fspath(pattern)
-        if glob.has_magic(text):
+        if glob.has_magic(text) and not Path(text).is_file():  # a folder named 'run[1]' is no pattern
             found = sorted(glob.glob(text), key=natural_key)
             if not found:
                 raise ReadError(f"No file matches {text!r} (looked in {Path(text).parent.resolve()})")

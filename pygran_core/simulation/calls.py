@@ -667,6 +667,25 @@ def _is_number(word: str) -> bool:
     return True
 
 
+def positional_motion(args: Sequence[Any]) -> dict[str, Any]:
+    """PyGran 1.x's ``moveMesh(name, *args)``: LIGGGHTS' ``move/mesh`` words after the mesh,
+    style first (``('viblin', 'axis 0 0 1', 'order 1', ...)``, ``('linear', 0, 0, -1)``), as
+    the keyword form :func:`parse_motion` reads."""
+    words = " ".join(str(a) for a in args).split()
+    if not words or words[0] not in MOTION_STYLES:
+        raise ConfigError(
+            f"moveMesh(name, *args) takes LIGGGHTS' move/mesh words, a style ({', '.join(MOTION_STYLES)}) "
+            f"first, e.g. ('rotate', 'origin 0 0 0', 'axis 0 0 1', 'period 0.1'); got {tuple(args)!r}. "
+            f"The keyword forms: {FORMS}"
+        )
+    style, rest = words[0], words[1:]
+    if style == "linear":
+        if len(rest) != 3 or not all(_is_number(w) for w in rest):
+            raise ConfigError(f"moveMesh(name, 'linear', vx, vy, vz) needs 3 numbers, got {tuple(args)!r}")
+        return {"linear": tuple(float(w) for w in rest)}
+    return {style: " ".join(rest) if rest else True}
+
+
 def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> MotionSpec:
     """``moveMesh(name, ...)`` in LIGGGHTS' ``move/mesh`` terms (see :class:`MotionSpec`):
     the style's keyword holds the style's first arguments (PyGran 1.x's
@@ -736,13 +755,9 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
             if "period" in given
             else finite_number(scalar("omega"), "moveMesh rotate omega")
         )
-        return MotionSpec(
-            mesh,
-            kind,
-            axis=direction("axis", (0, 0, 1)),
-            origin=motion_vector("origin", (0, 0, 0)),
-            omega=omega,
-        )
+        origin = motion_vector("origin", (0, 0, 0))
+        axis = direction("axis")  # LIGGGHTS' rotate has no default axis either
+        return MotionSpec(mesh, kind, axis=axis, origin=origin, omega=omega)
     order = scalar("order")
     if not is_real(order) or order not in range(1, 31):
         raise ConfigError(f"moveMesh {kind} needs order=n, the number of harmonics (1 to 30), got {order!r}")

@@ -17,9 +17,10 @@ import numpy as np
 from pygran_core import registry
 from pygran_core.errors import ConfigError, PluginNotFound
 from pygran_core.simulation import calls
-from pygran_core.simulation.engine import Engine, Handle, Monitor, require_capability
+from pygran_core.simulation.engine import Engine, Handle, LostParticles, Monitor, require_capability
 from pygran_core.simulation.models import ContactModel
-from pygran_core.simulation.specs import SimulationSpec, parse_simulation, step_count
+from pygran_core.simulation.specs import SimulationSpec, optional_bool, parse_simulation, step_count
+from pygran_core.simulation.timestep import Assessment
 
 DEFAULT_ENGINE = "native"
 DEFAULT_MODEL = "SpringDashpot"
@@ -90,6 +91,7 @@ class AveragedMonitor:
 
     def __init__(self, spec: calls.AverageSpec, samples: Monitor, path: Any, since: int) -> None:
         self.spec, self.samples, self.path, self.since = spec, samples, path, since
+        path.parent.mkdir(parents=True, exist_ok=True)  # file="monitors/ke.dat"
 
     @property
     def values(self) -> dict[str, np.ndarray]:
@@ -223,12 +225,21 @@ class DEM:
             self._mesh_walls[spec.mesh] = (handle, spec.species)
         return handle
 
-    def moveMesh(self, name: str, **kwargs: Any) -> Handle:
+    def moveMesh(self, name: str, *args: Any, **kwargs: Any) -> Handle:
         """Move mesh ``name`` as LIGGGHTS' ``move/mesh`` styles (see :class:`~.calls.MotionSpec`):
         ``rotate=('origin', x, y, z), axis=..., period=...`` (or ``rotate=True`` with
         ``origin``, ``axis``, ``period`` or ``omega``), ``linear=(vx, vy, vz)``,
         ``wiggle=('amplitude', ax, ay, az), period=...``, ``viblin=('axis', ax, ay, az),
-        order=n, amplitude=..., phase=..., period=...`` or ``vibrot=('origin', ...)`` likewise."""
+        order=n, amplitude=..., phase=..., period=...`` or ``vibrot=('origin', ...)`` likewise;
+        or PyGran 1.x's ``moveMesh(name, *args)`` with LIGGGHTS' words, style first:
+        ``moveMesh('wall', 'viblin', 'axis 0 0 1', 'order 1', 'amplitude 1e-5', ...)``."""
+        if args:
+            if kwargs:
+                raise ConfigError(
+                    "moveMesh takes LIGGGHTS' words (name, *args) or keywords, not both: "
+                    f"got {args!r} and {sorted(kwargs)}"
+                )
+            kwargs = calls.positional_motion(args)
         spec = calls.parse_motion(name, kwargs, self.spec)
         if spec.kind in ("viblin", "vibrot"):
             self.engine.require("mesh-vibration", f"{spec.kind} mesh motion")
@@ -281,7 +292,12 @@ class DEM:
         steps = step_count(nsteps, "run nsteps", notes)
         self._note(notes)
         try:
-            self.engine.run(steps, dt, progress=progress, check_dt=check_dt)
+            self.engine.run(
+                steps,
+                dt,
+                progress=optional_bool(progress, "run progress"),
+                check_dt=bool(optional_bool(check_dt, "run check_dt", allow_none=False)),
+            )
         finally:
             for averaged in self._averages.values():
                 averaged.write()
@@ -340,6 +356,21 @@ class DEM:
     @property
     def time(self) -> float:
         return self.engine.time
+
+    @property
+    def lost(self) -> int:
+        """Particles lost in all runs so far (left the box, became non-finite, were deleted)."""
+        return self.engine.lost
+
+    @property
+    def last_lost(self) -> LostParticles:
+        """The particles lost in the last run: count, where, largest speed."""
+        return self.engine.last_lost
+
+    @property
+    def time_step_check(self) -> Assessment | None:
+        """The last run's time step against the contacts present (``None``: none possible)."""
+        return self.engine.time_step_check
 
     def close(self) -> None:
         """Finish the output files and release the engine."""

@@ -255,11 +255,13 @@ class Engine(abc.ABC):
         """Refuse, before the solver starts, whatever of ``spec`` this engine cannot do."""
         model = spec.model
         if model.kernel is None:
+            lost_by = model.kernel_lost_by
             raise UnsupportedFeature(
-                f"The contact model {model.__name__} declares no kernel (class attribute kernel), so no "
-                "engine can run it: subclass SpringDashpot, HertzMindlin or ThorntonNing without "
-                "overriding their force law (normal_force...), or set kernel to the capability of an "
-                "engine that runs its law."
+                f"The contact model {model.__name__} declares no kernel (class attribute kernel)"
+                + (f": {lost_by} overrides its parent's force law" if lost_by else "")
+                + ", so no engine can run it: subclass SpringDashpot, HertzMindlin or ThorntonNing "
+                "without overriding __init__ or their force law (normal_force...), or set kernel to the "
+                "capability of an engine that runs its law."
             )
         self.require(model.kernel, f"the {model.__name__} contact model")
         if model.limit_force:
@@ -503,6 +505,7 @@ class Engine(abc.ABC):
     def monitor(self, spec: MonitorSpec) -> Monitor:
         handle = self._call("monitor", lambda s: s.file, spec)
         monitor = Monitor(handle, spec, self.output / spec.file)
+        monitor.path.parent.mkdir(parents=True, exist_ok=True)  # file="monitors/ke.txt"
         monitor.path.write_text("# step time " + " ".join(spec.quantities) + "\n")
         self._monitors[handle.id] = monitor
         return monitor
@@ -704,8 +707,9 @@ class Engine(abc.ABC):
         )
         if expected:
             self.log(
-                "%d particles left through the expected outflow (%s) in the run from step %d to %d",
+                "%d particle%s left through the expected outflow (%s) in the run from step %d to %d",
                 expected,
+                "" if expected == 1 else "s",
                 ", ".join(sorted(self._outflow)),
                 start,
                 self.step,

@@ -23,8 +23,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from pygran_core import params as materials
-from pygran_core.errors import ConfigError, UnsupportedFeature, unknown_key
-from pygran_core.formats.base import expand_paths
+from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature, unknown_key
 from pygran_core.formats.stl import STLTrajectory
 from pygran_core.simulation.models.base import ContactModel
 
@@ -44,6 +43,16 @@ def given(value: T | None, what: str) -> T:
     if value is None:
         raise ConfigError(f"{what} is not given")
     return value
+
+
+def optional_bool(value: Any, name: str, allow_none: bool = True) -> bool | None:
+    """``value`` as True, False or (with ``allow_none``, meaning automatic) None, or a
+    :class:`ConfigError` naming ``name``: a string such as ``'no'`` is refused, not read as true."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if value is None and allow_none:
+        return None
+    raise ConfigError(f"{name} must be True{', False or None' if allow_none else ' or False'}, got {value!r}")
 
 
 def is_real(value: Any) -> bool:
@@ -478,7 +487,9 @@ class MeshSpec:
     def triangles(self) -> np.ndarray:
         """The mesh's triangles ``(T, 3, 3)`` in place: scaled, rotated about the origin, then
         translated (the order of LIGGGHTS' ``scale``, ``rotate``, ``move`` keywords)."""
-        frame = STLTrajectory(expand_paths(self.file), scale=self.scale).read_frame(0)
+        if not self.file.is_file():
+            raise ReadError(f"File not found: {self.file.resolve()}")
+        frame = STLTrajectory([self.file], scale=self.scale).read_frame(0)
         points, cells = frame.arrays["points"], frame.arrays["cells"]
         if self.rotate is not None:
             points = points @ rotation_matrix(*self.rotate).T
@@ -1101,7 +1112,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type[Contact
         nsim=positive_int(params.get("nSim", 1), "nSim"),
         threads=None if threads is None else positive_int(threads, "threads"),
         nprocs=None if nprocs is None else positive_int(nprocs, "nprocs"),
-        progress=params.get("progress"),
+        progress=optional_bool(params.get("progress"), "progress"),
         user_keys=user_keys,
         notes=tuple(notes),
     )
