@@ -1,356 +1,26 @@
-"""User mistakes, one per row: each gives the same PyGranError subclass on every engine, and a
-message that names the key (or value) at fault.
-
-``SETUP`` rows are mistakes in ``simulation.DEM(**params)``: ``params`` starts from a valid
-simulation (two species of ``params.organic``, gravity, ``dt``) and the row changes it.
-``CALL`` rows are mistakes in a call on a running simulation (one per engine, shared by the
-module: every mistake is refused before it changes anything). ``UNSUPPORTED`` rows are
-settings only some engines honour: refused, naming the capability, by the others.
-"""
+"""User mistakes across engines. The table itself (pygran_core.testing.mistakes) runs in the
+engine conformance suite, on every engine that subclasses it (native, LIGGGHTS, YADE, the
+toy plugin); here: the table's size, and mistakes that need a scenario of their own."""
 
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
-import numpy as np
 import pytest
 
-from pygran_core import params, registry
+from pygran_core import params
 from pygran_core.errors import (
     ConfigError,
     InsertionWarning,
     LostParticlesWarning,
-    PluginNotFound,
     PyGranError,
     TimeStepWarning,
-    UnsupportedFeature,
 )
 from pygran_core.simulation.dem import DEM
-from pygran_core.simulation.engine import Handle
 from pygran_core.simulation.models import HertzMindlin
+from pygran_core.testing.mistakes import CALL, SETUP, UNSUPPORTED, valid
 
 ENGINES = ("native", "yade", "liggghts")
-R = 1e-3
-BOX = (0.0, 0.02, 0.0, 0.02, 0.0, 0.02)
-STL = Path(__file__).parent / "data" / "meshes" / "square.stl"
-
-
-def _valid(output: Path, engine: str) -> dict:
-    material = dict(params.organic)
-    return {
-        "engine": engine,
-        "model": HertzMindlin,
-        "box": BOX,
-        "species": ({"material": material, "radius": R}, {"material": dict(material), "radius": R / 2}),
-        "gravity": (9.81, 0, 0, -1),
-        "dt": 5e-6,
-        "output": str(output),
-        "traj": {"pfile": None},
-        "progress": False,
-    }
-
-
-def _species(change):
-    """A SETUP row's change to the first species (``change(species) -> species``)."""
-
-    def apply(p):
-        first, second = p["species"]
-        return {**p, "species": (change(dict(first)), second)}
-
-    return apply
-
-
-def _material(**values):
-    return _species(lambda s: {**s, "material": {**s["material"], **values}})
-
-
-def _traj(**values):
-    return lambda p: {**p, "traj": {**p["traj"], **values}}
-
-
-def _mesh(**entry):
-    return lambda p: {**p, "mesh": {"plate": {"file": str(STL), **entry}}}
-
-
-def _set(**values):
-    return lambda p: {**p, **values}
-
-
-#: (id, change to the valid params, error class, what the message must name)
-SETUP = [
-    ("unknown keyword", _set(gravty=(9.81, 0, 0, -1)), ConfigError, "'gravity'"),
-    ("box of five numbers", _set(box=(0, 1, 0, 1, 0)), ConfigError, "box"),
-    ("box upside down", _set(box=(0, 1, 0, 1, 1, 0)), ConfigError, "box"),
-    ("boundary flag", _set(boundary=("p", "x", "f")), ConfigError, "boundary"),
-    ("boundary as one string", _set(boundary="ppf"), ConfigError, "boundary"),
-    ("periodic on one face only", _set(boundary=("pf", "f", "f")), ConfigError, "boundary x"),
-    ("gravity without a unit vector", _set(gravity=(9.81, 1, 1, 1)), ConfigError, "gravity"),
-    ("negative gravity", _set(gravity=(-9.81, 0, 0, -1)), ConfigError, "gravity"),
-    ("species without radius", _species(lambda s: {"material": s["material"]}), ConfigError, "'radius'"),
-    ("species keyword misspelt", _species(lambda s: {**s, "raduis": R}), ConfigError, "'raduis'"),
-    ("species style", _species(lambda s: {**s, "style": "ellipsoid"}), ConfigError, "style"),
-    ("species density as text", _species(lambda s: {**s, "density": "1000"}), ConfigError, "density"),
-    ("material key misspelt", _material(youngModulus=1e7), ConfigError, "'youngModulus'"),
-    ("Poisson's ratio of 0.7", _material(poissonsRatio=0.7), ConfigError, "'poissonsRatio'"),
-    ("restitution of 0", _material(coefficientRestitution=0), ConfigError, "'coefficientRestitution'"),
-    ("modulus as text", _material(youngsModulus="1e7"), ConfigError, "'youngsModulus'"),
-    ("friction as a bool", _material(coefficientFriction=True), ConfigError, "'coefficientFriction'"),
-    ("negative density", _material(density=-1000), ConfigError, "'density'"),
-    ("negative radius", _species(lambda s: {**s, "radius": -R}), ConfigError, "radius"),
-    (
-        "radius distribution",
-        _species(lambda s: {**s, "radius": ("gauss", R, R / 10)}),
-        ConfigError,
-        "'gauss'",
-    ),
-    ("radii below zero", _species(lambda s: {**s, "radius": ("normal", R, R)}), ConfigError, "radius"),
-    ("poly weights", _species(lambda s: {**s, "radius": ("poly", (R, R / 2), (1,))}), ConfigError, "radius"),
-    ("nSim of 0", _set(nSim=0), ConfigError, "nSim"),
-    ("two dimensions", _set(dim=2), ConfigError, "dim"),
-    ("units", _set(units="cgs"), ConfigError, "units"),
-    ("negative dt", _set(dt=-1e-5), ConfigError, "dt"),
-    ("dt as text", _set(dt="1e-5"), ConfigError, "dt"),
-    ("negative seed", _set(seed=-1), ConfigError, "seed"),
-    ("no threads", _set(threads=0), ConfigError, "threads"),
-    ("neighbour list type", _set(nns_type="binn"), ConfigError, "nns_type"),
-    ("traj not a dict", _set(traj="traj.dump"), ConfigError, "traj"),
-    ("traj keyword misspelt", _traj(pfil="traj.dump"), ConfigError, "'pfil'"),
-    ("traj freq 0", _traj(freq=0), ConfigError, "traj freq"),
-    ("traj style", _traj(style="customm"), ConfigError, "traj style"),
-    ("traj sel 0", _traj(sel=0), ConfigError, "traj sel"),
-    ("unknown traj column", _traj(pfile="t.dump", args=("id", "x", "radiuss")), ConfigError, "'radiuss'"),
-    ("traj args one string", _traj(pfile="t.dump", args="id type x y z velocity"), ConfigError, "traj args"),
-    ("restart keyword misspelt", _set(restart={"frq": 100}), ConfigError, "'frq'"),
-    ("mesh not a dict", _set(mesh=[STL]), ConfigError, "mesh"),
-    (
-        "mesh without file",
-        lambda p: {**p, "mesh": {"plate": {"mtype": "mesh/surface"}}},
-        ConfigError,
-        "'file'",
-    ),
-    ("mesh file missing", lambda p: {**p, "mesh": {"plate": {"file": "none.stl"}}}, ConfigError, "none.stl"),
-    ("mesh type", _mesh(mtype="mesh/surfac"), ConfigError, "mtype"),
-    ("mesh keyword misspelt", _mesh(scael=1e-3), ConfigError, "'scael'"),
-    ("mesh in millimetres", _mesh(), ConfigError, "'scale': 1e-3"),
-    ("mesh outside the box", _mesh(scale=1e-3, move=(0.01, 0.01, 0.03)), ConfigError, "mesh 'plate'"),
-    ("mesh partly outside the box", _mesh(scale=1e-3), ConfigError, "triangles lie outside the box"),
-    ("traj style atom", _traj(style="atom"), UnsupportedFeature, "traj style 'atom'"),
-    ("dump_modify without a dump file", _set(dump_modify=("sort", "id")), ConfigError, "dump_modify"),
-    ("traj margs without meshes", _traj(mfile="mesh*.vtk", margs=("id",)), ConfigError, "traj margs"),
-    (
-        "traj style custom/vtk with a dump file",
-        _traj(pfile="t.dump", style="custom/vtk"),
-        ConfigError,
-        ".vtk",
-    ),
-    ("engine misspelt", _set(engine="nativ"), PluginNotFound, "'nativ'"),
-]
-
-#: Centres of the particles the shared simulations start with (species 1, then species 2).
-FIRST = (0.005, 0.005, 0.005)
-CENTRES = {1: np.array([FIRST, (0.015, 0.005, 0.005)]), 2: np.array([(0.005, 0.015, 0.005)])}
-
-
-def _contact(sim):
-    return sim.engine.time_step_check.limits.contact
-
-
-#: (id, a call on the shared simulation, error class, what the message must name)
-CALL = [
-    ("insert keyword misspelt", lambda s: s.insert(1, value=10, regoin=None), ConfigError, "'regoin'"),
-    (
-        "insert mech misspelt",
-        lambda s: s.insert(1, value=10, mech="particles_in_regon"),
-        ConfigError,
-        "'particles_in_regon'",
-    ),
-    ("insert without an amount", lambda s: s.insert(1), ConfigError, "value="),
-    ("insert by rate without a rate", lambda s: s.insert(1, insert="by_rate"), ConfigError, "rate="),
-    (
-        "insert a volume fraction above 1",
-        lambda s: s.insert(1, value=1.5, mech="volumefraction_region"),
-        ConfigError,
-        "1.5",
-    ),
-    ("insert weights", lambda s: s.insert((1, 2), value=10, weights=(0.5, 0.6)), ConfigError, "weights"),
-    ("insert a species that does not exist", lambda s: s.insert(3, value=10), ConfigError, "species 3"),
-    ("region type", lambda s: s.insert(1, value=10, region=("box", 0, 1, 0, 1, 0, 1)), ConfigError, "'box'"),
-    (
-        "region of two numbers",
-        lambda s: s.insert(1, value=10, region=("block", 0, 1)),
-        ConfigError,
-        "'block'",
-    ),
-    (
-        "cylinder region axis",
-        lambda s: s.insert(1, value=10, region=("cylinder", "w", 0, 0, 1, 0, 1)),
-        ConfigError,
-        "'w'",
-    ),
-    ("empty region", lambda s: s.insert(1, value=10, region=("sphere", 0, 0, 0, 0)), ConfigError, "region"),
-    ("velocity type", lambda s: s.insert(1, value=10, vel_type="uniformm"), ConfigError, "'uniformm'"),
-    ("all_in as text", lambda s: s.insert(1, value=10, all_in="true"), ConfigError, "all_in"),
-    ("createParticles style", lambda s: s.createParticles(1, "grid", 2e-3), ConfigError, "'grid'"),
-    (
-        "createParticles of all species",
-        lambda s: s.createParticles("all", "single", *FIRST),
-        ConfigError,
-        "'all'",
-    ),
-    ("lattice without spacing", lambda s: s.createParticles(1, "lattice"), ConfigError, "spacing"),
-    ("random without count", lambda s: s.createParticles(1, "random"), ConfigError, "count"),
-    (
-        "single with two coordinates",
-        lambda s: s.createParticles(1, "single", 0.01, 0.01),
-        ConfigError,
-        "'single'",
-    ),
-    (
-        "positions of two columns",
-        lambda s: s.createParticles(1, "single", np.zeros((3, 2))),
-        ConfigError,
-        "positions",
-    ),
-    (
-        "createParticles keyword misspelt",
-        lambda s: s.createParticles(1, "single", 0.01, 0.01, 0.01, velocity=(1, 0, 0)),
-        ConfigError,
-        "'velocity'",
-    ),
-    (
-        "a particle created on top of another",
-        lambda s: s.createParticles(2, "single", *FIRST),
-        ConfigError,
-        "createParticles position",
-    ),
-    (
-        "two new particles overlapping",
-        lambda s: s.createParticles(2, "single", np.array([(0.015, 0.015, 0.015), (0.0155, 0.015, 0.015)])),
-        ConfigError,
-        "createParticles position",
-    ),
-    (
-        "a particle created outside the box",
-        lambda s: s.createParticles(1, "single", 0.03, 0.01, 0.01),
-        ConfigError,
-        "createParticles position (0.03, 0.01, 0.01) is outside the box",
-    ),
-    (
-        "positions partly outside the box",
-        lambda s: s.createParticles(2, "single", np.array([(0.015, 0.015, 0.015), (0.015, 0.015, -0.001)])),
-        ConfigError,
-        "createParticles position (0.015, 0.015, -0.001) is outside the box",
-    ),
-    (
-        "lattice region through a face",
-        lambda s: s.createParticles(1, "lattice", 4e-3, region=("block", -0.01, 0.01, 0, 0.02, 0, 0.02)),
-        ConfigError,
-        "createParticles region",
-    ),
-    (
-        "random region above the box",
-        lambda s: s.createParticles(1, "random", 5, region=("block", 0, 0.02, 0, 0.02, 0.01, 0.03)),
-        ConfigError,
-        "createParticles region",
-    ),
-    (
-        "insertion region through a face",
-        lambda s: s.insert(1, value=10, region=("block", -0.01, 0.01, 0, 0.02, 0, 0.02)),
-        ConfigError,
-        "insert region",
-    ),
-    (
-        "insertion cylinder wider than the box",
-        lambda s: s.insert(1, value=10, region=("cylinder", "z", 0.01, 0.01, 0.015, 0, 0.02)),
-        ConfigError,
-        "insert region",
-    ),
-    (
-        "lattice spacing below one diameter",
-        lambda s: s.createParticles(1, "lattice", 1e-3, region=("block", 0, 0.01, 0, 0.01, 0.01, 0.02)),
-        ConfigError,
-        "lattice spacing 0.001 is below one diameter (0.002)",
-    ),
-    (
-        "lattice with no room for a particle",
-        lambda s: s.createParticles(1, "lattice", 3e-3, region=("block", 0, 1e-3, 0, 0.02, 0, 0.02)),
-        ConfigError,
-        "no site of spacing 0.003",
-    ),
-    (
-        "lattice on top of particles",
-        lambda s: s.createParticles(
-            1, "lattice", 2e-3, region=("block", 0.004, 0.008, 0.004, 0.008, 0.004, 0.008)
-        ),
-        ConfigError,
-        "createParticles position",
-    ),
-    ("wall above the box", lambda s: s.setupWall(plane="zplane", peq=0.05), ConfigError, "peq=0.05"),
-    ("wall below the box", lambda s: s.setupWall(plane="xplane", peq=-1e-3), ConfigError, "peq=-0.001"),
-    ("wall type", lambda s: s.setupWall(wtype="plane", plane="zplane", peq=0.0), ConfigError, "wtype"),
-    ("plane misspelt", lambda s: s.setupWall(plane="zplan", peq=0.0), ConfigError, "'zplan'"),
-    ("plane without peq", lambda s: s.setupWall(plane="zplane"), ConfigError, "peq"),
-    ("primitive wall without a plane", lambda s: s.setupWall(), ConfigError, "plane="),
-    ("wall keyword", lambda s: s.setupWall(plane="zplane", peq=0.0, material={}), ConfigError, "'material'"),
-    ("mesh wall without a mesh", lambda s: s.setupWall(wtype="mesh"), ConfigError, "mesh="),
-    (
-        "moving a mesh that does not exist",
-        lambda s: s.moveMesh("hopper", linear=(0, 0, 1)),
-        ConfigError,
-        "'hopper'",
-    ),
-    ("addViscous without gamma", lambda s: s.addViscous(species=1), ConfigError, "gamma"),
-    ("negative drag", lambda s: s.addViscous(gamma=-1.0), ConfigError, "gamma"),
-    ("addViscous keyword misspelt", lambda s: s.addViscous(gamma=1.0, scal=2.0), ConfigError, "'scal'"),
-    ("monitor quantity", lambda s: s.monitor(quantities=("kee",)), ConfigError, "'kee'"),
-    ("monitor freq 0", lambda s: s.monitor(freq=0), ConfigError, "monitor freq"),
-    ("monitor keyword misspelt", lambda s: s.monitor(frequency=10), ConfigError, "'frequency'"),
-    ("set without a value", lambda s: s.set(species=1), ConfigError, "vel="),
-    (
-        "set ids no particle has",
-        lambda s: s.set(ids=99, vel=(0, 0, 1)),
-        ConfigError,
-        "ids: no particle has id 99",
-    ),
-    ("set id 0", lambda s: s.set(ids=0, vel=(0, 0, 1)), ConfigError, "ids"),
-    ("set keyword misspelt", lambda s: s.set(velocity=(0, 0, 1)), ConfigError, "'velocity'"),
-    ("velocity with a radius", lambda s: s.velocity(radius=R), ConfigError, "radius"),
-    ("extract an unknown quantity", lambda s: s.engine.extract("pos"), ConfigError, "'pos'"),
-    ("remove twice", lambda s: s.remove(s.removed), ConfigError, "already removed"),
-    (
-        "remove a foreign handle",
-        lambda s: s.remove(Handle("wall", 1, "wall1", -1)),
-        ConfigError,
-        "not a handle",
-    ),
-    ("run no steps", lambda s: s.run(0), ConfigError, "nsteps"),
-    ("run negative steps", lambda s: s.run(-5), ConfigError, "nsteps"),
-    ("run negative dt", lambda s: s.run(10, -1e-5), ConfigError, "dt"),
-    ("dt 8 times the contact time", lambda s: s.run(10, 8 * _contact(s)), ConfigError, "dt = "),
-    ("dt of 2 steps per contact", lambda s: s.run(10, 0.5 * _contact(s)), ConfigError, "dt = "),
-    ("outflow face", lambda s: s.engine.expect_outflow("bottom"), ConfigError, "'bottom'"),
-]
-
-
-#: (id, change to the valid params, the capability that honours it, what the message must name)
-#: A mesh inside the box, for the settings of mesh output.
-PLATE = {"file": str(STL), "scale": 1e-3, "move": (0.01, 0.01, 0.01)}
-UNSUPPORTED = [
-    (
-        "dump_modify",
-        lambda p: _traj(pfile="t.dump")(p) | {"dump_modify": ("sort id",)},
-        "liggghts-dump",
-        "dump_modify ('sort id',)",
-    ),
-    (
-        "traj margs",
-        lambda p: _traj(mfile="mesh*.vtk", margs=("id", "force"))(p) | {"mesh": {"plate": PLATE}},
-        "liggghts-dump",
-        "traj margs ('id', 'force')",
-    ),
-    ("neighbour list nsq", _set(nns_type="nsq"), "neighbor-styles", "nns_type='nsq'"),
-]
 
 
 def test_the_table_is_large_and_every_row_expects_a_pygran_error():
@@ -361,55 +31,9 @@ def test_the_table_is_large_and_every_row_expects_a_pygran_error():
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize(("change", "error", "named"), [pytest.param(*r[1:], id=r[0]) for r in SETUP])
-def test_setup_mistake(tmp_path, engine, change, error, named):
-    with pytest.raises(error) as info:
-        DEM(**change(_valid(tmp_path / "out", engine)))
-    assert named in str(info.value)
-
-
-@pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize(
-    ("change", "capability", "named"), [pytest.param(*r[1:], id=r[0]) for r in UNSUPPORTED]
-)
-def test_setting_honoured_or_refused(tmp_path, engine, change, capability, named):
-    """An engine declaring ``capability`` takes the setting; any other refuses it, naming both."""
-    params = change(_valid(tmp_path / "out", engine))
-    if capability in registry.get_engine(engine).capabilities:
-        DEM(**params).close()
-        return
-    with pytest.raises(UnsupportedFeature) as info:
-        DEM(**params)
-    assert named in str(info.value) and f"capability {capability!r}" in str(info.value)
-
-
-@pytest.fixture(scope="module", params=ENGINES)
-def running(request, tmp_path_factory):
-    """A simulation on each engine with particles of both species, a floor and a removed monitor."""
-    sim = DEM(**_valid(tmp_path_factory.mktemp(request.param), request.param))
-    sim.setupWall(species=1, plane="zplane", peq=0.0)
-    for species, centres in CENTRES.items():
-        sim.createParticles(species, "single", centres)
-    sim.removed = sim.monitor(quantities=("n",), freq=10)
-    sim.remove(sim.removed)
-    sim.run(1)
-    yield sim
-    sim.close()
-
-
-@pytest.mark.parametrize(("call", "error", "named"), [pytest.param(*r[1:], id=r[0]) for r in CALL])
-def test_call_mistake(running, call, error, named):
-    before = (running.step, running.engine.dt, len(running.engine.handles), len(running.extractIds()))
-    with pytest.raises(error) as info:
-        call(running)
-    assert named in str(info.value)
-    assert (running.step, running.engine.dt, len(running.engine.handles), len(running.extractIds())) == before
-
-
-@pytest.mark.parametrize("engine", ENGINES)
 def test_a_second_lattice_in_the_same_place_is_refused(tmp_path, engine):
     """Two createParticles lattices over one region would put every particle on top of another."""
-    with DEM(**_valid(tmp_path / "out", engine)) as sim:
+    with DEM(**valid(tmp_path / "out", engine)) as sim:
         region = ("block", 0, 0.016, 0, 0.016, 0, 0.016)
         made = sim.createParticles(1, "lattice", 2e-3, region=region)
         assert made >= 7**3
@@ -422,7 +46,7 @@ def test_a_second_lattice_in_the_same_place_is_refused(tmp_path, engine):
 def test_a_full_region_is_a_warning_that_says_how_many(tmp_path, engine):
     """Asked for 50 particles where about 8 fit: an InsertionWarning with the numbers, also in
     pygran.log; the particles that fit are there."""
-    with DEM(**_valid(tmp_path / "out", engine)) as sim:
+    with DEM(**valid(tmp_path / "out", engine)) as sim:
         region = ("block", 0, 0.005, 0, 0.005, 0, 0.005)
         with pytest.warns(InsertionWarning) as caught:
             sim.insert(1, value=50, region=region)
