@@ -429,16 +429,23 @@ class Commands:
         lines.append(f"fix {did} all {style} {prime(seed)} {count} {entries}")
         return did, lines
 
-    def insert(self, spec: InsertSpec, dt: float | None) -> tuple[str, list[str]]:
-        """``fix insert/pack`` or ``fix insert/rate/region``; by rate without ``freq``, every
-        :attr:`~pygran_core.simulation.insertion.PlacingEngine.rate_interval` as other engines."""
-        every: int | str | None = spec.freq
-        if spec.mechanism == "by_rate" and every is None:
+    @staticmethod
+    def insert_every(spec: InsertSpec, dt: float | None) -> int | None:
+        """Steps between the insertions of ``spec`` (``None``: once, by pack): its ``freq``; by
+        rate without it, every :attr:`~pygran_core.simulation.insertion.PlacingEngine.rate_interval`
+        as other engines."""
+        if spec.mechanism == "by_rate" and spec.freq is None:
             if dt is None:
                 raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
             from pygran_core.simulation.insertion import PlacingEngine
 
-            every = max(1, round(PlacingEngine.rate_interval / dt))
+            return max(1, round(PlacingEngine.rate_interval / dt))
+        return spec.freq
+
+    def insert(self, spec: InsertSpec, dt: float | None) -> tuple[str, list[str]]:
+        """``fix insert/pack`` or ``fix insert/rate/region``, inserting every
+        :meth:`insert_every` steps from the next step on."""
+        every = self.insert_every(spec, dt)
         distribution, lines = self._templates(spec.species, spec.weights, spec.seed)
         rid, region = self.region(spec.region)
         lines.append(region)
@@ -455,10 +462,10 @@ class Commands:
         elif spec.orientation is not None:
             common += f" orientation constant {' '.join(map(fmt, spec.orientation))}"
         if spec.mechanism == "by_pack":
-            every = "once" if every is None else every
             amount = int(spec.value) if spec.target == "particles_in_region" else fmt(spec.value)
             lines.append(
-                f"fix {iid} all insert/pack {common} insert_every {every} {spec.target} {amount} region {rid}"
+                f"fix {iid} all insert/pack {common} insert_every {every or 'once'} {spec.target} {amount} "
+                f"region {rid}"
             )
             return iid, lines
         if spec.target == "particlerate":

@@ -11,7 +11,8 @@ Commands wait in a queue only while the worker starts (the script goes on meanwh
 for particles created one by one, until the next request (their ``set atom`` lines merged
 into ranges) or until :data:`STREAM_LINES` are queued, which are then sent without waiting
 for the answer. A run is split into chunks (``run N pre no`` after the first when no
-command came in between, so LIGGGHTS skips its set-up).
+command came in between, so LIGGGHTS skips its set-up), each ended after every insertion
+event, so that the particles lost are seen first (see :meth:`LiggghtsEngine._lost_particles`).
 
 Every command sent is appended to ``<output>/in.pygran``, which reruns unchanged with the
 ``liggghts`` binary; angular velocities, which no LIGGGHTS 3.8 command sets, are written
@@ -167,6 +168,8 @@ class LiggghtsEngine(Engine):
         self._replayed_once: set[str] = set()  # one-off insertions not redone on resume
         #: Insertion fixes in LIGGGHTS (label -> spec), whose counts are read
         self._insertions: dict[str, InsertSpec] = {}
+        #: label -> (first step, steps between, last step or None) of each insertion's events
+        self._insertion_steps: dict[str, tuple[int, int, int | None]] = {}
         #: Reading insertion events from LIGGGHTS' screen file: how far it has been read, the
         #: particles asked for at the first step of the next run by the by-pack insertions made
         #: then, those by rate asked for per event, and the insertions whose shortfall was warned
@@ -352,13 +355,20 @@ class LiggghtsEngine(Engine):
             if spec.target == "volumefraction_region" and (label in self._unplaced or spec.freq)
         ]
         self._unplaced.clear()
-        self._queue([*lines, f"run {nsteps} {pre}post no"])
+        self._queue(lines)
         start = self.step
+        # a run stops after each insertion event, so that the particles it makes are seen
+        # before they can leave: each one lost has a start to be placed from
+        stops = sorted(self._insertion_stops(start, start + nsteps))
+        pieces = [b - a for a, b in zip([start, *stops], [*stops, start + nsteps])]
+        again = "" if auto else "pre no "
+        runs = [f"run {n} {pre if k == 0 else again}post no" for k, n in enumerate(pieces)]
         self._before_run()
-        self._max_id, count, x, v = self._ask("run", self._take(), sorted(self._insertions))
+        self._queue(runs)
+        self._max_id, losses = self._ask("run", self._take(), len(runs), sorted(self._insertions))
         self._prepared = self._computed = True
-        if count:
-            self._unreported += self._lost_particles(count, x, v, nsteps, dt)
+        if any(count for count, _, _ in losses):
+            self._unreported += self._lost_particles(losses, pieces, dt)
         self._report_insertions(start)
         if filling:
             self._log_fractions(filling, start + nsteps)
@@ -495,16 +505,33 @@ class LiggghtsEngine(Engine):
             f"({spec.target} {amount}) needs, {where}"
         )
 
+    def _insertion_stops(self, start: int, end: int) -> set[int]:
+        """The insertion events' steps strictly between ``start`` and ``end``."""
+        stops: set[int] = set()
+        for first, every, last in self._insertion_steps.values():
+            skip = max(0, -(-(start + 1 - first) // every))  # events before start + 1
+            stops.update(range(first + skip * every, min(end, last + 1 if last is not None else end), every))
+        return stops
+
     def _lost_particles(
-        self, count: int, x: np.ndarray, v: np.ndarray, nsteps: int, dt: float
+        self, losses: list[tuple[int, np.ndarray, np.ndarray]], pieces: list[int], dt: float
     ) -> LostParticles:
-        """``count`` particles lost in a run of ``nsteps`` steps of ``dt``: those seen at its start
-        (``x``, ``v``) placed as the front end places them; the others, inserted during it, ``unknown``."""
+        """The particles lost in the pieces of a run, ``pieces`` steps of ``dt`` long: in each, how
+        many, and the positions and velocities at its start of those present then, placed as the
+        front end places them; the others, inserted and lost within it, ``unknown``."""
         where: dict[str, int] = {}
-        for place in [*exit_faces(self.spec, x, v, nsteps * dt), *["unknown"] * (count - len(x))]:
-            where[place] = where.get(place, 0) + 1
-        self.log("%d particles lost in the last %d steps: %s", count, nsteps, where)
-        return LostParticles(count, where)
+        for (count, x, v), steps in zip(losses, pieces):
+            for place in [*exit_faces(self.spec, x, v, steps * dt), *["unknown"] * (count - len(x))]:
+                where[place] = where.get(place, 0) + 1
+        total = sum(where.values())
+        self.log(
+            "%d particle%s lost in the last %d steps: %s",
+            total,
+            "" if total == 1 else "s",
+            sum(pieces),
+            where,
+        )
+        return LostParticles(total, where)
 
     def _lost_since_last(self) -> LostParticles:
         """The particles LIGGGHTS lost since the last call, counted exactly in every run
@@ -588,6 +615,16 @@ class LiggghtsEngine(Engine):
             return label
         self._execute(lines)
         self._insertions[label] = spec
+        # LIGGGHTS' events: from the next step on, every insert_every steps; by rate, until
+        # about its duration is over (its last event may come up to one interval later)
+        every = self.commands.insert_every(spec, self.dt)
+        first = self.step + 1
+        if every is None:
+            self._insertion_steps[label] = (first, 1, first)
+        else:
+            duration = None if spec.mechanism == "by_pack" else spec.duration
+            last = None if duration is None or self.dt is None else first + round(duration / self.dt) + every
+            self._insertion_steps[label] = (first, every, last)
         if spec.mechanism == "by_pack":
             self._targets[label] = (number, spec.value)
             if not self.replaying:
@@ -824,6 +861,7 @@ class LiggghtsEngine(Engine):
         self._walls.pop(handle.label, None)
         self._motions.pop(handle.label, None)
         self._insertions.pop(handle.label, None)
+        self._insertion_steps.pop(handle.label, None)
         self._unplaced.pop(handle.label, None)
         self._targets.pop(handle.label, None)
 

@@ -45,28 +45,43 @@ class Session:
             self.lmp.command(line)
         return self.lmp.max_id()
 
-    def run(self, lines: Sequence[str], inserting: Sequence[str]) -> tuple[int, int, Any, Any]:
-        """Run ``lines``, the last a ``run`` command; ``inserting`` are the insertion fixes.
+    def run(self, lines: Sequence[str], runs: int, inserting: Sequence[str]) -> tuple[int, list[Any]]:
+        """Run ``lines``, the last ``runs`` of them ``run`` commands; ``inserting`` are the
+        insertion fixes.
 
-        Returns the largest atom id afterwards and the particles lost during the run: their
-        number (those present at its start and gone at its end, and those inserted during it
-        and gone), and the positions and velocities at its start of those present then.
+        Returns the largest atom id afterwards and, for each ``run``, the particles lost during
+        it: their number (those present at its start and gone at its end, and those inserted
+        during it and gone), and the positions and velocities at its start of those present then.
         """
+        for line in lines[: len(lines) - runs]:
+            self.lmp.command(line)
+        losses = [self._run(line, inserting) for line in lines[len(lines) - runs :]]
+        return self.lmp.max_id(), losses
+
+    def _run(self, line: str, inserting: Sequence[str]) -> tuple[int, Any, Any]:
+        """Run the ``run`` command ``line``: the particles lost (see :meth:`run`)."""
         import numpy as np
 
-        for line in lines[:-1]:
-            self.lmp.command(line)
+        comm = self.lmp.comm
         ids, x, v = (self.lmp.local(q) for q in ("id", "x", "v"))
         count, inserted = self.lmp.count(), self.lmp.inserted(inserting)
-        self.lmp.command(lines[-1])
+        self.lmp.command(line)
         now = self.lmp.local("id")
-        lost = count + self.lmp.inserted(inserting) - inserted - self.lmp.count()
-        gone = ~np.isin(ids, now)  # gone from this rank: lost, or moved to another rank
-        parts = self.lmp.comm.allgather((ids[gone], x[gone], v[gone]))
-        candidates, x, v = (np.concatenate([part[i] for part in parts]) for i in range(3))
-        elsewhere = self.lmp.comm.allreduce(np.isin(candidates, now).astype(np.int8), op=_sum())
-        known = elsewhere == 0
-        return self.lmp.max_id(), max(lost, int(known.sum())), x[known], v[known]
+        made = self.lmp.inserted(inserting) - inserted
+        lost = count + made - self.lmp.count()
+        # LIGGGHTS numbers new particles on from the largest id present, so the ids of lost
+        # particles come back: the ``made`` largest ids are the new particles' (none of them
+        # lost: the engine ends a run at an insertion), unless that finds too many lost
+        newest = np.sort(np.concatenate(comm.allgather(np.sort(now)[max(0, len(now) - made) :])))[-made:]
+        for present in (now[~np.isin(now, newest)], now) if made else (now,):
+            gone = ~np.isin(ids, present)  # gone from this rank: lost, or moved to another rank
+            parts = comm.allgather((ids[gone], x[gone], v[gone]))
+            candidates, start_x, start_v = (np.concatenate([part[i] for part in parts]) for i in range(3))
+            elsewhere = comm.allreduce(np.isin(candidates, present).astype(np.int8), op=_sum())
+            known = elsewhere == 0
+            if known.sum() <= lost:
+                break
+        return max(lost, int(known.sum())), start_x[known], start_v[known]
 
     def timestep(self) -> int:
         return self.lmp.timestep()
