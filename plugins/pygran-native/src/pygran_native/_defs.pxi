@@ -2,6 +2,7 @@
 
 DEF MAXCAND = 64
 DEF NCOLUMNS = 21  # per-particle arrays, see particle_columns
+DEF NECOLUMNS = 9  # per-element arrays, see element_columns
 DEF MAXTHREADS = 1024   # a team's block numbers must stay below 65536 (team.h)
 DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
 DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation

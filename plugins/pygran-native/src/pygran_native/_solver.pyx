@@ -54,7 +54,7 @@ pass by at most the block it is in, and threads with nothing to do sleep instead
 
 from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
 from libc.stdlib cimport malloc, calloc, realloc, free
-from libc.string cimport memcpy, memset
+from libc.string cimport memcpy, memmove, memset
 from libc.stdint cimport int64_t, uint8_t
 from libc.limits cimport INT_MAX
 from posix.time cimport clock_gettime, timespec, CLOCK_THREAD_CPUTIME_ID
@@ -232,14 +232,14 @@ cdef class Core:
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
             free(cols[k].p[0])
+        element_columns(&self.s, cols)
+        for k in range(NECOLUMNS):
+            free(cols[k].p[0])
         for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.nb_j,
                   <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.ob_j,
                   <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
                   <size_t>self.s.wl_h, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
                   <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri,
-                  <size_t>self.s.ekind,
-                  <size_t>self.s.etype, <size_t>self.s.ewall, <size_t>self.s.evid, <size_t>self.s.emoving,
-                  <size_t>self.s.egeo, <size_t>self.s.eref, <size_t>self.s.ebuilt, <size_t>self.s.emot,
                   <size_t>self.s.slots, <size_t>self.s.sacc, <size_t>self.s.vib,
                   <size_t>self.s.coef, <size_t>self.s.visc, <size_t>self.s.tmax,
                   <size_t>self.s.pb, <size_t>self.s.tstat, <size_t>self.s.cpu):
@@ -375,16 +375,11 @@ cdef class Core:
 
     def add_elements(self, int[::1] kind, int[::1] etype, int[::1] wall, double[:, ::1] geo, int[:, ::1] vid):
         cdef int k = kind.shape[0], i, d, base = self.s.ne, cap = max(base + k, 2 * self.s.ecap, 8)
+        cdef Column cols[NECOLUMNS]
         if base + k > self.s.ecap:
-            self.s.ekind = <int*>self._grow(self.s.ekind, cap * sizeof(int))
-            self.s.etype = <int*>self._grow(self.s.etype, cap * sizeof(int))
-            self.s.ewall = <int*>self._grow(self.s.ewall, cap * sizeof(int))
-            self.s.emoving = <int*>self._grow(self.s.emoving, cap * sizeof(int))
-            self.s.evid = <int*>self._grow(self.s.evid, 3 * cap * sizeof(int))
-            self.s.egeo = <double*>self._grow(self.s.egeo, 9 * cap * sizeof(double))
-            self.s.eref = <double*>self._grow(self.s.eref, 9 * cap * sizeof(double))
-            self.s.ebuilt = <double*>self._grow(self.s.ebuilt, 9 * cap * sizeof(double))
-            self.s.emot = <double*>self._grow(self.s.emot, NMOT * cap * sizeof(double))
+            element_columns(&self.s, cols)
+            for d in range(NECOLUMNS):
+                cols[d].p[0] = self._grow(cols[d].p[0], cap * cols[d].size)
             self.s.ecap = cap
         for i in range(k):
             self.s.ekind[base + i] = kind[i]
@@ -407,25 +402,18 @@ cdef class Core:
         """Drop the elements of one wall; wall-list entries are renumbered, their histories kept."""
         cdef int e, k = 0, i, d
         cdef int* newidx = <int*>malloc((self.s.ne + 1) * sizeof(int))
+        cdef Column cols[NECOLUMNS]
         if newidx == NULL:
             raise MemoryError()
+        element_columns(&self.s, cols)
         for e in range(self.s.ne):
             if self.s.ewall[e] == wall:
                 newidx[e] = -1
                 continue
             newidx[e] = k
-            self.s.ekind[k] = self.s.ekind[e]
-            self.s.etype[k] = self.s.etype[e]
-            self.s.ewall[k] = self.s.ewall[e]
-            self.s.emoving[k] = self.s.emoving[e]
-            for d in range(3):
-                self.s.evid[3 * k + d] = self.s.evid[3 * e + d]
-            for d in range(9):
-                self.s.egeo[9 * k + d] = self.s.egeo[9 * e + d]
-                self.s.eref[9 * k + d] = self.s.eref[9 * e + d]
-                self.s.ebuilt[9 * k + d] = self.s.ebuilt[9 * e + d]
-            for d in range(NMOT):
-                self.s.emot[NMOT * k + d] = self.s.emot[NMOT * e + d]
+            for d in range(NECOLUMNS):
+                memmove(<char*>cols[d].p[0] + k * cols[d].size, <char*>cols[d].p[0] + e * cols[d].size,
+                        cols[d].size)
             k += 1
         self.s.ne = k
         k = 0

@@ -151,7 +151,8 @@ cdef struct State:
 
 
 cdef struct Column:
-    # A per-particle array of the State in the allocation table (see particle_columns).
+    # A per-particle (or per-element) array of the State in an allocation table (see
+    # particle_columns, element_columns).
     void** p           # where the State keeps its pointer
     size_t size        # bytes per particle
     int extra          # entries beyond one per particle (a CSR start array has cap + 1)
@@ -189,3 +190,17 @@ cdef void particle_columns(State* s, Column* c) noexcept nogil:
     column(&c[18], <void**>&s.flo, sizeof(int), 0, False)
     column(&c[19], <void**>&s.fhi, sizeof(int), 0, False)
     column(&c[20], <void**>&s.buf, 6 * sizeof(double), 0, True)   # the pair loop's, zero between steps
+
+
+cdef void element_columns(State* s, Column* c) noexcept nogil:
+    """The allocation table of the wall elements: the NECOLUMNS per-element arrays of the State,
+    which Core grows together (add_elements), compacts (remove_elements) and frees (dealloc)."""
+    column(&c[0], <void**>&s.ekind, sizeof(int), 0, False)
+    column(&c[1], <void**>&s.etype, sizeof(int), 0, False)
+    column(&c[2], <void**>&s.ewall, sizeof(int), 0, False)
+    column(&c[3], <void**>&s.emoving, sizeof(int), 0, False)
+    column(&c[4], <void**>&s.evid, 3 * sizeof(int), 0, False)
+    column(&c[5], <void**>&s.egeo, 9 * sizeof(double), 0, False)
+    column(&c[6], <void**>&s.eref, 9 * sizeof(double), 0, False)
+    column(&c[7], <void**>&s.ebuilt, 9 * sizeof(double), 0, False)
+    column(&c[8], <void**>&s.emot, NMOT * sizeof(double), 0, False)
