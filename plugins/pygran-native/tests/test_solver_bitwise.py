@@ -2,12 +2,13 @@
 compiled core that must not change its arithmetic (restructuring, renaming, splitting files).
 
 Three scenarios cover every kernel: a periodic settle (hertz, rolling epsd, cohesion,
-limitForce, viscous damping, two types, a plane), a hopper (thornton-ning with adhesion, rolling
-epsd2, a cylinder, a vibrating funnel mesh, a rotating and wiggling stirrer whose force is
-summed, a force servo lid, particles lost through the bottom) and a mixer (hooke, rolling cdt,
-a torque servo in mode auto, a vibrot mesh, planes). Each runs with one and two threads, with a
-removal, an insertion and a checkpoint round trip between two runs; every output array and
-every entry of ``get_state`` is compared with ``tests/data/solver_bitwise_<case>.npz``.
+limitForce, viscous damping, two types, a plane, an outside cylinder), a hopper (thornton-ning
+with adhesion, rolling epsd2, a cylinder, a vibrating funnel mesh, a rotating and wiggling
+stirrer whose force is summed, a force servo lid, particles lost through the bottom) and a mixer
+(hooke, rolling cdt, a torque servo in mode auto, a vibrot mesh, planes). Each runs with one and
+two threads, with removals (particles, a wall), an insertion, new radii and a checkpoint round
+trip between two runs; every output array and every entry of ``get_state`` is compared with
+``tests/data/solver_bitwise_<case>.npz``.
 
 The references hold for x86-64 Linux (glibc's libm); ``python tests/test_solver_bitwise.py``
 writes them anew from the build in use (see tests/data/README.md).
@@ -86,6 +87,7 @@ def settle(threads: int) -> Solver:
     )
     s.set_viscous([1e-5, 0.0])
     s.add_plane((0, 0, 0), (0, 0, 1), type=1)
+    s.add_cylinder("z", (3 * a, 3 * a), 0.4e-3, type=1, inside=False)
     x = lattice([0, 0, 0], [6 * a, 6 * a, 6 * a], a, rng, 0.03e-3)
     n = len(x)
     s.add_particles(
@@ -100,7 +102,8 @@ def settle(threads: int) -> Solver:
     s.remove_particles([3, 40])
     s.set_omegas([7], [[0, 300, 0]])
     s = restart(s, **box)
-    s.add_particles([[3 * a, 3 * a, 8 * a]], 0.9e-3, densities=2500, velocities=[[0, 0, -1]])
+    s.set_radii([10, 11], [0.95e-3, 0.9e-3])
+    s.add_particles([[2 * a, 2 * a, 8 * a]], 0.9e-3, densities=2500, velocities=[[0, 0, -1]])
     s.run(150, 1e-5)
     return s
 
@@ -197,6 +200,7 @@ def mixer(threads: int) -> Solver:
         velocities=rng.normal(0, 1.0, (n, 3)),
     )
     s.run(150, 1e-5)
+    s.remove_wall(1)  # the lid plane
     s = restart(s, **box)
     s.run(150, 1e-5)
     return s
