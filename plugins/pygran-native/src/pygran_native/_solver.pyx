@@ -14,7 +14,8 @@ concern, work on it:
 - ``_neighbours.pxi``: the rebuild, the neighbour and wall lists and their histories;
 - ``_pairs.pxi``: the pair loop (pair and wall forces) and its halos;
 - ``_integrate.pxi``: the particle loop, the drift and the time-step loop;
-- ``_team.pxi``: parallel phases on team.h's threads, block balance, the Tuner, timers.
+- ``_team.pxi``: parallel phases on team.h's threads, block balance, the Tuner, timers;
+- ``_checkpoint.pxi``: the State as numpy arrays and back (after Core, which it uses).
 
 Layout (struct of arrays, particles stored in cell order, re-sorted at every neighbour
 rebuild):
@@ -621,130 +622,12 @@ cdef class Core:
     # ------------------------------------------------------------------ state -----------
     def get_state(self):
         """Everything the time-step loop depends on, as numpy arrays (storage order)."""
-        cdef int n = self.s.n, ne = self.s.ne
-        cdef long long npair = self.s.nb_start[n], nwall = self.s.wl_start[n]
-        state = {
-            "x": _copy_d(self.s.x, 3 * n), "v": _copy_d(self.s.v, 3 * n), "w": _copy_d(self.s.w, 3 * n),
-            "f": _copy_d(self.s.f, 3 * n), "t": _copy_d(self.s.t, 3 * n), "x0": _copy_d(self.s.x0, 3 * n),
-            "r": _copy_d(self.s.r, n), "m": _copy_d(self.s.m, n), "type": _copy_i(self.s.type, n),
-            "id": _copy_l(self.s.pid, n),
-            "nb_start": _copy_i(self.s.nb_start, n + 1), "nb_j": _copy_i(self.s.nb_j, npair),
-            "nb_s": _copy_b(self.s.nb_s, npair), "nb_h": _copy_d(self.s.nb_h, npair * self.s.hs),
-            "wl_start": _copy_i(self.s.wl_start, n + 1), "wl_e": _copy_i(self.s.wl_e, nwall),
-            "wl_h": _copy_d(self.s.wl_h, nwall * (self.s.hs + 1)),
-            "ekind": _copy_i(self.s.ekind, ne), "etype": _copy_i(self.s.etype, ne),
-            "ewall": _copy_i(self.s.ewall, ne), "evid": _copy_i(self.s.evid, 3 * ne),
-            "emoving": _copy_i(self.s.emoving, ne), "egeo": _copy_d(self.s.egeo, 9 * ne),
-            "eref": _copy_d(self.s.eref, 9 * ne), "ebuilt": _copy_d(self.s.ebuilt, 9 * ne),
-            "emot": _copy_d(self.s.emot, NMOT * ne), "visc": _copy_d(self.s.visc, self.s.ntypes),
-            "slots": _copy_d(self.s.slots, NSLOT * self.s.nslots),
-            "vib": _copy_d(self.s.vib, NVIB * self.s.nvib),
-            "scalars": np.array([self.s.time, self.s.t_base, self.s.dt_base, self.s.lost_speed], dtype=float),
-            "lost": np.array([self.s.lost_at[k] for k in range(7)], dtype=np.int64),
-            "counters": np.array([self.s.step, self.s.lost, self.s.rebuilds, self.s.dirty, self.s.step_base],
-                                 dtype=np.int64),
-            "bounds": _copy_i(self.s.pb, self.s.nblocks + 1),
-        }
-        return state
+        return state_of(self)
 
     def set_state(self, state):
         """Restore :meth:`get_state` output (the contact model must be set already). The entries
         must be consistent (see ``solver._checked_state``); every copy checks its length."""
-        cdef int n = state["r"].shape[0], ne = state["ekind"].shape[0], i
-        cdef long long npair = state["nb_j"].shape[0], nwall = state["wl_e"].shape[0]
-        self.reserve(n)
-        if reserve_pairs(&self.s, npair) < 0 or reserve_walls(&self.s, nwall) < 0:
-            raise MemoryError()
-        self.s.n = 0
-        self.s.ne = 0
-        kinds = np.ascontiguousarray(state["ekind"], dtype=np.int32)
-        self.add_elements(kinds, np.ascontiguousarray(state["etype"], dtype=np.int32),
-                          np.ascontiguousarray(state["ewall"], dtype=np.int32),
-                          np.ascontiguousarray(state["egeo"], dtype=float).reshape(ne, 9),
-                          np.ascontiguousarray(state["evid"], dtype=np.int32).reshape(ne, 3))
-        _put_d(self.s.eref, state["eref"], 9 * ne)
-        _put_d(self.s.ebuilt, state["ebuilt"], 9 * ne)
-        _put_d(self.s.emot, state["emot"], NMOT * ne)
-        _put_i(self.s.emoving, state["emoving"], ne)
-        self.set_slots(np.ascontiguousarray(state["slots"], dtype=float).reshape(-1, NSLOT))
-        self.set_vibrations(np.ascontiguousarray(state["vib"], dtype=float).reshape(-1, NVIB))
-        for name, ptr, k in (("x", <size_t>self.s.x, 3 * n), ("v", <size_t>self.s.v, 3 * n),
-                             ("w", <size_t>self.s.w, 3 * n), ("f", <size_t>self.s.f, 3 * n),
-                             ("t", <size_t>self.s.t, 3 * n), ("x0", <size_t>self.s.x0, 3 * n),
-                             ("r", <size_t>self.s.r, n), ("m", <size_t>self.s.m, n),
-                             ("nb_h", <size_t>self.s.nb_h, npair * self.s.hs),
-                             ("wl_h", <size_t>self.s.wl_h, nwall * (self.s.hs + 1))):
-            _put_d(<double*><size_t>ptr, state[name], k)
-        for name, ptr, k in (("type", <size_t>self.s.type, n), ("nb_start", <size_t>self.s.nb_start, n + 1),
-                             ("nb_j", <size_t>self.s.nb_j, npair),
-                             ("wl_start", <size_t>self.s.wl_start, n + 1),
-                             ("wl_e", <size_t>self.s.wl_e, nwall)):
-            _put_i(<int*><size_t>ptr, state[name], k)
-        ids = np.ascontiguousarray(state["id"], dtype=np.int64)
-        nbs = np.ascontiguousarray(state["nb_s"], dtype=np.uint8)
-        if ids.shape[0] != n or nbs.shape[0] != npair:
-            raise ValueError("id, nb_s: one per particle and per listed pair")
-        if n:
-            memcpy(self.s.pid, cnp.PyArray_DATA(ids), n * sizeof(int64_t))
-        if npair:
-            memcpy(self.s.nb_s, cnp.PyArray_DATA(nbs), npair)
-        self.set_viscous(np.ascontiguousarray(state["visc"], dtype=float))
-        self.s.n = n
-        self.s.time, self.s.t_base, self.s.dt_base, self.s.lost_speed = (float(k) for k in state["scalars"])
-        for i in range(7):
-            self.s.lost_at[i] = state["lost"][i]
-        self.s.step, self.s.lost, self.s.rebuilds, self.s.dirty, self.s.step_base = (
-            int(k) for k in state["counters"])
-        if state["bounds"].shape[0] == self.s.nblocks + 1:
-            _put_i(self.s.pb, state["bounds"], self.s.nblocks + 1)
-        else:   # another thread count: sums in another order anyway
-            for i in range(n):
-                self.s.work[i] = estimated_work(&self.s, i)
-            balance(&self.s)
-        for i in range(n):
-            find_partners(&self.s, i)
-        prefix_last(&self.s)
+        restore(self, state)
 
 
-cdef object _copy_d(const double* p, long long k):
-    a = np.empty(k, dtype=float)
-    if k:
-        memcpy(cnp.PyArray_DATA(a), p, k * sizeof(double))
-    return a
-
-
-cdef object _copy_i(const int* p, long long k):
-    a = np.empty(k, dtype=np.int32)
-    if k:
-        memcpy(cnp.PyArray_DATA(a), p, k * sizeof(int))
-    return a
-
-
-cdef object _copy_l(const int64_t* p, long long k):
-    a = np.empty(k, dtype=np.int64)
-    if k:
-        memcpy(cnp.PyArray_DATA(a), p, k * sizeof(int64_t))
-    return a
-
-
-cdef object _copy_b(const uint8_t* p, long long k):
-    a = np.empty(k, dtype=np.uint8)
-    if k:
-        memcpy(cnp.PyArray_DATA(a), p, k)
-    return a
-
-
-cdef void _put_d(double* p, a, long long k) except *:
-    a = np.ascontiguousarray(a, dtype=float).reshape(-1)
-    if a.shape[0] != k:
-        raise ValueError(f"expected {k} values, got {a.shape[0]}")
-    if a.shape[0]:
-        memcpy(p, cnp.PyArray_DATA(a), a.shape[0] * sizeof(double))
-
-
-cdef void _put_i(int* p, a, long long k) except *:
-    a = np.ascontiguousarray(a, dtype=np.int32).reshape(-1)
-    if a.shape[0] != k:
-        raise ValueError(f"expected {k} values, got {a.shape[0]}")
-    if a.shape[0]:
-        memcpy(p, cnp.PyArray_DATA(a), a.shape[0] * sizeof(int))
+include "_checkpoint.pxi"
