@@ -1,5 +1,6 @@
-"""The YADE engine on the real YADE: impacts against the reference contact models, plane
-walls and the settle scenario in periodic domains, and YADE failures as EngineError."""
+"""The YADE engine on the real YADE beyond the conformance suite: its clamped Hertz law and
+restitution, plane walls and the settle scenario in periodic domains, insertion as native's,
+and YADE failures as EngineError."""
 
 from __future__ import annotations
 
@@ -25,9 +26,6 @@ MATERIAL = {
     "density": 2500.0,
     "characteristicVelocity": 0.5,
 }
-#: The impacts' material: at e = 0.5 YADE's clamped Hertz force lengthens contacts by 1 %
-#: (see pygran_yade.engine), at e = 0.3 by 3.6 % (test_hertz_law_is_the_clamped_reference).
-IMPACT = dict(MATERIAL, coefficientRestitution=0.5)
 R, V0, DT = 1e-3, 0.5, 1e-7
 
 
@@ -81,34 +79,6 @@ def _wall_impact(tmp_path, model, material):
         )
         tc = _track(sim, lambda: sim.extractCoords()[0, 2] - R, reference.contact_time)
         return tc, sim.extractVelocities()[0, 2] / V0
-
-
-@pytest.mark.parametrize("model", [HertzMindlin, SpringDashpot])
-def test_sphere_wall_impact_matches_reference(tmp_path, model):
-    reference = model(material=dict(IMPACT, radius=R)).displacement(V0)
-    tc, e = _wall_impact(tmp_path, model, IMPACT)
-    assert tc == pytest.approx(reference.contact_time, rel=0.02)
-    assert e == pytest.approx(reference.restitution, rel=0.02)
-
-
-@pytest.mark.parametrize("model", [HertzMindlin, SpringDashpot])
-def test_two_sphere_collision_matches_reference(tmp_path, model):
-    sphere = dict(IMPACT, radius=R)
-    reference = model(material=sphere, partner=sphere).displacement(2 * V0)
-    with _dem(tmp_path, model, species=({"material": IMPACT, "radius": R},)) as sim:
-        start = R + V0 * (0.5 * reference.contact_time + 4 * DT)
-        sim.createParticles(1, "single", -start, 0.0, 0.0, vel=(V0, 0, 0))
-        sim.createParticles(1, "single", start, 0.0, 0.0, vel=(-V0, 0, 0))
-
-        def gap():
-            x = sim.extractCoords()[:, 0]
-            return x[1] - x[0] - 2 * R
-
-        tc = _track(sim, gap, reference.contact_time)
-        v = sim.extractVelocities()[:, 0]
-    assert tc == pytest.approx(reference.contact_time, rel=0.02)
-    assert (v[1] - v[0]) / (2 * V0) == pytest.approx(reference.restitution, rel=0.02)
-    assert v.sum() == pytest.approx(0.0, abs=1e-9)  # momentum
 
 
 def test_hertz_law_is_the_clamped_reference(tmp_path):
@@ -271,24 +241,11 @@ def test_insertion_matches_native_for_the_same_seed(tmp_path):
     np.testing.assert_array_equal(positions["yade"], positions["native"])
 
 
-def test_insertion_by_rate(tmp_path):
-    with _dem(tmp_path, HertzMindlin, gravity=None, dt=1e-6) as sim:
-        sim.insert(
-            species=1,
-            insert="by_rate",
-            rate=2000,
-            freq=1000,
-            duration=0.01,
-            region=("block", -9e-3, 9e-3, -9e-3, 9e-3, -9e-3, 9e-3),
-        )
-        sim.run(15000)  # 15 ms, of which 10 ms insert
-        assert len(sim.extractIds()) == pytest.approx(2000 * 0.01, abs=1)
-
-
-@pytest.mark.parametrize("name", ["steel", "organic", "cohesionless"])
+@pytest.mark.parametrize("name", ["steel", "organic"])
 def test_original_materials_bounce_with_their_restitution(tmp_path, name):
-    """The original PyGran materials without cohesion run on YADE: a sphere hitting the floor at
-    0.5 m/s rebounds with their restitution, 0.9."""
+    """The original PyGran materials without cohesion, stiff and soft, run on YADE: a sphere
+    hitting the floor at 0.5 m/s rebounds with their restitution, 0.9 (the conformance
+    suite's impacts are at e = 0.5; YADE's damping ratio for e is its own, clamped law)."""
     material = getattr(params, name)
     _, e = _wall_impact(tmp_path, HertzMindlin, material)
     assert e == pytest.approx(material["coefficientRestitution"], rel=0.02)
