@@ -47,17 +47,6 @@ def test_free_fall_is_exact(tmp_path):
         np.testing.assert_allclose(sim.extractVelocities()[0], [0.01, 0, -9.81 * t], rtol=1e-12)
 
 
-def test_wall_impact_restitution_matches_the_reference_model(tmp_path):
-    material = dict(SOFT, characteristicVelocity=0.1)
-    reference = HertzMindlin(material=dict(material, radius=5e-5))
-    impact = reference.displacement()
-    with dem(tmp_path, gravity=None, dt=impact.contact_time / 400) as sim:
-        sim.setupWall(species=1, plane="zplane", peq=0.0)
-        sim.createParticles(1, "single", 0.0, 0.0, 5e-5 * (1 + 1e-9), vel=(0, 0, -0.1))
-        sim.run(600)
-        assert sim.extractVelocities()[0, 2] / 0.1 == pytest.approx(impact.restitution, rel=0.01)
-
-
 def test_insertion_is_overlap_free_and_reproducible(tmp_path):
     region = ("block", -9e-4, 9e-4, -9e-4, 9e-4, 0.0, 3e-3)
     positions = []
@@ -76,21 +65,9 @@ def test_insertion_is_overlap_free_and_reproducible(tmp_path):
     assert np.all(gaps >= radii[pairs[:, 0]] + radii[pairs[:, 1]])
 
 
-def test_insertion_by_rate(tmp_path):
-    with dem(tmp_path, gravity=None) as sim:
-        sim.insert(
-            species=1,
-            insert="by_rate",
-            rate=20000,
-            freq=2000,
-            duration=0.01,
-            region=("block", -9e-4, 9e-4, -9e-4, 9e-4, 0.0, 3e-3),
-        )
-        sim.run(30000)  # 15 ms, of which 10 ms insert
-        assert len(sim.extractIds()) == pytest.approx(20000 * 0.01, abs=1)
-
-
 def test_viscous_drag_gives_the_terminal_velocity(tmp_path):
+    """To 1e-6 and, once the drag is removed, to 1e-9 with velocity Verlet's lag (the
+    conformance suite checks the drag law to 1e-3 on every engine)."""
     with dem(tmp_path, dt=1e-5) as sim:
         sim.createParticles(1, "single", 0.0, 0.0, 3e-3)
         mass = 1000.0 * 4 / 3 * np.pi * 5e-5**3
@@ -127,32 +104,6 @@ def test_hopper_fills_then_discharges_after_the_stopper_is_removed(tmp_path):
     assert len(system.Particles) == remaining
 
 
-def test_rotating_mesh_turns_at_the_requested_rate(tmp_path):
-    mesh = {"drum": {"file": str(SILO), "args": ("scale 1e-3",)}}
-    with dem(tmp_path, mesh=mesh, gravity=None) as sim:
-        sim.setupWall(wtype="mesh", mesh="drum")
-        start = sim.engine._mesh_frame().arrays["points"]
-        sim.moveMesh("drum", rotate=True, axis=(0, 0, 1), period=0.01)
-        sim.run(5000)  # a quarter period
-        end = sim.engine._mesh_frame().arrays["points"]
-    quarter = np.column_stack([-start[:, 1], start[:, 0], start[:, 2]])
-    np.testing.assert_allclose(end, quarter, atol=1e-9)
-
-
-def test_wiggling_mesh_follows_the_sine(tmp_path):
-    mesh = {"drum": {"file": str(SILO), "args": ("scale 1e-3",)}}
-    amplitude = np.array([2e-4, 0.0, -1e-4])
-    with dem(tmp_path, mesh=mesh, gravity=None) as sim:
-        sim.setupWall(wtype="mesh", mesh="drum")
-        start = sim.engine._mesh_frame().arrays["points"]
-        sim.moveMesh("drum", wiggle=True, amplitude=tuple(amplitude), period=0.01)
-        for fraction, steps in ((0.25, 5000), (0.5, 5000), (1.0, 10000)):
-            sim.run(steps)
-            moved = sim.engine._mesh_frame().arrays["points"] - start
-            expected = amplitude * np.sin(2 * np.pi * fraction)
-            np.testing.assert_allclose(moved, np.tile(expected, (len(start), 1)), atol=1e-12)
-
-
 def test_unsupported_and_wrong_calls_are_clear(tmp_path):
     mesh = {"hopper": {"file": str(SILO), "args": ("scale 1e-3",), "import": False}}
     with dem(tmp_path, mesh=mesh) as sim:
@@ -176,36 +127,28 @@ def test_unsupported_and_wrong_calls_are_clear(tmp_path):
         dem(tmp_path, model=Plastic)
 
 
-def test_set_velocity_omega_and_radius(tmp_path):
+def test_velocity_by_species_with_spin_and_no_radius(tmp_path):
+    """velocity() chooses by species and sets spins too; a radius is set(), not velocity()
+    (the conformance suite sets velocities, spins and radii by ids and regions)."""
     species = ({"material": SOFT, "radius": 5e-5}, {"material": SOFT, "radius": 5e-5})
     with dem(tmp_path, gravity=None, species=species) as sim:
         for k, x in enumerate((-6e-4, -2e-4, 2e-4, 6e-4)):
             sim.createParticles(1 + k % 2, "single", x, 0.0, 1e-3)
         assert sim.velocity(species=2, vel=(0, 0, 0.1), omega=(1, 0, 0)) == 2
-        assert sim.set(region=("block", 0, 1e-3, -1e-3, 1e-3, 0, 2e-3), radius=8e-5) == 2
         np.testing.assert_array_equal(sim.extractVelocities()[:, 2], [0, 0.1, 0, 0.1])
         np.testing.assert_array_equal(sim.extractOmegas()[:, 0], [0, 1, 0, 1])
-        np.testing.assert_array_equal(sim.extractRadii(), [5e-5, 5e-5, 8e-5, 8e-5])
-        mass = sim.engine.extract("mass")
-        assert mass[2] / mass[0] == pytest.approx((8 / 5) ** 3)
         with pytest.raises(ConfigError, match="use set\\(radius=...\\)"):
             sim.velocity(radius=1e-4)
 
 
-def test_create_many_single_particles_from_an_array(tmp_path):
+def test_an_array_of_positions_draws_a_radius_per_particle(tmp_path):
+    """Each row of an (N, 3) array gets its own radius from the species' distribution; an
+    array of another shape is refused (the conformance suite checks the rows' positions)."""
     positions = np.random.default_rng(1).uniform(-8e-4, 8e-4, (50, 3)) * (1, 1, 0) + (0, 0, 1e-3)
     positions[:, 2] += np.arange(50) * 5e-5
     species = ({"material": SOFT, "radius": ("normal", 5e-5, 5e-6)},)
-    with (
-        dem(tmp_path / "one", species=species, seed=3) as one,
-        dem(tmp_path / "many", species=species, seed=3) as many,
-    ):
-        assert many.createParticles(1, "single", positions, vel=(0, 0, -0.1)) == 50
-        for p in positions:
-            one.createParticles(1, "single", *p, vel=(0, 0, -0.1))
-        np.testing.assert_array_equal(many.extractCoords(), positions)
-        np.testing.assert_array_equal(one.extractCoords(), positions)
-        np.testing.assert_array_equal(many.extractVelocities()[:, 2], -0.1)
-        assert len(np.unique(many.extractRadii())) == 50  # drawn per particle
+    with dem(tmp_path, species=species, seed=3) as sim:
+        assert sim.createParticles(1, "single", positions, vel=(0, 0, -0.1)) == 50
+        assert len(np.unique(sim.extractRadii())) == 50
         with pytest.raises(ConfigError, match=r"\(N, 3\) array of finite coordinates, got shape \(4, 2\)"):
-            many.createParticles(1, "single", np.zeros((4, 2)))
+            sim.createParticles(1, "single", np.zeros((4, 2)))
