@@ -1030,6 +1030,18 @@ class Engine(abc.ABC):
         """What must be the same on resume for a bitwise continuation (e.g. thread count)."""
         return {}
 
+    def check_servo_speeds(self, dt: float) -> None:
+        """LIGGGHTS' limit on servo walls, for every engine that has them: ``vel_max`` below
+        half the neighbour skin per step (a wall must not cross the skin between rebuilds)."""
+        limit = self.spec.skin / (2 * dt)
+        for mesh in self.spec.meshes:
+            if mesh.servo is not None and not mesh.servo.vel_max < limit:
+                raise ConfigError(
+                    f"mesh {mesh.name!r}: servo vel_max {mesh.servo.vel_max:g} m/s must be below "
+                    f"skin / (2 dt) = {limit:g} m/s (a servo wall moves at most half the neighbour "
+                    "skin per step, as on LIGGGHTS): lower vel_max or dt, or raise nns_skin"
+                )
+
     def _lost_since_last(self) -> LostParticles | None:
         """Particles the solver lost (left a fixed boundary, became non-finite, were deleted)
         since the last call. ``None``: this engine does not count them, and :meth:`run`

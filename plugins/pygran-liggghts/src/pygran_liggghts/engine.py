@@ -203,7 +203,7 @@ class LiggghtsEngine(Engine):
                     args, spec.nprocs or 1, self.output / LOG_NAME, self.output / WORKER_LOG_NAME
                 )
             if spec.dt is not None:
-                self._check_servo_speeds(spec.dt)
+                self.check_servo_speeds(spec.dt)
             self._execute(self.commands.setup(resume))
         except BaseException:
             self.close()
@@ -314,20 +314,9 @@ class LiggghtsEngine(Engine):
 
     # -- engine hooks ------------------------------------------------------------------------
 
-    def _check_servo_speeds(self, dt: float) -> None:
-        """LIGGGHTS' limit on servo walls: ``vel_max`` below half the neighbour skin per step."""
-        limit = self.spec.skin / (2 * dt)
-        for mesh in self.spec.meshes:
-            if mesh.servo is not None and not mesh.servo.vel_max < limit:
-                raise ConfigError(
-                    f"mesh {mesh.name!r}: servo vel_max {mesh.servo.vel_max:g} m/s must be below "
-                    f"skin / (2 dt) = {limit:g} m/s (LIGGGHTS moves a servo wall at most half the "
-                    "neighbour skin per step): lower vel_max or dt, or raise nns_skin"
-                )
-
     def _advance(self, nsteps: int) -> None:
         dt = given(self.dt, "the time step")  # run() refuses to start without one
-        self._check_servo_speeds(dt)
+        self.check_servo_speeds(dt)
         idle = [m.name for m in self.spec.meshes if m.servo and m.name not in self._mesh_walls.values()]
         if idle:
             raise ConfigError(

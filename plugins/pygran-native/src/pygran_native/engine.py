@@ -73,18 +73,7 @@ class NativeEngine(PlacingEngine):
         self._labels = 0
         self.log("native solver: %d threads, skin %g m", self.solver.threads, spec.skin)
         if spec.dt is not None:
-            self._check_servo_speeds(spec.dt)
-
-    def _check_servo_speeds(self, dt: float) -> None:
-        """As LIGGGHTS: a servo wall's ``vel_max`` below half the neighbour skin per step."""
-        limit = self.spec.skin / (2 * dt)
-        for mesh in self.spec.meshes:
-            if mesh.servo is not None and not mesh.servo.vel_max < limit:
-                raise ConfigError(
-                    f"mesh {mesh.name!r}: servo vel_max {mesh.servo.vel_max:g} m/s must be below "
-                    f"skin / (2 dt) = {limit:g} m/s (a servo wall moves at most half the neighbour "
-                    "skin per step, as on LIGGGHTS): lower vel_max or dt, or raise nns_skin"
-                )
+            self.check_servo_speeds(spec.dt)
 
     def _material_arrays(self, materials: list[Any]) -> dict[str, Any]:
         kind = self._law
@@ -278,7 +267,7 @@ class NativeEngine(PlacingEngine):
                 f"it by the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
             )
         dt = given(self.dt, "the time step")  # run() refuses to start without one
-        self._check_servo_speeds(dt)
+        self.check_servo_speeds(dt)
         self.solver.run(nsteps, dt)
 
     def mesh_force(self, name: str) -> np.ndarray:
