@@ -5,7 +5,7 @@ import pytest
 
 from pygran_core.analysis import Particles, _neighbors
 from pygran_core.errors import ConfigError
-from pygran_core.testing.solvers import in_ci
+from pygran_core.testing.solvers import kernel_path
 
 R = 0.5
 NN = 2 * R  # nearest-neighbour distance of the lattices below (spheres in contact)
@@ -52,12 +52,7 @@ def uniform_ball(n, radius, seed=0):
 @pytest.fixture(params=["compiled", "numpy"])
 def pair_search(request, monkeypatch):
     """Each test runs on pygran-native's compiled sweep (required under CI) and on the numpy path."""
-    if request.param == "numpy":
-        monkeypatch.setattr(_neighbors, "_accel", None)
-    elif _neighbors._accel is None:
-        message = "pygran-native's compiled kernels are not built (pip install -e plugins/pygran-native)"
-        pytest.fail(message) if in_ci() else pytest.skip(message)
-    return request.param
+    return kernel_path(request.param, _neighbors, monkeypatch)
 
 
 @pytest.mark.parametrize(

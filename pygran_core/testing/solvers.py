@@ -1,9 +1,11 @@
-"""Tests that need an external solver (LIGGGHTS, YADE): fail in CI, skip with the fix elsewhere."""
+"""Tests that need an external solver (LIGGGHTS, YADE) or pygran-native's compiled kernels:
+fail in CI, skip with the fix elsewhere."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable
+from types import ModuleType
 
 import pytest
 
@@ -27,3 +29,17 @@ def require_solver(locate: Callable[[], str]) -> str:
         if in_ci():
             pytest.fail(f"CI=true and a solver is missing: {exc}", pytrace=False)
         pytest.skip(f"solver not installed: {exc}")
+
+
+def kernel_path(path: str, module: ModuleType, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Make ``module`` (one that takes pygran-native's compiled kernels as ``_accel``) run on
+    ``path``: ``"numpy"`` (the kernels patched away) or ``"compiled"`` (required under CI,
+    else a skip naming the fix). For a fixture parametrized over both paths."""
+    if path == "numpy":
+        monkeypatch.setattr(module, "_accel", None)
+    elif module._accel is None:
+        message = "pygran-native's compiled kernels are not built (pip install -e plugins/pygran-native)"
+        if in_ci():
+            pytest.fail(message)
+        pytest.skip(message)
+    return path

@@ -15,20 +15,15 @@ from pygran_core.formats import dump
 from pygran_core.formats.dump import DumpTrajectory, format_frame
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.testing.formats import FormatConformance, assert_frames_equal, particle_frames
-from pygran_core.testing.solvers import in_ci
+from pygran_core.testing.solvers import kernel_path
 
 HEADER = "ITEM: TIMESTEP\n{step}\nITEM: NUMBER OF ATOMS\n{n}\nITEM: BOX BOUNDS pp pp ff\n0 1\n0 2\n0 3\n"
 
 
 @pytest.fixture(params=["compiled", "numpy"])
 def table_parser(request, monkeypatch):
-    """Each test runs on pygran-native's compiled parser (required under CI) and on numpy.loadtxt."""
-    if request.param == "numpy":
-        monkeypatch.setattr(dump, "_accel", None)
-    elif dump._accel is None:
-        message = "pygran-native's compiled kernels are not built (pip install -e plugins/pygran-native)"
-        pytest.fail(message) if in_ci() else pytest.skip(message)
-    return request.param
+    """Each test runs on pygran-native's compiled parser (required under CI) and on the numpy path."""
+    return kernel_path(request.param, dump, monkeypatch)
 
 
 def dump_text(rows_per_frame, columns="id type x y z", step=100):
