@@ -107,7 +107,8 @@ class ReaderSpec:
     matched against the end of the file name, longest first (``".dump.gz"`` before
     ``".gz"``). ``can_open(path)`` may look at the first bytes of a file and say whether
     this reader understands it; it must be cheap and never raise.
-    ``kinds`` says what the format holds: ``"particles"``, ``"mesh"`` or both.
+    ``kinds`` says what the format holds: ``"particles"``, ``"mesh"``, ``"contacts"`` (the
+    records of :mod:`~pygran_core.formats.contacts`), or several.
     """
 
     name: str

@@ -88,6 +88,11 @@ class Trajectory(abc.ABC):
         for index in range(self.n_frames):
             yield self._read_frame(index)
 
+    def contacts(self) -> Trajectory | None:
+        """The contact records stored with these frames in the same file (an H5MD file's
+        ``/contacts`` group), or None (the default: none)."""
+        return None
+
     def close(self) -> None:
         """Release open files; the default holds none."""
 

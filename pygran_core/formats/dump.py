@@ -1,5 +1,10 @@
 """LIGGGHTS / LAMMPS text dump: lazy multi-frame reader and appending writer.
 
+Frames are ``dump custom`` atoms (``ITEM: ATOMS``) or ``dump local`` entries
+(``ITEM: ENTRIES``): the contact records of :mod:`~pygran_core.formats.contacts`, under their
+own names as PyGran writes them or as the ``c_ID[k]`` columns of LIGGGHTS' ``compute
+pair/gran/local`` (mapped with ``compute=...``), or any other local quantities.
+
 Opening scans each file once for the line that starts every frame (normally
 ``ITEM: TIMESTEP``) and keeps only byte offsets and line numbers. ``read_frame(i)`` seeks,
 reads the frame's bytes in one call and parses the atom block in one pass into a
@@ -33,6 +38,7 @@ import numpy as np
 
 from pygran_core._compiled import kernels as _accel
 from pygran_core.errors import ReadError, UnsupportedFeature, did_you_mean
+from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 
 #: Columns read as integers.
@@ -44,6 +50,10 @@ KNOWN_COLUMNS = INT_COLUMNS | frozenset(
     shapex shapey shapez quat1 quat2 quat3 quat4 blockiness1 blockiness2 heatflux
     heatsource temperature""".split()
 )
+#: Columns of ``dump local`` read as integers (besides the contacts' ids).
+LOCAL_INT_COLUMNS = frozenset({"index"}) | _contacts.INT_COLUMNS
+#: Columns of ``dump local`` frames besides custom ones: LAMMPS' ``index``, the contacts'.
+LOCAL_COLUMNS = frozenset({"index", *_contacts.COLUMNS})
 #: Custom columns: computes, fixes, variables and per-atom properties, optionally indexed.
 CUSTOM_COLUMN = re.compile(r"^(c|f|v|d|i|d2|i2)_[A-Za-z0-9_\-]+(\[\d+\])*$")
 #: Scaled column -> unscaled name and axis.
@@ -409,6 +419,7 @@ class _Header:
     boundary: tuple[str, ...] | None = None
     units: str | None = None
     columns: list[str] | None = None
+    local: bool = False  # ITEM: ENTRIES (dump local) rather than ITEM: ATOMS
     natoms_line: int = 0
     body: int = 0  # byte offset of the atom block within the frame
     body_line: int = 0  # its line number
@@ -420,11 +431,25 @@ class DumpTrajectory(Trajectory):
     ``extra_columns`` names further per-atom columns to accept (read as floats); any other
     column that is neither a LAMMPS/LIGGGHTS keyword nor ``c_``/``f_``/``v_``/``d_``/``i_``
     custom column is a :class:`ReadError`.
+
+    ``dump local`` frames whose columns are the contact schema's become contacts frames
+    (``attrs["kind"] == "contacts"``); ``compute`` (LIGGGHTS' compute style and keywords, e.g.
+    ``"pair/gran/local pos id force contactPoint"``) maps the ``c_ID[k]`` columns of a dump
+    LIGGGHTS wrote to them; any other local frame has ``attrs["kind"] == "local"``.
+    ``contacts=True`` makes every frame that is not a contacts frame a :class:`ReadError`.
     """
 
-    def __init__(self, paths: Sequence[PathLike], extra_columns: Iterable[str] = ()) -> None:
+    def __init__(
+        self,
+        paths: Sequence[PathLike],
+        extra_columns: Iterable[str] = (),
+        compute: str | None = None,
+        contacts: bool = False,
+    ) -> None:
         self.paths = [Path(p) for p in paths]
         self.extra_columns = frozenset(extra_columns)
+        self.compute = compute
+        self.contacts_only = contacts
         self._blocks: list[_Block] = []
         self._kept: dict[int, _Kept] = {}
         budget = GZIP_KEEP_BYTES
@@ -568,8 +593,8 @@ class DumpTrajectory(Trajectory):
                 header.time = number(float, next_line(), "time")
             elif name == "UNITS":
                 header.units = next_line()
-            elif name == "NUMBER OF ATOMS":
-                header.natoms = number(int, next_line(), "atom count")
+            elif name in ("NUMBER OF ATOMS", "NUMBER OF ENTRIES"):
+                header.natoms = number(int, next_line(), "atom count" if name[10] == "A" else "entry count")
                 header.natoms_line = line_no - 1
                 if header.natoms < 0:
                     raise self._error(index, line_no - 1, f"negative atom count {header.natoms}")
@@ -588,31 +613,34 @@ class DumpTrajectory(Trajectory):
                 table = np.array(rows, dtype=np.float64)
                 header.box = np.ascontiguousarray(table[:, :2])
                 header.tilt = table[:, 2].copy() if triclinic else None
-            elif name.startswith("ATOMS"):
+            elif name.startswith(("ATOMS", "ENTRIES")):
                 header.columns = words[1:]
-                self._check_columns(index, line_no - 1, header.columns)
+                header.local = words[0] == "ENTRIES"
+                self._check_columns(index, line_no - 1, header.columns, header.local)
                 break
             else:
                 raise self._error(index, line_no - 1, f"unknown header item {item!r}")
         if header.natoms is None:
-            raise self._error(index, line_no - 1, "the frame has no ITEM: NUMBER OF ATOMS")
+            noun = "ENTRIES" if header.local else "ATOMS"
+            raise self._error(index, line_no - 1, f"the frame has no ITEM: NUMBER OF {noun}")
         header.body, header.body_line = pos, line_no
         return header
 
-    def _check_columns(self, index: int, line: int, columns: list[str]) -> None:
+    def _check_columns(self, index: int, line: int, columns: list[str], local: bool) -> None:
+        known = LOCAL_COLUMNS if local else KNOWN_COLUMNS
         for name in columns:
-            if name in KNOWN_COLUMNS or name in self.extra_columns or CUSTOM_COLUMN.match(name):
+            if name in known or name in self.extra_columns or CUSTOM_COLUMN.match(name):
                 continue
             raise self._error(
                 index,
                 line,
-                f"unknown column {name!r}.{did_you_mean(name, KNOWN_COLUMNS)} "
+                f"unknown column {name!r}.{did_you_mean(name, known)} "
                 "Pass extra_columns=[...] to read it as floats.",
             )
         if len(set(columns)) != len(columns):
             raise self._error(index, line, f"repeated column names in {columns}")
         if not columns:
-            raise self._error(index, line, "ITEM: ATOMS names no columns")
+            raise self._error(index, line, f"ITEM: {'ENTRIES' if local else 'ATOMS'} names no columns")
 
     def _parse_atoms(self, index: int, data: bytes, header: _Header, ahead: _Ahead | None) -> np.ndarray:
         assert header.columns is not None and header.natoms is not None
@@ -688,9 +716,10 @@ class DumpTrajectory(Trajectory):
     def _build_frame(self, index: int, header: _Header, table: np.ndarray) -> Frame:
         assert header.columns is not None
         arrays: dict[str, np.ndarray] = {}
+        integers = LOCAL_INT_COLUMNS if header.local else INT_COLUMNS
         for j, name in enumerate(header.columns):
             column = table[:, j]
-            if name in INT_COLUMNS:
+            if name in integers:
                 with np.errstate(invalid="ignore"):
                     as_int = column.astype(np.int64)
                 if not np.array_equal(as_int, column):
@@ -706,6 +735,12 @@ class DumpTrajectory(Trajectory):
                 raise self._error(index, header.body_line, "scaled coordinates need ITEM: BOX BOUNDS")
             arrays = _unscale(arrays, header.box, header.tilt)
         attrs: dict[str, Any] = {}
+        if header.local:
+            arrays, attrs["kind"] = self._local(index, header, arrays)
+        elif self.contacts_only:
+            raise self._error(
+                index, header.body_line, "ITEM: ATOMS: particles, not contacts (a dump local file)"
+            )
         if header.tilt is not None:
             attrs["tilt"] = header.tilt
         if header.units is not None:
@@ -718,6 +753,33 @@ class DumpTrajectory(Trajectory):
             boundary=header.boundary,
             attrs=attrs,
         )
+
+    def _local(
+        self, index: int, header: _Header, arrays: dict[str, np.ndarray]
+    ) -> tuple[dict[str, np.ndarray], str]:
+        """The arrays and kind of a ``dump local`` frame: contacts when its columns are the
+        schema's or ``compute`` maps them, else ``"local"`` (a :class:`ReadError` with
+        ``contacts=True``)."""
+        assert header.columns is not None
+        if self.compute is not None:
+            try:
+                found = _contacts.from_liggghts(
+                    header.columns, arrays, self.compute, header.box, header.boundary
+                )
+            except ValueError as exc:
+                raise self._error(index, header.body_line - 1, str(exc)) from None
+            return found, _contacts.KIND
+        if _contacts.is_contacts(header.columns):
+            return {name: arrays[name] for name in _contacts.COLUMNS}, _contacts.KIND
+        if self.contacts_only:
+            raise self._error(
+                index,
+                header.body_line - 1,
+                f"ITEM: ENTRIES {' '.join(header.columns)} are not contact records "
+                f"({' '.join(_contacts.COLUMNS)}); for a dump of LIGGGHTS' compute pair/gran/local pass "
+                "compute='pair/gran/local <its keywords>'",
+            )
+        return arrays, "local"
 
 
 def _unscale(
@@ -780,7 +842,7 @@ class DumpWriter(TrajectoryWriter):
 
 
 def format_frame(frame: Frame, index: int = 0) -> str:
-    """One frame as dump text."""
+    """One frame as dump text: ``ITEM: ENTRIES`` (``dump local``) for contacts or local frames."""
     columns = list(frame.arrays)
     bad = [c for c in columns if np.ndim(frame.arrays[c]) != 1]
     if bad:
@@ -795,14 +857,15 @@ def format_frame(frame: Frame, index: int = 0) -> str:
     lines = [f"ITEM: TIMESTEP\n{int(step)}\n"]
     if frame.time is not None:
         lines.insert(0, f"ITEM: TIME\n{float(frame.time)!r}\n")
-    lines.append(f"ITEM: NUMBER OF ATOMS\n{n}\n")
+    noun = "ENTRIES" if frame.attrs.get("kind") in (_contacts.KIND, "local") else "ATOMS"
+    lines.append(f"ITEM: NUMBER OF {noun}\n{n}\n")
     if tilt is None:
         lines.append(f"ITEM: BOX BOUNDS {boundary}\n")
         lines += [f"{float(lo)!r} {float(hi)!r}\n" for lo, hi in np.asarray(box)]
     else:
         lines.append(f"ITEM: BOX BOUNDS xy xz yz {boundary}\n")
         lines += [f"{float(lo)!r} {float(hi)!r} {float(t)!r}\n" for (lo, hi), t in zip(box, tilt)]
-    lines.append("ITEM: ATOMS " + " ".join(columns) + "\n")
+    lines.append(f"ITEM: {noun} " + " ".join(columns) + "\n")
     if n:
         values = []
         formats = []

@@ -11,11 +11,19 @@ Layout written (``<g>`` is the particle group, ``all`` by default)::
         id (F, N) int, padded with -1; species (F, N) from ``type``; any other column (F, N)
     /observables/<g>/particle_number/{step,time,value}   (F,) particles in each frame
 
-Every ``value`` is chunked, gzip-compressed and resizable in frames and particles; rows
-beyond a frame's particle count hold the fill value (-1 for integers, NaN for floats).
-``step`` and ``time`` are one pair of datasets hard-linked into every element. The file is
+Contact records (:mod:`~pygran_core.formats.contacts`), when written, in the same layout::
+
+    /contacts/<g>/{id1,id2}/{step,time,value}             (F, C) int, padded with 0
+    /contacts/<g>/{force,point,branch}/{step,time,value}  (F, C, 3) fx fy fz, cx cy cz, bx by bz
+    /observables/<g>/contact_number/{step,time,value}     (F,) contacts in each frame
+
+Every ``value`` is chunked, gzip-compressed and resizable in frames and rows; rows beyond a
+frame's count hold the fill value (-1 for particle ids, 0 for contact ids, NaN for floats);
+HDF5 stores no chunk that holds fill values only. ``step`` and ``time`` are one pair of
+datasets hard-linked into every element of a group (particles, contacts). The file is
 written in SWMR mode and flushed after every frame, so a killed writer leaves every
-completed frame readable; ``particle_number`` is written last and sets the frame count.
+completed frame readable; ``particle_number`` and ``contact_number`` are written last and
+set the frame counts.
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 
 #: H5MD vector elements and the dump columns they hold.
@@ -91,10 +100,14 @@ def _elements(columns: Sequence[str]) -> list[tuple[str, tuple[str, ...]]]:
 
 
 class H5MDWriter(TrajectoryWriter):
-    """Appends particle frames to an H5MD file, flushing each one.
+    """Appends particle frames, and contacts frames, to an H5MD file, flushing each one.
 
     Options: ``group`` (particle group name), ``units`` (``"si"`` or a mapping from element
-    name to unit string, written as ``unit`` attributes), ``compression`` level (gzip 0-9).
+    name to unit string, written as ``unit`` attributes), ``compression`` level (gzip 0-9),
+    ``contacts``: whether contacts frames (``attrs["kind"] == "contacts"``) come besides the
+    particle frames (the file is laid out for both at its first particle frame with columns).
+    A writer whose first frame is a contacts frame, without ``contacts=True``, writes a file
+    of contacts only.
     """
 
     def __init__(
@@ -103,6 +116,7 @@ class H5MDWriter(TrajectoryWriter):
         group: str = "all",
         units: str | dict[str, str] | None = None,
         compression: int = 4,
+        contacts: bool = False,
     ) -> None:
         if isinstance(units, str) and units != "si":
             raise UnsupportedFeature(f"H5MD units must be 'si' or a mapping, got {units!r}")
@@ -110,21 +124,21 @@ class H5MDWriter(TrajectoryWriter):
         self.group = group
         self.units = SI_UNITS if isinstance(units, str) else dict(units or {})
         self.compression = compression
+        self.contacts = contacts
         self.count = 0
+        self.contact_count = 0
         self._file: Any = None
         self._columns: list[str] | None = None
         self._boundary: tuple[str, ...] | None = None
         self._pending: list[Frame] = []
+        self._contact_values: list[tuple[Any, tuple[str, ...]]] = []
 
     # -- file creation ---------------------------------------------------------------------
-    def _create(self, frame: Frame) -> None:
+    def _create(self, frame: Frame | None) -> None:
+        """The file, laid out for the particle frame ``frame`` (None: contacts only) and, if
+        asked or if ``frame`` is None, for contacts; then in SWMR mode."""
         import h5py
 
-        columns = list(frame.arrays)
-        bad = [c for c in columns if np.ndim(frame.arrays[c]) != 1]
-        if bad:
-            raise UnsupportedFeature(f"H5MD particle columns must be 1-D; {bad} are not (a mesh frame?)")
-        n = len(frame.arrays[columns[0]])
         self._file = f = h5py.File(self.path, "w", libver="latest", track_order=True)
         h5md = f.create_group("h5md")
         h5md.attrs["version"] = np.array([1, 1], dtype=np.int32)
@@ -132,6 +146,36 @@ class H5MDWriter(TrajectoryWriter):
         creator = h5md.create_group("creator")
         creator.attrs["name"] = "PyGran"
         creator.attrs["version"] = version("pygran-core")
+        if frame is not None:
+            self._layout_particles(f, frame)
+        if self.contacts or frame is None:
+            self._layout_contacts(f)
+        f.swmr_mode = True
+
+    def _layout_contacts(self, f: Any) -> None:
+        root = f.create_group(f"contacts/{self.group}", track_order=True)
+        clock: Any = None
+        for name in ("id1", "id2"):
+            group = self._element(root, name, (0, 1), np.int64, 0, clock)
+            clock = group if clock is None else clock
+            self._contact_values.append((group["value"], (name,)))
+        for name, cols in _contacts.VECTORS.items():
+            group = self._element(root, name, (0, 1, 3), np.float64, np.nan, clock)
+            self._contact_values.append((group["value"], cols))
+        self._contact_clock = clock
+        observables = f.require_group(f"observables/{self.group}")
+        self._contact_number = self._element(observables, "contact_number", (0,), np.int64, -1, clock)[
+            "value"
+        ]
+
+    def _layout_particles(self, f: Any, frame: Frame) -> None:
+        import h5py
+
+        columns = list(frame.arrays)
+        bad = [c for c in columns if np.ndim(frame.arrays[c]) != 1]
+        if bad:
+            raise UnsupportedFeature(f"H5MD particle columns must be 1-D; {bad} are not (a mesh frame?)")
+        n = len(frame.arrays[columns[0]])
         particles = f.create_group(f"particles/{self.group}", track_order=True)
         self._clock: Any = None  # the element holding the step and time datasets
         self._values: list[tuple[Any, tuple[str, ...]]] = []
@@ -139,7 +183,8 @@ class H5MDWriter(TrajectoryWriter):
             dtype = np.int64 if np.asarray(frame.arrays[cols[0]]).dtype.kind in "iub" else np.float64
             fill = -1 if dtype is np.int64 else np.nan
             tail = (3,) if len(cols) == 3 else ()
-            group = self._element(particles, element, (0, n, *tail), dtype, fill)
+            group = self._element(particles, element, (0, n, *tail), dtype, fill, self._clock)
+            self._clock = group if self._clock is None else self._clock
             self._values.append((group["value"], cols))
         box = particles.create_group("box")
         box.attrs["dimension"] = 3
@@ -151,32 +196,35 @@ class H5MDWriter(TrajectoryWriter):
             )
             box.attrs["pygran_boundary"] = " ".join(frame.boundary)
         self._triclinic = "tilt" in frame.attrs
+        clock = self._clock
         self._edges = self._element(
-            box, "edges", (0, 3, 3) if self._triclinic else (0, 3), np.float64, np.nan
+            box, "edges", (0, 3, 3) if self._triclinic else (0, 3), np.float64, np.nan, clock
         )["value"]
-        self._bounds = self._element(box, "pygran_bounds", (0, 3, 2), np.float64, np.nan)["value"]
+        self._bounds = self._element(box, "pygran_bounds", (0, 3, 2), np.float64, np.nan, clock)["value"]
         self._tilt = (
-            self._element(box, "pygran_tilt", (0, 3), np.float64, np.nan)["value"]
+            self._element(box, "pygran_tilt", (0, 3), np.float64, np.nan, clock)["value"]
             if self._triclinic
             else None
         )
         self._number = self._element(
-            f.create_group(f"observables/{self.group}"), "particle_number", (0,), np.int64, -1
+            f.require_group(f"observables/{self.group}"), "particle_number", (0,), np.int64, -1, clock
         )["value"]
         self._columns = columns
-        f.swmr_mode = True
 
-    def _element(self, parent: Any, name: str, shape: tuple[int, ...], dtype: Any, fill: Any) -> Any:
+    def _element(
+        self, parent: Any, name: str, shape: tuple[int, ...], dtype: Any, fill: Any, clock: Any
+    ) -> Any:
+        """A time-dependent element: its ``step`` and ``time`` hard-linked from the element
+        ``clock``, or made here when ``clock`` is None."""
         group = parent.create_group(name)
-        if self._clock is None:
-            self._clock = group
+        if clock is None:
             group.create_dataset("step", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
             group.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(1024,))
             if "time" in self.units:
                 group["time"].attrs["unit"] = self.units["time"]
         else:
-            group["step"] = self._clock["step"]
-            group["time"] = self._clock["time"]
+            group["step"] = clock["step"]
+            group["time"] = clock["time"]
         chunks = (1, *(min(max(s, 1), _PARTICLE_CHUNK) for s in shape[1:2]), *shape[2:])
         value = group.create_dataset(
             "value",
@@ -195,18 +243,56 @@ class H5MDWriter(TrajectoryWriter):
 
     # -- appending -----------------------------------------------------------------------------
     def write_frame(self, frame: Frame) -> None:
+        contacts = frame.attrs.get("kind") == _contacts.KIND
         if self._file is None:
-            if not frame.arrays:
-                self._pending.append(frame)  # no columns yet to lay the file out with
+            if (self.contacts and contacts) or (not contacts and not frame.arrays):
+                self._pending.append(frame)  # no particle columns yet to lay the file out with
                 return
-            self._create(frame)
+            self._create(None if contacts else frame)
             for pending in self._pending:
-                self._append(pending)
+                self._dispatch(pending)
             self._pending.clear()
-        self._append(frame)
+        self._dispatch(frame)
+
+    def _dispatch(self, frame: Frame) -> None:
+        if frame.attrs.get("kind") == _contacts.KIND:
+            self._append_contacts(frame)
+        else:
+            self._append(frame)
+
+    def _append_contacts(self, frame: Frame) -> None:
+        if not self._contact_values:
+            raise UnsupportedFeature(
+                f"{self.path}: a contacts frame, but the file was laid out for particles only; open the "
+                "writer with contacts=True"
+            )
+        try:
+            arrays = _contacts.checked(frame.arrays, f"H5MD contacts frame {self.contact_count}")
+        except ValueError as exc:
+            raise UnsupportedFeature(str(exc)) from None
+        n = len(arrays["id1"])
+        k = self.contact_count
+        step = frame.timestep if frame.timestep is not None else k
+        for name, value in (("step", step), ("time", np.nan if frame.time is None else frame.time)):
+            dataset = self._contact_clock[name]
+            dataset.resize((k + 1,))
+            dataset[k] = value
+        for value, cols in self._contact_values:
+            if n > value.shape[1]:
+                value.resize(n, axis=1)
+            value.resize(k + 1, axis=0)
+            if n:
+                value[k, :n] = (
+                    np.column_stack([arrays[c] for c in cols]) if len(cols) == 3 else arrays[cols[0]]
+                )
+        self._contact_number.resize((k + 1,))
+        self._contact_number[k] = n
+        self._file.flush()
+        self.contact_count += 1
 
     def _append(self, frame: Frame) -> None:
-        assert self._columns is not None
+        if self._columns is None:
+            raise UnsupportedFeature(f"{self.path}: a particle frame, but the file holds contacts only")
         if frame.arrays and list(frame.arrays) != self._columns:
             raise UnsupportedFeature(
                 f"H5MD frame {self.count} has columns {list(frame.arrays)}, but the file was laid "
@@ -328,8 +414,26 @@ def _hdf5_library() -> ctypes.CDLL | None:
     return None
 
 
-class H5MDTrajectory(Trajectory):
-    """Frames of one H5MD file's particle group (``group=None``: the only one there is)."""
+def open_h5md(paths: Sequence[PathLike], group: str | None = None, contacts: bool = False) -> Trajectory:
+    """The particle frames of an H5MD file, or its contact records when ``contacts=True`` or
+    when it holds nothing else (``group=None``: the only group there is)."""
+    if not contacts:
+        try:
+            return H5MDTrajectory(paths, group)
+        except _ContactsOnly:
+            pass
+    return H5MDContacts(paths, group)
+
+
+class _ContactsOnly(ReadError):
+    """The file has no particles but contact records."""
+
+
+class _H5MDFile(Trajectory):
+    """One H5MD file open for reading, indexed by :meth:`_index`."""
+
+    what = "particle"
+    _n: int
 
     def __init__(self, paths: Sequence[PathLike], group: str | None = None) -> None:
         if len(paths) != 1:
@@ -343,26 +447,140 @@ class H5MDTrajectory(Trajectory):
             raise
         except _DAMAGE as exc:
             self._file.close()
-            raise ReadError(f"{self.path}: not a readable H5MD particle file: {exc}") from exc
+            raise ReadError(f"{self.path}: not a readable H5MD {self.what} file: {exc}") from exc
+
+    def _index(self, group: str | None) -> None:
+        """Find the datasets of ``group`` and the frame count."""
+        raise NotImplementedError
 
     def _fail(self, message: str) -> ReadError:
         return ReadError(f"{self.path}: {message}")
+
+    def _root(self, top: str, group: str | None) -> Any:
+        """The group ``/<top>/<group>`` (``group=None``: the only one), setting :attr:`group`."""
+        import h5py
+
+        parent = self._file[top]
+        names = list(parent)
+        if group is None:
+            if len(names) != 1:
+                raise self._fail(f"several {self.what} groups {names}; pass group=...")
+            group = names[0]
+        root = parent.get(group)
+        if not isinstance(root, h5py.Group):
+            raise self._fail(f"no {self.what} group {group!r}; the file has {names}")
+        self.group = group
+        return root
+
+    def _boundary_of(self, box: Any) -> tuple[str, ...] | None:
+        import h5py
+
+        if isinstance(box, h5py.Group) and "pygran_boundary" in box.attrs:
+            return tuple(_text(box.attrs["pygran_boundary"]).split())
+        if isinstance(box, h5py.Group) and "boundary" in box.attrs:
+            flags = [_text(b) for b in np.ravel(box.attrs["boundary"])]
+            return tuple("pp" if b == "periodic" else "ff" for b in flags)
+        return None
+
+    def _dataset(self, group: Any, name: str, min_ndim: int, max_ndim: int) -> Any:
+        """``group[name]``, which must be a numeric dataset of ``min_ndim`` to ``max_ndim`` axes."""
+        import h5py
+
+        found = group.get(name)
+        if not isinstance(found, h5py.Dataset):
+            raise self._fail(f"{group.name}/{name} is missing or not a dataset")
+        if not min_ndim <= found.ndim <= max_ndim or found.dtype.kind not in "biuf":
+            raise self._fail(f"{found.name} has shape {found.shape} and type {found.dtype}")
+        return found
+
+    @property
+    def n_frames(self) -> int:
+        return self._n
+
+    def close(self) -> None:
+        self._file.close()
+
+    def _read_frame(self, index: int) -> Frame:
+        try:
+            return self._frame(index)
+        except ReadError:
+            raise
+        except _DAMAGE as exc:
+            raise self._fail(f"frame {index}: {exc}") from exc
+
+    def _frame(self, index: int) -> Frame:
+        raise NotImplementedError
+
+
+class H5MDContacts(_H5MDFile):
+    """The contact records of one H5MD file (``/contacts/<group>``), one frame each."""
+
+    what = "contacts"
+
+    def _index(self, group: str | None) -> None:
+        import h5py
+
+        top = self._file.get("contacts")
+        if not isinstance(top, h5py.Group) or not len(top):
+            raise self._fail("no /contacts group: the file holds no contact records")
+        root = self._root("contacts", group)
+        self._values: list[tuple[tuple[str, ...], Any]] = []
+        for name in ("id1", "id2", *_contacts.VECTORS):
+            element = root.get(name)
+            if not isinstance(element, h5py.Group):
+                raise self._fail(f"{root.name}/{name} is missing or not an H5MD element")
+            ndim = 3 if name in _contacts.VECTORS else 2
+            value = self._dataset(element, "value", ndim, ndim)
+            if ndim == 3 and value.shape[2] != 3:
+                raise self._fail(f"{value.name} has shape {value.shape}, not (frames, contacts, 3)")
+            self._values.append((_contacts.VECTORS.get(name, (name,)), value))
+        clock = root["id1"]
+        self._step, self._time = self._dataset(clock, "step", 1, 1), self._dataset(clock, "time", 1, 1)
+        number = self._file.get(f"observables/{self.group}/contact_number")
+        if not isinstance(number, h5py.Group):
+            raise self._fail(f"/observables/{self.group}/contact_number is missing: the contacts per frame")
+        self._number = self._dataset(number, "value", 1, 1)
+        lengths = [len(v) for _, v in self._values] + [len(self._step), len(self._time), len(self._number)]
+        self._n = min(lengths)
+        self._boundary = self._boundary_of(self._file.get(f"particles/{self.group}/box"))
+
+    def _frame(self, index: int) -> Frame:
+        count = int(self._number[index])
+        arrays: dict[str, np.ndarray] = {}
+        for columns, value in self._values:
+            if not 0 <= count <= value.shape[1]:
+                raise self._fail(f"frame {index}: {count} contacts, but {value.name} holds {value.shape[1]}")
+            data = value[index, :count]
+            kind = np.int64 if columns[0] in _contacts.INT_COLUMNS else np.float64
+            if data.dtype.kind not in "biuf":
+                raise self._fail(f"frame {index}: {value.name} has type {data.dtype}")
+            data = data.astype(kind)
+            if data.ndim == 2:
+                arrays.update({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(columns)})
+            else:
+                arrays[columns[0]] = data
+        time = float(self._time[index])
+        return Frame(
+            {c: arrays[c] for c in _contacts.COLUMNS},
+            timestep=int(self._step[index]),
+            time=None if np.isnan(time) else time,
+            boundary=self._boundary,
+            attrs={"kind": _contacts.KIND},
+        )
+
+
+class H5MDTrajectory(_H5MDFile):
+    """Frames of one H5MD file's particle group (``group=None``: the only one there is)."""
 
     def _index(self, group: str | None) -> None:
         import h5py
 
         particles = self._file.get("particles")
         if not isinstance(particles, h5py.Group) or not len(particles):
+            if isinstance(self._file.get("contacts"), h5py.Group):
+                raise _ContactsOnly(f"{self.path}: holds contact records only")
             raise self._fail("no /particles group: not an H5MD trajectory")
-        names = list(particles)
-        if group is None:
-            if len(names) != 1:
-                raise self._fail(f"several particle groups {names}; pass group=...")
-            group = names[0]
-        root = particles.get(group)
-        if not isinstance(root, h5py.Group):
-            raise self._fail(f"no particle group {group!r}; the file has {names}")
-        self.group = group
+        root = self._root("particles", group)
         #: (name, dataset, time-dependent) of every element but the box
         self._elements: list[tuple[str, Any, bool]] = []
         clock = None
@@ -390,38 +608,13 @@ class H5MDTrajectory(Trajectory):
                     self._box_parts[part] = self._dataset(box[part], "value", *dims)
                     lengths.append(len(self._box_parts[part]))
         self._n = min(lengths)
-        self._boundary: tuple[str, ...] | None = None
-        if isinstance(box, h5py.Group) and "pygran_boundary" in box.attrs:
-            self._boundary = tuple(_text(box.attrs["pygran_boundary"]).split())
-        elif isinstance(box, h5py.Group) and "boundary" in box.attrs:
-            flags = [_text(b) for b in np.ravel(box.attrs["boundary"])]
-            self._boundary = tuple("pp" if b == "periodic" else "ff" for b in flags)
+        self._boundary = self._boundary_of(box)
 
-    def _dataset(self, group: Any, name: str, min_ndim: int, max_ndim: int) -> Any:
-        """``group[name]``, which must be a numeric dataset of ``min_ndim`` to ``max_ndim`` axes."""
-        import h5py
-
-        found = group.get(name)
-        if not isinstance(found, h5py.Dataset):
-            raise self._fail(f"{group.name}/{name} is missing or not a dataset")
-        if not min_ndim <= found.ndim <= max_ndim or found.dtype.kind not in "biuf":
-            raise self._fail(f"{found.name} has shape {found.shape} and type {found.dtype}")
-        return found
-
-    @property
-    def n_frames(self) -> int:
-        return self._n
-
-    def close(self) -> None:
-        self._file.close()
-
-    def _read_frame(self, index: int) -> Frame:
-        try:
-            return self._frame(index)
-        except ReadError:
-            raise
-        except _DAMAGE as exc:
-            raise self._fail(f"frame {index}: {exc}") from exc
+    def contacts(self) -> Trajectory | None:
+        """The contact records of this particle group stored in the same file, if any."""
+        if f"contacts/{self.group}" not in self._file:
+            return None
+        return H5MDContacts([self.path], self.group)
 
     def _frame(self, index: int) -> Frame:
         count = int(self._number[index]) if self._number is not None else None

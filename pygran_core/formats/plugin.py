@@ -15,7 +15,8 @@ def pygran_readers() -> Iterator[ReaderSpec]:
         extensions=(".dump", ".dump.gz", ".lammpstrj", ".lammpstrj.gz"),
         open=dump.DumpTrajectory,
         can_open=dump.can_open,
-        description="LIGGGHTS/LAMMPS text dump (multi-frame, globs, gzip)",
+        kinds=frozenset({"particles", "contacts"}),
+        description="LIGGGHTS/LAMMPS text dump (multi-frame, globs, gzip); dump local contacts",
     )
     yield ReaderSpec(
         name="stl",
@@ -27,9 +28,10 @@ def pygran_readers() -> Iterator[ReaderSpec]:
     yield ReaderSpec(
         name="h5md",
         extensions=(".h5md", ".h5", ".hdf5"),
-        open=h5md.H5MDTrajectory,
+        open=h5md.open_h5md,
         can_open=h5md.can_open,
-        description="HDF5 in the H5MD layout",
+        kinds=frozenset({"particles", "contacts"}),
+        description="HDF5 in the H5MD layout (particles, contacts)",
     )
 
 
@@ -39,12 +41,14 @@ def pygran_writers() -> Iterator[WriterSpec]:
         name="dump",
         extensions=(".dump",),
         open=dump.DumpWriter,
+        kinds=frozenset({"particles", "contacts"}),
         description="LIGGGHTS/LAMMPS text dump; '*' in the name writes a file per frame",
     )
     yield WriterSpec(
         name="h5md",
         extensions=(".h5md", ".h5", ".hdf5"),
         open=h5md.H5MDWriter,
+        kinds=frozenset({"particles", "contacts"}),
         description="HDF5 in the H5MD layout, flushed frame by frame",
-        options={"group": "all", "units": None, "compression": 4},
+        options={"group": "all", "units": None, "compression": 4, "contacts": False},
     )
