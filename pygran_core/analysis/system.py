@@ -8,6 +8,10 @@ as in the manual's ``System(CoarseParticles='traj.dump', scale=3, percent=10.0,
 module='coarseGrained')``. A class name is looked up first in ``module`` and then in
 :mod:`pygran_core.analysis`.
 
+``Contacts`` (:class:`~pygran_core.analysis.contacts.Contacts`) are the contact records of
+each frame: ``Contacts='contacts*.dump'`` reads them from their own files, and a trajectory
+whose file holds them too (an H5MD file's ``/contacts`` group) gives them without asking.
+
 ``module`` is a module object, an importable module name (``'coarseGrained'``; the running
 script counts when its file is ``coarseGrained.py``, and ``coarseGrained.py`` in the current
 directory is found too), or the path of a ``.py`` file. Loading a file never changes
@@ -32,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core import units as _units
+from pygran_core.analysis.contacts import Contacts
 from pygran_core.analysis.mesh import Mesh
 from pygran_core.analysis.particles import Particles
 from pygran_core.analysis.subsystem import SubSystem
@@ -40,7 +45,7 @@ from pygran_core.io import Trajectory, open_trajectory
 
 PathLike = str | os.PathLike[str]
 #: The SubSystem classes of :mod:`pygran_core.analysis`, by name.
-BUILTIN_CLASSES: dict[str, Any] = {cls.__name__: cls for cls in (SubSystem, Particles, Mesh)}
+BUILTIN_CLASSES: dict[str, Any] = {cls.__name__: cls for cls in (SubSystem, Particles, Mesh, Contacts)}
 
 
 def load_module(module: ModuleType | PathLike) -> ModuleType:
@@ -111,20 +116,24 @@ class _Source:
         self.cls, self.options = cls, options
         self.trajectory: Trajectory | None = None
         self.fixed: SubSystem | None = None
+        # contact records: the readers' contacts=True (an H5MD file's contacts, not its particles)
+        reading: dict[str, Any] = {"contacts": True} if issubclass(cls, Contacts) else {}
         if isinstance(value, SubSystem):
             if not isinstance(value, cls):
                 raise ConfigError(f"System: {cls.__name__}= was given a {type(value).__name__}")
             self.fixed = value
+        elif isinstance(value, Trajectory):
+            self.trajectory = value
         elif isinstance(value, tuple) and len(value) == 2 and isinstance(value[1], dict):
-            self.trajectory = open_trajectory(value[0], **value[1])
+            self.trajectory = open_trajectory(value[0], **{**reading, **value[1]})
         elif isinstance(value, (str, os.PathLike)) or (
             isinstance(value, Sequence) and value and all(isinstance(v, (str, os.PathLike)) for v in value)
         ):
-            self.trajectory = open_trajectory(value)
+            self.trajectory = open_trajectory(value, **reading)
         else:
             raise ConfigError(
-                f"System: {cls.__name__}= takes a file name or glob, a list of files, (file, options) or a "
-                f"{cls.__name__} object, not {value!r}"
+                f"System: {cls.__name__}= takes a file name or glob, a list of files, (file, options), an "
+                f"open trajectory or a {cls.__name__} object, not {value!r}"
             )
 
     @property
@@ -166,6 +175,14 @@ class System:
         self._sources = {
             name: _Source(resolve_class(name, user_module), v, options) for name, v in named.items()
         }
+        for source in list(self._sources.values()):  # the contact records a trajectory's file holds
+            stored = (
+                None
+                if source.trajectory is None or "Contacts" in self._sources
+                else source.trajectory.contacts()
+            )
+            if stored is not None:
+                self._sources["Contacts"] = _Source(Contacts, stored, {})
         counts = {name: s.n_frames for name, s in self._sources.items() if s.n_frames > 1}
         if len(set(counts.values())) > 1:
             raise ConfigError(f"System: the trajectories have different numbers of frames: {counts}")
