@@ -53,6 +53,7 @@ CAPABILITIES = frozenset(
         "monitor-species",  # monitor(var=..., species=...) of some species only
         "liggghts-dump",  # LIGGGHTS' dump settings: dump_modify, traj margs
         "neighbor-styles",  # nns_type other than 'bin' (LIGGGHTS' neighbor nsq, multi)
+        "contact-output",  # per-contact records in the trajectory (traj cfile)
     }
 )
 

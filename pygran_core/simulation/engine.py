@@ -14,6 +14,7 @@ engine implements the ``_underscored`` hooks.
 from __future__ import annotations
 
 import abc
+import contextlib
 import dataclasses
 import hashlib
 import itertools
@@ -41,6 +42,7 @@ from pygran_core.errors import (
     did_you_mean,
     unknown_key,
 )
+from pygran_core.formats import contacts as _contacts
 from pygran_core.io import Frame, TrajectoryWriter, open_trajectory, open_writer
 from pygran_core.registry import engines_with
 from pygran_core.simulation.calls import (
@@ -280,6 +282,8 @@ class Engine(abc.ABC):
             self.require("neighbor-styles", f"the neighbour-list style nns_type={spec.nns_type!r}")
         if spec.traj.dump_modify:
             self.require("liggghts-dump", f"dump_modify {spec.traj.dump_modify}")
+        if spec.traj.cfile is not None:
+            self.require("contact-output", f"contact output (traj cfile {spec.traj.cfile.name!r})")
         if spec.traj.margs != TrajectorySpec.margs:
             self.require(
                 "liggghts-dump", f"traj margs {spec.traj.margs} (the columns of LIGGGHTS' mesh dump)"
@@ -772,8 +776,9 @@ class Engine(abc.ABC):
 
     def _frequencies(self) -> list[int]:
         freqs = [m.spec.freq for m in self._monitors.values()]
-        if self.spec.traj.pfile is not None or self.spec.traj.mfile is not None:
-            freqs.append(self.spec.traj.freq)
+        traj = self.spec.traj
+        if traj.pfile is not None or traj.mfile is not None or traj.cfile is not None:
+            freqs.append(traj.freq)
         if self.spec.restart is not None:
             freqs.append(self.spec.restart.freq)
         return freqs
@@ -797,6 +802,8 @@ class Engine(abc.ABC):
                 self._write("particles", traj.pfile, self._frame)
             if traj.mfile is not None and self.spec.meshes:
                 self._write("meshes", traj.mfile, self._mesh_frame)
+            if traj.cfile is not None:
+                self._write("contacts", traj.cfile, self._contacts_frame)
         for monitor in self._monitors.values():
             if self.step % monitor.spec.freq == 0:
                 species = monitor.spec.species
@@ -863,7 +870,9 @@ class Engine(abc.ABC):
                 "# step time " + " ".join(monitor.spec.quantities) + "\n" + "".join(lines)
             )
         traj = self.spec.traj
-        for key, path in (("particles", traj.pfile), ("meshes", traj.mfile)):
+        for key, path in (("particles", traj.pfile), ("meshes", traj.mfile), ("contacts", traj.cfile)):
+            if key == "contacts" and path == traj.pfile:
+                continue  # in the particle file: cut with it
             if path is not None and (path.is_file() or before_resume(path).is_file()):
                 self._cut_trajectory(key, path)
         self.log("resumed from %s at step %d", self._resume_path, self.step)
@@ -878,15 +887,21 @@ class Engine(abc.ABC):
             path.unlink(missing_ok=True)
         else:
             os.replace(path, before)
-        writer = self._writers[key] = open_writer(path)
+        writer = self._writers[key] = self._open_writer(key, path)
         kept = 0
         try:
-            with open_trajectory(before) as old:
+            with open_trajectory(before) as old, contextlib.ExitStack() as stack:
+                contacts = old.contacts() if self._contacts_with(key) else None
+                if contacts is not None:
+                    stack.callback(contacts.close)
                 for index in range(len(old)):
-                    frame = old[index]
-                    if frame.timestep is not None and frame.timestep > self.step:
+                    frames = [old[index]]
+                    if contacts is not None and index < len(contacts):
+                        frames.append(contacts[index])
+                    if any(f.timestep is not None and f.timestep > self.step for f in frames):
                         break
-                    writer.write_frame(frame)
+                    for frame in frames:
+                        writer.write_frame(frame)
                     kept += 1
         except ReadError as exc:
             self.log(
@@ -901,10 +916,19 @@ class Engine(abc.ABC):
         before.unlink()
         self.log("resume: %d frames up to step %d kept in %s", kept, self.step, path)
 
+    def _contacts_with(self, key: str) -> bool:
+        """Whether the trajectory ``key`` holds the contact records too (one H5MD file)."""
+        return key == "particles" and self.spec.traj.cfile == self.spec.traj.pfile
+
+    def _open_writer(self, key: str, path: Any) -> TrajectoryWriter:
+        return open_writer(path, contacts=True) if self._contacts_with(key) else open_writer(path)
+
     def _write(self, key: str, path: Any, make_frame: Any) -> None:
+        if key == "contacts" and self._contacts_with("particles"):
+            key = "particles"  # the particle file's /contacts group
         if key not in self._writers:
             path.parent.mkdir(parents=True, exist_ok=True)
-            self._writers[key] = open_writer(path)
+            self._writers[key] = self._open_writer(key, path)
         self._writers[key].write_frame(make_frame())
 
     def close(self) -> None:
@@ -1005,8 +1029,7 @@ class Engine(abc.ABC):
             if name in traj.args:
                 arrays[name] = self._extract(name)
         chosen = slice(None) if traj.sel == "all" else self._extract("type") == traj.sel
-        box = np.array(self.spec.domain.box, float)
-        boundary = tuple(flag * 2 if len(flag) == 1 else flag for flag in self.spec.domain.boundary)
+        box, boundary = self._bounds()
         return Frame(
             {name: arrays[name][chosen] for name in traj.args},
             timestep=self.step,
@@ -1017,6 +1040,33 @@ class Engine(abc.ABC):
 
     def _mesh_frame(self) -> Frame:
         raise self._unsupported("mesh output")
+
+    def _contacts_frame(self) -> Frame:
+        """The contacts now (:meth:`_contacts`, checked), as a contacts frame of this step."""
+        try:
+            arrays = _contacts.checked(self._contacts(), f"the {self.name} engine's contact records")
+        except ValueError as exc:
+            raise EngineError(str(exc)) from None
+        box, boundary = self._bounds()
+        return Frame(
+            arrays,
+            timestep=self.step,
+            time=self.time,
+            box=box,
+            boundary=boundary,
+            attrs={"kind": _contacts.KIND},
+        )
+
+    def _contacts(self) -> dict[str, np.ndarray]:
+        """Every contact now, as the columns of :data:`pygran_core.formats.contacts.COLUMNS`
+        (engines with ``contact-output``): pairs once each, walls with ``id2 = -(k + 1)`` for
+        the k-th wall set up."""
+        raise self._unsupported("contact output")
+
+    def _bounds(self) -> tuple[np.ndarray, tuple[str, ...]]:
+        """The box bounds and the boundary flags as a trajectory frame gives them."""
+        box = np.array(self.spec.domain.box, float)
+        return box, tuple(flag * 2 if len(flag) == 1 else flag for flag in self.spec.domain.boundary)
 
     def _state(self) -> dict[str, np.ndarray]:
         """The engine's state for a checkpoint, as named arrays (engines with ``restart``

@@ -765,9 +765,13 @@ def check_mesh_in_box(mesh: MeshSpec, domain: Domain) -> None:
 
 @dataclass(frozen=True)
 class TrajectorySpec:
-    """Trajectory output: particle file ``pfile`` and mesh file ``mfile`` every ``freq`` steps.
+    """Trajectory output: particle file ``pfile``, mesh file ``mfile`` and contacts file
+    ``cfile`` every ``freq`` steps.
 
     The file extension picks the writer (``.dump``, ``.h5``, ``.vtk``); ``None`` writes nothing.
+    ``cfile`` (engines with the capability ``contact-output``) holds the contact records of
+    :mod:`~pygran_core.formats.contacts`: a ``.dump`` is written as LIGGGHTS' ``dump local``,
+    an H5MD name equal to ``pfile`` puts them in the particle file's ``/contacts`` group.
     ``sel`` is ``"all"`` or a species number; ``args`` the particle columns. ``style``
     ``'custom/vtk'`` goes with a ``.vtk`` pfile. ``margs`` (the columns of LIGGGHTS' mesh dump)
     and ``dump_modify`` (of its ``.dump`` file) are LIGGGHTS' own: engines without the
@@ -777,6 +781,7 @@ class TrajectorySpec:
     freq: int = 1000
     pfile: Path | None = None
     mfile: Path | None = None
+    cfile: Path | None = None
     sel: str | int = "all"
     style: str = "custom"
     args: tuple[str, ...] = ("id", "type", "x", "y", "z", "radius", "vx", "vy", "vz", "fx", "fy", "fz")
@@ -784,7 +789,9 @@ class TrajectorySpec:
     dump_modify: tuple[str, ...] = ()
 
 
-TRAJ_KEYS = ("freq", "pfile", "mfile", "dir", "sel", "style", "args", "margs")
+TRAJ_KEYS = ("freq", "pfile", "mfile", "cfile", "dir", "sel", "style", "args", "margs")
+#: File names ``traj`` ``cfile`` may take: LIGGGHTS' ``dump local`` text, or H5MD.
+CONTACT_SUFFIXES = (".dump", ".h5", ".h5md", ".hdf5")
 
 
 def parse_traj(
@@ -799,9 +806,20 @@ def parse_traj(
     check_keys("traj keyword", value, TRAJ_KEYS)
     directory = output / file_name(value.get("dir", "."), "traj dir")
     files = {}
-    for key, default in (("pfile", "traj.dump"), ("mfile", None)):
+    for key, default in (("pfile", "traj.dump"), ("mfile", None), ("cfile", None)):
         name = value.get(key, default)
         files[key] = None if name is None else directory / file_name(name, f"traj {key}")
+    cfile = files["cfile"]
+    if cfile is not None and (cfile.suffix not in CONTACT_SUFFIXES or cfile == files["mfile"]):
+        raise ConfigError(
+            f"traj cfile {value['cfile']!r}: contact records are written as a .dump (LIGGGHTS' dump local) "
+            "or into an H5MD file (.h5, .h5md, .hdf5), which may be the pfile: give such a name"
+        )
+    if cfile is not None and cfile == files["pfile"] and cfile.suffix == ".dump":
+        raise ConfigError(
+            f"traj cfile {value['cfile']!r} is the pfile, but a .dump holds particles or contacts, not both: "
+            "give the contacts their own .dump (such as 'contacts.dump'), or make both one .h5 file"
+        )
     sel = value.get("sel", "all")
     if not (isinstance(sel, str) and sel == "all") and (not is_integer(sel) or sel < 1):
         raise ConfigError(f"traj sel must be 'all' or a species number (1, 2, ...), got {sel!r}")
