@@ -3,7 +3,7 @@
 
 cdef dict state_of(Core core):
     """Everything the time-step loop depends on, as numpy arrays (storage order)."""
-    cdef int n = core.s.n, ne = core.s.ne
+    cdef int n = core.s.n, ne = core.s.ne, nb = core.s.nbody, nm = core.s.nmem
     cdef long long npair = core.s.nb_start[n], nwall = core.s.wl_start[n]
     state = {
         "x": _copy_d(core.s.x, 3 * n), "v": _copy_d(core.s.v, 3 * n), "w": _copy_d(core.s.w, 3 * n),
@@ -27,6 +27,14 @@ cdef dict state_of(Core core):
                              dtype=np.int64),
         "bounds": _copy_i(core.s.pb, core.s.nblocks + 1),
     }
+    if nb == 0:   # a state of spheres only is what it was before there were clumps
+        return state
+    state["mem"] = _copy_i(core.s.mem, n)
+    for key, value in core.bodies().items():
+        state[f"body_{key}"] = value.reshape(-1)
+    state["body_start"] = _copy_i(core.s.mstart, nb + 1)
+    state["member_offset"] = _copy_d(core.s.md, 3 * nm)
+    state["member_shift"] = _copy_d(core.s.mimg, 3 * nm)
     return state
 
 
@@ -73,6 +81,7 @@ cdef void restore(Core core, state) except *:
         memcpy(core.s.nb_s, cnp.PyArray_DATA(nbs), npair)
     core.set_viscous(np.ascontiguousarray(state["visc"], dtype=float))
     core.s.n = n
+    restore_bodies(core, state)
     core.s.time, core.s.t_base, core.s.dt_base, core.s.lost_speed = (float(k) for k in state["scalars"])
     for i in range(7):
         core.s.lost_at[i] = state["lost"][i]
@@ -87,6 +96,42 @@ cdef void restore(Core core, state) except *:
     for i in range(n):
         find_partners(&core.s, i)
     prefix_last(&core.s)
+
+
+cdef void restore_bodies(Core core, state) except *:
+    """The clumps of a :meth:`get_state` output (after the particles; none without "mem")."""
+    cdef int nb, nm, b, s
+    cdef int64_t[::1] bid
+    if "mem" not in state:
+        core.s.nbody = core.s.nmem = 0
+        for s in range(core.s.n):
+            core.s.mem[s] = -1
+        return
+    nb = state["body_m"].shape[0]
+    nm = state["member_offset"].shape[0] // 3
+    bid = np.ascontiguousarray(state["body_id"], dtype=np.int64)
+    if bid.shape[0] != nb:
+        raise ValueError("body_id: one per body")
+    core.reserve_bodies(nb, nm)
+    core.s.nbody = 0
+    for name, ptr, k in (("body_x", <size_t>core.s.bx, 3 * nb), ("body_v", <size_t>core.s.bv, 3 * nb),
+                         ("body_q", <size_t>core.s.bq, 4 * nb), ("body_p", <size_t>core.s.bp, 3 * nb),
+                         ("body_m", <size_t>core.s.bm, nb), ("body_inertia", <size_t>core.s.bI, 3 * nb),
+                         ("body_f", <size_t>core.s.bf, 3 * nb), ("body_t", <size_t>core.s.bt, 3 * nb),
+                         ("member_offset", <size_t>core.s.md, 3 * nm),
+                         ("member_shift", <size_t>core.s.mimg, 3 * nm)):
+        _put_d(<double*><size_t>ptr, state[name], k)
+    _put_i(core.s.btype, state["body_type"], nb)
+    _put_i(core.s.mstart, state["body_start"], nb + 1)
+    _put_i(core.s.mem, state["mem"], core.s.n)
+    for b in range(nb):
+        core.s.bid[b] = bid[b]
+        core.s.bdd[b] = 0.0
+        for s in range(core.s.mstart[b], core.s.mstart[b + 1]):
+            core.s.mbody[s] = b
+    core.s.nbody = nb
+    core.s.nmem = nm
+    find_members(&core.s)
 
 
 cdef object _copy_d(const double* p, long long k):

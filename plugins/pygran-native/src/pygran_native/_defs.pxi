@@ -1,7 +1,9 @@
 # Compile-time constants and enums of the native solver (included by _solver.pyx).
 
 DEF MAXCAND = 64
-DEF NCOLUMNS = 21  # per-particle arrays, see particle_columns
+DEF NCOLUMNS = 22  # per-particle arrays, see particle_columns
+DEF NBCOLUMNS = 12  # per-body arrays of clumps, see body_columns
+DEF NMCOLUMNS = 4   # per-member arrays of clumps, see member_columns
 DEF NECOLUMNS = 9  # per-element arrays, see element_columns
 DEF MAXTHREADS = 1024   # a team's block numbers must stay below 65536 (team.h)
 DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
@@ -77,6 +79,8 @@ cdef enum:
     P_COPY_BACK = 7
     P_COUNT = 8
     P_FILL = 9
+    P_BODIES = 10      # clumps: sum their spheres' forces, kick (and with fuse drift), see body_row
+    P_BODY_DRIFT = 11  # clumps: first half kick and drift
 
 # A stress mesh's values (NSLOT doubles): the particles' force on it is summed each step (LIGGGHTS
 # mesh/surface/stress); a servo moves it by LIGGGHTS' controller (mesh/surface/stress/servo,

@@ -22,7 +22,9 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
     clear them, add gravity and viscous forces; second half kick, and with ``fuse`` the first
     half kick and drift of the next step (one pass instead of two, the same arithmetic; ``f``
     and ``t`` are then left alone: they hold the forces of a run's last step, which is not
-    fused)."""
+    fused). A clump's sphere only stores its buffers' sums in f and t, for its body (see
+    body_row), which gravity and drag act on."""
+    cdef bint member = c.nbody and c.mem[i] >= 0
     cdef double mi = c.m[i], g = c.visc[c.type[i]], s
     cdef double F[3]
     cdef double T[3]
@@ -30,7 +32,7 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
     cdef int k, q
     b = &c.buf[<long long>i * 6]
     for q in range(3):
-        F[q] = mi * c.grav[q] - g * c.v[3 * i + q]
+        F[q] = 0.0 if member else mi * c.grav[q] - g * c.v[3 * i + q]
         T[q] = 0.0
         F[q] += b[q]
         T[q] += b[3 + q]
@@ -51,10 +53,12 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
             F[q] += b[q]
             T[q] += b[3 + q]
         memset(b, 0, 6 * sizeof(double))
-    if not c.fuse:
+    if not c.fuse or member:
         for q in range(3):
             c.f[3 * i + q] = F[q]
             c.t[3 * i + q] = T[q]
+    if member:
+        return
     if c.kick:
         s = 0.5 * c.dt / mi
         for q in range(3):
@@ -80,8 +84,11 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
 
 
 cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:
+    """Rows [lo, hi) of the drift; clumps' spheres move with their bodies (see body_row)."""
     cdef int i
     for i in range(lo, hi):
+        if c.nbody and c.mem[i] >= 0:
+            continue
         drift_row(c, i, t, &c.f[3 * i], &c.t[3 * i])
 
 
@@ -102,12 +109,15 @@ cdef double drift(State* sim, double dt) noexcept nogil:
     for t in range(sim.nthreads):
         sim.tmax[PAD * t] = 0.0
     parallel_rows(sim, P_DRIFT, sim.n)
+    if sim.nbody:
+        body_loop(sim, P_BODY_DRIFT)
     lap(sim, T_DRIFT, t0)
     return max_displacement(sim)
 
 
 cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexcept nogil:
-    """Forces (pair loop, then per particle), second half kick; ``fuse``: see particle_row.
+    """Forces (pair loop, then per particle, then per clump), second half kick; ``fuse``: see
+    particle_row.
     -1 when out of memory.
 
     The pair loop's blocks (see pair_row) fix the order of the sums and depend only on the
@@ -136,6 +146,8 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
             servo_control(sim, dt)
     t0 = lap(sim, T_PAIRS, t0)
     run_phase(sim, P_PARTICLES, sim.nblocks)
+    if sim.nbody:
+        body_loop(sim, P_BODIES)
     rebalance(sim)
     lap(sim, T_PARTICLES, t0)
     for t in range(T):   # the busiest thread's CPU time: the loops' wall time on idle cores

@@ -35,8 +35,10 @@ cdef uint8_t carry_pair(const State* c, int a, int b, double* h) noexcept nogil:
 
 
 cdef int scan_pairs(const State* c, int i, bint fill) noexcept nogil:
-    """Partners j > i within r_i + r_j + skin: counted, or written from ``nb_start[i]``."""
+    """Partners j > i within r_i + r_j + skin, but for spheres of i's clump: counted, or written
+    from ``nb_start[i]``."""
     cdef int d0, d1, d2, j, code, cid, cnt = 0, pos, wrap
+    cdef int body = c.mbody[c.mem[i]] if c.nbody and c.mem[i] >= 0 else -1
     cdef int cc[3]
     cdef int nb[3]
     cdef int s[3]
@@ -81,7 +83,8 @@ cdef int scan_pairs(const State* c, int i, bint fill) noexcept nogil:
                     dy = xi[1] - c.x[3 * j + 1] + sv[1]
                     dz = xi[2] - c.x[3 * j + 2] + sv[2]
                     rc = c.r[i] + c.r[j] + c.skin
-                    if dx * dx + dy * dy + dz * dz < rc * rc:
+                    if dx * dx + dy * dy + dz * dz < rc * rc and not (
+                            body >= 0 and c.mem[j] >= 0 and c.mbody[c.mem[j]] == body):
                         if fill:
                             c.nb_j[pos + cnt] = j
                             c.nb_s[pos + cnt] = (<uint8_t>(code | wrap)
@@ -234,8 +237,8 @@ cdef bint any_moving(State* sim) noexcept nogil:
 cdef void permute(State* sim, int n) noexcept nogil:
     """Reorder the particle arrays by ``perm`` in three parallel passes. f, t and x0 are
     recomputed after a rebuild, so they serve as scratch: x, v and w are gathered into them
-    and swapped with them; r, m, type and pid are gathered into the old x and v, then
-    copied back while x0 becomes a copy of x (see rebuild_rows)."""
+    and swapped with them; r, m, type, pid (and with clumps mem) are gathered into the old x
+    and v, then copied back while x0 becomes a copy of x (see rebuild_rows)."""
     cdef double* p
     parallel_rows(sim, P_GATHER, n)
     p = sim.x; sim.x = sim.f; sim.f = p
@@ -246,14 +249,18 @@ cdef void permute(State* sim, int n) noexcept nogil:
 
 
 cdef void rebuild_rows(State* sim, int phase, int lo, int hi) noexcept nogil:
-    """Rows [lo, hi) of a parallel pass of the rebuild."""
+    """Rows [lo, hi) of a parallel pass of the rebuild (and bodies [lo, hi) of a body loop,
+    which the team hands out as rows too)."""
     cdef int i, d, n = sim.rows
     cdef int* perm = sim.perm
     cdef double* sr = sim.f
     cdef double* sm = sim.f + n
     cdef int* st = <int*>(sim.f + 2 * n)
+    cdef int* sb = st + n
     cdef int64_t* sp = <int64_t*>sim.t
-    if phase == P_PLACE:
+    if phase == P_BODIES or phase == P_BODY_DRIFT:
+        body_rows(sim, phase, lo, hi)
+    elif phase == P_PLACE:
         for i in range(lo, hi):
             sim.cell[i] = place_particle(sim, i)
     elif phase == P_GATHER:   # into f, t, x0 (swapped with x, v, w afterwards)
@@ -268,12 +275,16 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi) noexcept nogil:
             sm[i] = sim.m[perm[i]]
             st[i] = sim.type[perm[i]]
             sp[i] = sim.pid[perm[i]]
+            if sim.nbody:
+                sb[i] = sim.mem[perm[i]]
     elif phase == P_COPY_BACK:
         for i in range(lo, hi):
             sim.r[i] = sr[i]
             sim.m[i] = sm[i]
             sim.type[i] = st[i]
             sim.pid[i] = sp[i]
+            if sim.nbody:
+                sim.mem[i] = sb[i]
             for d in range(3):
                 sim.x0[3 * i + d] = sim.x[3 * i + d]
     elif phase == P_COUNT:
@@ -317,8 +328,9 @@ cdef void prefix_last(State* sim) noexcept nogil:
 
 
 cdef int rebuild(State* sim) noexcept nogil:
-    """Wrap, drop lost particles, sort into cells, rebuild both lists carrying histories."""
-    cdef int i, d, n = sim.n, nnew
+    """Wrap, drop lost particles (a clump whole), sort into cells, rebuild both lists carrying
+    histories."""
+    cdef int i, d, n = sim.n, nnew, dead = 0
     cdef long long lost = 0
     cdef double rmax = 0.0
     cdef int *ip
@@ -341,7 +353,11 @@ cdef int rebuild(State* sim) noexcept nogil:
             sim.binned_nc[d] = sim.nc[d]
     t1 = lap(sim, T_CELLS, t0)
     # wrap periodic coordinates, mark particles outside a fixed boundary (or removed) lost
+    if sim.nbody:
+        place_bodies(sim)
     parallel_rows(sim, P_PLACE, n)
+    if sim.nbody:
+        dead = mark_dead_bodies(sim, &lost)
     for i in range(n):
         if sim.cell[i] < 0:
             if sim.cell[i] == -1:
@@ -364,6 +380,11 @@ cdef int rebuild(State* sim) noexcept nogil:
     nnew = sim.cell_start[sim.ncells]
     t1 = lap(sim, T_SORT, t1)
     permute(sim, nnew)
+    sim.n = nnew
+    if sim.nbody:
+        if dead and drop_bodies(sim, nnew) < 0:
+            return -1
+        find_members(sim)
     t1 = lap(sim, T_PERMUTE, t1)
     # the current lists become the previous ones
     ip = sim.ob_start; sim.ob_start = sim.nb_start; sim.nb_start = ip
@@ -375,7 +396,6 @@ cdef int rebuild(State* sim) noexcept nogil:
     ip = sim.ow_e; sim.ow_e = sim.wl_e; sim.wl_e = ip
     dp = sim.ow_h; sim.ow_h = sim.wl_h; sim.wl_h = dp
     cap = sim.ow_cap; sim.ow_cap = sim.wl_cap; sim.wl_cap = cap
-    sim.n = nnew
     parallel_rows(sim, P_COUNT, nnew)
     sim.nb_start[0] = 0
     sim.wl_start[0] = 0

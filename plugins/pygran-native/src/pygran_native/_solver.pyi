@@ -30,6 +30,7 @@ class Core:
     ne: int
     nslots: int
     nvib: int
+    nbody: int
     def __init__(
         self,
         lo: Sequence[float] | np.ndarray,
@@ -66,6 +67,22 @@ class Core:
         w: np.ndarray,
         ids: np.ndarray,
     ) -> None: ...
+    def add_bodies(
+        self,
+        x: np.ndarray,
+        v: np.ndarray,
+        q: np.ndarray,
+        p: np.ndarray,
+        m: np.ndarray,
+        inertia: np.ndarray,
+        typ: np.ndarray,
+        bids: np.ndarray,
+        counts: np.ndarray,
+        offsets: np.ndarray,
+        r: np.ndarray,
+        ids: np.ndarray,
+    ) -> None: ...
+    def bodies(self) -> dict[str, np.ndarray]: ...
     def mark_removed(self, mask: np.ndarray) -> None: ...
     def set_vectors(self, name: str, index: np.ndarray, values: np.ndarray) -> None: ...
     def set_radii(self, index: np.ndarray, r: np.ndarray, m: np.ndarray) -> None: ...

@@ -14,13 +14,18 @@ concern, work on it:
 - ``_neighbours.pxi``: the rebuild, the neighbour and wall lists and their histories;
 - ``_pairs.pxi``: the pair loop (pair and wall forces) and its halos;
 - ``_integrate.pxi``: the particle loop, the drift and the time-step loop;
+- ``_clumps.pxi``: rigid clumps of spheres: the body loop, its rotation, wrapping and dropping;
 - ``_team.pxi``: parallel phases on team.h's threads, block balance, the Tuner, timers;
 - ``_checkpoint.pxi``: the State as numpy arrays and back (after Core, which it uses).
 
 Layout (struct of arrays, particles stored in cell order, re-sorted at every neighbour
 rebuild):
 
-- particles: ``x, v, w, f, t, x0`` (3 per particle), ``r, m``, ``type``, ``pid``;
+- particles: ``x, v, w, f, t, x0`` (3 per particle), ``r, m``, ``type``, ``pid``, ``mem``
+  (the clump member slot, -1 for a free sphere);
+- clumps: per body centre, velocity, orientation, angular momentum, mass, principal moments,
+  force, torque; per member slot the sphere's offset in the body's frame, its periodic shift,
+  row and body (see _clumps.pxi);
 - half neighbour list (CSR over particles): partner ``nb_j`` (j > i), periodic image
   code ``nb_s`` (0..26, with the flags TOUCH and WRAP) and ``hs`` history values per pair:
   tangential displacement (3), the last normal force, and for Thornton-Ning the largest
@@ -103,6 +108,7 @@ include "_cells.pxi"
 include "_neighbours.pxi"
 include "_pairs.pxi"
 include "_integrate.pxi"
+include "_clumps.pxi"
 include "_motion.pxi"
 include "_team.pxi"
 
@@ -185,6 +191,10 @@ cdef class Core:
     def nvib(self):
         return self.s.nvib
 
+    @property
+    def nbody(self):
+        return self.s.nbody
+
     def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads):
         cdef int d, a, b, c
         self.s.nthreads = threads
@@ -236,6 +246,12 @@ cdef class Core:
         element_columns(&self.s, cols)
         for k in range(NECOLUMNS):
             free(cols[k].p[0])
+        body_columns(&self.s, cols)
+        for k in range(NBCOLUMNS):
+            free(cols[k].p[0])
+        member_columns(&self.s, cols)
+        for k in range(NMCOLUMNS):
+            free(cols[k].p[0])
         for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.nb_j,
                   <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.ob_j,
                   <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
@@ -267,6 +283,26 @@ cdef class Core:
             else:
                 cols[k].p[0] = self._grow(cols[k].p[0], (c + cols[k].extra) * cols[k].size)
         self.s.cap = cap
+        return 0
+
+    cdef int reserve_bodies(self, int nbody, int nmem) except -1:
+        """Grow the clumps' per-body and per-slot arrays (see body_columns, member_columns)."""
+        cdef Column cols[NBCOLUMNS]
+        cdef int k, cap
+        if nbody + 1 > self.s.bcap:
+            cap = max(nbody + 1, 2 * self.s.bcap, 8)
+            body_columns(&self.s, cols)
+            for k in range(NBCOLUMNS):
+                cols[k].p[0] = self._grow(cols[k].p[0], (cap + cols[k].extra) * cols[k].size)
+            if self.s.bcap == 0:
+                self.s.mstart[0] = 0
+            self.s.bcap = cap
+        if nmem > self.s.mcap:
+            cap = max(nmem, 2 * self.s.mcap, 8)
+            member_columns(&self.s, cols)
+            for k in range(NMCOLUMNS):
+                cols[k].p[0] = self._grow(cols[k].p[0], cap * cols[k].size)
+            self.s.mcap = cap
         return 0
 
     cdef void* _grow(self, void* p, size_t nbytes) except NULL:
@@ -346,13 +382,85 @@ cdef class Core:
             self.s.m[base + i] = m[i]
             self.s.type[base + i] = typ[i]
             self.s.pid[base + i] = ids[i]
+            self.s.mem[base + i] = -1
             self.s.nb_start[base + i + 1] = self.s.nb_start[base]
             self.s.wl_start[base + i + 1] = self.s.wl_start[base]
         self.s.n = base + k
         self.s.dirty = 1
 
+    def add_bodies(self, double[:, ::1] x, double[:, ::1] v, double[:, ::1] q, double[:, ::1] p,
+                   double[::1] m, double[:, ::1] inertia, int[::1] typ, int64_t[::1] bids, int[::1] counts,
+                   double[:, ::1] offsets, double[::1] r, int64_t[::1] ids):
+        """Add clumps: body k with centre x[k], velocity v[k], orientation q[k] (unit quaternion
+        of its principal axes), angular momentum p[k] (principal frame), mass m[k], principal
+        moments inertia[k], type typ[k] and id bids[k] has the next counts[k] spheres of
+        ``offsets`` (principal frame), radii r and ids; they are placed from the body."""
+        cdef int nb = x.shape[0], total = offsets.shape[0], b, k, d, s, i
+        cdef int base = self.s.n, b0 = self.s.nbody, s0 = self.s.nmem
+        self.reserve(base + total)
+        self.reserve_bodies(b0 + nb, s0 + total)
+        i = base
+        s = s0
+        for b in range(nb):
+            self.s.bid[b0 + b] = bids[b]
+            self.s.btype[b0 + b] = typ[b]
+            self.s.bm[b0 + b] = m[b]
+            self.s.bdd[b0 + b] = 0.0
+            for d in range(3):
+                self.s.bx[3 * (b0 + b) + d] = x[b, d]
+                self.s.bv[3 * (b0 + b) + d] = v[b, d]
+                self.s.bp[3 * (b0 + b) + d] = p[b, d]
+                self.s.bI[3 * (b0 + b) + d] = inertia[b, d]
+                self.s.bf[3 * (b0 + b) + d] = 0.0
+                self.s.bt[3 * (b0 + b) + d] = 0.0
+            for d in range(4):
+                self.s.bq[4 * (b0 + b) + d] = q[b, d]
+            self.s.mstart[b0 + b] = s
+            for k in range(counts[b]):
+                for d in range(3):
+                    self.s.md[3 * s + d] = offsets[s - s0, d]
+                    self.s.mimg[3 * s + d] = 0.0
+                    self.s.x0[3 * i + d] = 0.0
+                    self.s.f[3 * i + d] = 0.0
+                    self.s.t[3 * i + d] = 0.0
+                self.s.mrow[s] = i
+                self.s.mbody[s] = b0 + b
+                self.s.r[i] = r[s - s0]
+                self.s.m[i] = m[b]
+                self.s.type[i] = typ[b]
+                self.s.pid[i] = ids[s - s0]
+                self.s.mem[i] = s
+                self.s.nb_start[i + 1] = self.s.nb_start[base]
+                self.s.wl_start[i + 1] = self.s.wl_start[base]
+                i += 1
+                s += 1
+        self.s.mstart[b0 + nb] = s
+        self.s.nbody = b0 + nb
+        self.s.nmem = s
+        self.s.n = base + total
+        for b in range(b0, b0 + nb):
+            body_members(&self.s, b, True)
+        for i in range(base, base + total):
+            for d in range(3):
+                self.s.x0[3 * i + d] = self.s.x[3 * i + d]
+        self.s.dirty = 1
+
+    def bodies(self):
+        """The clumps now: per body ``id``, ``type``, centre ``x``, velocity ``v``, orientation
+        ``q`` (of its principal axes), angular momentum ``p`` (principal frame), mass ``m``,
+        principal moments ``inertia``, force ``f`` and torque ``t`` of the last evaluation."""
+        cdef int nb = self.s.nbody
+        return {
+            "id": _copy_l(self.s.bid, nb), "type": _copy_i(self.s.btype, nb),
+            "x": _copy_d(self.s.bx, 3 * nb).reshape(nb, 3), "v": _copy_d(self.s.bv, 3 * nb).reshape(nb, 3),
+            "q": _copy_d(self.s.bq, 4 * nb).reshape(nb, 4), "p": _copy_d(self.s.bp, 3 * nb).reshape(nb, 3),
+            "m": _copy_d(self.s.bm, nb), "inertia": _copy_d(self.s.bI, 3 * nb).reshape(nb, 3),
+            "f": _copy_d(self.s.bf, 3 * nb).reshape(nb, 3), "t": _copy_d(self.s.bt, 3 * nb).reshape(nb, 3),
+        }
+
     def mark_removed(self, cnp.uint8_t[::1] mask):
-        """Mark particles (storage order) for removal at the next rebuild."""
+        """Mark particles (storage order) for removal at the next rebuild (a clump's sphere:
+        the clump)."""
         cdef int i
         for i in range(self.s.n):
             if mask[i]:
@@ -543,7 +651,7 @@ cdef class Core:
     # ------------------------------------------------------------------ outputs ---------
     def array(self, str name):
         """Copy of a per-particle array in storage order."""
-        cdef int n = self.s.n
+        cdef int n = self.s.n, i
         if name in ("x", "v", "w", "f", "t"):
             ptr = {"x": <size_t>self.s.x, "v": <size_t>self.s.v, "w": <size_t>self.s.w,
                    "f": <size_t>self.s.f, "t": <size_t>self.s.t}[name]
@@ -556,6 +664,12 @@ cdef class Core:
             return _copy_i(self.s.type, n)
         if name == "id":
             return _copy_l(self.s.pid, n)
+        if name == "body":   # the clump's id, -1 for a free sphere
+            out = np.full(n, -1, dtype=np.int64)
+            for i in range(n):
+                if self.s.mem[i] >= 0:
+                    out[i] = self.s.bid[self.s.mbody[self.s.mem[i]]]
+            return out
         raise KeyError(name)
 
     def contacts(self):
@@ -603,12 +717,19 @@ cdef class Core:
     def memory_bytes(self):
         """Bytes held by the per-particle arrays and lists (allocated capacity)."""
         cdef Column cols[NCOLUMNS]
-        cdef size_t per_particle = 0
+        cdef size_t per_particle = 0, per_body = 0, per_member = 0
         cdef int k
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
             per_particle += cols[k].size
-        return (self.s.cap * per_particle + self.s.halo_cap * 6 * 8
+        body_columns(&self.s, cols)
+        for k in range(NBCOLUMNS):
+            per_body += cols[k].size
+        member_columns(&self.s, cols)
+        for k in range(NMCOLUMNS):
+            per_member += cols[k].size
+        return (self.s.cap * per_particle + self.s.bcap * per_body + self.s.mcap * per_member
+                + self.s.halo_cap * 6 * 8
                 + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs)
                 + self.s.wl_cap * (12 + 8 * self.s.hs) + self.s.ow_cap * (12 + 8 * self.s.hs)
                 + self.s.cell_cap * 8 + self.s.ctri_cap * 4)

@@ -69,6 +69,7 @@ cdef struct State:
     double *m
     int *type
     int64_t *pid
+    int *mem           # the clump member slot of each particle, -1 for a free sphere (see Clumps)
     double *buf        # forces and torques of the pair loop, cap * 6 (see pair_row)
     double *halo       # the pair blocks' halo buffers, 6 per row (see Halo)
     long long halo_cap
@@ -144,6 +145,25 @@ cdef struct State:
     double timers[NTIMERS]
     double *cpu        # per thread (PAD apart): CPU seconds in the pair and particle loops,
                        # in total and in the last step
+    # clumps (rigid bodies of spheres, see _clumps.pxi): nbody bodies (bcap allocated) of
+    # nmem member slots (mcap allocated); body b's slots are mstart[b] to mstart[b + 1] - 1
+    int nbody, bcap, nmem, mcap
+    int64_t *bid       # per body: its id
+    int *btype         # ... its spheres' type (viscous damping)
+    double *bx         # ... centre of mass (3)
+    double *bv         # ... velocity (3)
+    double *bq         # ... orientation of its principal axes, a unit quaternion w, x, y, z (4)
+    double *bp         # ... angular momentum in the principal frame (3)
+    double *bm         # ... mass
+    double *bI         # ... principal moments of inertia (3)
+    double *bf         # ... force at the last evaluation (3)
+    double *bt         # ... torque about the centre at the last evaluation (3)
+    double *bdd        # ... scratch: its spheres' largest squared displacement since the rebuild
+    int *mstart        # ... its first member slot (nbody + 1 entries)
+    double *md         # per member slot: the sphere's offset from the centre, principal frame (3)
+    double *mimg       # ... the periodic shift of the sphere's position (3, see place_bodies)
+    int *mrow          # ... the sphere's storage row (since the last rebuild)
+    int *mbody         # ... its body
     # the force evaluation under way (see forces): step, whether histories advance, whether
     # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
     double dt
@@ -190,6 +210,7 @@ cdef void particle_columns(State* s, Column* c) noexcept nogil:
     column(&c[18], <void**>&s.flo, sizeof(int), 0, False)
     column(&c[19], <void**>&s.fhi, sizeof(int), 0, False)
     column(&c[20], <void**>&s.buf, 6 * sizeof(double), 0, True)   # the pair loop's, zero between steps
+    column(&c[21], <void**>&s.mem, sizeof(int), 0, False)
 
 
 cdef void element_columns(State* s, Column* c) noexcept nogil:
@@ -204,3 +225,28 @@ cdef void element_columns(State* s, Column* c) noexcept nogil:
     column(&c[6], <void**>&s.eref, 9 * sizeof(double), 0, False)
     column(&c[7], <void**>&s.ebuilt, 9 * sizeof(double), 0, False)
     column(&c[8], <void**>&s.emot, NMOT * sizeof(double), 0, False)
+
+
+cdef void body_columns(State* s, Column* c) noexcept nogil:
+    """The allocation table of the clumps' bodies: the NBCOLUMNS per-body arrays of the State,
+    which Core grows together (add_bodies), compacts (drop_bodies) and frees (dealloc)."""
+    column(&c[0], <void**>&s.bid, sizeof(int64_t), 0, False)
+    column(&c[1], <void**>&s.btype, sizeof(int), 0, False)
+    column(&c[2], <void**>&s.bx, 3 * sizeof(double), 0, False)
+    column(&c[3], <void**>&s.bv, 3 * sizeof(double), 0, False)
+    column(&c[4], <void**>&s.bq, 4 * sizeof(double), 0, False)
+    column(&c[5], <void**>&s.bp, 3 * sizeof(double), 0, False)
+    column(&c[6], <void**>&s.bm, sizeof(double), 0, False)
+    column(&c[7], <void**>&s.bI, 3 * sizeof(double), 0, False)
+    column(&c[8], <void**>&s.bf, 3 * sizeof(double), 0, False)
+    column(&c[9], <void**>&s.bt, 3 * sizeof(double), 0, False)
+    column(&c[10], <void**>&s.bdd, sizeof(double), 0, False)
+    column(&c[11], <void**>&s.mstart, sizeof(int), 1, False)
+
+
+cdef void member_columns(State* s, Column* c) noexcept nogil:
+    """The allocation table of the clumps' member slots: the NMCOLUMNS per-slot arrays."""
+    column(&c[0], <void**>&s.md, 3 * sizeof(double), 0, False)
+    column(&c[1], <void**>&s.mimg, 3 * sizeof(double), 0, False)
+    column(&c[2], <void**>&s.mrow, sizeof(int), 0, False)
+    column(&c[3], <void**>&s.mbody, sizeof(int), 0, False)

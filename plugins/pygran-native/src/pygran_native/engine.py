@@ -4,17 +4,25 @@ Material types: species ``k`` (1-based) is solver type ``k - 1``; a mesh with a 
 of its own gets a type after the species. Particle ids are 1-based as in LIGGGHTS.
 Insertion (``insert``, ``createParticles``) is :class:`PlacingEngine`'s, seeded per call
 from ``seed``.
+
+Multisphere species are the solver's clumps (:meth:`Solver.add_clumps`), one per particle,
+placed by their enclosing sphere about the template's origin and inserted turned at random
+(seeded; LIGGGHTS' default) or as the insertion's ``orientation`` says; ``createParticles``
+keeps the template's orientation. As on LIGGGHTS and YADE, extracts give every sphere of a
+clump, each with the clump's mass, and :meth:`NativeEngine.bodies` the clump of each sphere.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, ReadError
+from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature
 from pygran_core.io import Frame
-from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
+from pygran_core.simulation import clumps
+from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, SetSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.specs import SimulationSpec, given, rank_run
@@ -49,6 +57,7 @@ class NativeEngine(PlacingEngine):
             "insert-by-rate",
             "threads",
             "restart",
+            "multisphere",
         }
     )
 
@@ -61,6 +70,12 @@ class NativeEngine(PlacingEngine):
             np.array(spec.domain.box).T, spec.domain.periodic, gravity, spec.skin, spec.threads, spec.seed
         )
         self._mesh_types = {m.name: len(spec.species) + i for i, m in enumerate(spec.meshes)}
+        #: Multisphere species -> their template spheres ``(k, 4)``.
+        self._templates = {
+            s.type: np.array(s.spheres, float) for s in spec.species if s.style == "multisphere"
+        }
+        #: How the clumps being added are turned: an insertion's orientation and generator.
+        self._orienting: tuple[Any, np.random.Generator | None] = ("template", None)
         materials = [s.material for s in spec.species] + [
             m.material or spec.species[0].material for m in spec.meshes
         ]
@@ -126,18 +141,130 @@ class NativeEngine(PlacingEngine):
     def _add_spheres(
         self, species: np.ndarray, centres: np.ndarray, radii: np.ndarray, velocities: np.ndarray, omega: Any
     ) -> None:
-        density = np.array([self.spec.species[int(k) - 1].density for k in species])
-        self.solver.add_particles(
-            centres,
-            radii,
-            densities=density,
-            types=np.asarray(species) - 1,
-            velocities=velocities,
-            omegas=np.tile(omega, (len(radii), 1)),
-        )
+        """Add spheres, or for a multisphere species clumps of its template (turned as
+        :attr:`_orienting` says) whose template origin is at the centre."""
+        species = np.asarray(species)
+        if not any(int(k) in self._templates for k in np.unique(species)):
+            density = np.array([self.spec.species[int(k) - 1].density for k in species])
+            self.solver.add_particles(
+                centres,
+                radii,
+                densities=density,
+                types=species - 1,
+                velocities=velocities,
+                omegas=np.tile(omega, (len(radii), 1)),
+            )
+            return
+        for kind in np.unique(species):
+            chosen = species == kind
+            count = int(chosen.sum())
+            if int(kind) not in self._templates:
+                self._add_spheres(species[chosen], centres[chosen], radii[chosen], velocities[chosen], omega)
+                continue
+            self.solver.add_clumps(
+                self._templates[int(kind)],
+                centres[chosen],
+                self.spec.species[int(kind) - 1].density,
+                orientations=self._orientations(count),
+                types=int(kind) - 1,
+                velocities=np.asarray(velocities, float)[chosen],
+                omegas=np.tile(np.asarray(omega, float), (count, 1)),
+            )
+
+    # -- clumps (multisphere species) ---------------------------------------------------------
+
+    def _orientations(self, count: int) -> np.ndarray:
+        """Unit quaternions ``(w, x, y, z)`` for ``count`` new clumps: uniformly random (from the
+        insertion's generator), the template's own, or a constant one."""
+        orientation, rng = self._orienting
+        if orientation == "random":
+            if rng is None:
+                raise ConfigError("random clump orientations need the insertion's random generator")
+            return clumps.random_orientations(count, rng)
+        if orientation == "template":
+            return np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))
+        q = np.asarray(orientation, float)  # ("constant", q) as the front end gives it: q
+        return np.tile(q / np.linalg.norm(q), (count, 1))
+
+    def _radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Radii to place particles with: a clump's is that of its enclosing sphere about its
+        template's origin (see clumps.enclosing_radius)."""
+        radii = super()._radii(species, rng)
+        for kind, template in self._templates.items():
+            radii[species == kind] = clumps.enclosing_radius(template)
+        return radii
+
+    def _insert(self, request: InsertSpec) -> str:
+        bodies = [k for k in request.species if k in self._templates]
+        if bodies and request.target not in ("particles_in_region", "particlerate"):
+            raise self._unsupported(
+                f"inserting multisphere species {bodies} by {request.target} (the native engine inserts "
+                "clumps by number: particles_in_region or particlerate)"
+            )
+        if self._templates and request.mechanism == "by_pack" and request.target == "particles_in_region":
+            # the front end added the spheres in the region to the request; count each clump once
+            request = replace(request, value=(request.requested or 0) + self._held(request))
+        return super()._insert(request)
+
+    def _insert_now(self, schedule: Any, amount: float) -> float:
+        self._orienting = (schedule.request.orientation or "random", schedule.rng)  # LIGGGHTS' default
+        try:
+            return super()._insert_now(schedule, amount)
+        finally:
+            self._orienting = ("template", None)
+
+    def _create(self, request: CreateSpec) -> int:
+        """As :meth:`PlacingEngine._create`; clumps keep their template's orientation."""
+        if request.species not in self._templates:
+            return super()._create(request)
+        if request.radius:
+            raise ConfigError(
+                f"createParticles: species {request.species} is multisphere, its spheres' radii come from "
+                "its template; leave radius out"
+            )
+        if request.style != "random":
+            return super()._create(request)
+        rng = np.random.default_rng(request.seed)
+        count = given(request.count, "createParticles('random')'s count")
+        types = np.full(count, request.species)
+        velocities = np.tile(np.asarray(request.velocity, float), (count, 1))
+        region = given(request.region, "createParticles('random')'s region")
+        return self._place(region, types, self._radii(types, rng), rng, velocities, request.omega)
+
+    def _held(self, request: InsertSpec) -> float:
+        """As :meth:`PlacingEngine._held`; a clump counts once when any of its spheres is in the region."""
+        if not self._templates:
+            return super()._held(request)
+        inside = request.region.contains(self._extract("x"))
+        body = self.solver.bodies[inside]
+        return float(np.count_nonzero(body < 0) + len(np.unique(body[body >= 0])))
+
+    def bodies(self) -> np.ndarray:
+        """The clump of each sphere, ordered by id as :meth:`extract`: the clump's id (1, 2, ...)
+        for the spheres of multisphere particles, -1 for single spheres (as the LIGGGHTS
+        engine's ``bodies()``; extracts give every sphere of a clump)."""
+        self._check_open()
+        body = self.solver.bodies
+        return np.where(body >= 0, body + 1, -1)
+
+    def clumps(self) -> dict[str, np.ndarray]:
+        """Every clump's ``id`` (as :meth:`bodies`), ``mass``, ``centre``, ``inertia`` tensor about
+        its centre in the world frame ``(n, 3, 3)``, and its motion (see :meth:`Solver.clumps`)."""
+        self._check_open()
+        found = self.solver.clumps()
+        found["id"] = found["id"] + 1
+        return found
 
     def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
         solver_ids = np.asarray(ids) - 1  # the solver counts from 0
+        if self._templates:
+            types = self.solver.types[np.isin(self.solver.ids, solver_ids)] + 1
+            bodies = sorted(set(types.tolist()) & set(self._templates))
+            if bodies:
+                raise UnsupportedFeature(
+                    f"set() on the spheres of multisphere species {bodies}: they move with their clumps; "
+                    "select the species of single spheres (species=...)"
+                )
         if spec.velocity is not None:
             self.solver.set_velocities(solver_ids, np.tile(spec.velocity, (len(solver_ids), 1)))
         if spec.omega is not None:
@@ -321,11 +448,20 @@ class NativeEngine(PlacingEngine):
         return {"threads": self.solver.threads}
 
     def _scalar(self, quantity: str) -> float:
+        if quantity == "ke" and self._templates:  # a clump's energy is its own, not its spheres'
+            return self.solver.kinetic_energy()[0]
         if quantity == "ke_rot":
             return self.solver.kinetic_energy()[1]
         if quantity == "contacts":
             return float(len(self.solver.contacts()[0]))
         return super()._scalar(quantity)
+
+    def _species_scalar(self, quantity: str, species: tuple[int, ...]) -> float:
+        """As :meth:`Engine._species_scalar`; with multisphere species, energies are the clumps'
+        own (not their spheres')."""
+        if quantity in ("ke", "ke_rot") and self._templates:
+            return self.solver.kinetic_energy([k - 1 for k in species])[quantity == "ke_rot"]
+        return super()._species_scalar(quantity, species)
 
     def _mesh_frame(self) -> Frame:
         triangles = [self.solver.mesh_triangles(w) for w in self._mesh_walls.values()]

@@ -35,7 +35,15 @@ Conventions (LIGGGHTS):
   (:meth:`Solver.set_mesh_vibration`), or a servo's (LIGGGHTS
   ``mesh/surface/stress/servo``, :meth:`Solver.set_servo`). The particles' force on a stress
   or servo mesh is summed at each step (:meth:`Solver.mesh_force`). Meshes are not repeated
-  across periodic boundaries.
+  across periodic boundaries;
+- clumps (:meth:`Solver.add_clumps`): rigid bodies of overlapping spheres, with the mass,
+  centre and inertia of the union of their spheres
+  (:func:`pygran_core.simulation.clumps.mass_properties`). Their spheres are particles in
+  every output (each with the clump's mass, its velocity at the sphere's centre and its
+  angular velocity; forces and torques: the sphere's contacts), never in contact with one
+  another; gravity and viscous drag act on the clump, which is integrated with a quaternion
+  and its angular momentum by a symplectic splitting (see _clumps.pxi). A clump one of whose
+  spheres leaves a fixed boundary is deleted whole and counted once.
 """
 
 from __future__ import annotations
@@ -48,6 +56,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from pygran_core.errors import ConfigError, ReadError
+from pygran_core.simulation import clumps
 from pygran_core.simulation.models import mixing
 from pygran_native import _kernels
 from pygran_native._solver import (
@@ -273,6 +282,7 @@ class Solver:
         self.rng = np.random.default_rng(seed)
         self._model: dict | None = None
         self._next_id = 0
+        self._next_body = 0
         self._next_wall = 0
         self._next_vertex = 0
         self._walls: dict[int, str] = {}
@@ -379,13 +389,71 @@ class Solver:
         self._check_types(t, "types")
         v = np.zeros((n, 3)) if velocities is None else _array(velocities, "velocities", (n, 3))
         w = np.zeros((n, 3)) if omegas is None else _array(omegas, "omegas", (n, 3))
-        for d in range(3):
-            if not self.periodic[d] and np.any((x[:, d] < self.box[0, d]) | (x[:, d] > self.box[1, d])):
-                raise ConfigError(f"positions: outside the fixed boundary of axis {'xyz'[d]}.")
+        self._check_inside(x, "positions")
         ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
         self._core.add_particles(x, r, np.ascontiguousarray(m), t, v, w, ids)
         self._next_id += n
         return ids.copy()
+
+    def _check_inside(self, x: np.ndarray, name: str) -> None:
+        for d in range(3):
+            if not self.periodic[d] and np.any((x[:, d] < self.box[0, d]) | (x[:, d] > self.box[1, d])):
+                raise ConfigError(f"{name}: outside the fixed boundary of axis {'xyz'[d]}.")
+
+    def add_clumps(
+        self, spheres, positions, density: float, orientations=None, types=0, velocities=None, omegas=None
+    ) -> np.ndarray:
+        """Add rigid clumps of the template ``spheres`` (rows ``x, y, z, r`` in the clump's own
+        frame) of ``density``: the template's origin at each of ``positions``, turned by
+        ``orientations`` (unit quaternions ``w, x, y, z``; default: as the template), moving at
+        ``velocities`` (of the centre of mass) and ``omegas``. Returns the clumps' ids; their
+        spheres' ids follow each other, clump by clump (see :attr:`bodies`)."""
+        x = _array(positions, "positions", (-1, 3))
+        n = x.shape[0]
+        try:
+            props = clumps.mass_properties(_array(spheres, "spheres", (-1, 4)), density)
+        except ValueError as exc:
+            raise ConfigError(f"spheres: {exc}.") from None
+        if not (math.isfinite(density) and density > 0):
+            raise ConfigError(f"density: must be > 0, got {density!r}.")
+        template = np.asarray(spheres, float)
+        q = (
+            np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+            if orientations is None
+            else _array(orientations, "orientations", (n, 4))
+        )
+        if np.any(np.abs(np.linalg.norm(q, axis=1) - 1) > 1e-9):
+            raise ConfigError("orientations: quaternions must have length 1.")
+        t = _per_particle(types, "types", n, np.int32)
+        self._check_types(t, "types")
+        v = np.zeros((n, 3)) if velocities is None else _array(velocities, "velocities", (n, 3))
+        w = np.zeros((n, 3)) if omegas is None else _array(omegas, "omegas", (n, 3))
+        turn = clumps.rotation_matrix(q)  # template frame -> world
+        axes = turn @ props.axes  # principal frame -> world
+        centres = x + turn @ props.centre
+        offsets = (template[:, :3] - props.centre) @ props.axes  # principal frame
+        k = len(template)
+        self._check_inside((centres[:, None] + offsets @ np.swapaxes(axes, 1, 2)).reshape(-1, 3), "positions")
+        momenta = props.moments * np.einsum("nji,nj->ni", axes, w)
+        bodies = np.arange(self._next_body, self._next_body + n, dtype=np.int64)
+        ids = np.arange(self._next_id, self._next_id + n * k, dtype=np.int64)
+        self._core.add_bodies(
+            np.ascontiguousarray(centres),
+            v,
+            np.ascontiguousarray(clumps.quaternion_of(axes)),
+            np.ascontiguousarray(momenta),
+            np.full(n, props.mass),
+            np.ascontiguousarray(np.tile(props.moments, (n, 1))),
+            t,
+            bodies,
+            np.full(n, k, np.int32),
+            np.ascontiguousarray(np.tile(offsets, (n, 1))),
+            np.ascontiguousarray(np.tile(template[:, 3], n)),
+            ids,
+        )
+        self._next_id += n * k
+        self._next_body += n
+        return bodies.copy()
 
     def _index(self, ids, name: str) -> np.ndarray:
         """Storage indices of the particles with these ids (ConfigError for unknown ids)."""
@@ -399,26 +467,38 @@ class Solver:
         return np.ascontiguousarray(order[pos], dtype=np.int32)
 
     def remove_particles(self, ids) -> None:
-        """Delete particles by id (with their contacts)."""
+        """Delete particles by id (with their contacts; a clump's sphere: the whole clump)."""
         index = self._index(ids, "ids")
         mask = np.zeros(self.n, np.uint8)
         mask[index] = 1
         self._core.mark_removed(mask)
         self._core.run(0, 1.0)  # rebuild now so n and the arrays reflect the removal
 
+    def _free(self, ids, name: str) -> np.ndarray:
+        """Storage indices of the particles with these ids, none a clump's sphere."""
+        index = self._index(ids, name)
+        body = self._core.array("body")[index]
+        if np.any(body >= 0):
+            raise ConfigError(
+                f"{name}: particle(s) {self._core.array('id')[index[body >= 0]].tolist()} are spheres of "
+                "clumps, which move and grow with their clump only."
+            )
+        return index
+
     def set_velocities(self, ids, velocities) -> None:
-        """Assign translational velocities to the particles with these ids."""
-        index = self._index(ids, "ids")
+        """Assign translational velocities to the particles with these ids (not clumps' spheres)."""
+        index = self._free(ids, "ids")
         self._core.set_vectors("v", index, _array(velocities, "velocities", (len(index), 3)))
 
     def set_omegas(self, ids, omegas) -> None:
-        """Assign angular velocities to the particles with these ids."""
-        index = self._index(ids, "ids")
+        """Assign angular velocities to the particles with these ids (not clumps' spheres)."""
+        index = self._free(ids, "ids")
         self._core.set_vectors("w", index, _array(omegas, "omegas", (len(index), 3)))
 
     def set_radii(self, ids, radii) -> None:
-        """Assign radii to the particles with these ids; masses follow at constant density."""
-        index = self._index(ids, "ids")
+        """Assign radii to the particles with these ids (not clumps' spheres); masses follow at
+        constant density."""
+        index = self._free(ids, "ids")
         r = _per_particle(radii, "radii", len(index))
         if np.any(r <= 0):
             raise ConfigError("radii: must be > 0.")
@@ -754,6 +834,32 @@ class Solver:
     masses = property(lambda self: self._sorted("m"), doc="(n,) masses, by id.")
     types = property(lambda self: self._sorted("type"), doc="(n,) types, by id.")
     ids = property(lambda self: np.sort(self._core.array("id")), doc="(n,) ids, ascending.")
+    bodies = property(
+        lambda self: self._sorted("body"), doc="(n,) the clump of each particle (-1: a free sphere), by id."
+    )
+
+    def clumps(self) -> dict[str, np.ndarray]:
+        """The clumps now, by id: ``id``, ``mass``, ``centre``, ``velocity``, angular velocity
+        ``omega`` and ``angular_momentum`` (world frame), ``orientation`` (unit quaternion ``w,
+        x, y, z`` of the principal axes), ``inertia`` tensor about the centre (world frame),
+        ``force`` and ``torque`` about the centre at the last step."""
+        found = self._core.bodies()
+        order = np.argsort(found["id"], kind="stable")
+        axes = clumps.rotation_matrix(found["q"][order])
+        inertia = found["inertia"][order]
+        momentum = np.einsum("nij,nj->ni", axes, found["p"][order])
+        return {
+            "id": found["id"][order],
+            "mass": found["m"][order],
+            "centre": found["x"][order],
+            "velocity": found["v"][order],
+            "omega": np.einsum("nij,nj->ni", axes, found["p"][order] / inertia),
+            "angular_momentum": momentum,
+            "orientation": found["q"][order],
+            "inertia": np.einsum("nij,nj,nkj->nik", axes, inertia, axes),
+            "force": found["f"][order],
+            "torque": found["t"][order],
+        }
 
     def contacts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Particle-particle contacts at the last step: ``(i_ids, j_ids, overlap, normal_force)``."""
@@ -761,13 +867,25 @@ class Solver:
         ids = self._core.array("id")
         return ids[i], ids[j], overlap, force
 
-    def kinetic_energy(self) -> tuple[float, float]:
-        """Translational and rotational kinetic energy (J)."""
+    def kinetic_energy(self, types=None) -> tuple[float, float]:
+        """Translational and rotational kinetic energy (J) of the free spheres and the clumps (of
+        ``types`` only, if given)."""
         m, r = self._core.array("m"), self._core.array("r")
         v, w = self._core.array("v"), self._core.array("w")
-        return float(0.5 * np.sum(m * np.sum(v * v, axis=1))), float(
-            0.2 * np.sum(m * r * r * np.sum(w * w, axis=1))
-        )
+        if self._core.nbody == 0 and types is None:
+            return float(0.5 * np.sum(m * np.sum(v * v, axis=1))), float(
+                0.2 * np.sum(m * r * r * np.sum(w * w, axis=1))
+            )
+        free = self._core.array("body") < 0
+        found = self._core.bodies()
+        if types is not None:
+            free &= np.isin(self._core.array("type"), types)
+            found = {key: value[np.isin(found["type"], types)] for key, value in found.items()}
+        translation = 0.5 * np.sum(m[free] * np.sum(v[free] ** 2, axis=1))
+        rotation = 0.2 * np.sum(m[free] * r[free] ** 2 * np.sum(w[free] ** 2, axis=1))
+        translation += 0.5 * np.sum(found["m"] * np.sum(found["v"] ** 2, axis=1))
+        rotation += 0.5 * np.sum(found["p"] ** 2 / found["inertia"])
+        return float(translation), float(rotation)
 
     @property
     def memory_bytes(self) -> int:
@@ -808,6 +926,8 @@ class Solver:
             state[f"model_{key}"] = np.array(np.nan if model[key] is None else model[key], float)
         state["viscous"] = self._viscous.copy()
         state["counters"] = np.array([self._next_id, self._next_wall, self._next_vertex], np.int64)
+        if self._next_body:
+            state["clump_counter"] = np.array([self._next_body], np.int64)
         state["wall_handles"] = np.array(list(self._walls), np.int64)
         state["wall_kinds"] = np.array([_WALL_KINDS.index(k) for k in self._walls.values()], np.int64)
         state["rng"] = _encode(json.dumps(self.rng.bit_generator.state))
@@ -833,7 +953,7 @@ class Solver:
         self._viscous = viscous
         self._core.set_viscous(viscous)
         self._core.set_state(core)
-        self._next_id, self._next_wall, self._next_vertex = counters
+        self._next_id, self._next_wall, self._next_vertex, self._next_body = counters
         self._walls = walls
         self.rng.bit_generator.state = rng
 
@@ -1020,6 +1140,9 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
         )
     # the solver's own entries
     next_id, next_wall, next_vertex = _entry(state, "counters", np.int64, 3).tolist()
+    next_body = 0  # clumps made so far: absent without any
+    if "clump_counter" in state:
+        (next_body,) = _entry(state, "clump_counter", np.int64, 1).tolist()
     handles = _entry(state, "wall_handles", np.int64)
     kinds = _entry(state, "wall_kinds", np.int64, handles.shape[0], " (one per wall of wall_handles)")
     _within("wall_handles", handles, 0, next_wall, f"handles in [0, {next_wall})")
@@ -1063,9 +1186,51 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
         )
     if n and next_id <= ids.max() or ne and next_vertex <= out["evid"].max():
         raise _fail("counters", "next particle id and vertex beyond those in use", [next_id, next_vertex])
+    _checked_clumps(state, out, nt, next_body)
     try:
         rng = json.loads(_text(state, "rng"))
         type(np.random.default_rng().bit_generator)().state = rng
     except (ValueError, TypeError, KeyError) as exc:
         raise _fail("rng", "the JSON state of a PCG64 generator", f"{type(exc).__name__}: {exc}") from None
-    return tables, model, viscous, out, (next_id, next_wall, next_vertex), walls, rng
+    return tables, model, viscous, out, (next_id, next_wall, next_vertex, next_body), walls, rng
+
+
+#: A checkpoint's per-clump entries (``core_body_<key>``) and their values per clump; the clump
+#: entries are there only when there are clumps.
+_BODY_VALUES = {"x": 3, "v": 3, "q": 4, "p": 3, "m": 1, "inertia": 3, "f": 3, "t": 3}
+
+
+def _checked_clumps(state: Mapping[str, np.ndarray], out: dict, nt: int, next_body: int) -> None:
+    """The clump entries of a state into ``out``, each checked (see :meth:`Solver.set_state`)."""
+    n = out["r"].shape[0]
+    if "core_mem" not in state:  # no clumps (the state of spheres only has no clump entries)
+        return
+
+    def get(key, dtype, length=None, basis=""):
+        return _entry(state, f"core_{key}", dtype, length, basis and f" ({basis})")
+
+    ids = out["body_id"] = get("body_id", np.int64)
+    nb = ids.shape[0]
+    _within("core_body_id", ids, 0, next_body, f"clump ids in [0, {next_body}) (counters)")
+    if len(np.unique(ids)) != nb:
+        raise _fail("core_body_id", "distinct clump ids", "repeated ids")
+    for key, k in _BODY_VALUES.items():
+        out[f"body_{key}"] = get(f"body_{key}", float, k * nb, f"{k} per clump of core_body_id")
+        _within(f"core_body_{key}", out[f"body_{key}"], -np.inf, np.inf, "finite values")
+    if np.any(out["body_m"] <= 0) or np.any(out["body_inertia"] <= 0):
+        raise _fail("core_body_m", "clumps' masses and principal moments > 0")
+    if np.any(np.abs(np.linalg.norm(out["body_q"].reshape(nb, 4), axis=1) - 1) > 1e-9):
+        raise _fail("core_body_q", "unit quaternions")
+    out["body_type"] = get("body_type", np.int32, nb, "one per clump of core_body_id")
+    _within("core_body_type", out["body_type"], 0, nt, f"types in [0, {nt - 1}]")
+    start = out["body_start"] = get("body_start", np.int32, nb + 1, "one more than the clumps")
+    nm = int(start[-1]) if len(start) else 0
+    _offsets("core_body_start", start, nm, "the member slots")
+    if nb and np.any(np.diff(start) == 0):
+        raise _fail("core_body_start", "at least one sphere per clump")
+    for key in ("member_offset", "member_shift"):
+        out[key] = get(key, float, 3 * nm, "3 per member slot of core_body_start")
+        _within(f"core_{key}", out[key], -np.inf, np.inf, "finite values")
+    mem = out["mem"] = get("mem", np.int32, n, "one per particle of core_r")
+    if not np.array_equal(np.sort(mem[mem >= 0]), np.arange(nm)) or np.any(mem < -1):
+        raise _fail("core_mem", f"-1 or a member slot, each of the {nm} slots held by one particle")
