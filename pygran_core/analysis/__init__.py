@@ -1,12 +1,30 @@
 """Post-processing of DEM trajectories: :class:`System`, :class:`Particles`, :class:`Mesh`,
 neighbour analysis (:mod:`~pygran_core.analysis.equilibrium`), time series
-(:mod:`~pygran_core.analysis.dynamics`), mixing indices (:mod:`~pygran_core.analysis.mixing`)
-and image analysis (:mod:`~pygran_core.analysis.imaging`)."""
+(:mod:`~pygran_core.analysis.dynamics`), mixing indices (:mod:`~pygran_core.analysis.mixing`),
+image analysis (:mod:`~pygran_core.analysis.imaging`) and continuum fields
+(:mod:`~pygran_core.analysis.coarse_grain`)."""
 
-from pygran_core.analysis import dynamics, equilibrium, imaging, mixing
+from pygran_core.analysis import coarse_grain, dynamics, equilibrium, imaging, mixing
+from pygran_core.analysis.coarse_grain import CoarseGrain, Fields, Grid1D, Grid2D, Grid3D, GridCylindrical
 from pygran_core.analysis.mesh import Mesh
 from pygran_core.analysis.particles import Particles
 from pygran_core.analysis.subsystem import SubSystem
 from pygran_core.analysis.system import System
 
-__all__ = ["Mesh", "Particles", "SubSystem", "System", "dynamics", "equilibrium", "imaging", "mixing"]
+__all__ = [
+    "CoarseGrain",
+    "Fields",
+    "Grid1D",
+    "Grid2D",
+    "Grid3D",
+    "GridCylindrical",
+    "Mesh",
+    "Particles",
+    "SubSystem",
+    "System",
+    "coarse_grain",
+    "dynamics",
+    "equilibrium",
+    "imaging",
+    "mixing",
+]

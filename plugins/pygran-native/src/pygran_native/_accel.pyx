@@ -8,6 +8,9 @@
 - ``cell_order``: the stable counting sort of points by cell.
 - ``parse_table``: the atom block of a text dump, decimal numbers correctly rounded (exact
   fast path, else ``strtod_l`` in the C locale), or None for anything it does not accept.
+- ``cg_points`` and ``cg_segments``: the Cartesian deposits of
+  ``pygran_core.analysis.coarse_grain`` (particles, and contact lines with their exact line
+  integrals), one particle or contact per iteration on OpenMP threads.
 """
 
 import numpy as np
@@ -365,3 +368,313 @@ def parse_table(const uint8_t[::1] text, Py_ssize_t ncols, Py_ssize_t nrows):
     if bad:
         return None
     return table[:, :row].T
+
+
+# -- coarse-graining --------------------------------------------------------------------------
+# The Cartesian deposits of pygran_core.analysis.coarse_grain (_points_numpy, _segments_numpy,
+# segment_integral): the same stencils, kernels and line integrals in the same arithmetic, one
+# particle or contact per iteration on OpenMP threads, each thread into its own copy of the grid.
+
+from libc.math cimport erf, erfc, exp, fabs, floor, sqrt
+from libc.stdlib cimport realloc
+
+_LEGENDRE7 = np.polynomial.legendre.leggauss(7)
+_LEGENDRE8 = np.polynomial.legendre.leggauss(8)
+cdef double _GL7X[7]
+cdef double _GL7W[7]
+cdef double _GL8X[8]
+cdef double _GL8W[8]
+for _q in range(7):
+    _GL7X[_q], _GL7W[_q] = _LEGENDRE7[0][_q], _LEGENDRE7[1][_q]
+for _q in range(8):
+    _GL8X[_q], _GL8W[_q] = _LEGENDRE8[0][_q], _LEGENDRE8[1][_q]
+
+
+cdef struct Lattice:
+    int ndim
+    int64_t axis[3]
+    double lower[3]
+    double h[3]
+    int64_t n[3]
+    int64_t stride[3]
+    bint wrap[3]
+    int kernel
+    double w, c
+
+
+cdef inline double _profile(const Lattice* g, double u) noexcept nogil:
+    """The 1D kernel (unnormalised), as ``Kernel.profile``."""
+    cdef double t
+    u = fabs(u)
+    if not u < g.c:
+        return 0.0
+    if g.kernel == 0:
+        t = u / g.w
+        return exp(-0.5 * (t * t))
+    if g.kernel == 1:
+        t = u / g.c
+        return (1 + 3 * t) * ((1 - t) * (1 - t) * (1 - t))
+    return 1.0
+
+
+cdef inline bint _cell(const Lattice* g, int d, int64_t k, int64_t* index) noexcept nogil:
+    """Lattice index ``k`` along dimension ``d`` wrapped or checked: False outside the grid."""
+    if g.wrap[d]:
+        k = k % g.n[d]
+        if k < 0:
+            k += g.n[d]
+    elif k < 0 or k >= g.n[d]:
+        return False
+    index[0] = k * g.stride[d]
+    return True
+
+
+cdef Lattice _lattice(const int64_t[::1] axes, const double[::1] lower, const double[::1] spacing,
+                      const int64_t[::1] n, const uint8_t[::1] wrap, int kernel, double width, double cutoff):
+    cdef Lattice g
+    cdef int d
+    g.ndim = axes.shape[0]
+    for d in range(3):
+        g.axis[d], g.lower[d], g.h[d], g.n[d], g.wrap[d] = 0, 0.0, 1.0, 1, False
+    for d in range(g.ndim):
+        g.axis[d], g.lower[d], g.h[d], g.n[d], g.wrap[d] = axes[d], lower[d], spacing[d], n[d], wrap[d] != 0
+    g.stride[2] = 1
+    g.stride[1] = g.n[2]
+    g.stride[0] = g.n[1] * g.n[2]
+    if g.ndim == 2:
+        g.stride[0], g.stride[1], g.stride[2] = g.n[1], 1, 0
+    elif g.ndim == 1:
+        g.stride[0], g.stride[1], g.stride[2] = 1, 0, 0
+    g.kernel, g.w, g.c = kernel, width, cutoff
+    return g
+
+
+def cg_points(const int64_t[::1] axes, const double[::1] lower, const double[::1] spacing,
+              const int64_t[::1] n, const uint8_t[::1] wrap, int kernel, double width, double cutoff,
+              const double[:, ::1] positions, const double[:, ::1] values):
+    """Sum over points of ``values`` (N, q) times their kernel weights at the cell centres,
+    normalised to 1 over the lattice: (cells, q)."""
+    cdef Lattice g = _lattice(axes, lower, spacing, n, wrap, kernel, width, cutoff)
+    cdef Py_ssize_t ncells = 1, q = values.shape[1], npoints = positions.shape[0], i, j
+    cdef int d, threads = openmp.omp_get_max_threads()
+    cdef int64_t count[3]
+    cdef int64_t kmax = 1
+    for d in range(g.ndim):
+        ncells *= g.n[d]
+        count[d] = <int64_t> floor(2 * g.c / g.h[d]) + 2
+        kmax = max(kmax, count[d])
+    for d in range(g.ndim, 3):
+        count[d] = 1
+    grids = np.zeros((threads, ncells, q))
+    cdef double[:, :, ::1] out = grids
+    cdef double* weight = NULL
+    cdef int64_t* index = NULL
+    cdef bint* valid = NULL
+    cdef int64_t low, k, o0, o1, o2, at
+    cdef double x, total, w0, w01, wt
+    cdef double* o
+    with nogil, parallel():
+        weight = <double*> malloc(3 * kmax * sizeof(double))
+        index = <int64_t*> malloc(3 * kmax * sizeof(int64_t))
+        valid = <bint*> malloc(3 * kmax * sizeof(bint))
+        for i in prange(npoints, schedule="static"):
+            for d in range(3):
+                if d >= g.ndim:
+                    weight[d * kmax], index[d * kmax], valid[d * kmax] = 1.0, 0, True
+                    continue
+                x = positions[i, g.axis[d]]
+                low = <int64_t> floor((x - g.lower[d]) / g.h[d] - 0.5 - g.c / g.h[d])
+                total = 0.0
+                for k in range(count[d]):
+                    weight[d * kmax + k] = _profile(&g, (g.lower[d] + ((low + k) + 0.5) * g.h[d]) - x)
+                    total = total + weight[d * kmax + k]
+                    valid[d * kmax + k] = _cell(&g, d, low + k, &index[d * kmax + k])
+                for k in range(count[d]):
+                    weight[d * kmax + k] = weight[d * kmax + k] / total
+            o = &out[threadid(), 0, 0]
+            for o0 in range(count[0]):
+                if not valid[o0]:
+                    continue
+                w0 = weight[o0]
+                for o1 in range(count[1]):
+                    if not valid[kmax + o1]:
+                        continue
+                    w01 = w0 * weight[kmax + o1]
+                    for o2 in range(count[2]):
+                        wt = w01 * weight[2 * kmax + o2]
+                        if not valid[2 * kmax + o2] or wt == 0:
+                            continue
+                        at = (index[o0] + index[kmax + o1] + index[2 * kmax + o2]) * q
+                        for j in range(q):
+                            o[at + j] += wt * values[i, j]
+        free(weight)
+        free(index)
+        free(valid)
+    return grids.sum(axis=0)
+
+
+cdef inline double _legendre(const Lattice* g, const double* d, const double* b, double s0, double s1,
+                             const double* nodes, const double* weights, int m) noexcept nogil:
+    """Gauss-Legendre with ``m`` nodes of the kernel product along the segment, on [s0, s1]."""
+    cdef double half = 0.5 * (s1 - s0), mid = 0.5 * (s1 + s0), total = 0.0, s, value
+    cdef int q, e
+    for q in range(m):
+        s = mid + half * nodes[q]
+        value = weights[q] * half
+        for e in range(g.ndim):
+            value = value * _profile(g, d[e] + s * b[e])
+        total = total + value
+    return total
+
+
+cdef inline double _erf_difference(double a, double b) noexcept nogil:
+    if a > 0 and b > 0:
+        return erfc(fabs(a)) - erfc(fabs(b))
+    if a < 0 and b < 0:
+        return erfc(fabs(b)) - erfc(fabs(a))
+    return erf(b) - erf(a)
+
+
+cdef double _segment(const Lattice* g, const double* d, const double* b) noexcept nogil:
+    """``segment_integral`` of coarse_grain: the kernel product integrated along ``d + s b``."""
+    cdef double s0 = 0.0, s1 = 1.0, lo, hi, t, length, a2 = 0.0, dot = 0.0, dd = 0.0, root, scale, perp
+    cdef double cuts[5]
+    cdef int e, m = 2, p, r
+    for e in range(g.ndim):
+        if b[e] == 0:
+            if not fabs(d[e]) < g.c:
+                return 0.0
+            continue
+        lo = (-g.c - d[e]) / b[e]
+        hi = (g.c - d[e]) / b[e]
+        if lo > hi:
+            lo, hi = hi, lo
+        s0 = s0 if s0 > lo else lo
+        s1 = s1 if s1 < hi else hi
+    length = s1 - s0
+    if not length > 0:
+        return 0.0
+    if g.kernel == 2:
+        return length
+    if g.kernel == 1:
+        cuts[0], cuts[1] = s0, s1
+        for e in range(g.ndim):
+            if b[e] != 0:
+                t = -d[e] / b[e]
+                if s0 < t < s1:
+                    cuts[m] = t
+                    m += 1
+        for p in range(1, m):  # insertion sort of at most five
+            t = cuts[p]
+            r = p - 1
+            while r >= 0 and cuts[r] > t:
+                cuts[r + 1] = cuts[r]
+                r -= 1
+            cuts[r + 1] = t
+        t = 0.0
+        for p in range(m - 1):
+            t = t + _legendre(g, d, b, cuts[p], cuts[p + 1], _GL7X, _GL7W, 7)
+        return t
+    for e in range(g.ndim):
+        a2 = a2 + b[e] * b[e]
+    root = sqrt(a2)
+    if root * length <= g.w:
+        return _legendre(g, d, b, s0, s1, _GL8X, _GL8W, 8)
+    for e in range(g.ndim):
+        dot = dot + d[e] * b[e]
+        dd = dd + d[e] * d[e]
+    dot = dot / a2
+    perp = dd - dot * dot * a2
+    if perp < 0:
+        perp = 0.0
+    scale = root / (sqrt(2.0) * g.w)
+    return exp(-0.5 * perp / (g.w * g.w)) * (sqrt(3.141592653589793) / (2 * scale)) * _erf_difference(
+        (s0 + dot) * scale, (s1 + dot) * scale)
+
+
+cdef struct Buffer:  # one thread's scratch space (C arrays written in a prange would be shared)
+    double* weight
+    int64_t* cells
+    int64_t capacity
+    int64_t low[3]
+    int64_t count[3]
+    int64_t k[3]
+    double d0[3]
+    double dv[3]
+    double bv[3]
+
+
+cdef inline void _grow(Buffer* buf, int64_t size) noexcept nogil:
+    if size > buf.capacity:
+        buf.capacity = 2 * size
+        buf.weight = <double*> realloc(buf.weight, buf.capacity * sizeof(double))
+        buf.cells = <int64_t*> realloc(buf.cells, buf.capacity * sizeof(int64_t))
+
+
+def cg_segments(const int64_t[::1] axes, const double[::1] lower, const double[::1] spacing,
+                const int64_t[::1] n, const uint8_t[::1] wrap, int kernel, double width, double cutoff,
+                const double[:, ::1] start, const double[:, ::1] branch, const double[:, ::1] values):
+    """Sum over segments ``start -> start - branch`` of ``values`` (M, q) times the kernel
+    integrated along them at the cell centres, normalised to 1 over the lattice: (cells, q)."""
+    cdef Lattice g = _lattice(axes, lower, spacing, n, wrap, kernel, width, cutoff)
+    cdef Py_ssize_t ncells = 1, q = values.shape[1], nseg = start.shape[0], i, j
+    cdef int d, threads = openmp.omp_get_max_threads()
+    for d in range(g.ndim):
+        ncells *= g.n[d]
+    grids = np.zeros((threads, ncells, q))
+    cdef double[:, :, ::1] out = grids
+    cdef Buffer* buf = NULL
+    cdef double* weight
+    cdef int64_t* cells
+    cdef int64_t size, p, at, part
+    cdef double a0, a1, total, wt
+    cdef double* o
+    cdef bint inside
+    with nogil, parallel():
+        buf = <Buffer*> malloc(sizeof(Buffer))
+        buf.weight, buf.cells, buf.capacity = NULL, NULL, 0
+        for i in prange(nseg, schedule="dynamic", chunksize=256):
+            size = 1
+            for d in range(3):
+                buf.low[d], buf.count[d], buf.d0[d], buf.bv[d] = 0, 1, 0.0, 0.0
+            for d in range(g.ndim):
+                a0 = start[i, g.axis[d]]
+                a1 = a0 - branch[i, g.axis[d]]
+                buf.low[d] = <int64_t> floor(((a0 if a0 < a1 else a1) - g.lower[d] - g.c) / g.h[d] - 0.5)
+                buf.count[d] = <int64_t> floor((fabs(branch[i, g.axis[d]]) + 2 * g.c) / g.h[d]) + 2
+                buf.bv[d] = branch[i, g.axis[d]]
+                buf.d0[d] = a0
+                size = size * buf.count[d]
+            _grow(buf, size)
+            weight, cells = buf.weight, buf.cells
+            total = 0.0
+            for p in range(size):
+                buf.k[2] = p % buf.count[2]
+                buf.k[1] = (p // buf.count[2]) % buf.count[1]
+                buf.k[0] = p // (buf.count[2] * buf.count[1])
+                inside = True
+                cells[p] = 0
+                for d in range(g.ndim):
+                    buf.dv[d] = (g.lower[d] + ((buf.low[d] + buf.k[d]) + 0.5) * g.h[d]) - buf.d0[d]
+                    if _cell(&g, d, buf.low[d] + buf.k[d], &part):
+                        cells[p] += part
+                    else:
+                        inside = False
+                weight[p] = _segment(&g, buf.dv, buf.bv)
+                total = total + weight[p]
+                if not inside:
+                    cells[p] = -1
+            if not total > 0:
+                continue
+            o = &out[threadid(), 0, 0]
+            for p in range(size):
+                if cells[p] < 0 or weight[p] == 0:
+                    continue
+                wt = weight[p] / total
+                at = cells[p] * q
+                for j in range(q):
+                    o[at + j] += wt * values[i, j]
+        free(buf.weight)
+        free(buf.cells)
+        free(buf)
+    return grids.sum(axis=0)
