@@ -101,6 +101,13 @@ BODY_ENERGY = {"ke": "pg_body_ke", "ke_rot": "pg_body_erotate"}
 #: Monte Carlo samples of ``particletemplate/multisphere`` for a body's mass, centre and
 #: inertia (LIGGGHTS warns below 1e5).
 MONTE_CARLO_TRIES = 1_000_000
+#: LIGGGHTS' computes of the contact records (``traj`` ``cfile``): id -> style and keywords.
+CONTACT_COMPUTES = {
+    "pg_pairs": "pair/gran/local pos id force contactPoint",
+    "pg_walls": "wall/gran/local pos id force",
+}
+#: Where LIGGGHTS writes them (``dump local``, a file per frame), under the output directory.
+CONTACTS_DIR = "liggghts-contacts"
 #: LIGGGHTS refuses Young's moduli below this (SI) unless told ``soft_particles yes``.
 SOFT_LIMIT = 5e6
 #: ... and above this unless told ``hard_particles yes``.
@@ -389,7 +396,26 @@ class Commands:
             lines.append(
                 f"dump pg_mesh_dump all mesh/vtk {traj.freq} {self.path(traj.mfile)} {' '.join(traj.margs)}"
             )
+        if traj.cfile is not None:
+            lines += self.contacts("pg_pairs")
         return lines
+
+    def contacts(self, compute: str) -> list[str]:
+        """The compute ``compute`` of :data:`CONTACT_COMPUTES` and its ``dump local``, a file per
+        frame in :data:`CONTACTS_DIR`, every number written exactly (LIGGGHTS defines it before
+        the first run only; wall contacts need the fix of the mesh walls first)."""
+        style = CONTACT_COMPUTES[compute]
+        width = 15 if compute == "pg_pairs" else 12
+        folder = self.spec.output / CONTACTS_DIR
+        folder.mkdir(parents=True, exist_ok=True)
+        columns = " ".join(f"c_{compute}[{k}]" for k in range(1, width + 1))
+        exact = " ".join(["%.17g"] * width)
+        files = self.path(folder / f"{compute}.*.dump")
+        return [
+            f"compute {compute} all {style}",
+            f"dump {compute} all local {self.spec.traj.freq} {files} {columns}",
+            f'dump_modify {compute} format "{exact}"',
+        ]
 
     # -- calls -----------------------------------------------------------------------------
 

@@ -40,11 +40,15 @@ from pygran_core.errors import (
     ReadError,
     UnsupportedFeature,
 )
+from pygran_core.formats import contacts as contact_schema
+from pygran_core.io import Frame, open_trajectory
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
 from pygran_core.simulation.engine import Engine, LostParticles, before_resume, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, given, launch_communicator
 from pygran_liggghts.commands import (
     BODY_ENERGY,
+    CONTACT_COMPUTES,
+    CONTACTS_DIR,
     Commands,
     fmt,
     native_meshes,
@@ -130,6 +134,7 @@ class LiggghtsEngine(Engine):
             "raw-commands",
             "liggghts-dump",
             "neighbor-styles",
+            "contact-output",
         }
     )
     #: Each run chunk is a LIGGGHTS ``run``; few chunks keep the overhead negligible.
@@ -187,12 +192,20 @@ class LiggghtsEngine(Engine):
         self._ungrouped = False  # atoms created since the last run, not yet in the spheres' group
         self._computed = False  # whether a run has set up LIGGGHTS' computes
         self._unreported = LostParticles()  # lost particles not yet reported to the front end
+        #: Contact records (traj cfile): the last step written, whether LIGGGHTS writes those
+        #: with mesh walls (None: decided at the first run), each wall's number (by label)
+        self._contacts_step = -1
+        self._wall_contacts: bool | None = None
+        self._wall_numbers: dict[str, int] = {}
         try:
             if spec.traj.mfile is not None and spec.meshes and spec.traj.mfile.suffix != ".vtk":
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
             if comm is not None and spec.nprocs not in (None, comm.size):
                 raise ConfigError(f"nprocs={spec.nprocs} differs from the {comm.size} MPI ranks of this run")
             self.commands = Commands(spec)
+            if spec.traj.cfile is not None and self._root:  # frames of an earlier run are stale
+                for stale in (self.output / CONTACTS_DIR).glob("pg_*.dump"):
+                    stale.unlink()
             resume = self._resume_file()
             self._input = (self.output / INPUT_NAME).open("w") if self._root else None
             args = ["-screen", str(self.output / LOG_NAME), "-log", "none"]
@@ -324,6 +337,10 @@ class LiggghtsEngine(Engine):
                 f"the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
             )
         lines = []
+        if self.spec.traj.cfile is not None and self._wall_contacts is None:
+            # LIGGGHTS defines its contact computes before the first run only
+            self._wall_contacts = bool(self._mesh_walls)
+            lines += self.commands.contacts("pg_walls") if self._wall_contacts else []
         if self._ungrouped:
             lines.append(self.commands.regroup())
             self._ungrouped = False
@@ -788,7 +805,19 @@ class LiggghtsEngine(Engine):
     def _wall(self, spec: WallSpec) -> str:
         if spec.kind == "mesh" and spec.mesh in self._mesh_walls.values():
             raise ConfigError(f"mesh {spec.mesh!r} is already a wall; remove that wall first")
+        if self.spec.traj.cfile is not None and (spec.kind != "mesh" or self._wall_contacts is False):
+            raise UnsupportedFeature(
+                "LIGGGHTS writes the contacts (traj cfile) with mesh walls set up before the first run only "
+                "(its compute wall/gran/local takes mesh walls and is defined before the first run): "
+                + (
+                    "make this wall a mesh (setupWall(wtype='mesh', ...))"
+                    if spec.kind != "mesh"
+                    else "set this mesh wall up before the first run"
+                )
+                + ", or drop traj cfile"
+            )
         label, lines = self.commands.wall(spec)
+        self._wall_numbers[label] = len(self._wall_numbers)
         if spec.kind == "mesh":
             self._mesh_walls[label] = given(spec.mesh, "a mesh wall's mesh")
             lines = self._rebuild_mesh_walls()
@@ -883,8 +912,7 @@ class LiggghtsEngine(Engine):
         the frame of the step it starts at): that frame is cut off then (see
         :meth:`_before_run`), and stays if nothing more runs (a finished study run again).
         A single ``.vtk`` of mesh frames keeps those before this step."""
-        native = native_particles(self.spec) if key == "particles" else native_meshes(self.spec)
-        if not native:
+        if not self._native(key):
             super()._cut_trajectory(key, path)
             return
         if not self._root:
@@ -928,15 +956,59 @@ class LiggghtsEngine(Engine):
             os.truncate(self.spec.traj.pfile, self._rewritten_frame)
             self._rewritten_frame = None
 
+    def _native(self, key: str) -> bool:
+        """Whether LIGGGHTS writes the trajectory ``key`` itself: .dump particles, .vtk meshes."""
+        if key == "particles":
+            return native_particles(self.spec)
+        return key == "meshes" and native_meshes(self.spec)
+
     def _write(self, key: str, path: Any, make_frame: Any) -> None:
-        # .dump particles and .vtk meshes are written by LIGGGHTS' own dump commands
-        native = native_particles(self.spec) if key == "particles" else native_meshes(self.spec)
-        if native:
+        if self._native(key):
+            return
+        if key == "contacts":  # LIGGGHTS' dumps of them, from the first run on, gathered on rank 0
+            for frame in self._written_contacts() if self._root else []:
+                super()._write(key, path, lambda frame=frame: frame)
             return
         if self._root:
             super()._write(key, path, make_frame)
         else:
             make_frame()  # gathering is collective: every rank takes part
+
+    def _written_contacts(self) -> list[Frame]:
+        """The contact frames LIGGGHTS has written since the last call (the first run writes
+        the frame of the step it starts at), as the schema's records, their files removed: the
+        pairs of ``compute pair/gran/local``, then the mesh-wall contacts of ``wall/gran/local``
+        with ``id2 = -(k + 1)`` for the k-th wall set up."""
+        folder = self.output / CONTACTS_DIR
+        by_step: dict[int, dict[str, Path]] = {}
+        for path in folder.glob("pg_*.*.dump"):
+            compute, number = path.name.split(".")[:2]
+            by_step.setdefault(int(number), {})[compute] = path
+        walls = [self._wall_numbers[label] for label in self._mesh_walls]  # by LIGGGHTS' mesh index
+        box, boundary = self._bounds()
+        frames = []
+        for step, paths in sorted(by_step.items()):
+            if step <= self._contacts_step or step > self.step:  # rewritten as a run starts
+                for path in paths.values():
+                    path.unlink()
+                continue
+            parts = []
+            for compute, path in sorted(paths.items()):
+                with open_trajectory(path, compute=CONTACT_COMPUTES[compute]) as dump:
+                    arrays = dump[0].arrays
+                if compute == "pg_walls":  # id2 = -(LIGGGHTS' mesh index + 1)
+                    arrays["id2"] = -(np.array(walls, dtype=np.int64)[-arrays["id2"] - 1] + 1)
+                parts.append(arrays)
+                path.unlink()
+            merged = {name: np.concatenate([part[name] for part in parts]) for name in contact_schema.COLUMNS}
+            time = self._clock[1] + (step - self._clock[0]) * self.dt if self.dt is not None else None
+            frames.append(
+                Frame(
+                    merged, timestep=step, time=time, box=box, boundary=boundary, attrs={"kind": "contacts"}
+                )
+            )
+            self._contacts_step = step
+        return frames
 
     def _close(self) -> None:
         try:
