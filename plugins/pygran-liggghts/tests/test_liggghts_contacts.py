@@ -133,3 +133,39 @@ def test_primitive_walls_are_refused_with_contact_output(tmp_path):
     ) as sim:
         with pytest.raises(UnsupportedFeature, match="mesh walls set up before the first run.*wtype='mesh'"):
             sim.setupWall(species=1, plane="zplane", peq=0.0)
+
+
+def bed_with_checkpoints(output, runs, resume):
+    with simulation.DEM(
+        engine="liggghts",
+        output=str(output),
+        progress=False,
+        model=HertzMindlin,
+        box=(0.0, SIDES[0], 0.0, SIDES[1], -RADIUS, (SHAPE[2] + 3) * SETTLE_SPACING),
+        boundary=("p", "p", "f"),
+        gravity=GRAVITY,
+        dt=1e-5,
+        nns_skin=4e-4,
+        species=({"material": dict(SOFT), "radius": RADIUS},),
+        mesh={"floor": {"file": str(floor_stl(output / "floor.stl")), "material": dict(SOFT)}},
+        restart={"freq": 1000, "resume": resume},
+        traj={"freq": 500, "pfile": "traj.h5", "cfile": "traj.h5", "args": COLUMNS},
+    ) as sim:
+        sim.setupWall(species=1, wtype="mesh", mesh="floor")
+        sim.createParticles(1, "single", settle_positions(SHAPE, 5))
+        for _ in range(runs):
+            sim.run(1000)
+
+
+def test_contacts_resume(tmp_path):
+    """A script resumed from its checkpoint at step 2000 continues the contacts with the
+    particles: LIGGGHTS' computes are defined anew after its restart file, and the frame it
+    writes again at the resumed step is not written twice."""
+    require_solver(find_library)
+    bed_with_checkpoints(tmp_path, 2, resume=False)
+    bed_with_checkpoints(tmp_path, 3, resume=True)
+    with analysis.System(Particles=str(tmp_path / "traj.h5")) as system:
+        steps = [(system.Particles.timestep, system.Contacts.timestep) for _ in system.frames()]
+        assert steps == [(s, s) for s in range(0, 3001, 500)]
+        system.goto(-1)
+        assert len(system.Contacts) > len(system.Particles)  # the falling spheres have met

@@ -899,6 +899,11 @@ class LiggghtsEngine(Engine):
         targets = {f"{TARGET_KEY}/{number}": np.array(value) for number, value in self._targets.values()}
         return {**super()._state(), RESTART_KEY: encode_text(self._restart_name()), **targets}
 
+    def _restore_state(self, state: dict[str, np.ndarray]) -> None:
+        """LIGGGHTS has read its restart file already; the contacts of the resumed step are in
+        the trajectory cut back, and LIGGGHTS writes them again as the next run starts."""
+        self._contacts_step = self.step
+
     def _checkpoint(self, path: Any) -> None:
         previous = self._restart_file
         super()._checkpoint(path)
