@@ -48,6 +48,7 @@ cdef void restore(Core core, state) except *:
         raise MemoryError()
     core.s.n = 0
     core.s.ne = 0
+    core.s.forces_valid = 0
     kinds = np.ascontiguousarray(state["ekind"], dtype=np.int32)
     core.add_elements(kinds, np.ascontiguousarray(state["etype"], dtype=np.int32),
                       np.ascontiguousarray(state["ewall"], dtype=np.int32),

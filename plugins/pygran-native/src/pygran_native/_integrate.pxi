@@ -140,6 +140,7 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
         sim.cpu[PAD * t + 2] = 0.0
         sim.cpu[PAD * t + 3] = 0.0
     run_phase(sim, P_PAIRS, sim.nblocks)
+    sim.forces_valid = 1
     if sim.nslots:
         servo_sums(sim)
         if update:

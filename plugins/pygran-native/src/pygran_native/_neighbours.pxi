@@ -137,11 +137,19 @@ cdef int scan_walls(const State* c, int i, bint fill) noexcept nogil:
 
 
 cdef int reserve_pairs(State* sim, long long need) noexcept nogil:
-    """Grow the current neighbour list to ``need`` pairs; -1 when out of memory."""
+    """Grow the current neighbour list (and the pair forces) to ``need`` pairs; -1 when out of
+    memory."""
     cdef long long cap
     cdef void *a
     cdef void *b
     cdef void *c
+    if need > sim.nbf_cap:
+        cap = need + need // 10 + 64
+        a = grow(sim.nb_f, cap * 3 * sizeof(double))
+        if a == NULL:
+            return -1
+        sim.nb_f = <double*>a
+        sim.nbf_cap = cap
     if need <= sim.nb_cap:
         return 0
     cap = need + need // 10 + 64

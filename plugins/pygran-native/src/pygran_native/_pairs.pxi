@@ -22,6 +22,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef const int* nb_j = c.nb_j
     cdef uint8_t* nb_s = c.nb_s
     cdef double* nb_h = c.nb_h
+    cdef double* nb_f = c.nb_f
     cdef const double* shiftv = &c.shiftv[0]
     cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
     cdef double* buf = c.buf
@@ -88,6 +89,8 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
             if res == NO_CONTACT:
                 memset(h, 0, hs * sizeof(double))
                 nb_s[k] &= ~TOUCH
+            elif nb_s[k] & TOUCH:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
+                memset(&nb_f[<long long>3 * k], 0, 3 * sizeof(double))
             continue
         nb_s[k] |= TOUCH
         touching += 1
@@ -100,6 +103,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         else:
             bj = &halo[(far + j) * 6]
         for q in range(3):
+            nb_f[<long long>3 * k + q] = F[q]
             fi[q] += F[q]
             fi[3 + q] += Mr[q] - ri * cx[q]
             bj[q] -= F[q]

@@ -253,7 +253,7 @@ cdef class Core:
         for k in range(NMCOLUMNS):
             free(cols[k].p[0])
         for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.nb_j,
-                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.ob_j,
+                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.nb_f, <size_t>self.s.ob_j,
                   <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
                   <size_t>self.s.wl_h, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
                   <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri,
@@ -702,6 +702,48 @@ cdef class Core:
                 cnt += 1
         return out_i, out_j, out_d, out_f
 
+    def contact_forces(self):
+        """Particle-particle contacts at the last force evaluation, as the pair loop applied them:
+        ids ``id1``, ``id2``; the force on id1 by id2 ``fx, fy, fz`` (normal and tangential);
+        the contact point ``cx, cy, cz`` (in the middle of the overlap, on the line of centres
+        from id1's centre) and the branch vector ``bx, by, bz`` = x1 - x2 (the periodic image in
+        contact). Only meaningful after a run (the forces are not part of a checkpoint)."""
+        cdef int i, j, k, q, cnt = 0, npair = self.s.nb_start[self.s.n]
+        cdef double dist, rc
+        cdef double d[3]
+        cdef const double* sv
+        for k in range(npair):
+            cnt += (self.s.nb_s[k] & TOUCH) != 0
+        if cnt and not self.s.forces_valid:
+            raise ValueError("no force evaluation since the state was set")
+        out = {key: np.empty(cnt, dtype=np.int64) for key in ("id1", "id2")}
+        for key in ("fx", "fy", "fz", "cx", "cy", "cz", "bx", "by", "bz"):
+            out[key] = np.empty(cnt, dtype=float)
+        cdef int64_t[::1] id1 = out["id1"], id2 = out["id2"]
+        cdef double[::1] fx = out["fx"], fy = out["fy"], fz = out["fz"]
+        cdef double[::1] cx = out["cx"], cy = out["cy"], cz = out["cz"]
+        cdef double[::1] bx = out["bx"], by = out["by"], bz = out["bz"]
+        cnt = 0
+        for i in range(self.s.n):
+            for k in range(self.s.nb_start[i], self.s.nb_start[i + 1]):
+                if not self.s.nb_s[k] & TOUCH:
+                    continue
+                j = self.s.nb_j[k]
+                sv = &self.s.shiftv[3 * (self.s.nb_s[k] & IMAGE)]
+                for q in range(3):
+                    d[q] = self.s.x[3 * i + q] - self.s.x[3 * j + q] + sv[q]
+                dist = sqrt(dot3(d, d))
+                rc = self.s.r[i] - 0.5 * (self.s.r[i] + self.s.r[j] - dist)   # centre to contact point
+                id1[cnt] = self.s.pid[i]
+                id2[cnt] = self.s.pid[j]
+                fx[cnt], fy[cnt], fz[cnt] = self.s.nb_f[3 * k], self.s.nb_f[3 * k + 1], self.s.nb_f[3 * k + 2]
+                bx[cnt], by[cnt], bz[cnt] = d[0], d[1], d[2]
+                cx[cnt] = self.s.x[3 * i] - rc * d[0] / dist
+                cy[cnt] = self.s.x[3 * i + 1] - rc * d[1] / dist
+                cz[cnt] = self.s.x[3 * i + 2] - rc * d[2] / dist
+                cnt += 1
+        return out
+
     def timings(self):
         """Seconds spent so far: wall clock per phase (``TIMERS``), and per-thread CPU time in
         the pair and particle loops (``pairs_cpu``, ``particles_cpu``)."""
@@ -730,7 +772,7 @@ cdef class Core:
             per_member += cols[k].size
         return (self.s.cap * per_particle + self.s.bcap * per_body + self.s.mcap * per_member
                 + self.s.halo_cap * 6 * 8
-                + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs)
+                + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs) + self.s.nbf_cap * 24
                 + self.s.wl_cap * (12 + 8 * self.s.hs) + self.s.ow_cap * (12 + 8 * self.s.hs)
                 + self.s.cell_cap * 8 + self.s.ctri_cap * 4)
 

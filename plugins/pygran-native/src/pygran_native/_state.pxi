@@ -87,6 +87,8 @@ cdef struct State:
     uint8_t *nb_s
     double *nb_h
     long long nb_cap
+    double *nb_f       # the force of each listed pair at the last evaluation, on i (3, see contact_forces)
+    long long nbf_cap
     int *ob_start
     int *ob_j
     uint8_t *ob_s
@@ -168,6 +170,7 @@ cdef struct State:
     # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
     double dt
     int update, kick, fuse
+    int forces_valid   # nb_f holds the last evaluation's pair forces (not after set_state)
 
 
 cdef struct Column:

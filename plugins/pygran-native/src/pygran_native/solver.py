@@ -867,6 +867,20 @@ class Solver:
         ids = self._core.array("id")
         return ids[i], ids[j], overlap, force
 
+    def contact_forces(self) -> dict[str, np.ndarray]:
+        """Particle-particle contacts at the last step, with the forces the step applied: ids
+        ``id1``, ``id2`` (int64), the total contact force on id1 by id2 ``fx, fy, fz`` (normal and
+        tangential; id2 gets the opposite), the contact point ``cx, cy, cz`` (the middle of the
+        overlap on the line of centres) and the branch vector ``bx, by, bz`` = x1 - x2 (across a
+        periodic boundary, to the image in contact). A ConfigError after :meth:`set_state` until
+        a run evaluates the forces (they are not part of a checkpoint)."""
+        try:
+            return self._core.contact_forces()
+        except ValueError:
+            raise ConfigError(
+                "contact_forces: no step since the state was restored; run a step first."
+            ) from None
+
     def kinetic_energy(self, types=None) -> tuple[float, float]:
         """Translational and rotational kinetic energy (J) of the free spheres and the clumps (of
         ``types`` only, if given)."""
