@@ -320,3 +320,17 @@ def test_solver_clumps_lost_whole_and_wrapped_whole():
     assert x[:, 0].min() < 0.002 and x[:, 0].max() > 0.018  # across the boundary
     gaps = np.diff(np.sort((x[:, 0] - x[0, 0] + 0.01) % 0.02))
     np.testing.assert_allclose(gaps, 1.5 * R, rtol=1e-9)
+
+
+def test_solver_clumps_feel_gravity_and_drag_as_bodies():
+    """A rod falling against viscous drag gamma reaches its terminal speed M g / gamma (after ten
+    relaxation times M / gamma, to 1e-4), the drag acting once on the body, not per sphere."""
+    s = Solver(box=[[-0.01] * 3, [0.01] * 3], gravity=(0, 0, -9.81), skin=2e-4, threads=1)
+    s.set_contact_model("hertz", youngs=1e7, poisson=0.3, restitution=0.5)
+    s.add_clumps(ROD, [[0.0, 0.0, 0.005]], 1000)
+    mass = s.clumps()["mass"][0]
+    s.set_viscous(mass / 1e-3)  # relaxation time 1 ms
+    s.run(10_000, 1e-6)
+    velocity = s.clumps()["velocity"][0]
+    np.testing.assert_allclose(velocity, [0, 0, -9.81e-3], rtol=1e-4, atol=1e-15)
+    np.testing.assert_allclose(s.velocities, np.tile(velocity, (4, 1)), rtol=1e-12)
