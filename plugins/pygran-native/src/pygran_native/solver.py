@@ -410,12 +410,12 @@ class Solver:
         spheres' ids follow each other, clump by clump (see :attr:`bodies`)."""
         x = _array(positions, "positions", (-1, 3))
         n = x.shape[0]
+        if not (math.isfinite(density) and density > 0):
+            raise ConfigError(f"density: must be > 0, got {density!r}.")
         try:
             props = clumps.mass_properties(_array(spheres, "spheres", (-1, 4)), density)
         except ValueError as exc:
             raise ConfigError(f"spheres: {exc}.") from None
-        if not (math.isfinite(density) and density > 0):
-            raise ConfigError(f"density: must be > 0, got {density!r}.")
         template = np.asarray(spheres, float)
         q = (
             np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
