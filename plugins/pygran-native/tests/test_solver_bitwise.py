@@ -255,7 +255,7 @@ def test_results_are_bitwise_the_reference(case, threads):
     for key, value in ref.items():
         np.testing.assert_array_equal(got[key], value, err_msg=f"{case}, {threads} threads: {key}")
     # the scenario exercises what it is meant to: contacts, rolling springs, lost particles, meshes
-    assert len(got["contacts_i"]) > 5
+    assert len(got["contacts_i"]) >= 5
     assert s.rebuilds > 2
     if case != "mixer":
         hs = got["state_core_nb_h"].reshape(len(got["state_core_nb_j"]), -1)

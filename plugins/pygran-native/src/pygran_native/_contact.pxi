@@ -33,5 +33,5 @@ cdef inline int contact_force(int model, int rolling, int roff, const Coef* c, d
         if rolling != CDT:
             elastic_plastic_rolling(rolling, c, fn, kn, kt, Rs, Ir, n, wrel, &hist[roff], dt, update, Mr)
         else:
-            cdt_rolling(c, fn, Rs, n, wrel, Mr)
+            cdt_rolling(c, kn * delta, Rs, n, wrel, Mr)
     return IN_CONTACT

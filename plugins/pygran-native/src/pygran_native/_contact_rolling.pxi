@@ -37,14 +37,16 @@ cdef inline void elastic_plastic_rolling(int rolling, const Coef* c, double fn, 
         Mr[k] = -(M[k] + cr * wt[k])
 
 
-cdef inline void cdt_rolling(const Coef* c, double fn, double Rs, const double* n, const double* wrel,
+cdef inline void cdt_rolling(const Coef* c, double fe, double Rs, const double* n, const double* wrel,
                              double* Mr) noexcept nogil:
-    """Rolling torque on i of LIGGGHTS' ``rolling_friction cdt``: ``-mu_r R* |fn|`` along the
-    relative rotation rate ``wrel``, without the torque's torsion part (along ``n``)."""
+    """Rolling torque on i of LIGGGHTS' ``rolling_friction cdt`` (rolling_model_cdt.h):
+    ``-mu_r R* fe`` along the relative rotation rate ``wrel``, without the torque's torsion
+    part (along ``n``). ``fe = k_n delta`` is the normal force's elastic part: unlike epsd's
+    limit, cdt leaves out the damping and cohesion."""
     cdef double s, wm = sqrt(dot3(wrel, wrel))
     cdef int k
     if wm > 0.0:
-        s = -c.mur * Rs * fabs(fn) / wm
+        s = -c.mur * Rs * fe / wm
         for k in range(3):
             Mr[k] = s * wrel[k]
         s = dot3(Mr, n)
