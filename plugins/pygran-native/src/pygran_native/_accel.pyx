@@ -516,13 +516,20 @@ def cg_points(const int64_t[::1] axes, const double[::1] lower, const double[::1
 cdef inline double _legendre(const Lattice* g, const double* d, const double* b, double s0, double s1,
                              const double* nodes, const double* weights, int m) noexcept nogil:
     """Gauss-Legendre with ``m`` nodes of the kernel product along the segment, on [s0, s1]."""
-    cdef double half = 0.5 * (s1 - s0), mid = 0.5 * (s1 + s0), total = 0.0, s, value
+    cdef double half = 0.5 * (s1 - s0), mid = 0.5 * (s1 + s0), total = 0.0, s, value, u, r2
     cdef int q, e
     for q in range(m):
         s = mid + half * nodes[q]
         value = weights[q] * half
-        for e in range(g.ndim):
-            value = value * _profile(g, d[e] + s * b[e])
+        if g.kernel == 0:  # inside the clipped support the Gaussians multiply to one exponential
+            r2 = 0.0
+            for e in range(g.ndim):
+                u = (d[e] + s * b[e]) / g.w
+                r2 = r2 + u * u
+            value = value * exp(-0.5 * r2)
+        else:
+            for e in range(g.ndim):
+                value = value * _profile(g, d[e] + s * b[e])
         total = total + value
     return total
 
@@ -578,7 +585,7 @@ cdef double _segment(const Lattice* g, const double* d, const double* b) noexcep
     for e in range(g.ndim):
         a2 = a2 + b[e] * b[e]
     root = sqrt(a2)
-    if root * length <= g.w:
+    if root * length <= 1e-3 * g.w:
         return _legendre(g, d, b, s0, s1, _GL8X, _GL8W, 8)
     for e in range(g.ndim):
         dot = dot + d[e] * b[e]
