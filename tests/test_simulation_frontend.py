@@ -609,7 +609,11 @@ def test_multisphere_species_forms():
 
 
 @pytest.mark.parametrize("other_mistake", [{}, {"gravty": (9.81, 0, 0, -1)}, {"box": "big"}, {"dt": -1}])
-def test_an_engine_without_multisphere_says_so_first(tmp_path, other_mistake):
+def test_an_engine_without_multisphere_says_so_first(tmp_path, monkeypatch, other_mistake):
+    from pygran_native.engine import NativeEngine
+
+    # every installed engine has clumps: take them away from native
+    monkeypatch.setattr(NativeEngine, "capabilities", NativeEngine.capabilities - {"multisphere"})
     species = (
         {
             "material": params.organic,
