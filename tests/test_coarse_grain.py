@@ -4,7 +4,11 @@ the native engine."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import matplotlib
 import numpy as np
@@ -365,3 +369,28 @@ def test_settled_periodic_bed_carries_its_weight(tmp_path) -> None:
     assert away.sum() > 10
     np.testing.assert_allclose(fields.stress[..., 2, 2][away], weight[away], rtol=0.05)
     assert analysis.CoarseGrain is CoarseGrain
+
+
+def run_example(name: str, cwd) -> str:
+    script = Path(__file__).resolve().parents[1] / "docs" / "examples" / name
+    env = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(
+        [sys.executable, str(script)], cwd=cwd, env=env, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, f"{name} failed:\n{done.stdout}\n{done.stderr}"
+    return done.stdout
+
+
+def test_hopper_example(tmp_path) -> None:
+    printed = run_example("coarse_grain_hopper.py", tmp_path)
+    assert "mass in the grid: 660.17 ug" in printed
+    assert "near the axis just above the outlet 0.129 m/s" in printed
+    assert (tmp_path / "hopper-velocity.png").stat().st_size > 0
+    assert ET.parse(tmp_path / "hopper.vti").getroot().get("type") == "ImageData"
+
+
+def test_settled_bed_example(tmp_path) -> None:
+    printed = run_example("coarse_grain_bed.py", tmp_path)
+    stress, weight = (float(v.split()[0]) for v in printed.rsplit("sigma_zz ", 1)[1].split(", weight above "))
+    assert stress == pytest.approx(weight, rel=0.05)
+    assert (tmp_path / "bed-stress.png").stat().st_size > 0
