@@ -58,7 +58,7 @@ a particle near the axis keeps all its mass (it is normalised over the rings). V
 tensors on a cylindrical grid have components ``(r, θ, axis)`` in the basis at each particle
 (at the middle of each contact line), so a radial flow does not average to zero.
 
-:class:`CoarseGrain` runs this over frames of a :class:`~pygran_core.analysis.System`
+:class:`CoarseGrain` runs this over frames of a :class:`~pygran_core.analysis.system.System`
 (``system.Particles``, and ``system.Contacts`` when the trajectory has contact records),
 per species if asked, averaged over frames; :func:`coarse_grain` is the same for one set of
 plain arrays. Time averages: density, momentum, ``sum m v ⊗ v phi`` and the contact stress
@@ -245,7 +245,8 @@ def _cartesian(
         extent = float(np.prod(box[others, 1] - box[others, 0]))
     lower = np.array([lo for lo, _ in ranges])
     spacing = np.array([(hi - lo) / k for (lo, hi), k in zip(ranges, bins)])
-    periodic = [bool(boundary) and str(boundary[a]).startswith("p") for a in axes]
+    flags = tuple(boundary or ())
+    periodic = [len(flags) > a and str(flags[a]).startswith("p") for a in axes]
     wrap = np.array(
         [
             p and box is not None and np.allclose((lo, hi), box[a], rtol=1e-12, atol=0)
@@ -792,7 +793,7 @@ def coarse_grain(
     if len(mass) != len(positions) or (velocity is not None and np.shape(velocity) != positions.shape):
         raise ConfigError(
             f"coarse_grain: positions {positions.shape}, mass {mass.shape} and velocity "
-            f"{np.shape(velocity)} must describe the same particles"
+            f"{np.shape(velocity) if velocity is not None else None} must describe the same particles"
         )
     sums = _Sums(_particle_sums(lay, kern, positions, mass, velocity), None, velocity is not None)
     if contacts is not None:
@@ -926,7 +927,7 @@ class Fields:
                 index = tuple(components.index(ch) for ch in suffix if ch in components)
                 rank = 1 if name in ("momentum", "velocity") else 2
                 if len(index) == rank == len(suffix):
-                    return getattr(self, name)[(..., *index)]
+                    return getattr(self, name)[(Ellipsis,) + index]
         raise ConfigError(
             f"Unknown quantity {quantity!r}: use density, or momentum_<a>, velocity_<a> or "
             f"(kinetic_|contact_)stress_<ab> with components {', '.join(components)}"
@@ -1029,7 +1030,7 @@ class Fields:
 
 
 class CoarseGrain:
-    """Coarse-graining of a :class:`~pygran_core.analysis.System`'s frames onto ``grid`` with
+    """Coarse-graining of a :class:`~pygran_core.analysis.system.System`'s frames onto ``grid`` with
     ``kernel`` (gaussian, lucy, heaviside) of ``width`` (its standard deviation along one
     axis). Particle masses come from a ``mass`` column, else from ``density`` (a true density,
     or the particles' ``density`` column) and the radii. Contact stress needs contact records
@@ -1068,7 +1069,7 @@ class CoarseGrain:
         elif isinstance(frames, (int, np.integer)) and not isinstance(frames, bool):
             chosen = [int(frames)]
         else:
-            chosen = [int(f) for f in frames]
+            chosen = [int(f) for f in frames]  # type: ignore[union-attr]
         if not chosen:
             raise SelectionError(f"frames={frames!r} selects no frame of the system's {n}")
         for f in chosen:
@@ -1112,7 +1113,7 @@ class CoarseGrain:
         velocities = all(c in particles for c in columns)
         velocity = np.column_stack([particles[c] for c in columns]).astype(float) if velocities else None
         types = np.asarray(particles["type"]) if species is not None else None
-        keep = np.ones(len(particles), dtype=bool) if types is None else np.isin(types, species)
+        keep = np.ones(len(particles), dtype=bool) if types is None else np.isin(types, list(species or ()))
         sums = _Sums(
             _particle_sums(
                 lay, self.kernel, positions[keep], mass[keep], None if velocity is None else velocity[keep]
