@@ -25,7 +25,14 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 EXAMPLES = DOCS / "examples"
 #: Every script of docs/examples and the test that runs it; a new example needs a test here.
-TESTED_SCRIPTS = {"first_simulation.py", "analyse_liggghts.py", "use_example_plugin.py", "nsim_liggghts.py"}
+TESTED_SCRIPTS = {
+    "first_simulation.py",
+    "analyse_liggghts.py",
+    "use_example_plugin.py",
+    "nsim_liggghts.py",
+    "coarse_grain_hopper.py",  # these two run in tests/test_coarse_grain.py
+    "coarse_grain_bed.py",
+}
 
 
 def _require(*modules: str) -> None:
