@@ -5,11 +5,12 @@ the drum's cross-section: its free surface is the segment's chord. A segment is 
 symmetric about the drum radius across its chord, so the second moments of the bed's
 cross-section have the chord and that radius as principal axes, and the chord is the major one
 (a half-full drum has variances ``R^2 / 4`` along the chord and ``0.07 R^2`` across it; they
-differ less as the drum fills: by a factor 2 when three quarters full). :func:`repose_angle` takes the angle
-of that major axis with the horizontal: it needs no choice of a top layer, no bins and no
-drum centre, and the few particles in flight above the bed or carried up by the wall move it
-little. The cross-section is the projection along the drum's axis: give the particles of the
-drum's cylindrical part (its conical or flat ends hold a bed of another shape).
+differ less as the drum fills: by a factor 2 when three quarters full). :func:`repose_angle`
+takes the angle of that major axis with the horizontal: it needs no choice of a top layer, no
+bins and no drum centre, and the few particles in flight above the bed or carried up by the
+wall move it little; of a cascading bed's S-shaped surface it gives the mean slope. The
+cross-section is the projection along the drum's axis: give the particles of the drum's
+cylindrical part (its conical or flat ends hold a bed of another shape).
 """
 
 from __future__ import annotations
