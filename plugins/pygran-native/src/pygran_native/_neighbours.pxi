@@ -170,9 +170,18 @@ cdef int reserve_pairs(State* sim, long long need) noexcept nogil:
 
 
 cdef int reserve_walls(State* sim, long long need) noexcept nogil:
+    """Grow the current wall list (and the wall contacts' records) to ``need`` entries; -1 when
+    out of memory."""
     cdef long long cap
     cdef void *a
     cdef void *b
+    if need > sim.wlf_cap:
+        cap = need + need // 10 + 64
+        a = grow(sim.wl_f, cap * WLF * sizeof(double))
+        if a == NULL:
+            return -1
+        sim.wl_f = <double*>a
+        sim.wlf_cap = cap
     if need <= sim.wl_cap:
         return 0
     cap = need + need // 10 + 64

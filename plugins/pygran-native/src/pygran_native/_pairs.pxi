@@ -121,11 +121,12 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
 
 
 cdef int wall_contact(const State* c, int i, int e, double* h, double delta, const double* n,
-                      const double* q, double* F, double* T, double* sa) noexcept nogil:
+                      const double* q, double* F, double* T, double* sa, double* fc) noexcept nogil:
     """Force of wall element e on particle i (contact point q, NULL for a fixed primitive).
 
-    Returns the :func:`contact_force` result; clears the history on NO_CONTACT. The force on
-    a stress mesh's element is added, reversed, to the block's sums ``sa`` (see Slot).
+    Returns the :func:`contact_force` result; clears the history on NO_CONTACT. In contact, the
+    force is added to F (its torque to T) and put in ``fc``; the force on a stress mesh's
+    element is added, reversed, to the block's sums ``sa`` (see Slot).
     """
     cdef double vr[3]
     cdef double rw[3]
@@ -154,6 +155,7 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
     for k in range(3):
         F[k] += Fc[k]
         T[k] += Mr[k] - ri * cx[k]
+        fc[k] = Fc[k]
     if sl != NULL:   # LIGGGHTS: the reversed force, and its torque about com at the contact point
         sa = &sa[SACC * slot]
         for k in range(3):
@@ -168,7 +170,9 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
 
 
 cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noexcept nogil:
-    """Wall forces on particle i; mesh contacts without double counting.
+    """Wall forces on particle i; mesh contacts without double counting. Each entry's record
+    in ``wl_f`` (WLF values) says whether it is a contact and, if so, gives its force and its
+    contact point on the wall (a triangle's closest point, a primitive's foot point).
 
     Candidates are the triangles whose closest point is within reach, classified as
     face, edge or vertex contacts, taken faces first, each kind nearest first. A face contact
@@ -179,7 +183,7 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
     flat surface is touched once however many of its triangles the sphere reaches; a shared
     edge or vertex of a convex surface counts once; concave corners give one contact per face).
     """
-    cdef int k, e, a, b, nc = 0, nacc = 0, reg, u, w2, ok, hs = c.hs
+    cdef int k, e, a, b, nc = 0, nacc = 0, reg, u, w2, ok, res, hs = c.hs
     cdef int ck[MAXCAND]
     cdef int creg[MAXCAND]
     cdef int cfeat[MAXCAND]
@@ -190,12 +194,15 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
     cdef double gap, d2, dist, side = 1.0
     cdef double nrm[3]
     cdef double* h
+    cdef double* rec
     cdef const double* g
     cdef const double* xi = &c.x[3 * i]
     cdef double ri = c.r[i]
     for k in range(c.wl_start[i], c.wl_start[i + 1]):
         e = c.wl_e[k]
         h = &c.wl_h[<long long>k * c.whs]
+        rec = &c.wl_f[<long long>k * WLF]
+        rec[6] = 0.0
         g = &c.egeo[9 * e]
         if c.ekind[e] != TRIANGLE:
             gap = primitive_gap(c.ekind[e], g, xi, nrm)
@@ -206,9 +213,14 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
                     nrm[a] *= side
             if gap < -ri:   # behind the wall: passed through it
                 zero_hist(h, c.whs)
-            elif wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T, sa) != NO_CONTACT and c.ekind[e] == PLANE \
-                    and c.update:
+                continue
+            res = wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T, sa, rec)
+            if res != NO_CONTACT and c.ekind[e] == PLANE and c.update:
                 h[hs] = side
+            if res == IN_CONTACT:
+                for a in range(3):
+                    rec[3 + a] = xi[a] - gap * nrm[a]
+                rec[6] = 1.0
             continue
         creg[nc] = closest_on_triangle(xi, g, g + 3, g + 6, &cq[3 * nc], &cfeat[nc])
         d2 = (xi[0] - cq[3 * nc]) ** 2 + (xi[1] - cq[3 * nc + 1]) ** 2 + (xi[2] - cq[3 * nc + 2]) ** 2
@@ -254,9 +266,12 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
             dist = sqrt(cd2[a])
             for b in range(3):
                 nrm[b] = (xi[b] - cq[3 * a + b]) / dist
-            if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T, sa) == IN_CONTACT:
+            rec = &c.wl_f[<long long>k * WLF]
+            if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T, sa, rec) == IN_CONTACT:
                 acc[nacc] = a
                 nacc += 1
+                memcpy(&rec[3], &cq[3 * a], 3 * sizeof(double))
+                rec[6] = 1.0
 
 
 cdef void pair_block(const State* c, int b) noexcept nogil:

@@ -255,7 +255,7 @@ cdef class Core:
         for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.nb_j,
                   <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.nb_f, <size_t>self.s.ob_j,
                   <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
-                  <size_t>self.s.wl_h, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
+                  <size_t>self.s.wl_h, <size_t>self.s.wl_f, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
                   <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri,
                   <size_t>self.s.slots, <size_t>self.s.sacc, <size_t>self.s.vib,
                   <size_t>self.s.coef, <size_t>self.s.visc, <size_t>self.s.tmax,
@@ -534,6 +534,8 @@ cdef class Core:
                     self.s.wl_e[k] = newidx[self.s.wl_e[e]]
                     for d in range(self.s.hs + 1):
                         self.s.wl_h[k * (self.s.hs + 1) + d] = self.s.wl_h[e * (self.s.hs + 1) + d]
+                    for d in range(WLF):
+                        self.s.wl_f[k * WLF + d] = self.s.wl_f[e * WLF + d]
                     k += 1
                 e += 1
         self.s.wl_start[self.s.n] = k
@@ -703,22 +705,29 @@ cdef class Core:
         return out_i, out_j, out_d, out_f
 
     def contact_forces(self):
-        """Particle-particle contacts at the last force evaluation, as the pair loop applied them:
-        ids ``id1``, ``id2``; the force on id1 by id2 ``fx, fy, fz`` (normal and tangential);
-        the contact point ``cx, cy, cz`` (in the middle of the overlap, on the line of centres
-        from id1's centre) and the branch vector ``bx, by, bz`` = x1 - x2 (the periodic image in
-        contact). Only meaningful after a run (the forces are not part of a checkpoint)."""
-        cdef int i, j, k, q, cnt = 0, npair = self.s.nb_start[self.s.n]
+        """Contacts at the last force evaluation, as the pair loop applied them: ids ``id1``,
+        ``id2`` (for a wall, ``-(handle + 1)``); the force on id1 by id2 ``fx, fy, fz`` (normal
+        and tangential); the contact point ``cx, cy, cz`` (for a pair in the middle of the
+        overlap, on the line of centres from id1's centre; for a wall on its surface: the
+        closest point of the triangle in contact, the foot point on a plane or cylinder) and
+        the branch vector ``bx, by, bz`` = x1 - x2 (the periodic image in contact), x1 - c for
+        a wall. Pairs first, then walls, each by storage row. A ValueError when the lists have
+        entries but no evaluation since the state was set (the forces are not checkpointed)."""
+        cdef int i, j, k, q, cnt = 0, nwall = 0, npair = self.s.nb_start[self.s.n]
+        cdef int nlisted = self.s.wl_start[self.s.n]
         cdef double dist, rc
         cdef double d[3]
         cdef const double* sv
+        cdef const double* rec
         for k in range(npair):
             cnt += (self.s.nb_s[k] & TOUCH) != 0
-        if cnt and not self.s.forces_valid:
+        if (cnt or nlisted) and not self.s.forces_valid:
             raise ValueError("no force evaluation since the state was set")
-        out = {key: np.empty(cnt, dtype=np.int64) for key in ("id1", "id2")}
+        for k in range(nlisted):
+            nwall += self.s.wl_f[<long long>k * WLF + 6] != 0.0
+        out = {key: np.empty(cnt + nwall, dtype=np.int64) for key in ("id1", "id2")}
         for key in ("fx", "fy", "fz", "cx", "cy", "cz", "bx", "by", "bz"):
-            out[key] = np.empty(cnt, dtype=float)
+            out[key] = np.empty(cnt + nwall, dtype=float)
         cdef int64_t[::1] id1 = out["id1"], id2 = out["id2"]
         cdef double[::1] fx = out["fx"], fy = out["fy"], fz = out["fz"]
         cdef double[::1] cx = out["cx"], cy = out["cy"], cz = out["cz"]
@@ -741,6 +750,19 @@ cdef class Core:
                 cx[cnt] = self.s.x[3 * i] - rc * d[0] / dist
                 cy[cnt] = self.s.x[3 * i + 1] - rc * d[1] / dist
                 cz[cnt] = self.s.x[3 * i + 2] - rc * d[2] / dist
+                cnt += 1
+        for i in range(self.s.n):
+            for k in range(self.s.wl_start[i], self.s.wl_start[i + 1]):
+                rec = &self.s.wl_f[<long long>k * WLF]
+                if rec[6] == 0.0:
+                    continue
+                id1[cnt] = self.s.pid[i]
+                id2[cnt] = -(self.s.ewall[self.s.wl_e[k]] + 1)
+                fx[cnt], fy[cnt], fz[cnt] = rec[0], rec[1], rec[2]
+                cx[cnt], cy[cnt], cz[cnt] = rec[3], rec[4], rec[5]
+                bx[cnt] = self.s.x[3 * i] - rec[3]
+                by[cnt] = self.s.x[3 * i + 1] - rec[4]
+                bz[cnt] = self.s.x[3 * i + 2] - rec[5]
                 cnt += 1
         return out
 
@@ -774,6 +796,7 @@ cdef class Core:
                 + self.s.halo_cap * 6 * 8
                 + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs) + self.s.nbf_cap * 24
                 + self.s.wl_cap * (12 + 8 * self.s.hs) + self.s.ow_cap * (12 + 8 * self.s.hs)
+                + self.s.wlf_cap * WLF * 8
                 + self.s.cell_cap * 8 + self.s.ctri_cap * 4)
 
     def elements(self):

@@ -1,6 +1,11 @@
 # The solver's structs: contact coefficients, halos, the tuner and the one State the
 # time-step loop's kernels work on.
 
+cdef enum:
+    WLF = 7   # values per wall-list entry in wl_f: force on the particle (3), contact point (3),
+              # 1.0 in contact, else 0.0 (see wall_row)
+
+
 cdef struct Coef:
     double E        # effective modulus E*
     double G        # effective shear modulus G*
@@ -99,6 +104,8 @@ cdef struct State:
     int *wl_e
     double *wl_h
     long long wl_cap
+    double *wl_f       # each listed wall entry at the last evaluation (WLF, see wall_row, contact_forces)
+    long long wlf_cap
     int *ow_start
     int *ow_e
     double *ow_h
@@ -170,7 +177,7 @@ cdef struct State:
     # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
     double dt
     int update, kick, fuse
-    int forces_valid   # nb_f holds the last evaluation's pair forces (not after set_state)
+    int forces_valid   # nb_f and wl_f hold the last evaluation's forces (not after set_state)
 
 
 cdef struct Column:

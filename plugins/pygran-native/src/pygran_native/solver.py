@@ -868,12 +868,16 @@ class Solver:
         return ids[i], ids[j], overlap, force
 
     def contact_forces(self) -> dict[str, np.ndarray]:
-        """Particle-particle contacts at the last step, with the forces the step applied: ids
-        ``id1``, ``id2`` (int64), the total contact force on id1 by id2 ``fx, fy, fz`` (normal and
-        tangential; id2 gets the opposite), the contact point ``cx, cy, cz`` (the middle of the
-        overlap on the line of centres) and the branch vector ``bx, by, bz`` = x1 - x2 (across a
-        periodic boundary, to the image in contact). A ConfigError after :meth:`set_state` until
-        a run evaluates the forces (they are not part of a checkpoint)."""
+        """Contacts at the last step, with the forces the step applied, pairs then walls: ids
+        ``id1``, ``id2`` (int64; a wall contact has ``id2 = -(handle + 1)`` with the wall's
+        handle), the total contact force on id1 by id2 ``fx, fy, fz`` (normal and tangential; id2
+        gets the opposite), the contact point ``cx, cy, cz`` and the branch vector ``bx, by, bz``
+        = x1 - x2 (across a periodic boundary, to the image in contact). A pair's point is the
+        middle of the overlap on the line of centres; a wall's is on its surface (the closest
+        point of the mesh triangle the contact used, the foot point on a plane or cylinder),
+        with ``b = x1 - c``; a particle on a flat mesh surface has one contact however many of
+        its triangles it reaches. A ConfigError after :meth:`set_state` until a run evaluates
+        the forces (they are not part of a checkpoint)."""
         try:
             return self._core.contact_forces()
         except ValueError:
