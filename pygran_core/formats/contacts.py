@@ -5,12 +5,18 @@ A contacts frame is a :class:`~pygran_core.formats.base.Frame` with
 contact, at the timestep of the particle frame it belongs to:
 
 - ``id1``, ``id2`` (int64): the particles in contact. ``id2 < 0`` marks a wall contact:
-  ``id2 = -(k + 1)`` for the k-th wall (0-based) in the order the script set walls up
-  (see :func:`wall_id`); a LIGGGHTS ``wall/gran/local`` file numbers its mesh walls instead.
+  ``id2 = -(k + 1)`` for the k-th wall (0-based) the simulation set up (see :func:`wall_id`):
+  first the meshes of ``mesh={...}`` that are walls from the start (not ``'import': False``),
+  in the order of that dict, then each ``setupWall`` call that makes a wall (one on a mesh
+  that is a wall already makes none, unless it makes the wall anew for another species of a
+  mesh without material); removed walls keep their numbers and count. Every engine writes this; only a
+  ``wall/gran/local`` file LIGGGHTS wrote itself numbers its mesh walls by their place in its
+  fix (:func:`from_liggghts`).
 - ``fx fy fz``: the force on ``id1`` by ``id2`` (normal plus tangential); ``id2`` feels the
   opposite.
 - ``cx cy cz``: the contact point, on the segment from ``id1``'s centre to ``id1``'s centre
-  minus the branch vector, so in a periodic box it may lie outside the box by less than a radius.
+  minus the branch vector, so in a periodic box it may lie outside the box by less than a radius;
+  a wall's is on the wall's surface.
 - ``bx by bz``: the branch vector ``r1 - r2`` with the minimum image across periodic
   boundaries; for a wall, ``r1 - c``.
 
@@ -26,9 +32,11 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+
+_Index = TypeVar("_Index", int, np.ndarray)
 
 KIND = "contacts"
 #: The columns of a contacts frame, in order.
@@ -61,8 +69,9 @@ LIGGGHTS_DEFAULT = ("pos", "vel", "id", "force", "torque", "history", "contactAr
 _COMPUTE_COLUMN = re.compile(r"^c_([A-Za-z0-9_\-]+)\[(\d+)\]$")
 
 
-def wall_id(index: int) -> int:
-    """``id2`` of a contact with the ``index``-th wall (0-based): ``-(index + 1)``."""
+def wall_id(index: _Index) -> _Index:
+    """``id2`` of a contact with the ``index``-th wall set up (0-based, see the module's rule;
+    an int or an array of them): ``-(index + 1)``."""
     return -(index + 1)
 
 

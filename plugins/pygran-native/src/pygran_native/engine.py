@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature
+from pygran_core.formats import contacts as contact_schema
 from pygran_core.io import Frame
 from pygran_core.simulation import clumps
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, SetSpec, ViscousSpec, WallSpec
@@ -58,6 +59,7 @@ class NativeEngine(PlacingEngine):
             "threads",
             "restart",
             "multisphere",
+            "contact-output",
         }
     )
 
@@ -81,6 +83,9 @@ class NativeEngine(PlacingEngine):
         ]
         self.solver.set_contact_model(self._law, **self._material_arrays(materials))
         self._walls: dict[str, int] = {}
+        #: Solver wall handle -> the wall's index in the order walls were set up (removed ones
+        #: kept): contact records name the wall by it (see :meth:`_contacts`)
+        self._wall_index: dict[int, int] = {}
         self._planes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._mesh_walls: dict[str, int] = {}
         self._motions: dict[str, str] = {}
@@ -321,6 +326,7 @@ class NativeEngine(PlacingEngine):
             elif mesh.mtype != "mesh/surface":
                 self.solver.set_stress(wall)
             self._mesh_walls[mesh.name] = self._walls[label] = wall
+        self._wall_index[self._walls[label]] = len(self._wall_index)
         return label
 
     def _move_mesh(self, spec: MotionSpec) -> str:
@@ -424,6 +430,20 @@ class NativeEngine(PlacingEngine):
             "radius": solver.radii,
             "mass": solver.masses,
         }[quantity]
+
+    def _contacts(self) -> dict[str, np.ndarray]:
+        """The contacts of the last step (:meth:`Solver.contact_forces`) with the engine's ids:
+        particles from 1, the k-th wall set up as ``-(k + 1)``; none before the first step."""
+        if self.step == 0:
+            return contact_schema.empty()
+        found = self.solver.contact_forces()
+        id2, wall = found["id2"], found["id2"] < 0
+        index = np.zeros(max(self._wall_index, default=-1) + 1, np.int64)  # solver handle -> k
+        index[list(self._wall_index)] = list(self._wall_index.values())
+        id2[~wall] += 1
+        id2[wall] = contact_schema.wall_id(index[-id2[wall] - 1])
+        found["id1"] += 1
+        return found
 
     def _state(self) -> dict[str, np.ndarray]:
         solver = {f"solver/{k}": v for k, v in self.solver.get_state().items()}
