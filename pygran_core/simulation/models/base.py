@@ -285,7 +285,9 @@ class ContactModel(abc.ABC):
         """Rolling resistance torque on body 1, LIGGGHTS ``rolling_friction cdt``.
 
         ``M_r = -mu_r R* |F_n| w / |w|`` with ``w = omega_1 - omega_2`` the relative angular
-        velocity (shape ``(..., 3)``); zero where ``w = 0``. Body 2 gets ``-M_r``.
+        velocity (shape ``(..., 3)``); zero where ``w = 0``. Body 2 gets ``-M_r``. LIGGGHTS
+        (``rolling_model_cdt.h``) and the native engine take for ``F_n`` the normal force's
+        elastic part ``k_n delta``, without damping and cohesion: pass that to match them.
         The spring models (``epsd``...) carry a torque history only engines integrate:
         for them this raises :class:`~pygran_core.errors.UnsupportedFeature`.
         """
