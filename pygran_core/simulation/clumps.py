@@ -15,6 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: A template: rows ``(x, y, z, r)`` of the spheres in the body's frame.
+Spheres = Sequence[Sequence[float]] | np.ndarray
+
 __all__ = [
     "MassProperties",
     "enclosing_radius",
@@ -41,7 +44,7 @@ class MassProperties:
     axes: np.ndarray
 
 
-def _template(spheres: Sequence[Sequence[float]]) -> np.ndarray:
+def _template(spheres: Spheres) -> np.ndarray:
     array = np.array(spheres, float).reshape(-1, 4)
     if not len(array) or np.any(array[:, 3] <= 0) or not np.all(np.isfinite(array)):
         raise ValueError(f"a clump template needs spheres (x, y, z, r > 0), got {spheres!r}")
@@ -49,7 +52,7 @@ def _template(spheres: Sequence[Sequence[float]]) -> np.ndarray:
 
 
 def mass_properties(
-    spheres: Sequence[Sequence[float]], density: float, samples: int = SAMPLES, seed: int = 0
+    spheres: Spheres, density: float, samples: int = SAMPLES, seed: int = 0
 ) -> MassProperties:
     """Mass properties of the union of ``spheres`` of ``density``.
 
@@ -100,7 +103,7 @@ def _mass_properties(
     return MassProperties(float(mass), centre, inertia, moments, axes)
 
 
-def enclosing_radius(spheres: Sequence[Sequence[float]]) -> float:
+def enclosing_radius(spheres: Spheres) -> float:
     """Radius of the smallest sphere about the template's origin holding every sphere: a
     clump placed with its origin at a point clears whatever that sphere clears, turned any way."""
     template = _template(spheres)
