@@ -211,4 +211,13 @@ def test_analysis_exports():
         "dynamics",
         "imaging",
         "mixing",
+        "drum",
+        "Contacts",
+        "coarse_grain",
+        "CoarseGrain",
+        "Fields",
+        "Grid1D",
+        "Grid2D",
+        "Grid3D",
+        "GridCylindrical",
     }
