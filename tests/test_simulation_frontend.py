@@ -1,5 +1,6 @@
 """simulation.DEM keyword validation into engine-neutral specs (no solver needed)."""
 
+import dataclasses
 import math
 import os
 from pathlib import Path
@@ -612,8 +613,12 @@ def test_multisphere_species_forms():
 def test_an_engine_without_multisphere_says_so_first(tmp_path, monkeypatch, other_mistake):
     from pygran_native.engine import NativeEngine
 
-    # every installed engine has clumps: take them away from native
-    monkeypatch.setattr(NativeEngine, "capabilities", NativeEngine.capabilities - {"multisphere"})
+    # every installed engine has clumps: take them away from native, in its class and its entry
+    without = NativeEngine.capabilities - {"multisphere"}
+    monkeypatch.setattr(NativeEngine, "capabilities", without)
+    entry = dataclasses.replace(registry.get_engine("native"), capabilities=without)
+    found = registry.get_engine
+    monkeypatch.setattr(registry, "get_engine", lambda name: entry if name == "native" else found(name))
     species = (
         {
             "material": params.organic,
