@@ -59,6 +59,11 @@ class InsertionWarning(PyGranWarning):
     """An insertion placed fewer particles than it was asked for: its region is full."""
 
 
+class ServoWarning(PyGranWarning):
+    """A servo wall's controller does not settle: the force on it swings about its target
+    from step to step (the gain is too high for the bed it presses)."""
+
+
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """Return ``" Did you mean 'x'?"`` for the closest choice, or an empty string."""
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)

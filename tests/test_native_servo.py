@@ -9,6 +9,7 @@ the law of ``mesh_module_stress_servo.cpp``), and checkpoints carry it.
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ import pytest
 from pygran_native.solver import Solver
 
 from PyGran import simulation
-from pygran_core.errors import ConfigError
+from pygran_core.errors import ConfigError, ServoWarning
 
 MESHES = Path(__file__).resolve().parent / "data" / "meshes"
 R, G = 2e-4, 9.81
@@ -140,15 +141,17 @@ def lattice_press(engine, output, kp):
             }
         },
     }
-    with simulation.DEM(**params) as sim:
+    with simulation.DEM(**params) as sim, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ServoWarning)
         sim.setupWall(species=1, wtype="primitive", plane="zplane", peq=0.0)
         sim.createParticles(1, "single", spheres)
         sim.run(1e5, params["dt"])
+        warned = [str(w.message) for w in caught if issubclass(w.category, ServoWarning)]
         forces = []
         for _ in range(6):
             sim.run(1, params["dt"])
             forces.append(sim.engine.mesh_force("plate")[2] / target)
-    return np.array(forces)
+    return np.array(forces), warned
 
 
 @pytest.mark.parametrize("kp", [0.1, 0.2])
@@ -159,16 +162,21 @@ def test_on_the_same_bed_the_plate_follows_liggghts_step_for_step(tmp_path, kp):
     With kp 0.2 the plate's own speed, through the contacts' damping, flips the force each step
     on both engines (measured: -4.79 and 6.77 times the target), as it does for kp 1.5 on
     LIGGGHTS with the random bed of the other tests (kp 1 there: native oscillates on some beds,
-    LIGGGHTS on others; the beds differ). The gain that settles depends on the bed: lower kp or
-    vel_max until the force settles."""
+    LIGGGHTS on others; the beds differ). The gain that settles depends on the bed, so the run
+    ends with a ServoWarning saying so, on both engines; none when the force settles."""
     require_liggghts()
-    native = lattice_press("native", str(tmp_path / "native"), kp)
-    liggghts = lattice_press("liggghts", str(tmp_path / "liggghts"), kp)
+    native, native_warned = lattice_press("native", str(tmp_path / "native"), kp)
+    liggghts, liggghts_warned = lattice_press("liggghts", str(tmp_path / "liggghts"), kp)
     np.testing.assert_allclose(native, liggghts, rtol=0, atol=1e-9)
     if kp == 0.1:
         np.testing.assert_allclose(native, 1.0, rtol=0, atol=1e-6)
+        assert native_warned == liggghts_warned == []
     else:
         assert np.all(np.abs(np.diff(native)) > 1.0) and native.min() < 0 < 1 < native.max()
+        # the user is told, on both engines
+        for warned in (native_warned, liggghts_warned):
+            assert len(warned) == 1 and "servo wall 'plate' does not settle" in warned[0]
+            assert "kp=0.2" in warned[0] and "Lower kp or vel_max" in warned[0]
 
 
 def plate(threads=1, height=1e-3, **servo):

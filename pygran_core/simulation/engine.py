@@ -37,6 +37,7 @@ from pygran_core.errors import (
     LostParticlesWarning,
     PyGranError,
     ReadError,
+    ServoWarning,
     TimeStepWarning,
     UnsupportedFeature,
     did_you_mean,
@@ -84,6 +85,12 @@ FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
 #: Lost particles faster than this many times what the simulation explains (the
 #: characteristic velocity, the speeds given, a fall across the box) point to an instability.
 FAST_FACTOR = 10.0
+#: A run's last steps are this many single steps when a force servo wall is present, so that
+#: the force on it is read at each (:meth:`Engine._report_servos`).
+SERVO_WATCH = 3
+#: A servo's force swinging about its target by more than this fraction of it at each of those
+#: steps, one side then the other, is a :class:`ServoWarning`.
+SERVO_SWING = 0.05
 #: How deep (a fraction of the smaller radius) particles created at given positions may overlap.
 CREATE_OVERLAP_TOLERANCE = 1e-3
 
@@ -595,6 +602,7 @@ class Engine(abc.ABC):
         counted = self._lost_since_last()
         watch = _Watch(self) if counted is None else None
         lost = counted or LostParticles()
+        servos: dict[str, list[float]] = {name: [] for name in self._watched_servos()}
         with tqdm(
             total=nsteps, initial=self.step - start, unit="step", disable=not show, desc=f"{self.name} run"
         ) as bar:
@@ -609,11 +617,57 @@ class Engine(abc.ABC):
                 self._on_event()
                 if watch is None:
                     lost += self._lost_since_last() or LostParticles()
+                if nsteps > SERVO_WATCH and self.step >= end - SERVO_WATCH:
+                    for name, errors in servos.items():
+                        errors.append(self._servo_error(name))
         assert self.step == end
         self._placed = None  # the particles have moved
         if watch is not None:
             lost = watch.finish()
         self._report_lost(lost, start, watch is not None)
+        self._report_servos(servos)
+
+    # -- servo walls -----------------------------------------------------------------------
+
+    def _watched_servos(self) -> list[str]:
+        """The force servos whose controller :meth:`run` watches over its last steps."""
+        if "servo-walls" not in self.capabilities:
+            return []
+        return [m.name for m in self.spec.meshes if m.servo is not None and m.servo.control == "force"]
+
+    def _servo_error(self, name: str) -> float:
+        """The servo's relative error now: (force pushing back along its axis - target) / target."""
+        servo = next(m.servo for m in self.spec.meshes if m.name == name)
+        assert servo is not None
+        axis = np.asarray(servo.axis, float) / np.linalg.norm(servo.axis)
+        try:
+            force = self.mesh_force(name)  # type: ignore[attr-defined]
+        except ConfigError:  # not a wall (yet): nothing to judge
+            return 0.0
+        return float((-(force @ axis) - abs(servo.target)) / abs(servo.target))
+
+    def _report_servos(self, servos: Mapping[str, list[float]]) -> None:
+        """A :class:`ServoWarning` for each servo whose force swung about its target, by more
+        than :data:`SERVO_SWING` of it, at each of the run's last :data:`SERVO_WATCH` + 1
+        readings (one step apart)."""
+        for name, errors in servos.items():
+            swinging = len(errors) == SERVO_WATCH + 1 and all(
+                a * b < 0 and min(abs(a), abs(b)) > SERVO_SWING for a, b in itertools.pairwise(errors)
+            )
+            if not swinging:
+                continue
+            servo = next(m.servo for m in self.spec.meshes if m.name == name)
+            assert servo is not None
+            shown = ", ".join(f"{1 + e:.3g}" for e in errors)
+            message = (
+                f"servo wall {name!r} does not settle: the force on it swings about its target from step "
+                f"to step ({shown} times the target at the run's last {len(errors)} steps). The "
+                f"controller (LIGGGHTS', kp={servo.kp:g}, vel_max={servo.vel_max:g} m/s) is unstable on "
+                "this bed: the plate's own speed, through the contacts' damping, overturns the force each "
+                "step. Lower kp or vel_max (by 2 or more)."
+            )
+            self.log("%s", message, level=logging.WARNING)
+            warnings.warn(message, ServoWarning, stacklevel=3)
 
     # -- the time step and lost particles ------------------------------------------------
 
@@ -791,6 +845,8 @@ class Engine(abc.ABC):
             stops.update(range((start // freq + 1) * freq, end, freq))
         pieces = min(nsteps, self.max_run_chunks)
         stops.update(start + (nsteps * k) // pieces for k in range(1, pieces))
+        if self._watched_servos() and nsteps > SERVO_WATCH:
+            stops.update(range(end - SERVO_WATCH, end))  # single steps, read by _watch_servos
         ordered = sorted(s for s in stops if s > start)
         return [b - a for a, b in zip([start, *ordered], ordered)]
 
