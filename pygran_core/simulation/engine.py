@@ -666,8 +666,7 @@ class Engine(abc.ABC):
                 "this bed: the plate's own speed, through the contacts' damping, overturns the force each "
                 "step. Lower kp or vel_max (by 2 or more)."
             )
-            self.log("%s", message, level=logging.WARNING)
-            warnings.warn(message, ServoWarning, stacklevel=3)
+            self._warn(message, ServoWarning)
 
     # -- the time step and lost particles ------------------------------------------------
 
