@@ -14,22 +14,22 @@ side = 12 * radius
 with simulation.DEM(
     engine="native",
     model=simulation.models.HertzMindlin,
-    box=(0, side, 0, side, 0, 0.03),
+    box=(0, side, 0, side, 0, 0.07),
     boundary=("p", "p", "f"),  # periodic in x and y
     gravity=(9.81, 0, 0, -1),
     dt=2e-6,
     output="out-bed",
     species=({"material": beads, "radius": radius},),
-    traj={"freq": 20000, "pfile": "traj.h5", "cfile": "traj.h5"},  # contacts in the same file
+    traj={"freq": 50000, "pfile": "traj.h5", "cfile": "traj.h5"},  # contacts in the same file
 ) as sim:
     sim.setupWall(species=1, wtype="primitive", plane="zplane", peq=0.0)
-    sim.insert(species=1, value=300, region=("block", 0, side, 0, side, 0.002, 0.03))
-    sim.run(40000)
+    sim.insert(species=1, value=400, region=("block", 0, side, 0, side, 0.002, 0.07))
+    sim.run(150000)  # 0.3 s: they fall and come to rest
 
 bed = analysis.System(Particles="out-bed/traj.h5")  # system.Contacts comes with it
 bed.goto(-1)
 top = float((bed.Particles.z + bed.Particles.radius).max())
-grid = analysis.Grid1D(axis="z", bins=60, range=(-0.005, top + 0.005))  # area: the box's
+grid = analysis.Grid1D(axis="z", bins=240, range=(-0.005, top + 0.005))  # cells of w / 8; area: the box's
 fields = analysis.CoarseGrain(bed, grid=grid, kernel="lucy", width=radius, density=beads["density"]).compute()
 
 z = fields.coordinates[0]
