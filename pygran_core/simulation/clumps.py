@@ -4,13 +4,16 @@ orientations, shared by the engines that integrate clumps themselves and by thei
 A clump's template is a sequence of spheres ``(x, y, z, r)`` in its own frame. Its mass,
 centre and inertia are those of the union of the spheres (overlaps counted once), integrated
 by Monte Carlo with a fixed seed (:func:`mass_properties`). Orientations are unit
-quaternions ``(w, x, y, z)`` turning the template frame into the world frame.
+quaternions ``(w, x, y, z)`` turning the template frame into the world frame. A clump is
+placed, and counted in a region, by the centre of its bounding sphere, as LIGGGHTS does
+(:func:`bounding_sphere`, :func:`bounding_centres`).
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+import itertools
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,8 +23,11 @@ Spheres = Sequence[Sequence[float]] | np.ndarray
 
 __all__ = [
     "MassProperties",
+    "bounding_centres",
+    "bounding_sphere",
     "enclosing_radius",
     "mass_properties",
+    "orientations",
     "quaternion_of",
     "random_orientations",
     "rotation_matrix",
@@ -29,6 +35,9 @@ __all__ = [
 
 #: Monte Carlo samples of :func:`mass_properties` (about 0.1 % noise on a mass or moment).
 SAMPLES = 500_000
+#: :func:`bounding_sphere` tries every order of up to this many spheres, else as many random orders
+#: as there are orders of this many (720).
+ALL_ORDERS = 6
 
 
 @dataclass(frozen=True)
@@ -108,6 +117,95 @@ def enclosing_radius(spheres: Spheres) -> float:
     clump placed with its origin at a point clears whatever that sphere clears, turned any way."""
     template = _template(spheres)
     return float(np.max(np.linalg.norm(template[:, :3], axis=1) + template[:, 3]))
+
+
+def bounding_sphere(spheres: Spheres) -> tuple[np.ndarray, float]:
+    """Centre (template frame) and radius of a sphere holding every sphere of the template, found
+    as LIGGGHTS' ``particletemplate/multisphere`` finds its bounding sphere (by which it places
+    a clump and counts it in a region): starting from one sphere, grown one sphere at a time
+    (moved towards and enlarged just enough to hold each sphere it does not hold yet), the
+    smallest over orders of the spheres (every order of up to :data:`ALL_ORDERS` spheres, else
+    720 seeded random ones; LIGGGHTS tries 200 random ones). For spheres on one line (tablets,
+    rods) every order gives the smallest enclosing sphere, so the centre is LIGGGHTS' own; for
+    others LIGGGHTS may settle on another order's sphere, a fraction of a radius apart."""
+    template = _template(spheres)
+    centre, radius = _bounding_sphere(tuple(map(tuple, template.tolist())))
+    return centre.copy(), radius
+
+
+@functools.lru_cache(maxsize=64)
+def _bounding_sphere(spheres: tuple[tuple[float, ...], ...]) -> tuple[np.ndarray, float]:
+    template = np.array(spheres)
+    centres, radii = template[:, :3], template[:, 3]
+    n = len(template)
+    if n <= ALL_ORDERS:
+        orders = np.array(list(itertools.permutations(range(n))))
+    else:
+        rng = np.random.default_rng(0)
+        orders = np.array([rng.permutation(n) for _ in range(720)])
+    centre, radius = centres[orders[:, 0]], radii[orders[:, 0]]
+    for k in orders[:, 1:].T:  # the k-th sphere of each order
+        d = centres[k] - centre
+        dist = np.linalg.norm(d, axis=1)
+        short = np.maximum(dist + radii[k] - radius, 0.0)  # how far the sphere sticks out
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shift = d * np.where(dist > 0, short / (2 * dist), 0.0)[:, None]
+        centre = centre + shift
+        radius = np.where(dist > 0, radius + np.linalg.norm(shift, axis=1), np.maximum(radius, radii[k]))
+    best = int(np.argmin(radius))
+    return centre[best], float(radius[best])
+
+
+@functools.lru_cache(maxsize=64)
+def _bounding_weights(spheres: tuple[tuple[float, ...], ...]) -> np.ndarray:
+    """Weights ``w`` (summing to 1) with ``sum_k w_k x_k`` the centre of the bounding sphere for
+    any placement ``x_k`` of the template's sphere centres (the centre lies in their affine hull)."""
+    template = np.array(spheres)
+    centre, _ = _bounding_sphere(spheres)
+    system = np.vstack([template[:, :3].T, np.ones(len(template))])
+    weights, *_ = np.linalg.lstsq(system, np.append(centre, 1.0), rcond=None)
+    return weights
+
+
+def bounding_centres(
+    positions: np.ndarray, bodies: np.ndarray, types: np.ndarray, templates: Mapping[int, Spheres]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each clump's first sphere and the centre of its bounding sphere (:func:`bounding_sphere`)
+    in the world, from the positions of its spheres.
+
+    ``positions``, ``bodies`` (each sphere's clump; negative: a single sphere) and ``types`` are
+    per sphere, ordered by id, so that a clump's spheres come in its template's order;
+    ``templates`` gives each multisphere type's template. Returns ``(first, centres)``: for the
+    clumps in the order of their first spheres, that sphere's index and the centre.
+    """
+    positions = np.asarray(positions, float).reshape(-1, 3)
+    bodies = np.asarray(bodies)
+    members = np.flatnonzero(bodies >= 0)
+    members = members[np.argsort(bodies[members], kind="stable")]
+    _, start, counts = np.unique(bodies[members], return_index=True, return_counts=True)
+    first = members[start]
+    by_first = np.argsort(first, kind="stable")
+    first, start, counts = first[by_first], start[by_first], counts[by_first]
+    kinds = np.asarray(types)[first]
+    centres = np.empty((len(first), 3))
+    for kind in np.unique(kinds):
+        template = _template(templates[int(kind)])
+        chosen = np.flatnonzero(kinds == kind)
+        if np.any(counts[chosen] != len(template)):
+            raise ValueError(f"clumps of type {kind} with other than its template's {len(template)} spheres")
+        spheres = members[start[chosen][:, None] + np.arange(len(template))]
+        weights = _bounding_weights(tuple(map(tuple, template.tolist())))
+        centres[chosen] = np.einsum("k,nkd->nd", weights, positions[spheres])
+    return first, centres
+
+
+def orientations(orientation: str | Sequence[float], count: int, rng: np.random.Generator) -> np.ndarray:
+    """``count`` unit quaternions ``(w, x, y, z)`` as an insertion's ``orientation`` says:
+    ``'random'`` (uniform, from ``rng``), ``'template'`` (the template's own) or a quaternion."""
+    if orientation == "random":
+        return random_orientations(count, rng)
+    q = np.array([1.0, 0.0, 0.0, 0.0] if orientation == "template" else orientation, float)
+    return np.tile(q / np.linalg.norm(q), (count, 1))
 
 
 def random_orientations(count: int, rng: np.random.Generator) -> np.ndarray:

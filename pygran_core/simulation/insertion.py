@@ -1,9 +1,11 @@
-"""Placing new spheres without overlaps: engine-neutral, reproducible from a seed.
+"""Placing new particles without overlaps: engine-neutral, reproducible from a seed.
 
 Engines whose solver inserts particles (LIGGGHTS) need none of this; the others (native,
 YADE) derive from :class:`PlacingEngine`, so that the same request gives the same particles
 on every engine. Candidates are drawn in batches and checked with k-d trees, never one
-Python iteration per particle.
+Python iteration per particle. Spheres are placed by :func:`place_spheres`; clumps of
+multisphere species by :func:`place_clumps`, which checks their own spheres, each clump turned
+its own way, as LIGGGHTS does.
 """
 
 from __future__ import annotations
@@ -14,13 +16,14 @@ import json
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from pygran_core.errors import ConfigError, InsertionWarning, ReadError
+from pygran_core.simulation import clumps
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
 from pygran_core.simulation.checkpoint import encode_text, state_entry, state_json
 from pygran_core.simulation.engine import Engine, Handle
@@ -149,6 +152,127 @@ def place_spheres(
     return index, centres_placed[n_existing:]
 
 
+#: :func:`place_clumps` gives up after this many batches in a row placed nothing.
+JAMMED = 5
+
+
+def place_clumps(
+    region: Region,
+    shapes: Sequence[np.ndarray],
+    kinds: np.ndarray,
+    radii: np.ndarray,
+    rng: np.random.Generator,
+    existing: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 3)), np.zeros(0)),
+    obstacles: Obstacles | None = None,
+    all_in: bool = True,
+    attempts: int = 50,
+    orientation: str | Sequence[float] = "random",
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Place particles in ``region``: particle ``i`` a clump of the spheres ``shapes[kinds[i]]``
+    (rows ``x, y, z, r`` about the centre of their bounding sphere), or a single sphere of
+    ``radii[i]`` where ``kinds[i] < 0``; no sphere of one overlapping a sphere of another, the
+    ``existing`` (positions, radii) spheres or the ``obstacles``.
+
+    As :func:`place_spheres`, largest first and in batches: a candidate is a bounding sphere's
+    centre uniform in the region (the whole bounding sphere inside it when ``all_in``, as
+    LIGGGHTS' ``all_in``), turned as ``orientation`` says (see :func:`.clumps.orientations`;
+    ``'random'``: each candidate its own turn), and is kept when its spheres clear what is
+    placed and the spheres of the candidates kept before it in its batch (see
+    :func:`_first_come`). Returns ``(index, centres, orientations)``: where the bounding
+    spheres' centres of ``index`` are and how they are turned, for as many as fit within
+    ``attempts`` batches or until :data:`JAMMED` batches in a row place none (a batch of clumps
+    turned other ways may still find room after one that found none).
+    """
+    kinds = np.asarray(kinds)
+    reach = np.array(radii, float)
+    for kind, shape in enumerate(shapes):
+        reach[kinds == kind] = np.max(np.linalg.norm(shape[:, :3], axis=1) + shape[:, 3])
+    bounds = region.bounds()
+    pending = np.argsort(-reach, kind="stable")
+    found: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    spheres, spheres_radii = existing[0].reshape(-1, 3), existing[1].reshape(-1)
+    idle = 0  # batches in a row that placed nothing
+    for _ in range(attempts):
+        if len(pending) == 0:
+            break
+        slots = np.resize(np.arange(len(pending)), max(4 * len(pending), 64))
+        items = pending[slots]
+        centres = rng.uniform(bounds[:, 0], bounds[:, 1], (len(slots), 3))
+        turns = clumps.orientations(orientation, len(slots), rng)
+        candidates = np.flatnonzero(region.contains(centres, reach[items] if all_in else 0.0))
+        x, r, owner = _members(
+            shapes, kinds[items[candidates]], reach[items[candidates]], centres[candidates], turns[candidates]
+        )
+        bad = _clashes(x, r, spheres, spheres_radii)
+        if obstacles is not None:
+            bad[~bad] = ~obstacles.clear(x[~bad], r[~bad])
+        clear = np.bincount(owner, weights=bad, minlength=len(candidates)) == 0
+        kept = _first_come(x, r, owner, slots[candidates], clear)
+        keep = candidates[kept]
+        placed = np.isin(owner, kept)
+        spheres, spheres_radii = np.vstack([spheres, x[placed]]), np.append(spheres_radii, r[placed])
+        found.append((items[keep], centres[keep], turns[keep]))
+        pending = np.delete(pending, slots[keep])
+        idle = 0 if len(keep) else idle + 1
+        if idle == JAMMED:
+            break  # batches of four candidates per particle found no free place
+    if not found:
+        return np.zeros(0, int), np.zeros((0, 3)), np.zeros((0, 4))
+    index, centres, turns = (np.concatenate(parts) for parts in zip(*found))
+    return index, centres, turns
+
+
+def _members(
+    shapes: Sequence[np.ndarray], kinds: np.ndarray, radii: np.ndarray, centres: np.ndarray, turns: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The spheres of particles (see :func:`place_clumps`) at ``centres`` turned by ``turns``:
+    their centres, radii and particle (index into ``kinds``), particle by particle."""
+    parts = [(centres[kinds < 0], radii[kinds < 0], np.flatnonzero(kinds < 0))]
+    for kind, shape in enumerate(shapes):
+        chosen = np.flatnonzero(kinds == kind)
+        offsets = np.einsum("nij,kj->nki", clumps.rotation_matrix(turns[chosen]), shape[:, :3])
+        parts.append(
+            (
+                (centres[chosen, None, :] + offsets).reshape(-1, 3),
+                np.tile(shape[:, 3], len(chosen)),
+                np.repeat(chosen, len(shape)),
+            )
+        )
+    x, r, owner = (np.concatenate(column) for column in zip(*parts))
+    order = np.argsort(owner, kind="stable")
+    return x[order], r[order], owner[order]
+
+
+def _first_come(
+    centres: np.ndarray, radii: np.ndarray, owner: np.ndarray, slots: np.ndarray, clear: np.ndarray
+) -> np.ndarray:
+    """The candidates kept when taken in order: each one ``clear`` of what is placed is kept
+    unless one of its spheres (``centres``, ``radii``, candidate ``owner``, ascending) overlaps
+    a sphere of a candidate kept before it, or a candidate before it for the same particle
+    (``slots``) is kept. Decided in rounds, each deciding every candidate whose earlier rivals
+    are decided. Returns the kept candidates, ascending."""
+    state = np.where(clear, 0, -1)  # 0: undecided, 1: kept, -1: dropped
+    pairs = np.zeros((0, 2), int)  # overlapping candidates, the earlier first
+    if len(centres):
+        near = cKDTree(centres).query_pairs(2 * float(radii.max()), output_type="ndarray")
+        gap = np.linalg.norm(centres[near[:, 0]] - centres[near[:, 1]], axis=1)
+        near = near[gap < radii[near[:, 0]] + radii[near[:, 1]]]
+        pairs = np.column_stack([owner[near[:, 0]], owner[near[:, 1]]])
+        pairs = pairs[(pairs[:, 0] != pairs[:, 1]) & (state[pairs[:, 0]] == 0) & (state[pairs[:, 1]] == 0)]
+    while np.any(state == 0):
+        state[pairs[state[pairs[:, 0]] == 1, 1]] = -1  # overlaps one kept before it
+        taken = np.zeros(slots.max() + 1, bool)
+        taken[slots[state == 1]] = True
+        state[(state == 0) & taken[slots]] = -1  # its particle is placed
+        undecided = np.flatnonzero(state == 0)
+        waiting = np.zeros(len(state), bool)
+        waiting[pairs[state[pairs[:, 0]] == 0, 1]] = True
+        _, first = np.unique(slots[undecided], return_index=True)
+        ready = undecided[first]  # the first undecided candidate of its particle
+        state[ready[~waiting[ready]]] = 1
+    return np.flatnonzero(state == 1)
+
+
 def _clashes(
     centres: np.ndarray, radii: np.ndarray, others: np.ndarray, others_radii: np.ndarray
 ) -> np.ndarray:
@@ -184,6 +308,14 @@ class PlacingEngine(Engine):
     and ``createParticles`` (single, lattice, random). A subclass adds the spheres to its
     solver in :meth:`_add_spheres`, says what they must not overlap in :meth:`_obstacles`,
     and handles its other handles in ``_remove`` (calling ``super()._remove`` for insertions).
+
+    Multisphere species (engines with the ``multisphere`` capability) are clumps, one per
+    particle, which the subclass adds in :meth:`_add_clumps` and lists in :meth:`bodies`. They
+    are inserted by number only, turned as the insertion's ``orientation`` says (by default at
+    random, as on LIGGGHTS: each clump its own turn from the insertion's generator), placed by
+    :func:`place_clumps`, and counted in a region once, when the centre of their bounding sphere
+    is in it (as LIGGGHTS counts them); ``createParticles`` keeps their template's orientation
+    and puts a ``'single'`` or ``'lattice'`` clump's template origin at the point.
     """
 
     #: Simulated seconds between insertions by rate when ``freq`` is not given.
@@ -199,6 +331,10 @@ class PlacingEngine(Engine):
         self._schedules: dict[str, _Schedule] = {}
         self._insertions = 0
         self._run_end: int | None = None  # the step the run under way ends at
+        #: Multisphere species -> their template spheres ``(k, 4)``.
+        self._templates = {
+            s.type: np.array(s.spheres, float) for s in spec.species if s.style == "multisphere"
+        }
 
     @abc.abstractmethod
     def _add_spheres(
@@ -209,7 +345,25 @@ class PlacingEngine(Engine):
         velocities: np.ndarray,
         omega: Sequence[float],
     ) -> None:
-        """Add spheres of the given species (1-based) to the solver."""
+        """Add spheres of the given species (1-based, none multisphere) to the solver."""
+
+    @abc.abstractmethod
+    def _add_clumps(
+        self,
+        species: int,
+        origins: np.ndarray,
+        orientations: np.ndarray,
+        velocities: np.ndarray,
+        omega: Sequence[float],
+    ) -> None:
+        """Add clumps of multisphere species ``species`` (1-based) to the solver: its template's
+        origin at each of ``origins``, turned by ``orientations`` (unit quaternions ``w, x, y,
+        z``), moving at ``velocities`` (of the centre of mass) and spinning at ``omega``."""
+
+    @abc.abstractmethod
+    def bodies(self) -> np.ndarray:
+        """The clump of each sphere, ordered by id: a positive id for the spheres of clumps
+        (those of a clump in its template's order), -1 for single spheres."""
 
     @abc.abstractmethod
     def _obstacles(self) -> Obstacles:
@@ -254,13 +408,32 @@ class PlacingEngine(Engine):
         return species, radii
 
     def _held(self, request: InsertSpec) -> float:
-        """How much of a by-pack target the region holds: particles, volume or mass."""
+        """How much of a by-pack target the region holds: particles, volume or mass; a clump
+        counts once (with its mass and volume) when the centre of its bounding sphere is in it."""
+        if self._templates:
+            return self._held_with_clumps(request)
         inside = request.region.contains(self._extract("x"))
         if request.target == "particles_in_region":
             return float(np.count_nonzero(inside))
         if request.target == "volumefraction_region":
             return float((4 / 3 * math.pi * self._extract("radius")[inside] ** 3).sum())
         return float(self._extract("mass")[inside].sum())
+
+    def _held_with_clumps(self, request: InsertSpec) -> float:
+        """:meth:`_held` with multisphere species, whose spheres each carry the clump's mass."""
+        x, bodies, types = self._extract("x"), self.bodies(), self._extract("type")
+        first, centres = clumps.bounding_centres(x, bodies, types, self._templates)
+        single = bodies < 0
+        inside = request.region.contains(np.vstack([x[single], centres]))
+        if request.target == "particles_in_region":
+            return float(np.count_nonzero(inside))
+        mass = self._extract("mass")
+        if request.target == "volumefraction_region":
+            density = np.array([self.spec.species[int(t) - 1].density for t in types[first]])
+            radius = self._extract("radius")[single]
+            volume = np.append(4 / 3 * math.pi * radius**3, mass[first] / density.reshape(-1))
+            return float(volume[inside].sum())
+        return float(np.append(mass[single], mass[first])[inside].sum())
 
     def _lacking(self, schedule: _Schedule) -> float:
         """How much the region lacks of a by-pack target."""
@@ -281,13 +454,48 @@ class PlacingEngine(Engine):
         velocities: np.ndarray,
         omega: Sequence[float],
         all_in: bool = True,
+        orientation: str | Sequence[float] = "template",
     ) -> int:
-        """Add the spheres that fit at free places in ``region``; returns how many did."""
+        """Add the particles that fit at free places in ``region`` (clumps turned as
+        ``orientation`` says, see :func:`.clumps.orientations`); returns how many did."""
         existing = (self._extract("x"), self._extract("radius"))
-        index, centres = place_spheres(region, radii, rng, existing, self._obstacles(), all_in)
-        if len(index):
-            self._add_spheres(species[index], centres, radii[index], velocities[index], omega)
+        kinds = sorted(self._templates)
+        if not np.isin(species, kinds).any():
+            index, centres = place_spheres(region, radii, rng, existing, self._obstacles(), all_in)
+            if len(index):
+                self._add_spheres(species[index], centres, radii[index], velocities[index], omega)
+            return len(index)
+        shapes = [self._templates[kind] for kind in kinds]
+        offsets = [clumps.bounding_sphere(shape)[0] for shape in shapes]
+        shapes = [np.column_stack([shape[:, :3] - off, shape[:, 3]]) for shape, off in zip(shapes, offsets)]
+        kind = np.array([kinds.index(s) if s in self._templates else -1 for s in species.tolist()])
+        index, centres, turns = place_clumps(
+            region, shapes, kind, radii, rng, existing, self._obstacles(), all_in, orientation=orientation
+        )
+        # the template's origin is its bounding sphere's centre less the turned offset
+        for k, off in enumerate(offsets):
+            chosen = kind[index] == k
+            centres[chosen] -= clumps.rotation_matrix(turns[chosen]) @ off
+        self._add_particles(species[index], centres, radii[index], velocities[index], omega, turns)
         return len(index)
+
+    def _add_particles(
+        self,
+        species: np.ndarray,
+        centres: np.ndarray,
+        radii: np.ndarray,
+        velocities: np.ndarray,
+        omega: Sequence[float],
+        orientations: np.ndarray,
+    ) -> None:
+        """Add spheres at ``centres`` and clumps with their template's origin there, turned by
+        ``orientations``, species by species."""
+        for kind in np.unique(species):
+            chosen = species == kind
+            if int(kind) in self._templates:
+                self._add_clumps(int(kind), centres[chosen], orientations[chosen], velocities[chosen], omega)
+            else:
+                self._add_spheres(species[chosen], centres[chosen], radii[chosen], velocities[chosen], omega)
 
     def _insert_now(self, schedule: _Schedule, amount: float) -> float:
         """Insert up to ``amount`` of the target; returns the amount drawn, placed or not."""
@@ -297,7 +505,14 @@ class PlacingEngine(Engine):
         species, radii = self._draw(request, amount, schedule.rng)
         velocities = request.velocity.sample(len(radii), schedule.rng)
         made = self._place(
-            request.region, species, radii, schedule.rng, velocities, request.omega, request.all_in
+            request.region,
+            species,
+            radii,
+            schedule.rng,
+            velocities,
+            request.omega,
+            request.all_in,
+            request.orientation or "random",  # LIGGGHTS' default
         )
         self.log("insert at step %d: %d of %d particles", self.step, made, len(radii))
         if made < len(radii):
@@ -324,6 +539,22 @@ class PlacingEngine(Engine):
         return float(self._share(request, species, radii).sum())
 
     def _insert(self, request: InsertSpec) -> str:
+        bodies = [k for k in request.species if k in self._templates]
+        if bodies and request.target not in ("particles_in_region", "particlerate"):
+            raise self._unsupported(
+                f"inserting multisphere species {bodies} by {request.target} (the {self.name} engine "
+                "inserts clumps by number: particles_in_region or particlerate)"
+            )
+        if self._templates and request.mechanism == "by_pack" and request.target == "particles_in_region":
+            # the front end added the spheres whose centres are in the region; count clumps once
+            present = int(self._held(request))
+            request = replace(request, value=(request.requested or 0) + present)
+            self.log(
+                "insert: %g particles on top of the %d in the region, a multisphere particle counted "
+                "once when the centre of its bounding sphere is in the region (as LIGGGHTS counts)",
+                request.requested or 0,
+                present,
+            )
         self._insertions += 1
         label = f"insert{self._insertions}"
         rng = np.random.default_rng(request.seed)
@@ -375,6 +606,11 @@ class PlacingEngine(Engine):
 
     def _create(self, request: CreateSpec) -> int:
         species = self.spec.species[request.species - 1]
+        if request.radius and request.species in self._templates:
+            raise ConfigError(
+                f"createParticles: species {request.species} is multisphere, its spheres' radii come from "
+                "its template; leave radius out"
+            )
         rng = np.random.default_rng(request.seed)
         if request.style == "single":
             centres = request.centres
@@ -398,12 +634,13 @@ class PlacingEngine(Engine):
                 request.omega,
             )
         if len(radii):
-            self._add_spheres(
+            self._add_particles(
                 np.full(len(radii), request.species),
-                centres,
+                np.asarray(centres, float).reshape(-1, 3),
                 radii,
-                np.tile(request.velocity, (len(radii), 1)),
+                np.tile(np.asarray(request.velocity, float), (len(radii), 1)),
                 request.omega,
+                clumps.orientations("template", len(radii), rng),
             )
         return len(radii)
 

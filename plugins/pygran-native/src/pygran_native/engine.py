@@ -6,15 +6,14 @@ Insertion (``insert``, ``createParticles``) is :class:`PlacingEngine`'s, seeded 
 from ``seed``.
 
 Multisphere species are the solver's clumps (:meth:`Solver.add_clumps`), one per particle,
-placed by their enclosing sphere about the template's origin and inserted turned at random
-(seeded; LIGGGHTS' default) or as the insertion's ``orientation`` says; ``createParticles``
-keeps the template's orientation. As on LIGGGHTS and YADE, extracts give every sphere of a
-clump, each with the clump's mass, and :meth:`NativeEngine.bodies` the clump of each sphere.
+inserted and created as :class:`PlacingEngine` places and counts clumps. As on LIGGGHTS and
+YADE, extracts give every sphere of a clump, each with the clump's mass, and
+:meth:`NativeEngine.bodies` the clump of each sphere.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -22,8 +21,7 @@ import numpy as np
 from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature
 from pygran_core.formats import contacts as contact_schema
 from pygran_core.io import Frame
-from pygran_core.simulation import clumps
-from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, SetSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.specs import SimulationSpec, given, rank_run
@@ -72,12 +70,6 @@ class NativeEngine(PlacingEngine):
             np.array(spec.domain.box).T, spec.domain.periodic, gravity, spec.skin, spec.threads, spec.seed
         )
         self._mesh_types = {m.name: len(spec.species) + i for i, m in enumerate(spec.meshes)}
-        #: Multisphere species -> their template spheres ``(k, 4)``.
-        self._templates = {
-            s.type: np.array(s.spheres, float) for s in spec.species if s.style == "multisphere"
-        }
-        #: How the clumps being added are turned: an insertion's orientation and generator.
-        self._orienting: tuple[Any, np.random.Generator | None] = ("template", None)
         materials = [s.material for s in spec.species] + [
             m.material or spec.species[0].material for m in spec.meshes
         ]
@@ -146,103 +138,33 @@ class NativeEngine(PlacingEngine):
     def _add_spheres(
         self, species: np.ndarray, centres: np.ndarray, radii: np.ndarray, velocities: np.ndarray, omega: Any
     ) -> None:
-        """Add spheres, or for a multisphere species clumps of its template (turned as
-        :attr:`_orienting` says) whose template origin is at the centre."""
-        species = np.asarray(species)
-        if not any(int(k) in self._templates for k in np.unique(species)):
-            density = np.array([self.spec.species[int(k) - 1].density for k in species])
-            self.solver.add_particles(
-                centres,
-                radii,
-                densities=density,
-                types=species - 1,
-                velocities=velocities,
-                omegas=np.tile(omega, (len(radii), 1)),
-            )
-            return
-        for kind in np.unique(species):
-            chosen = species == kind
-            count = int(chosen.sum())
-            if int(kind) not in self._templates:
-                self._add_spheres(species[chosen], centres[chosen], radii[chosen], velocities[chosen], omega)
-                continue
-            self.solver.add_clumps(
-                self._templates[int(kind)],
-                centres[chosen],
-                self.spec.species[int(kind) - 1].density,
-                orientations=self._orientations(count),
-                types=int(kind) - 1,
-                velocities=np.asarray(velocities, float)[chosen],
-                omegas=np.tile(np.asarray(omega, float), (count, 1)),
-            )
+        density = np.array([self.spec.species[int(k) - 1].density for k in species])
+        self.solver.add_particles(
+            centres,
+            radii,
+            densities=density,
+            types=np.asarray(species) - 1,
+            velocities=velocities,
+            omegas=np.tile(omega, (len(radii), 1)),
+        )
 
-    # -- clumps (multisphere species) ---------------------------------------------------------
-
-    def _orientations(self, count: int) -> np.ndarray:
-        """Unit quaternions ``(w, x, y, z)`` for ``count`` new clumps: uniformly random (from the
-        insertion's generator), the template's own, or a constant one."""
-        orientation, rng = self._orienting
-        if orientation == "random":
-            if rng is None:
-                raise ConfigError("random clump orientations need the insertion's random generator")
-            return clumps.random_orientations(count, rng)
-        if orientation == "template":
-            return np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))
-        q = np.asarray(orientation, float)  # ("constant", q) as the front end gives it: q
-        return np.tile(q / np.linalg.norm(q), (count, 1))
-
-    def _radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Radii to place particles with: a clump's is that of its enclosing sphere about its
-        template's origin (see clumps.enclosing_radius)."""
-        radii = super()._radii(species, rng)
-        for kind, template in self._templates.items():
-            radii[species == kind] = clumps.enclosing_radius(template)
-        return radii
-
-    def _insert(self, request: InsertSpec) -> str:
-        bodies = [k for k in request.species if k in self._templates]
-        if bodies and request.target not in ("particles_in_region", "particlerate"):
-            raise self._unsupported(
-                f"inserting multisphere species {bodies} by {request.target} (the native engine inserts "
-                "clumps by number: particles_in_region or particlerate)"
-            )
-        if self._templates and request.mechanism == "by_pack" and request.target == "particles_in_region":
-            # the front end added the spheres in the region to the request; count each clump once
-            request = replace(request, value=(request.requested or 0) + self._held(request))
-        return super()._insert(request)
-
-    def _insert_now(self, schedule: Any, amount: float) -> float:
-        self._orienting = (schedule.request.orientation or "random", schedule.rng)  # LIGGGHTS' default
-        try:
-            return super()._insert_now(schedule, amount)
-        finally:
-            self._orienting = ("template", None)
-
-    def _create(self, request: CreateSpec) -> int:
-        """As :meth:`PlacingEngine._create`; clumps keep their template's orientation."""
-        if request.species not in self._templates:
-            return super()._create(request)
-        if request.radius:
-            raise ConfigError(
-                f"createParticles: species {request.species} is multisphere, its spheres' radii come from "
-                "its template; leave radius out"
-            )
-        if request.style != "random":
-            return super()._create(request)
-        rng = np.random.default_rng(request.seed)
-        count = given(request.count, "createParticles('random')'s count")
-        types = np.full(count, request.species)
-        velocities = np.tile(np.asarray(request.velocity, float), (count, 1))
-        region = given(request.region, "createParticles('random')'s region")
-        return self._place(region, types, self._radii(types, rng), rng, velocities, request.omega)
-
-    def _held(self, request: InsertSpec) -> float:
-        """As :meth:`PlacingEngine._held`; a clump counts once when any of its spheres is in the region."""
-        if not self._templates:
-            return super()._held(request)
-        inside = request.region.contains(self._extract("x"))
-        body = self.solver.bodies[inside]
-        return float(np.count_nonzero(body < 0) + len(np.unique(body[body >= 0])))
+    def _add_clumps(
+        self,
+        species: int,
+        origins: np.ndarray,
+        orientations: np.ndarray,
+        velocities: np.ndarray,
+        omega: Sequence[float],
+    ) -> None:
+        self.solver.add_clumps(
+            self._templates[species],
+            origins,
+            self.spec.species[species - 1].density,
+            orientations=orientations,
+            types=species - 1,
+            velocities=velocities,
+            omegas=np.tile(np.asarray(omega, float), (len(origins), 1)),
+        )
 
     def bodies(self) -> np.ndarray:
         """The clump of each sphere, ordered by id as :meth:`extract`: the clump's id (1, 2, ...)

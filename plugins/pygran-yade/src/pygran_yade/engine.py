@@ -41,22 +41,23 @@ finite, and reports them by face and speed (:meth:`YadeEngine._lost_since_last`)
 
 Multisphere species are YADE clumps (``O.bodies.appendClumped``), one per particle, whose
 mass, centre and inertia YADE integrates over the union of the spheres on a grid of
-:data:`CLUMP_DISCRETIZATION` cells across; extracts give every sphere of a clump, as the
-LIGGGHTS engine's do. YADE has no rolling-resistance law matching LIGGGHTS' (see the README),
-so no rolling-friction capability is declared.
+:data:`CLUMP_DISCRETIZATION` cells across, inserted and created as :class:`PlacingEngine`
+places and counts clumps; extracts give every sphere of a clump, as the LIGGGHTS engine's
+do. YADE has no rolling-resistance law matching LIGGGHTS' (see the README), so no
+rolling-friction capability is declared.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.io import Frame
-from pygran_core.simulation.calls import CreateSpec, InsertSpec, MotionSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.calls import MotionSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.models import SpringDashpot, mixing
@@ -160,12 +161,6 @@ class YadeEngine(PlacingEngine):
         materials = [s.material for s in spec.species] * 2 + [m.material for m in spec.meshes if m.material]
         densities = [s.density for s in spec.species] * 2 + [1.0] * len(self._mesh_material)
         self._radius_of = {s.type: s.radius for s in spec.species}
-        #: Multisphere species -> their template spheres ``(k, 4)``.
-        self._templates = {
-            s.type: np.array(s.spheres, float) for s in spec.species if s.style == "multisphere"
-        }
-        #: How the clumps being added are turned: an insertion's orientation and generator.
-        self._orienting: tuple[Any, np.random.Generator | None] = ("template", None)
         self.worker = Worker(self.output / WORKER_LOG, spec.threads or 1)
         self.log("YADE %s worker, pid %d", self.worker.version, self.worker.process.pid)
         self.worker.call(
@@ -259,24 +254,8 @@ class YadeEngine(PlacingEngine):
     def _add_spheres(
         self, species: np.ndarray, centres: np.ndarray, radii: np.ndarray, velocities: np.ndarray, omega: Any
     ) -> None:
-        """Add spheres, or for a multisphere species clumps of its template spheres (with the
-        orientation :attr:`_orienting` gives) whose template origin is at the centre."""
         for kind in np.unique(species):  # one YADE material per species
             chosen = np.asarray(species) == kind
-            count = int(chosen.sum())
-            if kind in self._templates:
-                self.worker.call(
-                    "clumps",
-                    centres=to_bytes(np.asarray(centres, float)[chosen]),
-                    orientations=to_bytes(self._orientations(count)),
-                    template=to_bytes(self._templates[kind]),
-                    velocities=to_bytes(np.asarray(velocities, float)[chosen]),
-                    omegas=to_bytes(np.tile(np.asarray(omega, float), (count, 1))),
-                    material=int(kind) - 1,
-                    species=int(kind),
-                    discretization=CLUMP_DISCRETIZATION,
-                )
-                continue
             self.worker.call(
                 "spheres",
                 centres=to_bytes(np.asarray(centres, float)[chosen]),
@@ -287,74 +266,25 @@ class YadeEngine(PlacingEngine):
                 species=int(kind),
             )
 
-    # -- clumps (multisphere species) ---------------------------------------------------------
-
-    def _orientations(self, count: int) -> np.ndarray:
-        """Unit quaternions ``(w, x, y, z)`` for ``count`` new clumps: uniformly random (from the
-        insertion's generator), the template's own, or a constant one."""
-        orientation, rng = self._orienting
-        if orientation == "random":
-            if rng is None:
-                raise ConfigError("random clump orientations need the insertion's random generator")
-            q = rng.normal(size=(count, 4))
-            return q / np.linalg.norm(q, axis=1, keepdims=True)
-        if orientation == "template":
-            return np.tile([1.0, 0.0, 0.0, 0.0], (count, 1))
-        return np.tile(np.asarray(orientation, float), (count, 1))
-
-    def _radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Radii to place particles with: a clump's is that of the sphere about its template's
-        origin enclosing every template sphere."""
-        radii = super()._radii(species, rng)
-        for kind, template in self._templates.items():
-            radii[species == kind] = float(np.max(np.linalg.norm(template[:, :3], axis=1) + template[:, 3]))
-        return radii
-
-    def _insert(self, request: InsertSpec) -> str:
-        clumps = [k for k in request.species if k in self._templates]
-        if clumps and request.target not in ("particles_in_region", "particlerate"):
-            raise self._unsupported(
-                f"inserting multisphere species {clumps} by {request.target} (the yade engine inserts "
-                "clumps by number: particles_in_region or particlerate)"
-            )
-        if self._templates and request.mechanism == "by_pack" and request.target == "particles_in_region":
-            # the front end added the spheres in the region to the request; count each clump once
-            request = replace(request, value=(request.requested or 0) + self._held(request))
-        return super()._insert(request)
-
-    def _insert_now(self, schedule: Any, amount: float) -> float:
-        orientation = schedule.request.orientation or "random"  # LIGGGHTS' default
-        self._orienting = (orientation, schedule.rng)
-        try:
-            return super()._insert_now(schedule, amount)
-        finally:
-            self._orienting = ("template", None)
-
-    def _create(self, request: CreateSpec) -> int:
-        """As :meth:`PlacingEngine._create`; clumps keep their template's orientation."""
-        if request.species not in self._templates:
-            return super()._create(request)
-        if request.radius:
-            raise ConfigError(
-                f"createParticles: species {request.species} is multisphere, its spheres' radii come from "
-                "its template; leave radius out"
-            )
-        if request.style != "random":
-            return super()._create(request)
-        if request.region is None or request.count is None:
-            raise ConfigError("createParticles('random') needs a region and a count")
-        rng = np.random.default_rng(request.seed)
-        types = np.full(request.count, request.species)
-        velocities = np.tile(np.asarray(request.velocity, float), (request.count, 1))
-        return self._place(request.region, types, self._radii(types, rng), rng, velocities, request.omega)
-
-    def _held(self, request: InsertSpec) -> float:
-        """As :meth:`PlacingEngine._held`; a clump counts once when any of its spheres is in the region."""
-        if not self._templates:
-            return super()._held(request)
-        inside = request.region.contains(self._extract("x"))
-        body = self._extract("body")[inside]
-        return float(np.count_nonzero(body < 0) + len(np.unique(body[body >= 0])))
+    def _add_clumps(
+        self,
+        species: int,
+        origins: np.ndarray,
+        orientations: np.ndarray,
+        velocities: np.ndarray,
+        omega: Sequence[float],
+    ) -> None:
+        self.worker.call(
+            "clumps",
+            centres=to_bytes(np.asarray(origins, float)),
+            orientations=to_bytes(np.asarray(orientations, float)),
+            template=to_bytes(self._templates[species]),
+            velocities=to_bytes(np.asarray(velocities, float)),
+            omegas=to_bytes(np.tile(np.asarray(omega, float), (len(origins), 1))),
+            material=species - 1,
+            species=species,
+            discretization=CLUMP_DISCRETIZATION,
+        )
 
     def bodies(self) -> np.ndarray:
         """The clump of each sphere, ordered by id as :meth:`extract`: the clump's YADE body id
