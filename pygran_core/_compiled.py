@@ -1,7 +1,8 @@
 """The optional compiled kernels the core uses when pygran-native is installed.
 
 ``kernels`` is ``pygran_native._accel`` (the cell-list pair sweep behind the RDF and
-neighbour analysis, and the parser of a dump's atom rows), or None without it. Every caller
+neighbour analysis, the parser of a dump's atom rows, and the coarse-graining deposits of
+particles and contact lines onto Cartesian grids), or None without it. Every caller
 has a numpy path that gives the same results, so the core never needs a compiler.
 """
 

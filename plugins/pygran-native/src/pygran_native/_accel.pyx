@@ -371,23 +371,36 @@ def parse_table(const uint8_t[::1] text, Py_ssize_t ncols, Py_ssize_t nrows):
 
 
 # -- coarse-graining --------------------------------------------------------------------------
-# The Cartesian deposits of pygran_core.analysis.coarse_grain (_points_numpy, _segments_numpy,
-# segment_integral): the same stencils, kernels and line integrals in the same arithmetic, one
-# particle or contact per iteration on OpenMP threads, each thread into its own copy of the grid.
+# The Cartesian deposits of pygran_core.analysis.coarse_grain (_points_numpy, _segments_numpy):
+# the same stencils, 1D kernel weights, quadrature nodes and normalisation in the same
+# arithmetic, one particle or contact per iteration on OpenMP threads, each thread into its own
+# copy of the grid. A kernel is a product of 1D kernels, so a point's weights are the outer
+# product of three short vectors; a contact line is a weighted sum of such points (its
+# quadrature nodes), accumulated in a local stencil, normalised, then added to the grid.
 
-from libc.math cimport erf, erfc, exp, fabs, floor, sqrt
+from libc.math cimport ceil, exp, fabs, floor
 from libc.stdlib cimport realloc
+from libc.string cimport memset
 
-_LEGENDRE7 = np.polynomial.legendre.leggauss(7)
-_LEGENDRE8 = np.polynomial.legendre.leggauss(8)
-cdef double _GL7X[7]
-cdef double _GL7W[7]
-cdef double _GL8X[8]
-cdef double _GL8W[8]
-for _q in range(7):
-    _GL7X[_q], _GL7W[_q] = _LEGENDRE7[0][_q], _LEGENDRE7[1][_q]
-for _q in range(8):
-    _GL8X[_q], _GL8W[_q] = _LEGENDRE8[0][_q], _LEGENDRE8[1][_q]
+cdef extern from *:
+    """
+    #define pg_prefetch(p) __builtin_prefetch(p)
+    /* out[j] += w * v[j], j < q; unrolled for the usual q (10 point sums, 9 stress components) */
+    static inline void pg_add(double* restrict out, double w, const double* restrict v, Py_ssize_t q) {
+        if (q == 9) {
+            for (int j = 0; j < 9; j++) out[j] += w * v[j];
+        } else if (q == 10) {
+            for (int j = 0; j < 10; j++) out[j] += w * v[j];
+        } else {
+            for (Py_ssize_t j = 0; j < q; j++) out[j] += w * v[j];
+        }
+    }
+    """
+    void pg_prefetch(const void* p) noexcept nogil
+    void pg_add(double* out, double w, const double* v, Py_ssize_t q) noexcept nogil
+
+#: How many items ahead the deposits prefetch their (randomly ordered) input rows.
+cdef int _AHEAD = 8
 
 
 cdef struct Lattice:
@@ -400,6 +413,8 @@ cdef struct Lattice:
     bint wrap[3]
     int kernel
     double w, c
+    double gauss  # -1 / (2 w²)
+    double inverse_c  # 1 / c
 
 
 cdef inline double _profile(const Lattice* g, double u) noexcept nogil:
@@ -409,24 +424,24 @@ cdef inline double _profile(const Lattice* g, double u) noexcept nogil:
     if not u < g.c:
         return 0.0
     if g.kernel == 0:
-        t = u / g.w
-        return exp(-0.5 * (t * t))
+        return exp((u * u) * g.gauss)
     if g.kernel == 1:
-        t = u / g.c
+        t = u * g.inverse_c
         return (1 + 3 * t) * ((1 - t) * (1 - t) * (1 - t))
     return 1.0
 
 
-cdef inline bint _cell(const Lattice* g, int d, int64_t k, int64_t* index) noexcept nogil:
-    """Lattice index ``k`` along dimension ``d`` wrapped or checked: False outside the grid."""
+cdef inline int64_t _cell(const Lattice* g, int d, int64_t k) noexcept nogil:
+    """The offset in the grid of lattice index ``k`` along dimension ``d`` (wrapped where
+    periodic), or -1 outside the grid."""
     if g.wrap[d]:
-        k = k % g.n[d]
-        if k < 0:
-            k += g.n[d]
+        if k < 0 or k >= g.n[d]:
+            k = k % g.n[d]
+            if k < 0:
+                k += g.n[d]
     elif k < 0 or k >= g.n[d]:
-        return False
-    index[0] = k * g.stride[d]
-    return True
+        return -1
+    return k * g.stride[d]
 
 
 cdef Lattice _lattice(const int64_t[::1] axes, const double[::1] lower, const double[::1] spacing,
@@ -441,247 +456,281 @@ cdef Lattice _lattice(const int64_t[::1] axes, const double[::1] lower, const do
     g.stride[2] = 1
     g.stride[1] = g.n[2]
     g.stride[0] = g.n[1] * g.n[2]
-    if g.ndim == 2:
-        g.stride[0], g.stride[1], g.stride[2] = g.n[1], 1, 0
-    elif g.ndim == 1:
-        g.stride[0], g.stride[1], g.stride[2] = 1, 0, 0
     g.kernel, g.w, g.c = kernel, width, cutoff
+    g.gauss, g.inverse_c = -0.5 / (width * width), 1 / cutoff
     return g
+
+
+cdef struct Scratch:  # one thread's buffers (C arrays written in a prange would be shared)
+    int64_t axis_capacity, stencil_capacity, cuts_capacity
+    double* offset  # per axis: cell centre minus the line's start, at each stencil index
+    int64_t* index  # per axis: the grid offset of each stencil index, -1 outside
+    double* weight  # per axis: the 1D weights of the current point
+    double* stencil  # the line's weights on its stencil
+    double* cuts  # the ends of the line's quadrature pieces
+    double a[3]  # the current point, or line start
+    double b[3]  # the current line's branch vector
+
+
+cdef Scratch* _scratch() noexcept nogil:
+    cdef Scratch* s = <Scratch*> malloc(sizeof(Scratch))
+    memset(s, 0, sizeof(Scratch))
+    return s
+
+
+cdef void _release(Scratch* s) noexcept nogil:
+    free(s.offset)
+    free(s.index)
+    free(s.weight)
+    free(s.stencil)
+    free(s.cuts)
+    free(s)
+
+
+cdef void _reserve(Scratch* s, int64_t axis, int64_t stencil, int64_t cuts) noexcept nogil:
+    if axis > s.axis_capacity:
+        s.axis_capacity = 2 * axis
+        s.offset = <double*> realloc(s.offset, 3 * s.axis_capacity * sizeof(double))
+        s.index = <int64_t*> realloc(s.index, 3 * s.axis_capacity * sizeof(int64_t))
+        s.weight = <double*> realloc(s.weight, 3 * s.axis_capacity * sizeof(double))
+    if stencil > s.stencil_capacity:
+        s.stencil_capacity = 2 * stencil
+        s.stencil = <double*> realloc(s.stencil, s.stencil_capacity * sizeof(double))
+    if cuts > s.cuts_capacity:
+        s.cuts_capacity = 2 * cuts
+        s.cuts = <double*> realloc(s.cuts, s.cuts_capacity * sizeof(double))
+
+
+cdef void _point(const Lattice* g, Scratch* s, const int64_t* count, const double* x, double* out,
+                 const double* value, Py_ssize_t q) noexcept nogil:
+    """Add ``value`` times the point's weights at ``x`` (normalised along each axis) to ``out``."""
+    cdef int64_t K = s.axis_capacity, low, k, k0, k1, k2, c01
+    cdef int64_t first[3]
+    cdef int64_t last[3]
+    cdef double total, w0, w01, wt
+    cdef double* weight = s.weight
+    cdef int64_t* index = s.index
+    cdef int d
+    for d in range(3):
+        first[d], last[d] = 0, 0
+        if d >= g.ndim:
+            weight[d * K], index[d * K] = 1.0, 0
+            continue
+        low = <int64_t> floor((x[d] - g.lower[d]) / g.h[d] - 0.5 - g.c / g.h[d])
+        total = 0.0
+        for k in range(count[d]):
+            weight[d * K + k] = _profile(g, (g.lower[d] + ((low + k) + 0.5) * g.h[d]) - x[d])
+            total = total + weight[d * K + k]
+            index[d * K + k] = _cell(g, d, low + k)
+        first[d], last[d] = count[d], -1
+        for k in range(count[d]):
+            weight[d * K + k] = weight[d * K + k] / total
+            if weight[d * K + k] != 0:
+                if k < first[d]:
+                    first[d] = k
+                last[d] = k
+    for k0 in range(first[0], last[0] + 1):
+        if index[k0] < 0:
+            continue
+        w0 = weight[k0]
+        for k1 in range(first[1], last[1] + 1):
+            if index[K + k1] < 0:
+                continue
+            w01 = w0 * weight[K + k1]
+            c01 = index[k0] + index[K + k1]
+            for k2 in range(first[2], last[2] + 1):
+                wt = w01 * weight[2 * K + k2]
+                if index[2 * K + k2] < 0 or wt == 0:
+                    continue
+                pg_add(&out[(c01 + index[2 * K + k2]) * q], wt, value, q)
 
 
 def cg_points(const int64_t[::1] axes, const double[::1] lower, const double[::1] spacing,
               const int64_t[::1] n, const uint8_t[::1] wrap, int kernel, double width, double cutoff,
-              const double[:, ::1] positions, const double[:, ::1] values):
-    """Sum over points of ``values`` (N, q) times their kernel weights at the cell centres,
-    normalised to 1 over the lattice: (cells, q)."""
+              const double[:, ::1] positions, const double[:, ::1] values, const int64_t[::1] order):
+    """Sum over points (taken in ``order``) of ``values`` (N, q) times their kernel weights at
+    the cell centres, normalised to 1 over the lattice: (cells, q)."""
     cdef Lattice g = _lattice(axes, lower, spacing, n, wrap, kernel, width, cutoff)
-    cdef Py_ssize_t ncells = 1, q = values.shape[1], npoints = positions.shape[0], i, j
+    cdef Py_ssize_t ncells = 1, q = values.shape[1], npoints = order.shape[0], i
     cdef int d, threads = openmp.omp_get_max_threads()
     cdef int64_t count[3]
-    cdef int64_t kmax = 1
+    cdef int64_t kmax = 1, p
+    for d in range(3):
+        count[d] = 1
     for d in range(g.ndim):
         ncells *= g.n[d]
         count[d] = <int64_t> floor(2 * g.c / g.h[d]) + 2
         kmax = max(kmax, count[d])
-    for d in range(g.ndim, 3):
-        count[d] = 1
     grids = np.zeros((threads, ncells, q))
     cdef double[:, :, ::1] out = grids
-    cdef double* weight = NULL
-    cdef int64_t* index = NULL
-    cdef bint* valid = NULL
-    cdef int64_t low, k, o0, o1, o2, at
-    cdef double x, total, w0, w01, wt
-    cdef double* o
+    cdef Scratch* s = NULL
     with nogil, parallel():
-        weight = <double*> malloc(3 * kmax * sizeof(double))
-        index = <int64_t*> malloc(3 * kmax * sizeof(int64_t))
-        valid = <bint*> malloc(3 * kmax * sizeof(bint))
+        s = _scratch()
+        _reserve(s, kmax, 0, 0)
         for i in prange(npoints, schedule="static"):
-            for d in range(3):
-                if d >= g.ndim:
-                    weight[d * kmax], index[d * kmax], valid[d * kmax] = 1.0, 0, True
-                    continue
-                x = positions[i, g.axis[d]]
-                low = <int64_t> floor((x - g.lower[d]) / g.h[d] - 0.5 - g.c / g.h[d])
-                total = 0.0
-                for k in range(count[d]):
-                    weight[d * kmax + k] = _profile(&g, (g.lower[d] + ((low + k) + 0.5) * g.h[d]) - x)
-                    total = total + weight[d * kmax + k]
-                    valid[d * kmax + k] = _cell(&g, d, low + k, &index[d * kmax + k])
-                for k in range(count[d]):
-                    weight[d * kmax + k] = weight[d * kmax + k] / total
-            o = &out[threadid(), 0, 0]
-            for o0 in range(count[0]):
-                if not valid[o0]:
-                    continue
-                w0 = weight[o0]
-                for o1 in range(count[1]):
-                    if not valid[kmax + o1]:
-                        continue
-                    w01 = w0 * weight[kmax + o1]
-                    for o2 in range(count[2]):
-                        wt = w01 * weight[2 * kmax + o2]
-                        if not valid[2 * kmax + o2] or wt == 0:
-                            continue
-                        at = (index[o0] + index[kmax + o1] + index[2 * kmax + o2]) * q
-                        for j in range(q):
-                            o[at + j] += wt * values[i, j]
-        free(weight)
-        free(index)
-        free(valid)
+            if i + _AHEAD < npoints:
+                p = order[i + _AHEAD]
+                pg_prefetch(&positions[p, 0])
+                pg_prefetch(&values[p, 0])
+                pg_prefetch(&values[p, q - 1])
+            p = order[i]
+            for d in range(g.ndim):
+                s.a[d] = positions[p, g.axis[d]]
+            _point(&g, s, count, s.a, &out[threadid(), 0, 0], &values[p, 0], q)
+        _release(s)
     return grids.sum(axis=0)
 
 
-cdef inline double _legendre(const Lattice* g, const double* d, const double* b, double s0, double s1,
-                             const double* nodes, const double* weights, int m) noexcept nogil:
-    """Gauss-Legendre with ``m`` nodes of the kernel product along the segment, on [s0, s1]."""
-    cdef double half = 0.5 * (s1 - s0), mid = 0.5 * (s1 + s0), total = 0.0, s, value, u, r2
-    cdef int q, e
-    for q in range(m):
-        s = mid + half * nodes[q]
-        value = weights[q] * half
-        if g.kernel == 0:  # inside the clipped support the Gaussians multiply to one exponential
-            r2 = 0.0
-            for e in range(g.ndim):
-                u = (d[e] + s * b[e]) / g.w
-                r2 = r2 + u * u
-            value = value * exp(-0.5 * r2)
-        else:
-            for e in range(g.ndim):
-                value = value * _profile(g, d[e] + s * b[e])
-        total = total + value
-    return total
-
-
-cdef inline double _erf_difference(double a, double b) noexcept nogil:
-    if a > 0 and b > 0:
-        return erfc(fabs(a)) - erfc(fabs(b))
-    if a < 0 and b < 0:
-        return erfc(fabs(b)) - erfc(fabs(a))
-    return erf(b) - erf(a)
-
-
-cdef double _segment(const Lattice* g, const double* d, const double* b) noexcept nogil:
-    """``segment_integral`` of coarse_grain: the kernel product integrated along ``d + s b``."""
-    cdef double s0 = 0.0, s1 = 1.0, lo, hi, t, length, a2 = 0.0, dot = 0.0, dd = 0.0, root, scale, perp
-    cdef double cuts[5]
-    cdef int e, m = 2, p, r
-    for e in range(g.ndim):
-        if b[e] == 0:
-            if not fabs(d[e]) < g.c:
-                return 0.0
+cdef void _line(const Lattice* g, Scratch* s, const double* start, const double* branch, const double* nodes,
+                const double* weights, int m, double piece, double* out, const double* value,
+                Py_ssize_t q) noexcept nogil:
+    """Add ``value`` times the line's weights to ``out``: the kernel along ``start - t branch``,
+    ``t`` in [0, 1], integrated by ``m``-point Gauss-Legendre on pieces between the points where
+    the line enters or leaves a cell's support, at most ``piece`` long; normalised to 1."""
+    cdef int64_t low[3]
+    cdef int64_t count[3]
+    cdef int64_t first[3]
+    cdef int64_t last[3]
+    cdef int64_t lo[3]
+    cdef int64_t hi[3]
+    cdef int64_t K = 1, size = 1, pieces, ncuts = 0, k, k0, k1, k2, row, c01, r
+    cdef double length2 = 0.0, end, t, t0, t1, half, mid, wq, w0, w01, total, inverse
+    cdef double* offset
+    cdef double* weight
+    cdef double* stencil
+    cdef double* cuts
+    cdef int64_t* index
+    cdef int d, e, sign
+    cdef bint empty
+    for d in range(3):
+        low[d], count[d] = 0, 1
+        if d < g.ndim:
+            end = start[d] - branch[d]
+            low[d] = <int64_t> floor(((start[d] if start[d] < end else end) - g.lower[d] - g.c) / g.h[d] - 0.5)
+            count[d] = <int64_t> floor((fabs(branch[d]) + 2 * g.c) / g.h[d]) + 2
+            length2 = length2 + branch[d] * branch[d]
+        size = size * count[d]
+        K = max(K, count[d])
+    pieces = max(<int64_t> ceil(sqrt(length2) / piece), 1)
+    _reserve(s, K, size, pieces + 1 + 2 * (count[0] + count[1] + count[2]))
+    offset, index, weight, stencil, cuts = s.offset, s.index, s.weight, s.stencil, s.cuts
+    K = s.axis_capacity
+    for d in range(3):
+        for k in range(count[d]):
+            if d < g.ndim:
+                offset[d * K + k] = (g.lower[d] + ((low[d] + k) + 0.5) * g.h[d]) - start[d]
+                index[d * K + k] = _cell(g, d, low[d] + k)
+            else:
+                offset[d * K + k], index[d * K + k] = 0.0, 0
+    # the pieces: [0, 1] cut into equal parts and where |offset + t branch| = c along an axis
+    for k in range(pieces + 1):
+        cuts[ncuts] = (<double> k) / pieces
+        ncuts += 1
+    for d in range(g.ndim):
+        if branch[d] != 0:
+            inverse = 1 / branch[d]
+            for k in range(count[d]):
+                for sign in range(2):
+                    t = ((g.c if sign else -g.c) - offset[d * K + k]) * inverse
+                    if 0 < t < 1:
+                        cuts[ncuts] = t
+                        ncuts += 1
+    for k in range(1, ncuts):  # insertion sort (a few cuts, most of them in order)
+        t = cuts[k]
+        r = k - 1
+        while r >= 0 and cuts[r] > t:
+            cuts[r + 1] = cuts[r]
+            r -= 1
+        cuts[r + 1] = t
+    memset(stencil, 0, size * sizeof(double))
+    for d in range(3):
+        first[d], last[d] = count[d], -1
+    for e in range(ncuts - 1):
+        t0, t1 = cuts[e], cuts[e + 1]
+        if not t1 > t0:
             continue
-        lo = (-g.c - d[e]) / b[e]
-        hi = (g.c - d[e]) / b[e]
-        if lo > hi:
-            lo, hi = hi, lo
-        s0 = s0 if s0 > lo else lo
-        s1 = s1 if s1 < hi else hi
-    length = s1 - s0
-    if not length > 0:
-        return 0.0
-    if g.kernel == 2:
-        return length
-    if g.kernel == 1:
-        cuts[0], cuts[1] = s0, s1
-        for e in range(g.ndim):
-            if b[e] != 0:
-                t = -d[e] / b[e]
-                if s0 < t < s1:
-                    cuts[m] = t
-                    m += 1
-        for p in range(1, m):  # insertion sort of at most five
-            t = cuts[p]
-            r = p - 1
-            while r >= 0 and cuts[r] > t:
-                cuts[r + 1] = cuts[r]
-                r -= 1
-            cuts[r + 1] = t
-        t = 0.0
-        for p in range(m - 1):
-            t = t + _legendre(g, d, b, cuts[p], cuts[p + 1], _GL7X, _GL7W, 7)
-        return t
-    for e in range(g.ndim):
-        a2 = a2 + b[e] * b[e]
-    root = sqrt(a2)
-    if root * length <= 1e-3 * g.w:
-        return _legendre(g, d, b, s0, s1, _GL8X, _GL8W, 8)
-    for e in range(g.ndim):
-        dot = dot + d[e] * b[e]
-        dd = dd + d[e] * d[e]
-    dot = dot / a2
-    perp = dd - dot * dot * a2
-    if perp < 0:
-        perp = 0.0
-    scale = root / (sqrt(2.0) * g.w)
-    return exp(-0.5 * perp / (g.w * g.w)) * (sqrt(3.141592653589793) / (2 * scale)) * _erf_difference(
-        (s0 + dot) * scale, (s1 + dot) * scale)
-
-
-cdef struct Buffer:  # one thread's scratch space (C arrays written in a prange would be shared)
-    double* weight
-    int64_t* cells
-    int64_t capacity
-    int64_t low[3]
-    int64_t count[3]
-    int64_t k[3]
-    double d0[3]
-    double dv[3]
-    double bv[3]
-
-
-cdef inline void _grow(Buffer* buf, int64_t size) noexcept nogil:
-    if size > buf.capacity:
-        buf.capacity = 2 * size
-        buf.weight = <double*> realloc(buf.weight, buf.capacity * sizeof(double))
-        buf.cells = <int64_t*> realloc(buf.cells, buf.capacity * sizeof(int64_t))
+        half, mid = 0.5 * (t1 - t0), 0.5 * (t1 + t0)
+        for r in range(m):
+            t = mid + half * nodes[r]
+            wq = half * weights[r]
+            empty = False
+            for d in range(3):
+                if d >= g.ndim:
+                    weight[d * K], lo[d], hi[d] = 1.0, 0, 0
+                    continue
+                lo[d], hi[d] = count[d], -1
+                for k in range(count[d]):
+                    weight[d * K + k] = _profile(g, offset[d * K + k] + t * branch[d])
+                    if weight[d * K + k] != 0:
+                        if k < lo[d]:
+                            lo[d] = k
+                        hi[d] = k
+                if hi[d] < 0:
+                    empty = True
+                    break
+            if empty:
+                continue
+            for d in range(3):
+                first[d] = min(first[d], lo[d])
+                last[d] = max(last[d], hi[d])
+            for k0 in range(lo[0], hi[0] + 1):
+                w0 = wq * weight[k0]
+                for k1 in range(lo[1], hi[1] + 1):
+                    w01 = w0 * weight[K + k1]
+                    row = (k0 * count[1] + k1) * count[2]
+                    for k2 in range(lo[2], hi[2] + 1):
+                        stencil[row + k2] += w01 * weight[2 * K + k2]
+    total = 0.0
+    for k0 in range(first[0], last[0] + 1):
+        for k1 in range(first[1], last[1] + 1):
+            row = (k0 * count[1] + k1) * count[2]
+            for k2 in range(first[2], last[2] + 1):
+                total = total + stencil[row + k2]
+    if not total > 0:
+        return
+    for k0 in range(first[0], last[0] + 1):
+        if index[k0] < 0:
+            continue
+        for k1 in range(first[1], last[1] + 1):
+            if index[K + k1] < 0:
+                continue
+            c01 = index[k0] + index[K + k1]
+            row = (k0 * count[1] + k1) * count[2]
+            for k2 in range(first[2], last[2] + 1):
+                if index[2 * K + k2] < 0 or stencil[row + k2] == 0:
+                    continue
+                pg_add(&out[(c01 + index[2 * K + k2]) * q], stencil[row + k2] / total, value, q)
 
 
 def cg_segments(const int64_t[::1] axes, const double[::1] lower, const double[::1] spacing,
                 const int64_t[::1] n, const uint8_t[::1] wrap, int kernel, double width, double cutoff,
-                const double[:, ::1] start, const double[:, ::1] branch, const double[:, ::1] values):
-    """Sum over segments ``start -> start - branch`` of ``values`` (M, q) times the kernel
-    integrated along them at the cell centres, normalised to 1 over the lattice: (cells, q)."""
+                const double[:, ::1] start, const double[:, ::1] branch, const double[:, ::1] values,
+                const int64_t[::1] order, const double[::1] nodes, const double[::1] weights, double piece):
+    """Sum over segments ``start -> start - branch`` (taken in ``order``) of ``values`` (M, q)
+    times the kernel integrated along them at the cell centres (Gauss-Legendre ``nodes`` and
+    ``weights`` on [-1, 1] on pieces at most ``piece`` long, see ``_line``), normalised to 1
+    over the lattice: (cells, q)."""
     cdef Lattice g = _lattice(axes, lower, spacing, n, wrap, kernel, width, cutoff)
-    cdef Py_ssize_t ncells = 1, q = values.shape[1], nseg = start.shape[0], i, j
-    cdef int d, threads = openmp.omp_get_max_threads()
+    cdef Py_ssize_t ncells = 1, q = values.shape[1], nseg = order.shape[0], i
+    cdef int d, m = nodes.shape[0], threads = openmp.omp_get_max_threads()
+    cdef int64_t p
     for d in range(g.ndim):
         ncells *= g.n[d]
     grids = np.zeros((threads, ncells, q))
     cdef double[:, :, ::1] out = grids
-    cdef Buffer* buf = NULL
-    cdef double* weight
-    cdef int64_t* cells
-    cdef int64_t size, p, at, part
-    cdef double a0, a1, total, wt
-    cdef double* o
-    cdef bint inside
+    cdef Scratch* s = NULL
     with nogil, parallel():
-        buf = <Buffer*> malloc(sizeof(Buffer))
-        buf.weight, buf.cells, buf.capacity = NULL, NULL, 0
+        s = _scratch()
         for i in prange(nseg, schedule="dynamic", chunksize=256):
-            size = 1
-            for d in range(3):
-                buf.low[d], buf.count[d], buf.d0[d], buf.bv[d] = 0, 1, 0.0, 0.0
+            if i + _AHEAD < nseg:
+                p = order[i + _AHEAD]
+                pg_prefetch(&start[p, 0])
+                pg_prefetch(&branch[p, 0])
+                pg_prefetch(&values[p, 0])
+                pg_prefetch(&values[p, q - 1])
+            p = order[i]
             for d in range(g.ndim):
-                a0 = start[i, g.axis[d]]
-                a1 = a0 - branch[i, g.axis[d]]
-                buf.low[d] = <int64_t> floor(((a0 if a0 < a1 else a1) - g.lower[d] - g.c) / g.h[d] - 0.5)
-                buf.count[d] = <int64_t> floor((fabs(branch[i, g.axis[d]]) + 2 * g.c) / g.h[d]) + 2
-                buf.bv[d] = branch[i, g.axis[d]]
-                buf.d0[d] = a0
-                size = size * buf.count[d]
-            _grow(buf, size)
-            weight, cells = buf.weight, buf.cells
-            total = 0.0
-            for p in range(size):
-                buf.k[2] = p % buf.count[2]
-                buf.k[1] = (p // buf.count[2]) % buf.count[1]
-                buf.k[0] = p // (buf.count[2] * buf.count[1])
-                inside = True
-                cells[p] = 0
-                for d in range(g.ndim):
-                    buf.dv[d] = (g.lower[d] + ((buf.low[d] + buf.k[d]) + 0.5) * g.h[d]) - buf.d0[d]
-                    if _cell(&g, d, buf.low[d] + buf.k[d], &part):
-                        cells[p] += part
-                    else:
-                        inside = False
-                weight[p] = _segment(&g, buf.dv, buf.bv)
-                total = total + weight[p]
-                if not inside:
-                    cells[p] = -1
-            if not total > 0:
-                continue
-            o = &out[threadid(), 0, 0]
-            for p in range(size):
-                if cells[p] < 0 or weight[p] == 0:
-                    continue
-                wt = weight[p] / total
-                at = cells[p] * q
-                for j in range(q):
-                    o[at + j] += wt * values[i, j]
-        free(buf.weight)
-        free(buf.cells)
-        free(buf)
+                s.a[d], s.b[d] = start[p, g.axis[d]], branch[p, g.axis[d]]
+            _line(&g, s, s.a, s.b, &nodes[0], &weights[0], m, piece, &out[threadid(), 0, 0], &values[p, 0], q)
+        _release(s)
     return grids.sum(axis=0)
