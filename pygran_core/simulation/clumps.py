@@ -25,7 +25,6 @@ __all__ = [
     "MassProperties",
     "bounding_centres",
     "bounding_sphere",
-    "enclosing_radius",
     "mass_properties",
     "orientations",
     "quaternion_of",
@@ -110,13 +109,6 @@ def _mass_properties(
     for array in (centre, inertia, moments, axes):
         array.flags.writeable = False
     return MassProperties(float(mass), centre, inertia, moments, axes)
-
-
-def enclosing_radius(spheres: Spheres) -> float:
-    """Radius of the smallest sphere about the template's origin holding every sphere: a
-    clump placed with its origin at a point clears whatever that sphere clears, turned any way."""
-    template = _template(spheres)
-    return float(np.max(np.linalg.norm(template[:, :3], axis=1) + template[:, 3]))
 
 
 def bounding_sphere(spheres: Spheres) -> tuple[np.ndarray, float]:

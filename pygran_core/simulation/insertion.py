@@ -548,13 +548,15 @@ class PlacingEngine(Engine):
         if self._templates and request.mechanism == "by_pack" and request.target == "particles_in_region":
             # the front end added the spheres whose centres are in the region; count clumps once
             present = int(self._held(request))
-            request = replace(request, value=(request.requested or 0) + present)
             self.log(
-                "insert: %g particles on top of the %d in the region, a multisphere particle counted "
-                "once when the centre of its bounding sphere is in the region (as LIGGGHTS counts)",
+                "insert: %g particles on top of the %d in the region, counted as LIGGGHTS counts them: "
+                "a single sphere when its centre is in it, a multisphere particle once when the centre "
+                "of its bounding sphere is (sphere centres in it: %d)",
                 request.requested or 0,
                 present,
+                request.value - (request.requested or 0),
             )
+            request = replace(request, value=(request.requested or 0) + present)
         self._insertions += 1
         label = f"insert{self._insertions}"
         rng = np.random.default_rng(request.seed)

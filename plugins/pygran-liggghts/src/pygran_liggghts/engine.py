@@ -42,6 +42,7 @@ from pygran_core.errors import (
 )
 from pygran_core.formats import contacts as contact_schema
 from pygran_core.io import Frame, open_trajectory
+from pygran_core.simulation import clumps
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
 from pygran_core.simulation.engine import Engine, LostParticles, before_resume, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, given, launch_communicator
@@ -354,7 +355,7 @@ class LiggghtsEngine(Engine):
         auto = any(mesh.servo and mesh.servo.mode == "auto" for mesh in self.spec.meshes)
         pre = "pre no " if self._prepared and not lines and not auto else ""
         # LIGGGHTS makes these as this run starts, asking for its target less what it counts
-        self._asked = {label: self._asked_by(spec) for label, spec in self._unplaced.items()}
+        self._asked = {label: self._asked_by(spec, dt) for label, spec in self._unplaced.items()}
         filling = [  # volume fractions inserted in this run, whose outcome is logged
             label
             for label, spec in self._insertions.items()
@@ -379,22 +380,19 @@ class LiggghtsEngine(Engine):
         if filling:
             self._log_fractions(filling, start + nsteps)
 
-    def _asked_by(self, spec: InsertSpec) -> tuple[int, bool] | None:
-        """The particles by-pack insertion ``spec`` asks for as the next run starts, as LIGGGHTS
-        counts them: its target less what its region holds (the particles whose centres are in
-        it, also with ``all_in``, as LIGGGHTS 3.8 counts them; multisphere particles once),
-        exactly for a number of particles; for a volume or mass, what lacks over the expected
-        volume or mass of one particle, to which LIGGGHTS adds a uniform draw before rounding
-        down (about); ``None`` for the volume or mass of multisphere bodies, which LIGGGHTS
-        computes."""
+    def _asked_by(self, spec: InsertSpec, dt: float) -> tuple[int, bool] | None:
+        """The particles by-pack insertion ``spec`` asks for as the next run (of steps ``dt``)
+        starts, as LIGGGHTS counts them: its target less what its region holds, exactly for a
+        number of particles (:meth:`_particles_in`); for a volume or mass, what lacks over the
+        expected volume or mass of one particle, to which LIGGGHTS adds a uniform draw before
+        rounding down (about); ``None`` for the volume or mass of multisphere bodies, which
+        LIGGGHTS computes."""
+        if spec.target == "particles_in_region":
+            return int(spec.value) - self._particles_in(spec.region, dt), True
         if self.commands.body_types:
-            if spec.target != "particles_in_region":
-                return None
-            return int(spec.value) - self._particles_in(spec.region), True
+            return None
         arrays = self._request("gather", ["x", "radius", "mass"])
         inside = spec.region.contains(arrays["x"].reshape(-1, 3))
-        if spec.target == "particles_in_region":
-            return int(spec.value) - int(np.count_nonzero(inside)), True
         sizes = [
             (weight * fraction, 4 / 3 * math.pi * radius**3, self.spec.species[index - 1].density)
             for index, weight in zip(spec.species, spec.weights)
@@ -545,13 +543,32 @@ class LiggghtsEngine(Engine):
         lost, self._unreported = self._unreported, LostParticles()
         return lost
 
-    def _particles_in(self, region: Any) -> int:
-        """Particles whose centres are in ``region``, a multisphere particle counted once when
-        any of its spheres is."""
-        arrays = self._request("gather", ["x", "mol"])
-        inside = region.contains(arrays["x"].reshape(-1, 3))
-        mol = arrays["mol"][inside]
-        return int(np.count_nonzero(mol < 0) + len(np.unique(mol[mol >= 0])))
+    def _particles_in(self, region: Any, dt: float | None) -> int:
+        """The particles LIGGGHTS counts in ``region`` as it inserts, at the step after this one
+        (of ``dt``; ``None``: no step to move by): as LIGGGHTS 3.8's ``fix insert/pack``
+        counts them (``FixInsertPack::calc_ninsert_this``), a single sphere when its centre is
+        in it (also with ``all_in``) and a multisphere particle once, when the centre of its
+        bounding sphere is (:func:`~pygran_core.simulation.clumps.bounding_centres`). LIGGGHTS
+        counts after the step's first half has moved the particles, so they are moved here as
+        its integrators move them: a single sphere by ``dt (v + dt f / 2m)`` (``fix
+        nve/sphere``: exactly), the spheres of a clump by ``dt v`` (``fix multisphere``, within
+        ``dt^2`` times the clump's accelerations). Counted without moving them, a particle
+        crossing a face of the region in that step would be miscounted, and the insertion
+        would make one particle more or fewer than asked."""
+        bodies = bool(self.commands.body_types)
+        names = ["x", "v", "f", "mass", *(["mol", "type"] if bodies else [])]
+        arrays = self._request("gather", names)
+        x, v, f = (arrays[name].reshape(-1, 3) for name in ("x", "v", "f"))
+        single = arrays["mol"] < 0 if bodies else np.ones(len(x), bool)
+        if dt is not None:
+            half = v + np.where(single, 0.5 * dt / arrays["mass"], 0.0)[:, None] * f
+            x = x + dt * half
+        points = x[single]
+        if bodies:
+            templates = {k: self.spec.species[k - 1].spheres for k in self.commands.body_types}
+            _, centres = clumps.bounding_centres(x, arrays["mol"], arrays["type"], templates)
+            points = np.vstack([points, centres])
+        return int(np.count_nonzero(region.contains(points)))
 
     def _extract(self, quantity: str) -> np.ndarray:
         return self._request("gather", [quantity])[quantity]
@@ -648,10 +665,19 @@ class LiggghtsEngine(Engine):
             return spec if kept is None else replace(spec, value=float(kept))
         if spec.target != "particles_in_region":
             return spec
-        if self.commands.body_types:  # LIGGGHTS counts a multisphere particle once
-            present = self._particles_in(spec.region)
-            self.log("insert: %d particles (multisphere ones counted once) in the region", present)
-            spec = replace(spec, value=(spec.requested or 0) + present)
+        requested = spec.requested or 0
+        present = self._particles_in(spec.region, self.dt)
+        if self.commands.body_types or requested + present != spec.value:
+            self.log(
+                "insert: %g particles on top of the %d in the region as LIGGGHTS counts them when it "
+                "inserts, at step %d: a single sphere when its centre is in it, a multisphere particle "
+                "once when the centre of its bounding sphere is (sphere centres in it now: %d)",
+                requested,
+                present,
+                self.step + 1,
+                spec.value - requested,
+            )
+        spec = replace(spec, value=requested + present)
         earlier = [other for other in self._unplaced.values() if other.region == spec.region]
         waiting = sum(int(other.requested or 0) for other in earlier if other.target == spec.target)
         uncounted = sorted({other.target for other in earlier if other.target != spec.target})
