@@ -163,3 +163,67 @@ def test_a_heap_slumps_to_the_angle_liggghts_gives(tmp_path, rolling):
     liggghts = heap_angle("liggghts", rolling, tmp_path / "liggghts")
     assert native == pytest.approx(liggghts, abs=2.0)
     assert native > 5.0  # a heap, not spheres rolled apart over the floor
+
+
+def impacts(engine: str, friction: float, output: Path) -> np.ndarray:
+    """Velocities and angular velocities (N, 3 spheres, 6), step by step, of a sphere dropped
+    spinning about a tilted axis on the floor (rolling and torsion parts) and of two spheres
+    of unequal size colliding obliquely, both spinning; cdt, each contact new in the run."""
+    material = dict(SOFT, coefficientFriction=friction)
+    axis = np.array([1.2, 1.5, 0.3]) / np.linalg.norm([1.2, 1.5, 0.3])  # the pair's line of centres
+    steps = []
+    with simulation.DEM(
+        engine=engine,
+        model=HertzMindlin.configure(rolling="cdt"),
+        box=(-2e-3, 2e-3, -2e-3, 2e-3, 0, 4e-3),
+        gravity=(G, 0, 0, -1),
+        dt=1e-6,
+        output=str(output),
+        species=tuple({"material": material, "radius": f * SMALL} for f in (1.5, 1.2, 0.9)),
+        traj={"pfile": None},
+        progress=False,
+    ) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=0.0)
+        sim.createParticles(1, "single", 0.0, 0.0, 1.52 * SMALL)  # 2 um above the floor
+        sim.createParticles(2, "single", -1e-3, 0.0, 2e-3)
+        sim.createParticles(3, "single", *(np.array([-1e-3, 0.0, 2e-3]) + 2.12 * SMALL * axis))
+        sim.set(ids=[1], vel=(0, 0, -0.1), omega=(30.0, 0, 40.0))
+        sim.set(ids=[2], vel=tuple(0.1 * axis + (0, 0.03, 0)), omega=(10.0, 50.0, 20.0))
+        sim.set(ids=[3], vel=(0, 0, 0.02), omega=(-30.0, 0, 5.0))
+        for _ in range(150):  # the contacts last about 60 steps
+            sim.run(1)
+            steps.append(np.hstack([sim.extractVelocities(), sim.extractOmegas()]))
+    return np.array(steps)
+
+
+def test_cdt_torques_match_liggghts_step_by_step(tmp_path):
+    """Without friction, cdt's torque alone turns the spheres: ``mu_r R* k_n delta`` against
+    the relative rotation, its part along the normal removed, with R* the wall's sphere radius
+    or r_i r_j / (r_i + r_j), and the elastic normal force (not the damped one: the impacts
+    load and unload the contacts). Native and LIGGGHTS agree to rounding (measured 5e-16 of
+    the largest value), every step."""
+    require_solver(find_library)
+    native = impacts("native", 0.0, tmp_path / "native")
+    liggghts = impacts("liggghts", 0.0, tmp_path / "liggghts")
+    np.testing.assert_allclose(native, liggghts, rtol=0, atol=1e-12 * np.abs(liggghts).max())
+    wall = native[-1, 0]
+    assert abs(wall[3]) < 0.01 * 30.0 and wall[5] == 40.0  # rolling part stopped, torsion left
+    assert np.abs(native[-1, 1:, 3:] - native[0, 1:, 3:]).max() > 1.0  # the pair's spins changed
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="native's tangential law differs from LIGGGHTS' tangential history: LIGGGHTS tests "
+    "Coulomb's limit on the spring force k_t xi alone (scaled back without the dashpot, history "
+    "-F_t/k_t; below it, spring plus dashpot unlimited) and uses the contact radius r - delta/2 "
+    "for the contact point's velocity and the torque's lever; native limits spring plus dashpot "
+    "and uses r (_contact_tangential.pxi, _pairs.pxi)",
+)
+def test_friction_with_cdt_matches_liggghts_step_by_step(tmp_path):
+    """With friction, the same impacts slide, then stick as the spin turns into rolling;
+    measured: native parts from LIGGGHTS by 1.4 % of the largest value at the transition
+    (and cdt piles pour 2 degrees flatter); with LIGGGHTS' law, it agrees to 1e-14."""
+    require_solver(find_library)
+    native = impacts("native", 0.5, tmp_path / "native")
+    liggghts = impacts("liggghts", 0.5, tmp_path / "liggghts")
+    np.testing.assert_allclose(native, liggghts, rtol=0, atol=1e-9 * np.abs(liggghts).max())
