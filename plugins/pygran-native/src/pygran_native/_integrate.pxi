@@ -1,19 +1,29 @@
 # Integration: the particle loop (summing the pair loop's buffers, gravity, viscous
 # forces, velocity Verlet kicks) and the drift.
 
+cdef inline void drift_one(double* x, double* v, double* w, const double* x0, double dt, double s, double u,
+                           const double* F, const double* T, double* tmax) noexcept nogil:
+    """First half kick (``s F``, ``u T``) and drift of the particle whose position, velocity,
+    angular velocity and position at the rebuild start at x, v, w, x0; its squared
+    displacement since the rebuild raises ``tmax[0]``."""
+    cdef int d
+    cdef double q, dd = 0.0
+    for d in range(3):
+        v[d] += s * F[d]
+        w[d] += u * T[d]
+        x[d] += dt * v[d]
+        q = x[d] - x0[d]
+        dd += q * q
+    if not dd <= tmax[0]:   # a non-finite particle forces a rebuild, which drops it
+        tmax[0] = dd if isfinite(dd) else INFINITY
+
+
 cdef inline void drift_row(const State* c, int i, int tid, const double* F, const double* T) noexcept nogil:
     """First half kick (force F, torque T) and drift of particle i; its squared displacement
     since the rebuild raises thread ``tid``'s maximum (per-thread maxima are a cache line apart)."""
-    cdef int d
-    cdef double s = 0.5 * c.dt / c.m[i], u = 0.5 * c.dt / (0.4 * c.m[i] * c.r[i] * c.r[i]), q, dd = 0.0
-    for d in range(3):
-        c.v[3 * i + d] += s * F[d]
-        c.w[3 * i + d] += u * T[d]
-        c.x[3 * i + d] += c.dt * c.v[3 * i + d]
-        q = c.x[3 * i + d] - c.x0[3 * i + d]
-        dd += q * q
-    if not dd <= c.tmax[PAD * tid]:   # a non-finite particle forces a rebuild, which drops it
-        c.tmax[PAD * tid] = dd if isfinite(dd) else INFINITY
+    cdef double dt = c.dt, mi = c.m[i], ri = c.r[i]
+    drift_one(&c.x[3 * i], &c.v[3 * i], &c.w[3 * i], &c.x0[3 * i], dt, 0.5 * dt / mi,
+              0.5 * dt / (0.4 * mi * ri * ri), F, T, &c.tmax[PAD * tid])
 
 
 cdef void particle_row(const State* c, int i, int tid, int first, int end) noexcept nogil:
@@ -24,15 +34,20 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
     and ``t`` are then left alone: they hold the forces of a run's last step, which is not
     fused). A clump's sphere only stores its buffers' sums in f and t, for its body (see
     body_row), which gravity and drag act on."""
+    # locals: the stores through double* may alias anything, including *c
     cdef bint member = c.nbody and c.mem[i] >= 0
-    cdef double mi = c.m[i], g = c.visc[c.type[i]], s
+    cdef double mi = c.m[i], ri = c.r[i], g = c.visc[c.type[i]], dt = c.dt, s = 0.0, u = 0.0
+    cdef double* v = &c.v[3 * i]
+    cdef double* w = &c.w[3 * i]
+    cdef double* b = &c.buf[<long long>i * 6]
+    cdef double grav[3]
     cdef double F[3]
     cdef double T[3]
-    cdef double* b
-    cdef int k, q
-    b = &c.buf[<long long>i * 6]
+    cdef int k, q, kick = c.kick, fuse = c.fuse
     for q in range(3):
-        F[q] = 0.0 if member else mi * c.grav[q] - g * c.v[3 * i + q]
+        grav[q] = c.grav[q]
+    for q in range(3):
+        F[q] = 0.0 if member else mi * grav[q] - g * v[q]
         T[q] = 0.0
         F[q] += b[q]
         T[q] += b[3 + q]
@@ -53,21 +68,22 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
             F[q] += b[q]
             T[q] += b[3 + q]
         memset(b, 0, 6 * sizeof(double))
-    if not c.fuse or member:
+    if not fuse or member:
         for q in range(3):
             c.f[3 * i + q] = F[q]
             c.t[3 * i + q] = T[q]
     if member:
         return
-    if c.kick:
-        s = 0.5 * c.dt / mi
+    if kick or fuse:   # the kicks' factors (the same for the second half kick and the next first)
+        s = 0.5 * dt / mi
+        u = 0.5 * dt / (0.4 * mi * ri * ri)
+    if kick:
         for q in range(3):
-            c.v[3 * i + q] += s * F[q]
-        s = 0.5 * c.dt / (0.4 * mi * c.r[i] * c.r[i])
+            v[q] += s * F[q]
         for q in range(3):
-            c.w[3 * i + q] += s * T[q]
-    if c.fuse:
-        drift_row(c, i, tid, F, T)
+            w[q] += u * T[q]
+    if fuse:
+        drift_one(&c.x[3 * i], v, w, &c.x0[3 * i], dt, s, u, F, T, &c.tmax[PAD * tid])
 
 
 cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil:
