@@ -5,21 +5,12 @@ cdef inline int row_work(int listed, int touching, int walls) noexcept nogil:
     return WROW + listed + WTOUCH * (touching + walls)
 
 
-cdef enum:
-    PAIR_CHUNK = 32   # listed pairs whose distances pair_row tests before it computes forces
-
-
 cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     """Forces of particle i's half-list contacts and walls; returns the row's work.
 
     Block ``b`` owns the rows up to ``pb[b + 1]``: forces on them go to the shared buffer
     ``buf``, forces on later rows to the block's halo buffers in ``halo`` (see Halo; ``hmax``:
     the last row it wrote to the near one).
-
-    The listed pairs go in chunks of PAIR_CHUNK: a first pass tests their distances without a
-    branch on the outcome (in a bed, about as likely one way as the other: a mispredicted
-    branch per pair) and lists those in reach, the second computes their forces in list order
-    (from the distance computed again, the same way).
     """
     # locals: the flag store through uint8_t* may alias anything, including *c
     cdef const double* x = c.x
@@ -40,11 +31,9 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef int own = c.pb[b + 1], near_end = hb.near_end
     cdef long long near = hb.near_off - own, far = hb.far_off - hb.far_lo   # row j's entries
     cdef int hs = c.hs, model = c.model, rolling = c.rolling, roff = c.roff, update = c.update
-    cdef int k, j, q, a, res, kend = c.nb_start[i + 1], k0, k1, nc, reach, gone
+    cdef int k, j, q, res, kend = c.nb_start[i + 1]
     cdef int touching = 0, last = -1
-    cdef uint8_t s
     cdef double dt = c.dt
-    cdef int ck[PAIR_CHUNK]
     cdef double d[3]
     cdef double n[3]
     cdef double vr[3]
@@ -68,75 +57,57 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         wi[q] = w[3 * i + q]
     for q in range(6):
         fi[q] = 0.0
-    k0 = c.nb_start[i]
-    while k0 < kend:
-        k1 = min(k0 + PAIR_CHUNK, kend)
-        nc = 0
-        for k in range(k0, k1):   # the pairs in reach (or Thornton-Ning's stretched adhesion)
-            j = nb_j[k]
-            s = nb_s[k]
-            sv = &shiftv[3 * (s & IMAGE)]
-            for q in range(3):
-                d[q] = xi[q] - x[3 * j + q] + sv[q]
-            dist2 = dot3(d, d)
-            rs = ri + r[j]
-            reach = not dist2 >= rs * rs   # (NaN: in reach, as it always was)
-            if model == THORNTON_NING:
-                reach = reach | (nb_h[<long long>k * hs + H_DMAX] > 0.0)
-            ck[nc] = k
-            nc += reach
-            gone = (s & TOUCH) != 0
-            if gone & (reach ^ 1):   # apart now: the history goes
-                memset(&nb_h[<long long>k * hs], 0, hs * sizeof(double))
-                nb_s[k] = s & ~TOUCH
-        k0 = k1
-        for a in range(nc):
-            k = ck[a]
-            j = nb_j[k]
-            sv = &shiftv[3 * (nb_s[k] & IMAGE)]
-            for q in range(3):
-                d[q] = xi[q] - x[3 * j + q] + sv[q]
-            dist2 = dot3(d, d)
-            rj = r[j]
-            rs = ri + rj
-            h = &nb_h[<long long>k * hs]
-            inv = 1.0 / sqrt(dist2)
-            mj = m[j]
-            for q in range(3):
-                n[q] = d[q] * inv
-                vr[q] = vi[q] - v[3 * j + q]
-                rw[q] = ri * wi[q] + rj * w[3 * j + q]
-                wrel[q] = wi[q] - w[3 * j + q]
-            den = 1.0 / (rs * (mi + mj))
-            Rs = ri * rj * (mi + mj) * den
-            ms = mi * mj * rs * den
-            if rolling == EPSD:   # 1.4 (m_i r_i^2)(m_j r_j^2) / (m_i r_i^2 + m_j r_j^2), as LIGGGHTS
-                Ir = 1.4 * Ii * mj * rj * rj / (Ii + mj * rj * rj)
-            res = contact_force(model, rolling, roff, &coef[typ[j]], rs - dist2 * inv, Rs, ms, Ir, n, vr, rw,
-                                wrel, h, dt, update, F, Ft, Mr)
-            if res != IN_CONTACT:
-                if res == NO_CONTACT:
-                    memset(h, 0, hs * sizeof(double))
-                    nb_s[k] &= ~TOUCH
-                elif nb_s[k] & TOUCH:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
-                    memset(&nb_f[<long long>3 * k], 0, 3 * sizeof(double))
-                continue
-            nb_s[k] |= TOUCH
-            touching += 1
-            cross3(n, Ft, cx)
-            if j < own:
-                bj = &buf[j * 6]
-            elif j <= near_end:
-                bj = &halo[(near + j) * 6]
-                last = j if j > last else last
-            else:
-                bj = &halo[(far + j) * 6]
-            for q in range(3):
-                nb_f[<long long>3 * k + q] = F[q]
-                fi[q] += F[q]
-                fi[3 + q] += Mr[q] - ri * cx[q]
-                bj[q] -= F[q]
-                bj[3 + q] -= Mr[q] + rj * cx[q]
+    for k in range(c.nb_start[i], kend):
+        j = nb_j[k]
+        sv = &shiftv[3 * (nb_s[k] & IMAGE)]
+        for q in range(3):
+            d[q] = xi[q] - x[3 * j + q] + sv[q]
+        dist2 = dot3(d, d)
+        rj = r[j]
+        rs = ri + rj
+        h = &nb_h[<long long>k * hs]
+        if dist2 >= rs * rs and not (model == THORNTON_NING and h[H_DMAX] > 0.0):   # apart (adhesion stretches)
+            if nb_s[k] & TOUCH:
+                memset(h, 0, hs * sizeof(double))
+                nb_s[k] &= ~TOUCH
+            continue
+        inv = 1.0 / sqrt(dist2)
+        mj = m[j]
+        for q in range(3):
+            n[q] = d[q] * inv
+            vr[q] = vi[q] - v[3 * j + q]
+            rw[q] = ri * wi[q] + rj * w[3 * j + q]
+            wrel[q] = wi[q] - w[3 * j + q]
+        den = 1.0 / (rs * (mi + mj))
+        Rs = ri * rj * (mi + mj) * den
+        ms = mi * mj * rs * den
+        if rolling == EPSD:   # 1.4 (m_i r_i^2)(m_j r_j^2) / (m_i r_i^2 + m_j r_j^2), as LIGGGHTS
+            Ir = 1.4 * Ii * mj * rj * rj / (Ii + mj * rj * rj)
+        res = contact_force(model, rolling, roff, &coef[typ[j]], rs - dist2 * inv, Rs, ms, Ir, n, vr, rw,
+                            wrel, h, dt, update, F, Ft, Mr)
+        if res != IN_CONTACT:
+            if res == NO_CONTACT:
+                memset(h, 0, hs * sizeof(double))
+                nb_s[k] &= ~TOUCH
+            elif nb_s[k] & TOUCH:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
+                memset(&nb_f[<long long>3 * k], 0, 3 * sizeof(double))
+            continue
+        nb_s[k] |= TOUCH
+        touching += 1
+        cross3(n, Ft, cx)
+        if j < own:
+            bj = &buf[j * 6]
+        elif j <= near_end:
+            bj = &halo[(near + j) * 6]
+            last = j if j > last else last
+        else:
+            bj = &halo[(far + j) * 6]
+        for q in range(3):
+            nb_f[<long long>3 * k + q] = F[q]
+            fi[q] += F[q]
+            fi[3 + q] += Mr[q] - ri * cx[q]
+            bj[q] -= F[q]
+            bj[3 + q] -= Mr[q] + rj * cx[q]
     for q in range(3):   # walls after the loop, into other arrays: fi can live in registers there
         F[q] = 0.0
         Ft[q] = 0.0
