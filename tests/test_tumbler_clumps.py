@@ -15,9 +15,8 @@ minutes per engine on one core:
   32 waves of 25, each 1200 steps (0.024 s) after the last, into a block on the low side of the
   bed (x > -0.15 R, z > -0.1 R: empty again when the next wave comes) while the drum turns. A
   bed built at rest would first rise to its static angle (60 degrees here), then swing about
-  the dynamic one for a second before it flows steadily. 25 tablets is what the native
-  engine's placing (random sequential addition of the tablets' enclosing spheres) always finds
-  room for in the block (it stops at 30 to 40);
+  the dynamic one for a second before it flows steadily. Waves of 25 leave room to spare
+  in the block, so every wave inserts whole (the test counts all 800);
 - speed: Froude number w^2 R / g = 0.1 (w = 4.6 rad/s, a turn in 1.36 s), right-handed about +y.
   In so small a drum (R / 11 tablet diameters) a slower drum (Froude 0.02 to 0.05) makes the bed
   avalanche, its angle swinging by 5 degrees over half a second; at 0.1 it flows continuously;
