@@ -165,6 +165,27 @@ def thornton_restitution(material: Mapping[str, float], radius: float, speed: fl
 # -- scenarios --------------------------------------------------------------------------------------
 
 
+def union_properties(
+    spheres: Sequence[Sequence[float]], density: float, samples: int = 2_000_000, seed: int = 7
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """Mass, centre and inertia tensor of the union of ``spheres`` (rows ``x, y, z, r``), by
+    plain Monte Carlo in their bounding box: a reference for clumps independent of
+    :func:`pygran_core.simulation.clumps.mass_properties`, which engines use."""
+    array = np.array(spheres, float)
+    lo = (array[:, :3] - array[:, 3:]).min(axis=0)
+    hi = (array[:, :3] + array[:, 3:]).max(axis=0)
+    points = np.random.default_rng(seed).uniform(lo, hi, (samples, 3))
+    inside = np.zeros(samples, bool)
+    for *centre, r in array:
+        inside |= np.sum((points - centre) ** 2, axis=1) < r**2
+    mass = float(density * np.prod(hi - lo) * inside.mean())
+    points = points[inside]
+    centre = points.mean(axis=0)
+    d = points - centre
+    inertia = mass * (np.eye(3) * np.mean(np.sum(d * d, axis=1)) - d.T @ d / len(d))
+    return mass, centre, inertia
+
+
 def one_species(
     engine: str, output: Path, material: Mapping[str, float], radius: float, **params: Any
 ) -> DEM:

@@ -19,6 +19,7 @@ from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.simulation.clumps import mass_properties
 from pygran_core.simulation.models import HertzMindlin
 from pygran_core.testing.solvers import require_solver
+from pygran_core.testing.validation import union_properties
 
 R = 1e-3
 #: The stock organic material (E = 10 MPa), less bouncy so that a dropped clump settles fast.
@@ -53,23 +54,6 @@ def dem(tmp_path, species, engine="native", **extra):
     return simulation.DEM(**(settings | extra))
 
 
-def union(spheres, density, samples=2_000_000, seed=7):
-    """Mass, centre and inertia tensor of the union of ``spheres``: Monte Carlo in their bounding box."""
-    spheres = np.array(spheres, float)
-    lo = (spheres[:, :3] - spheres[:, 3:]).min(axis=0)
-    hi = (spheres[:, :3] + spheres[:, 3:]).max(axis=0)
-    points = np.random.default_rng(seed).uniform(lo, hi, (samples, 3))
-    inside = np.zeros(samples, bool)
-    for *centre, r in spheres:
-        inside |= np.sum((points - centre) ** 2, axis=1) < r**2
-    mass = density * np.prod(hi - lo) * inside.mean()
-    points = points[inside]
-    centre = points.mean(axis=0)
-    d = points - centre
-    inertia = mass * (np.eye(3) * np.mean(np.sum(d * d, axis=1)) - d.T @ d / len(d))
-    return mass, centre, inertia
-
-
 def test_clump_mass_centre_and_inertia_are_those_of_the_union(tmp_path):
     """A clump's mass, centre and inertia are those of the union of its spheres (within 0.5 % of
     a Monte Carlo integral in the bounding box, 2e6 samples), where the sum of the spheres'
@@ -80,7 +64,7 @@ def test_clump_mass_centre_and_inertia_are_those_of_the_union(tmp_path):
         found, x, mass = sim.engine.clumps(), sim.extractCoords(), sim.engine.extract("mass")
         bodies = sim.engine.bodies()
     density = MATERIAL["density"]
-    expected_mass, expected_centre, expected_inertia = union(LUMP, density)
+    expected_mass, expected_centre, expected_inertia = union_properties(LUMP, density)
     summed = density * sum(4 / 3 * math.pi * r**3 for *_, r in LUMP)
     assert summed > 1.15 * expected_mass  # the overlaps matter
     assert found["mass"][0] == pytest.approx(expected_mass, rel=0.005)

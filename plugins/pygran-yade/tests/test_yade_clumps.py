@@ -11,6 +11,7 @@ from pygran_core import params, registry, simulation
 from pygran_core.errors import UnsupportedFeature
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot
 from pygran_core.testing.solvers import require_solver
+from pygran_core.testing.validation import union_properties
 
 R = 1e-3
 #: The stock organic material (E = 10 MPa), less bouncy so that a dropped clump settles fast.
@@ -40,23 +41,6 @@ def _dem(tmp_path, species, **extra):
     return simulation.DEM(**(params_ | extra))
 
 
-def _union(spheres, density, samples=4_000_000, seed=7):
-    """Mass, centre and inertia tensor of the union of ``spheres`` by Monte Carlo."""
-    spheres = np.array(spheres, float)
-    lo = (spheres[:, :3] - spheres[:, 3:]).min(axis=0)
-    hi = (spheres[:, :3] + spheres[:, 3:]).max(axis=0)
-    points = np.random.default_rng(seed).uniform(lo, hi, (samples, 3))
-    inside = np.zeros(samples, bool)
-    for *centre, r in spheres:
-        inside |= np.sum((points - centre) ** 2, axis=1) < r**2
-    mass = density * np.prod(hi - lo) * inside.mean()
-    points = points[inside]
-    centre = points.mean(axis=0)
-    d = points - centre
-    inertia = mass * (np.eye(3) * np.mean(np.sum(d * d, axis=1)) - d.T @ d / len(d))
-    return mass, centre, inertia
-
-
 def test_clump_mass_centre_and_inertia_are_those_of_the_union(tmp_path):
     """YADE integrates an overlapping clump on a grid: within 0.5 % of a Monte Carlo integral
     of the union of its spheres (4e6 samples, 0.05 % noise), where the sum of the spheres'
@@ -67,7 +51,7 @@ def test_clump_mass_centre_and_inertia_are_those_of_the_union(tmp_path):
         found, x, mass = sim.engine.clumps(), sim.extractCoords(), sim.engine.extract("mass")
         bodies = sim.engine.bodies()
     density = MATERIAL["density"]
-    expected_mass, expected_centre, expected_inertia = _union(LUMP, density)
+    expected_mass, expected_centre, expected_inertia = union_properties(LUMP, density, samples=4_000_000)
     summed = density * sum(4 / 3 * math.pi * r**3 for *_, r in LUMP)
     assert summed > 1.15 * expected_mass  # the overlaps matter
     assert found["mass"][0] == pytest.approx(expected_mass, rel=0.005)
