@@ -319,12 +319,24 @@ def test_mindlin_tangential_force_below_and_at_the_coulomb_limit():
     assert not zero_force.any() and not zero_history.any()
 
 
-def test_damped_history_reset_reproduces_the_limited_force():
+def test_sliding_contact_is_the_spring_scaled_to_coulomb_without_dashpot():
     model = SpringDashpot(material=dict(POWDER, coefficientFriction=0.3, coefficientRestitution=0.5))
     xi, v = np.array([2e-7, -1e-7, 0.0]), np.array([0.01, 0.02, 0.0])
+    assert model.kt * np.linalg.norm(xi) > 0.3e-6  # the spring alone breaks Coulomb's limit
     force, history = model.tangential_force(1e-7, xi, v, 1e-6)
     assert np.linalg.norm(force) == pytest.approx(0.3e-6, rel=1e-9)
-    np.testing.assert_allclose(-model.kt * history - model.gammat * v, force, rtol=1e-9)
+    np.testing.assert_allclose(force, -0.3e-6 * xi / np.linalg.norm(xi), rtol=1e-9)
+    np.testing.assert_allclose(-model.kt * history, force, rtol=1e-9)
+
+
+def test_sticking_contact_keeps_its_dashpot_even_past_coulomb():
+    """LIGGGHTS' tangential_model_history: the limit is tested on the spring alone."""
+    model = SpringDashpot(material=dict(POWDER, coefficientFriction=0.3, coefficientRestitution=0.5))
+    xi, v = np.array([2e-7, -1e-7, 0.0]), np.array([0.5, 0.5, 0.0])
+    force, history = model.tangential_force(1e-7, xi, v, 1e-3)
+    assert model.kt * np.linalg.norm(xi) < 0.3e-3 < np.linalg.norm(force)
+    np.testing.assert_allclose(force, -model.kt * xi - model.gammat * v, rtol=1e-12)
+    np.testing.assert_array_equal(history, xi)
 
 
 def test_rolling_resistance_is_a_constant_directional_torque():

@@ -211,18 +211,11 @@ def test_cdt_torques_match_liggghts_step_by_step(tmp_path):
     assert np.abs(native[-1, 1:, 3:] - native[0, 1:, 3:]).max() > 1.0  # the pair's spins changed
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="native's tangential law differs from LIGGGHTS' tangential history: LIGGGHTS tests "
-    "Coulomb's limit on the spring force k_t xi alone (scaled back without the dashpot, history "
-    "-F_t/k_t; below it, spring plus dashpot unlimited) and uses the contact radius r - delta/2 "
-    "for the contact point's velocity and the torque's lever; native limits spring plus dashpot "
-    "and uses r (_contact_tangential.pxi, _pairs.pxi)",
-)
 def test_friction_with_cdt_matches_liggghts_step_by_step(tmp_path):
-    """With friction, the same impacts slide, then stick as the spin turns into rolling;
-    measured: native parts from LIGGGHTS by 1.4 % of the largest value at the transition
-    (and cdt piles pour 2 degrees flatter); with LIGGGHTS' law, it agrees to 1e-14."""
+    """With friction, the same impacts slide, then stick as the spin turns into rolling. Both
+    engines test Coulomb's limit on the spring alone (no dashpot while sliding) and take the
+    lever to the contact point as r - delta/2; with native's former law (spring plus dashpot
+    limited, lever r) they parted by 1.4 % of the largest value at the transition."""
     require_solver(find_library)
     native = impacts("native", 0.5, tmp_path / "native")
     liggghts = impacts("liggghts", 0.5, tmp_path / "liggghts")

@@ -237,15 +237,17 @@ def test_kernel_forces_match_reference_at_sampled_overlaps(kind, model):
         )
         s.run(0, 1e-6)  # forces of the initial state (no history yet)
         fn = ref.normal_force(overlap, rate)
-        # relative tangential velocity at the contact: v_t - (R w x n) with n = -x
-        vt_rel = vt + spin * R
+        # the contact point is at lever = R - overlap/2 from particle 0's centre (LIGGGHTS'
+        # surface model); relative tangential velocity there: v_t - (lever w x n), n = -x
+        lever = R - overlap / 2
+        vt_rel = vt + spin * lever
         ft, _ = ref.tangential_force(overlap, [0.0, 0.0], [vt_rel, 0.0], fn)
         f = s.forces[0]
         assert -f[0] == pytest.approx(fn, rel=1e-10)
         assert f[1] == pytest.approx(ft[0], rel=1e-10)
         torque = ref.rolling_torque(elastic.normal_force(overlap, 0.0), [0, 0, spin])
-        # the tangential force acts at R x (the contact point seen from particle 0)
-        assert s.torques[0, 2] == pytest.approx(torque[2] + R * ft[0], rel=1e-10)
+        # the tangential force acts at lever x (the contact point seen from particle 0)
+        assert s.torques[0, 2] == pytest.approx(torque[2] + lever * ft[0], rel=1e-10)
         i, j, ov, force = s.contacts()
         assert ov[0] == pytest.approx(overlap, rel=1e-6) and force[0] == pytest.approx(fn, rel=1e-10)
 

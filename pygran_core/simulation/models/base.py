@@ -258,10 +258,10 @@ class ContactModel(abc.ABC):
 
         ``F_t = -k_t xi - gamma_t v_t``, with ``xi`` the accumulated tangential
         displacement (the history the engine integrates, shape ``(..., d)``) and ``v_t`` the
-        tangential relative velocity. If ``|F_t| > mu |F_n|`` the force is scaled down to
-        ``mu |F_n|`` and the history is reset to match it,
-        ``xi <- r (xi + gamma_t v_t / k_t) - gamma_t v_t / k_t`` with ``r = mu |F_n| / |F_t|``
-        (LAMMPS/LIGGGHTS ``tangential_history``). Out of contact both are zero.
+        tangential relative velocity. When the spring alone exceeds Coulomb's limit,
+        ``|k_t xi| > mu |F_n|``, the contact slides: the force is the spring scaled to
+        ``mu |F_n|``, without dashpot, and the history is set to match, ``xi <- -F_t / k_t``
+        (LIGGGHTS ``tangential_model_history.h``). Out of contact both are zero.
         """
         if self.friction is None:
             raise ConfigError(f"{type(self).__name__}: the tangential force needs 'coefficientFriction'.")
@@ -270,16 +270,14 @@ class ContactModel(abc.ABC):
         rate = np.asarray(tangential_rate, float)
         kt, gammat = (c[..., None] for c in self._tangential_coefficients(overlap, max_overlap))
         contact = self._in_contact(overlap, max_overlap)[..., None]
-        trial = -kt * xi - gammat * rate
-        magnitude = np.linalg.norm(trial, axis=-1, keepdims=True)
+        spring = -kt * xi
+        magnitude = np.linalg.norm(spring, axis=-1, keepdims=True)
         limit = self.friction * np.abs(np.asarray(normal_force, float))[..., None]
         slip = magnitude > limit
         ratio = np.where(slip, limit / np.where(slip, magnitude, 1.0), 1.0)
-        viscous = np.divide(
-            gammat * rate, kt, out=np.zeros(np.broadcast_shapes(rate.shape, kt.shape)), where=kt > 0
-        )
-        history = np.where(slip, ratio * (xi + viscous) - viscous, xi)
-        return np.where(contact, ratio * trial, 0.0), np.where(contact, history, 0.0)
+        force = np.where(slip, ratio * spring, spring - gammat * rate)
+        history = np.where(slip, ratio * xi, xi)
+        return np.where(contact, force, 0.0), np.where(contact, history, 0.0)
 
     def rolling_torque(self, normal_force: ArrayLike, angular_velocity: ArrayLike) -> Array:
         """Rolling resistance torque on body 1, LIGGGHTS ``rolling_friction cdt``.

@@ -1,14 +1,16 @@
-# The tangential contact law (LAMMPS GRANULAR's tangential sub-model): a spring on the
-# tangential displacement history and a dashpot, limited by Coulomb friction (LIGGGHTS'
-# tangential_model history).
+# The tangential contact law: a spring on the tangential displacement history and a dashpot,
+# limited by Coulomb friction, as LIGGGHTS' tangential_model history has it (the dashpot
+# acts only while the contact sticks).
 
 cdef inline void tangential_force(const Coef* c, double fn, double kt, double gt, double vn, const double* n,
                                   const double* vr, const double* rw, double* hist, double dt, bint update,
                                   double* Ft) noexcept nogil:
     """Tangential force ``Ft`` on i: the spring ``-kt xi`` on the displacement history
     ``xi = hist[H_SHEAR..]`` (advanced by the tangential velocity at the contact and rotated
-    into the contact plane when ``update``) and the dashpot ``-gt v_t``, scaled back to
-    ``mu |fn|`` with the history set to match. ``n``, ``vr``, ``rw``: see contact_force."""
+    into the contact plane when ``update``) plus the dashpot ``-gt v_t``; if the spring alone
+    exceeds ``mu |fn|`` the contact slides: the spring scaled to ``mu |fn|``, no dashpot, and
+    the history set to match (LIGGGHTS ``tangential_model_history.h``). ``n``, ``vr``,
+    ``rw``: see contact_force."""
     cdef double ftm, lim, ratio, s
     cdef double vt[3]
     cdef double cw[3]
@@ -21,12 +23,15 @@ cdef inline void tangential_force(const Coef* c, double fn, double kt, double gt
         for k in range(3):
             hist[H_SHEAR + k] += vt[k] * dt - s * n[k]
     for k in range(3):
-        Ft[k] = -kt * hist[H_SHEAR + k] - gt * vt[k]
+        Ft[k] = -kt * hist[H_SHEAR + k]
     ftm = dot3(Ft, Ft)
     lim = c.mu * fabs(fn)
     if ftm > lim * lim:
         ratio = lim / sqrt(ftm)
         for k in range(3):
             Ft[k] *= ratio
-            if update and kt > 0.0:
-                hist[H_SHEAR + k] = ratio * (hist[H_SHEAR + k] + gt * vt[k] / kt) - gt * vt[k] / kt
+            if update:
+                hist[H_SHEAR + k] *= ratio
+    else:
+        for k in range(3):
+            Ft[k] -= gt * vt[k]

@@ -47,7 +47,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef double xi[3]
     cdef double vi[3]
     cdef double wi[3]
-    cdef double dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den, Ii = mi * ri * ri, Ir = 0.0
+    cdef double cri, crj, dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den, Ii = mi * ri * ri, Ir = 0.0
     cdef double* h
     cdef double* bj
     cdef const double* sv
@@ -73,10 +73,12 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
             continue
         inv = 1.0 / sqrt(dist2)
         mj = m[j]
+        cri = ri - 0.5 * (rs - dist2 * inv)   # levers to the contact point (LIGGGHTS' surface model)
+        crj = rj - 0.5 * (rs - dist2 * inv)
         for q in range(3):
             n[q] = d[q] * inv
             vr[q] = vi[q] - v[3 * j + q]
-            rw[q] = ri * wi[q] + rj * w[3 * j + q]
+            rw[q] = cri * wi[q] + crj * w[3 * j + q]
             wrel[q] = wi[q] - w[3 * j + q]
         den = 1.0 / (rs * (mi + mj))
         Rs = ri * rj * (mi + mj) * den
@@ -105,9 +107,9 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         for q in range(3):
             nb_f[<long long>3 * k + q] = F[q]
             fi[q] += F[q]
-            fi[3 + q] += Mr[q] - ri * cx[q]
+            fi[3 + q] += Mr[q] - cri * cx[q]
             bj[q] -= F[q]
-            bj[3 + q] -= Mr[q] + rj * cx[q]
+            bj[3 + q] -= Mr[q] + crj * cx[q]
     for q in range(3):   # walls after the loop, into other arrays: fi can live in registers there
         F[q] = 0.0
         Ft[q] = 0.0
@@ -138,15 +140,15 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
     cdef double rel[3]
     cdef const double* sl = NULL
     cdef int k, res, slot = slot_of(c, e) if q != NULL else -1
-    cdef double ri = c.r[i]
+    cdef double cr = c.r[i] - 0.5 * delta   # the lever to the contact point, as LIGGGHTS has it
     if slot >= 0:
         sl = &c.slots[NSLOT * slot]
     wall_velocity(c, e, q, sl, vw)
     for k in range(3):
         vr[k] = c.v[3 * i + k] - vw[k]
-        rw[k] = ri * c.w[3 * i + k]
-    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.ntypes + c.etype[e]], delta, ri,
-                        c.m[i], 1.4 * c.m[i] * ri * ri, n, vr, rw, &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
+        rw[k] = cr * c.w[3 * i + k]
+    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.ntypes + c.etype[e]], delta, c.r[i],
+                        c.m[i], 1.4 * c.m[i] * c.r[i] * c.r[i], n, vr, rw, &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
     if res == NO_CONTACT:
         zero_hist(h, c.whs)
     if res != IN_CONTACT:
@@ -154,7 +156,7 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
     cross3(n, Ft, cx)
     for k in range(3):
         F[k] += Fc[k]
-        T[k] += Mr[k] - ri * cx[k]
+        T[k] += Mr[k] - cr * cx[k]
         fc[k] = Fc[k]
     if sl != NULL:   # LIGGGHTS: the reversed force, and its torque about com at the contact point
         sa = &sa[SACC * slot]
