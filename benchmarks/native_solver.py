@@ -8,9 +8,10 @@ solver's timers (:attr:`Solver.timings`: wall seconds per phase, and each thread
 seconds in the pair and particle loops, which show the load balance even on a busy
 machine; with their busiest thread's sums, ``*_span``, they give the run's time on idle
 cores). ``--chunk 80`` calls ``Solver.run`` with at most 80 steps, as ``simulation.DEM``
-does (100 calls per run).
+does (100 calls per run). ``--repeats 3`` alternates the thread counts three times and keeps
+the fastest run of each: on a shared host identical runs vary by 15 %.
 
-    .venv/bin/python benchmarks/native_solver.py --n 20000 --threads 2
+    .venv/bin/python benchmarks/native_solver.py --n 20000 --threads 2 --repeats 3
 """
 
 from __future__ import annotations
@@ -123,21 +124,34 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--chunk", type=int, default=8000, help="most steps per Solver.run call")
     parser.add_argument("--one", action="store_true", help="run one measurement in this process")
+    parser.add_argument("--repeats", type=int, default=1, help="alternating runs per thread count; best kept")
     args = parser.parse_args()
     if args.one:
         print(json.dumps(measure(args.n, args.threads, args.chunk)))
         return
-    results = []
-    for threads in sorted({1, args.threads}):
-        command = [sys.executable, __file__, "--one", "--n", str(args.n), "--threads", str(threads)]
-        command += ["--chunk", str(args.chunk)]
-        load = os.getloadavg()[0]
-        out = subprocess.run(command, capture_output=True, text=True, check=True)
-        res = json.loads(out.stdout.strip().splitlines()[-1])
-        res["load"] = (load, os.getloadavg()[0])
-        results.append(res)
+    # the thread counts take turns, so a host whose speed drifts slows both alike; per thread
+    # count, the run with the fastest settling phase is kept
+    best: dict[int, dict] = {}
+    for _ in range(args.repeats):
+        for threads in sorted({1, args.threads}):
+            command = [sys.executable, __file__, "--one", "--n", str(args.n), "--threads", str(threads)]
+            command += ["--chunk", str(args.chunk)]
+            load = os.getloadavg()[0]
+            out = subprocess.run(command, capture_output=True, text=True, check=True)
+            res = json.loads(out.stdout.strip().splitlines()[-1])
+            res["load"] = (load, os.getloadavg()[0])
+            print(
+                f"  threads={threads}: settle {res['settle_pss'] / 1e6:.2f}, "
+                f"dense bed {res['bed_pss'] / 1e6:.2f} M particle-steps/s"
+            )
+            if threads not in best or res["settle_pss"] > best[threads]["settle_pss"]:
+                best[threads] = res
+    results = [best[threads] for threads in sorted(best)]
+    for res in results:
+        load = res["load"][0]
         print(
-            f"N={res['N']} threads={res['threads']} (load average {load:.2f} -> {res['load'][1]:.2f}): "
+            f"N={res['N']} threads={res['threads']} (best of {args.repeats}; load average {load:.2f} -> "
+            f"{res['load'][1]:.2f}): "
             f"settle {res['settle_pss'] / 1e6:.2f} M particle-steps/s, "
             f"dense bed {res['bed_pss'] / 1e6:.2f} M, coordination {res['coordination']:.2f}, "
             f"{res['rebuilds']} rebuilds, "
