@@ -3,7 +3,9 @@ chosen with ``HertzMindlin.configure(rolling=...)``."""
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -125,24 +127,32 @@ def column() -> np.ndarray:
     )
 
 
-def heap_angle(engine: str, rolling: str, output: Path) -> float:
-    """The column released on a floor slumps into a heap (the lifted-cylinder method); its
-    :func:`cone_angle` after 0.1 s. Measures that use the few spheres on top or at the rim
-    (the heap's highest sphere) change by degrees with one sphere."""
+@contextlib.contextmanager
+def on_a_floor(engine: str, rolling: str, output: Path, dt: float, top: float) -> Iterator[simulation.DEM]:
+    """A simulation of SOFT spheres above a floor, in a box 8 mm wide and ``top`` high. Spheres
+    may roll or bounce off the floor out of the box: their loss is expected (LIGGGHTS does not
+    say through which face; PyGran estimates it)."""
     with simulation.DEM(
         engine=engine,
         model=HertzMindlin.configure(rolling=rolling),
-        box=(-4e-3, 4e-3, -4e-3, 4e-3, 0, 2e-3),
+        box=(-4e-3, 4e-3, -4e-3, 4e-3, 0, top),
         gravity=(G, 0, 0, -1),
-        dt=1e-6,
+        dt=dt,
         output=str(output),
         species=({"material": SOFT, "radius": SMALL},),
         traj={"pfile": None},
         progress=False,
     ) as sim:
-        # a sphere may roll off the floor (LIGGGHTS does not say where: PyGran estimates the face)
-        sim.engine.expect_outflow("x-", "x+", "y-", "y+", "z-")
+        sim.expect_outflow("x-", "x+", "y-", "y+", "z-")
         sim.setupWall(plane="zplane", peq=0.0)
+        yield sim
+
+
+def heap_angle(engine: str, rolling: str, output: Path) -> float:
+    """The column released on a floor slumps into a heap (the lifted-cylinder method); its
+    :func:`cone_angle` after 0.1 s. Measures that use the few spheres on top or at the rim
+    (the heap's highest sphere) change by degrees with one sphere."""
+    with on_a_floor(engine, rolling, output, dt=1e-6, top=2e-3) as sim:
         sim.createParticles(1, "single", column())
         sim.run(100_000)
         return cone_angle(sim.extractCoords())
@@ -234,19 +244,7 @@ def poured_pile_angle(engine: str, rolling: str, seed: int, output: Path) -> flo
     a = 2.2 * SMALL
     side = np.arange(-2 * a, 2 * a + 1e-12, a)
     disc = np.array([(x, y) for x in side for y in side if x * x + y * y <= (2.05 * a) ** 2])
-    with simulation.DEM(
-        engine=engine,
-        model=HertzMindlin.configure(rolling=rolling),
-        box=(-4e-3, 4e-3, -4e-3, 4e-3, 0, 4e-3),
-        gravity=(G, 0, 0, -1),
-        dt=2e-6,
-        output=str(output),
-        species=({"material": SOFT, "radius": SMALL},),
-        traj={"pfile": None},
-        progress=False,
-    ) as sim:
-        sim.expect_outflow("x-", "x+", "y-", "y+", "z-")  # a sphere may bounce off the floor
-        sim.setupWall(plane="zplane", peq=0.0)
+    with on_a_floor(engine, rolling, output, dt=2e-6, top=4e-3) as sim:
         for _ in range(40):
             batch = disc + rng.uniform(-0.05, 0.05, disc.shape) * SMALL
             sim.createParticles(
