@@ -47,7 +47,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef double xi[3]
     cdef double vi[3]
     cdef double wi[3]
-    cdef double cri, crj, dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den, Ii = mi * ri * ri, Ir = 0.0
+    cdef double cri, crj, delta, dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den, Ii = mi * ri * ri, Ir = 0.0
     cdef double* h
     cdef double* bj
     cdef const double* sv
@@ -73,8 +73,9 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
             continue
         inv = 1.0 / sqrt(dist2)
         mj = m[j]
-        cri = ri - 0.5 * (rs - dist2 * inv)   # levers to the contact point (LIGGGHTS' surface model)
-        crj = rj - 0.5 * (rs - dist2 * inv)
+        delta = rs - dist2 * inv
+        cri = ri - 0.5 * delta   # levers to the contact point (LIGGGHTS' surface model)
+        crj = rj - 0.5 * delta
         for q in range(3):
             n[q] = d[q] * inv
             vr[q] = vi[q] - v[3 * j + q]
@@ -85,7 +86,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         ms = mi * mj * rs * den
         if rolling == EPSD:   # 1.4 (m_i r_i^2)(m_j r_j^2) / (m_i r_i^2 + m_j r_j^2), as LIGGGHTS
             Ir = 1.4 * Ii * mj * rj * rj / (Ii + mj * rj * rj)
-        res = contact_force(model, rolling, roff, &coef[typ[j]], rs - dist2 * inv, Rs, ms, Ir, n, vr, rw,
+        res = contact_force(model, rolling, roff, &coef[typ[j]], delta, Rs, ms, Ir, n, vr, rw,
                             wrel, h, dt, update, F, Ft, Mr)
         if res != IN_CONTACT:
             if res == NO_CONTACT:
@@ -140,15 +141,15 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
     cdef double rel[3]
     cdef const double* sl = NULL
     cdef int k, res, slot = slot_of(c, e) if q != NULL else -1
-    cdef double cr = c.r[i] - 0.5 * delta   # the lever to the contact point, as LIGGGHTS has it
+    cdef double ri = c.r[i], cr = ri - 0.5 * delta   # cr: the lever to the contact point, as LIGGGHTS has it
     if slot >= 0:
         sl = &c.slots[NSLOT * slot]
     wall_velocity(c, e, q, sl, vw)
     for k in range(3):
         vr[k] = c.v[3 * i + k] - vw[k]
         rw[k] = cr * c.w[3 * i + k]
-    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.ntypes + c.etype[e]], delta, c.r[i],
-                        c.m[i], 1.4 * c.m[i] * c.r[i] * c.r[i], n, vr, rw, &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
+    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.ntypes + c.etype[e]], delta, ri,
+                        c.m[i], 1.4 * c.m[i] * ri * ri, n, vr, rw, &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
     if res == NO_CONTACT:
         zero_hist(h, c.whs)
     if res != IN_CONTACT:
