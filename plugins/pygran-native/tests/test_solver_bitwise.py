@@ -1,8 +1,10 @@
 """The native solver's results are bitwise those of reference runs: a guard for changes to the
 compiled core that must not change its arithmetic (restructuring, renaming, splitting files).
 
-Three scenarios cover every kernel: a periodic settle (hertz, rolling epsd, cohesion,
-limitForce, viscous damping, two types, a plane, an outside cylinder), a hopper (thornton-ning
+Four scenarios cover every kernel: a periodic settle (hertz, rolling epsd, cohesion,
+limitForce, viscous damping, two types, a plane, an outside cylinder), a periodic shear of
+hertz spheres without rolling resistance (friction on some pairs and not others, cohesion,
+limitForce, sliding and sticking contacts; the pair loop's batched path), a hopper (thornton-ning
 with adhesion, rolling epsd2, a cylinder, a vibrating funnel mesh, a rotating and wiggling
 stirrer whose force is summed, a force servo lid, particles lost through the bottom) and a mixer
 (hooke, rolling cdt, a torque servo in mode auto, a vibrot mesh, planes). Each runs with one and
@@ -110,6 +112,38 @@ def settle(threads: int) -> Solver:
     return s
 
 
+def shear(threads: int) -> Solver:
+    rng = np.random.default_rng(4)
+    a = 2.1e-3
+    box = dict(box=[[0, 0, 0], [6 * a, 6 * a, 7 * a]], periodic=(True, True, False), skin=3e-4, threads=threads)
+    s = Solver(gravity=(0, 0, -9.81), **box)
+    s.set_contact_model(
+        "hertz",
+        youngs=[5e6, 7e7],
+        poisson=[0.45, 0.3],
+        restitution=[0.4, 0.8],
+        friction=[0.6, 0.0],
+        limit_force=True,
+        cohesion_energy=[1e3, 0.0],
+    )
+    s.add_plane((0, 0, 0), (0, 0, 1), type=0)
+    s.add_plane((0, 0, 5 * a), (0, 0, -1), type=1)  # a lid: the bed stays dense
+    x = lattice([0, 0, 0], [6 * a, 6 * a, 5 * a], a, rng, 0.02e-3)
+    n = len(x)
+    s.add_particles(
+        x,
+        rng.uniform(0.98e-3, 1.07e-3, n),
+        densities=2500,
+        types=rng.integers(0, 2, n),
+        velocities=np.column_stack([0.5 * x[:, 2] / (5 * a), np.zeros(n), np.zeros(n)]) + rng.normal(0, 0.1, (n, 3)),
+        omegas=rng.normal(0, 100, (n, 3)),
+    )
+    s.run(200, 1e-5)
+    s = restart(s, gravity=(0, 0, -9.81), **box)
+    s.run(200, 1e-5)
+    return s
+
+
 def hopper(threads: int) -> Solver:
     rng = np.random.default_rng(2)
     box = dict(
@@ -208,7 +242,7 @@ def mixer(threads: int) -> Solver:
     return s
 
 
-CASES: dict[str, Callable[[int], Solver]] = {"settle": settle, "hopper": hopper, "mixer": mixer}
+CASES: dict[str, Callable[[int], Solver]] = {"settle": settle, "shear": shear, "hopper": hopper, "mixer": mixer}
 #: the stirrer of the hopper and the servo paddle of the mixer (wall handles)
 STRESSED = {"hopper": 2, "mixer": 3}
 
@@ -257,9 +291,12 @@ def test_results_are_bitwise_the_reference(case, threads):
     # the scenario exercises what it is meant to: contacts, rolling springs, lost particles, meshes
     assert len(got["contacts_i"]) >= 5
     assert s.rebuilds > 2
-    if case != "mixer":
-        hs = got["state_core_nb_h"].reshape(len(got["state_core_nb_j"]), -1)
+    hs = got["state_core_nb_h"].reshape(len(got["state_core_nb_j"]), -1)
+    if case in ("settle", "hopper"):
         assert np.abs(hs[:, -3:]).max() > 0  # the rolling spring torques
+    if case == "shear":  # contacts with and without friction
+        shear = np.linalg.norm(hs[:, :3], axis=1)
+        assert (shear[hs[:, 3] != 0] == 0).any() and (shear > 0).any()
     if case == "hopper":
         assert got["lost"][0] > 0
     if case in STRESSED:
