@@ -7,7 +7,9 @@ from Cython.Build import cythonize
 from setuptools import Extension, setup
 
 # -O3 without -ffast-math or -march=native, so results are reproducible across machines;
-# -fno-math-errno only lets sqrt compile to one instruction (same results).
+# -fno-math-errno only lets sqrt compile to one instruction, and -fno-trapping-math lets the
+# batched pair loop (pair_batch.h) compute both sides of a choice and vectorise (same results:
+# neither changes a value). -ffp-contract=off keeps its AVX2 version from fusing multiply-adds.
 openmp = {"extra_compile_args": ["-O3", "-fno-math-errno", "-fopenmp"], "extra_link_args": ["-fopenmp"]}
 extensions = [
     Extension("pygran_native._kernels", ["src/pygran_native/_kernels.pyx"], **openmp),
@@ -19,10 +21,10 @@ extensions = [
     Extension(  # its own threads (team.h), not OpenMP's
         "pygran_native._solver",
         ["src/pygran_native/_solver.pyx"],
-        depends=["src/pygran_native/team.h", *sorted(glob("src/pygran_native/_*.pxi"))],  # its include files
+        depends=sorted(glob("src/pygran_native/_*.pxi") + glob("src/pygran_native/*.h")),  # its include files
         include_dirs=[numpy.get_include()],
         define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
-        extra_compile_args=["-O3", "-fno-math-errno", "-pthread"],
+        extra_compile_args=["-O3", "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off", "-pthread"],
         extra_link_args=["-pthread"],
     ),
 ]

@@ -201,6 +201,8 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
     cdef const double* g
     cdef const double* xi = &c.x[3 * i]
     cdef double ri = c.r[i]
+    if c.wl_start[i] == c.wl_start[i + 1]:
+        return
     for k in range(c.wl_start[i], c.wl_start[i + 1]):
         e = c.wl_e[k]
         h = &c.wl_h[<long long>k * c.whs]
@@ -277,15 +279,158 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
                 rec[6] = 1.0
 
 
+cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys) noexcept nogil:
+    """Append particle i's half-list pairs within reach to the batch from entry n (their
+    indices in ``keys``); clears the pairs that came apart. Returns the new entry count."""
+    cdef const double* x = c.x
+    cdef const double* v = c.v
+    cdef const double* w = c.w
+    cdef const double* shiftv = &c.shiftv[0]
+    cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
+    cdef const Coef* cf
+    cdef const double* sv
+    cdef double* h
+    cdef int k, j, q, t, hs = c.hs
+    cdef double ri = c.r[i], mi = c.m[i], rs, dist2
+    cdef double d[3]
+    for k in range(c.nb_start[i], c.nb_start[i + 1]):
+        j = c.nb_j[k]
+        sv = &shiftv[3 * (c.nb_s[k] & IMAGE)]
+        for q in range(3):
+            d[q] = x[3 * i + q] - x[3 * j + q] + sv[q]
+        dist2 = dot3(d, d)
+        rs = ri + c.r[j]
+        if dist2 >= rs * rs:
+            if c.nb_s[k] & TOUCH:
+                memset(&c.nb_h[<long long>k * hs], 0, hs * sizeof(double))
+                c.nb_s[k] &= ~TOUCH
+            continue
+        t = n
+        n += 1
+        keys[t] = k
+        h = &c.nb_h[<long long>k * hs]
+        cf = &coef[c.type[j]]
+        for q in range(3):
+            bt.d[q * PG_BATCH + t] = d[q]
+            bt.vr[q * PG_BATCH + t] = v[3 * i + q] - v[3 * j + q]
+            bt.wi[q * PG_BATCH + t] = w[3 * i + q]
+            bt.wj[q * PG_BATCH + t] = w[3 * j + q]
+            bt.xi[q * PG_BATCH + t] = h[H_SHEAR + q]
+        bt.dist2[t] = dist2
+        bt.ri[t] = ri
+        bt.rj[t] = c.r[j]
+        bt.mi[t] = mi
+        bt.mj[t] = c.m[j]
+        bt.E[t] = cf.E
+        bt.G[t] = cf.G
+        bt.mu[t] = cf.mu
+        bt.damp[t] = cf.damp
+        bt.tdamp[t] = cf.tdamp
+        bt.coh[t] = cf.coh
+        bt.limit[t] = cf.limit
+    return n
+
+
+cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const int* keys, const int* ends,
+                        int first, int nrows, int* hmax) noexcept nogil:
+    """Add up the batch's forces for rows first..first+nrows-1 (row r's entries end at
+    ``ends[r]``), in pair_row's order, with their walls; returns their work."""
+    cdef Halo* hb = &c.halos[b]
+    cdef int own = c.pb[b + 1], near_end = hb.near_end
+    cdef long long near = hb.near_off - own, far = hb.far_off - hb.far_lo
+    cdef int r, i, t = 0, k, j, q, touching, hs = c.hs
+    cdef long long total = 0
+    cdef double fi[6]
+    cdef double F[3]
+    cdef double Ft[3]
+    cdef double* h
+    cdef double* bj
+    for r in range(nrows):
+        i = first + r
+        touching = 0
+        for q in range(6):
+            fi[q] = 0.0
+        while t < ends[r]:
+            k = keys[t]
+            h = &c.nb_h[<long long>k * hs]
+            if bt.touch[t] == 0.0:
+                memset(h, 0, hs * sizeof(double))
+                c.nb_s[k] &= ~TOUCH
+                t += 1
+                continue
+            for q in range(3):
+                h[H_SHEAR + q] = bt.xi[q * PG_BATCH + t]
+            h[H_FN] = bt.fn[t]
+            c.nb_s[k] |= TOUCH
+            touching += 1
+            j = c.nb_j[k]
+            if j < own:
+                bj = &c.buf[j * 6]
+            elif j <= near_end:
+                bj = &c.halo[(near + j) * 6]
+                hmax[0] = j if j > hmax[0] else hmax[0]
+            else:
+                bj = &c.halo[(far + j) * 6]
+            for q in range(3):
+                c.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
+                fi[q] += bt.F[q * PG_BATCH + t]
+                fi[3 + q] += bt.Ti[q * PG_BATCH + t]
+                bj[q] -= bt.F[q * PG_BATCH + t]
+                bj[3 + q] -= bt.Tj[q * PG_BATCH + t]
+            t += 1
+        for q in range(3):
+            F[q] = 0.0
+            Ft[q] = 0.0
+        wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
+        for q in range(3):
+            c.buf[i * 6 + q] += fi[q] + F[q]
+            c.buf[i * 6 + 3 + q] += fi[3 + q] + Ft[q]
+        c.work[i] = row_work(c.nb_start[i + 1] - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
+        total += c.work[i]
+    return total
+
+
+cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
+    """Block b's rows of the pair loop on the batched path (State.batched, pair_batch.h):
+    rows' pairs within reach gathered into a batch, their forces computed together, then added
+    up row by row as pair_row adds them; a row with more listed pairs than a batch holds goes
+    through pair_row. Returns the rows' work."""
+    cdef pg_pair_batch bt
+    cdef int keys[PG_BATCH]
+    cdef int ends[PG_BATCH]
+    cdef int i, n = 0, nrows = 0, first = c.pb[b], listed
+    cdef long long total = 0
+    for i in range(c.pb[b], c.pb[b + 1]):
+        listed = c.nb_start[i + 1] - c.nb_start[i]
+        if n + listed > PG_BATCH or nrows == PG_BATCH:
+            pg_hertz_batch(&bt, n, c.dt, c.update)
+            total += add_rows(c, b, &bt, keys, ends, first, nrows, hmax)
+            first = i
+            n = nrows = 0
+        if listed > PG_BATCH:
+            c.work[i] = pair_row(c, i, b, hmax)
+            total += c.work[i]
+            first = i + 1
+            continue
+        n = gather_row(c, i, &bt, n, keys)
+        ends[nrows] = n
+        nrows += 1
+    pg_hertz_batch(&bt, n, c.dt, c.update)
+    return total + add_rows(c, b, &bt, keys, ends, first, nrows, hmax)
+
+
 cdef void pair_block(const State* c, int b) noexcept nogil:
     """Block b's rows of the pair loop; records their work and the last row of its halo."""
     cdef int i, hmax = -1
     cdef long long total = 0
     if c.nslots:
         memset(&c.sacc[<long long>SACC * c.nslots * b], 0, SACC * c.nslots * sizeof(double))
-    for i in range(c.pb[b], c.pb[b + 1]):
-        c.work[i] = pair_row(c, i, b, &hmax)
-        total += c.work[i]
+    if c.batched:
+        total = batched_rows(c, b, &hmax)
+    else:
+        for i in range(c.pb[b], c.pb[b + 1]):
+            c.work[i] = pair_row(c, i, b, &hmax)
+            total += c.work[i]
     c.tstat[PAD * b] = total
     c.tstat[PAD * b + 1] = hmax
 

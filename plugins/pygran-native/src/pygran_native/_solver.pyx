@@ -65,6 +65,33 @@ from libc.stdint cimport int64_t, uint8_t
 from libc.limits cimport INT_MAX
 from posix.time cimport clock_gettime, timespec, CLOCK_THREAD_CPUTIME_ID
 
+cdef extern from "pair_batch.h":
+    enum: PG_BATCH
+    ctypedef struct pg_pair_batch:
+        double d[3 * PG_BATCH]
+        double dist2[PG_BATCH]
+        double ri[PG_BATCH]
+        double rj[PG_BATCH]
+        double mi[PG_BATCH]
+        double mj[PG_BATCH]
+        double vr[3 * PG_BATCH]
+        double wi[3 * PG_BATCH]
+        double wj[3 * PG_BATCH]
+        double E[PG_BATCH]
+        double G[PG_BATCH]
+        double mu[PG_BATCH]
+        double damp[PG_BATCH]
+        double tdamp[PG_BATCH]
+        double coh[PG_BATCH]
+        double limit[PG_BATCH]
+        double xi[3 * PG_BATCH]
+        double fn[PG_BATCH]
+        double F[3 * PG_BATCH]
+        double Ti[3 * PG_BATCH]
+        double Tj[3 * PG_BATCH]
+        double touch[PG_BATCH]
+    void pg_hertz_batch(pg_pair_batch* b, int n, double dt, int update) noexcept nogil
+
 cdef extern from "team.h":
     ctypedef struct pg_team:
         pass
@@ -359,6 +386,7 @@ cdef class Core:
         self.s.model = model
         self.s.rolling = rolling
         self.s.roff = 0 if rolling == CDT else hs - 3
+        self.s.batched = model == HERTZ and not np.any(np.asarray(mur))
         self.s.dirty = 1
 
     def set_viscous(self, double[::1] gamma):

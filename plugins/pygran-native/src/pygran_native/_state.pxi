@@ -47,6 +47,7 @@ cdef struct State:
     # work on it (through a pointer, as the team's threads do).
     int n, cap, nthreads, hs, model, rolling, roff, ntypes, dirty
     int whs            # history values per wall-list entry: hs + 1 (see wall_row)
+    int batched        # hertz without rolling resistance on any pair: the pair loop's batched path
     double time, skin
     # the clock: time = t_base + (step - step_base) dt_base, re-based when dt changes, so it
     # does not accumulate round-off step by step
