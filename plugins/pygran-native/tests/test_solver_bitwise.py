@@ -112,30 +112,40 @@ def settle(threads: int) -> Solver:
     return s
 
 
-def shear(threads: int) -> Solver:
+#: the shear case's materials: Young's modulus, Poisson ratio, restitution, friction, cohesion
+SHEAR_MATERIALS = ((5e6, 0.45, 0.4, 0.6, 1e3), (7e7, 0.3, 0.8, 0.0, 0.0))
+
+
+def shear(threads: int, materials=SHEAR_MATERIALS) -> Solver:
+    """The sheared bed; the particles of type k (random) and the lid of type 1 taken modulo the
+    number of ``materials``."""
     rng = np.random.default_rng(4)
     a = 2.1e-3
-    box = dict(box=[[0, 0, 0], [6 * a, 6 * a, 7 * a]], periodic=(True, True, False), skin=3e-4, threads=threads)
+    box = dict(
+        box=[[0, 0, 0], [6 * a, 6 * a, 7 * a]], periodic=(True, True, False), skin=3e-4, threads=threads
+    )
     s = Solver(gravity=(0, 0, -9.81), **box)
+    youngs, poisson, restitution, friction, cohesion = (list(column) for column in zip(*materials))
     s.set_contact_model(
         "hertz",
-        youngs=[5e6, 7e7],
-        poisson=[0.45, 0.3],
-        restitution=[0.4, 0.8],
-        friction=[0.6, 0.0],
+        youngs=youngs,
+        poisson=poisson,
+        restitution=restitution,
+        friction=friction,
         limit_force=True,
-        cohesion_energy=[1e3, 0.0],
+        cohesion_energy=cohesion,
     )
     s.add_plane((0, 0, 0), (0, 0, 1), type=0)
-    s.add_plane((0, 0, 5 * a), (0, 0, -1), type=1)  # a lid: the bed stays dense
+    s.add_plane((0, 0, 5 * a), (0, 0, -1), type=1 % len(materials))  # a lid: the bed stays dense
     x = lattice([0, 0, 0], [6 * a, 6 * a, 5 * a], a, rng, 0.02e-3)
     n = len(x)
     s.add_particles(
         x,
         rng.uniform(0.98e-3, 1.07e-3, n),
         densities=2500,
-        types=rng.integers(0, 2, n),
-        velocities=np.column_stack([0.5 * x[:, 2] / (5 * a), np.zeros(n), np.zeros(n)]) + rng.normal(0, 0.1, (n, 3)),
+        types=rng.integers(0, 2, n) % len(materials),
+        velocities=np.column_stack([0.5 * x[:, 2] / (5 * a), np.zeros(n), np.zeros(n)])
+        + rng.normal(0, 0.1, (n, 3)),
         omegas=rng.normal(0, 100, (n, 3)),
     )
     s.run(200, 1e-5)
@@ -242,7 +252,12 @@ def mixer(threads: int) -> Solver:
     return s
 
 
-CASES: dict[str, Callable[[int], Solver]] = {"settle": settle, "shear": shear, "hopper": hopper, "mixer": mixer}
+CASES: dict[str, Callable[[int], Solver]] = {
+    "settle": settle,
+    "shear": shear,
+    "hopper": hopper,
+    "mixer": mixer,
+}
 #: the stirrer of the hopper and the servo paddle of the mixer (wall handles)
 STRESSED = {"hopper": 2, "mixer": 3}
 
@@ -301,6 +316,25 @@ def test_results_are_bitwise_the_reference(case, threads):
         assert got["lost"][0] > 0
     if case in STRESSED:
         assert np.abs(got[f"mesh{STRESSED[case]}_force"]).max() > 0
+
+
+@pytest.mark.parametrize("threads", THREADS)
+def test_one_type_gives_what_two_types_of_one_material_give(threads):
+    """With one type the batched pair loop takes the pair values once, with more it takes each
+    pair's (which the shear reference checks): the same numbers, so the same results."""
+    one = outputs(shear(threads, SHEAR_MATERIALS[:1]))
+    two = outputs(shear(threads, SHEAR_MATERIALS[:1] * 2))
+    assert len(one["contacts_i"]) >= 20
+    for key in (
+        "positions",
+        "velocities",
+        "omegas",
+        "forces",
+        "torques",
+        "contacts_normal_force",
+        "state_core_nb_h",
+    ):
+        np.testing.assert_array_equal(one[key], two[key], err_msg=key)
 
 
 if __name__ == "__main__":  # write the references anew from the build in use

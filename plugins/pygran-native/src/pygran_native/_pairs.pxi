@@ -321,6 +321,8 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys) 
         bt.rj[t] = c.r[j]
         bt.mi[t] = mi
         bt.mj[t] = c.m[j]
+        if c.ntypes == 1:   # pg_hertz_batch takes them once
+            continue
         bt.E[t] = cf.E
         bt.G[t] = cf.G
         bt.mu[t] = cf.mu
@@ -400,10 +402,15 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     cdef int ends[PG_BATCH]
     cdef int i, n = 0, nrows = 0, first = c.pb[b], listed
     cdef long long total = 0
+    cdef double one[7]   # the pair values when there is one type
+    cdef double* cf = NULL
+    if c.ntypes == 1:
+        one[:] = [c.coef.E, c.coef.G, c.coef.mu, c.coef.damp, c.coef.tdamp, c.coef.coh, c.coef.limit]
+        cf = one
     for i in range(c.pb[b], c.pb[b + 1]):
         listed = c.nb_start[i + 1] - c.nb_start[i]
         if n + listed > PG_BATCH or nrows == PG_BATCH:
-            pg_hertz_batch(&bt, n, c.dt, c.update)
+            pg_hertz_batch(&bt, n, c.dt, c.update, cf)
             total += add_rows(c, b, &bt, keys, ends, first, nrows, hmax)
             first = i
             n = nrows = 0
@@ -415,7 +422,7 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
         n = gather_row(c, i, &bt, n, keys)
         ends[nrows] = n
         nrows += 1
-    pg_hertz_batch(&bt, n, c.dt, c.update)
+    pg_hertz_batch(&bt, n, c.dt, c.update, cf)
     return total + add_rows(c, b, &bt, keys, ends, first, nrows, hmax)
 
 

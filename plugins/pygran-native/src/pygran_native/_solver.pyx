@@ -90,7 +90,7 @@ cdef extern from "pair_batch.h":
         double Ti[3 * PG_BATCH]
         double Tj[3 * PG_BATCH]
         double touch[PG_BATCH]
-    void pg_hertz_batch(pg_pair_batch* b, int n, double dt, int update) noexcept nogil
+    void pg_hertz_batch(pg_pair_batch* b, int n, double dt, int update, const double* cf) noexcept nogil
 
 cdef extern from "team.h":
     ctypedef struct pg_team:

@@ -20,7 +20,7 @@ typedef struct {
     double vr[3 * PG_BATCH];    /* in: v_i - v_j */
     double wi[3 * PG_BATCH], wj[3 * PG_BATCH];   /* in: angular velocities */
     double E[PG_BATCH], G[PG_BATCH], mu[PG_BATCH], damp[PG_BATCH], tdamp[PG_BATCH];
-    double coh[PG_BATCH], limit[PG_BATCH];      /* in: the pair's Coef */
+    double coh[PG_BATCH], limit[PG_BATCH];      /* in: the pair's Coef (one type: not used) */
     double xi[3 * PG_BATCH];    /* in and out: the tangential displacement history */
     double fn[PG_BATCH];        /* out: normal force */
     double F[3 * PG_BATCH];     /* out: force on i */
@@ -29,15 +29,20 @@ typedef struct {
     double touch[PG_BATCH];     /* out: 1 in contact, 0 apart after all (overlap rounded to 0) */
 } pg_pair_batch;
 
-/* The loop of pg_hertz_batch, with ``update`` a constant where it is called. */
+/* The loop of pg_hertz_batch, with ``update`` and ``one`` (the pair values are those of ``cf``)
+   constants where it is called. */
 static inline __attribute__((always_inline)) void pg_hertz_entries(pg_pair_batch* restrict b, int n,
-                                                                   double dt, const int update)
+                                                                   double dt, const int update,
+                                                                   const int one, const double* cf)
 {
     const int B = PG_BATCH;
 #pragma GCC ivdep
     for (int t = 0; t < n; t++) {
         double dist2 = b->dist2[t], ri = b->ri[t], rj = b->rj[t], mi = b->mi[t], mj = b->mj[t];
-        double rs = ri + rj, E = b->E[t], mu = b->mu[t], coh = b->coh[t];
+        double E = one ? cf[0] : b->E[t], G = one ? cf[1] : b->G[t], mu = one ? cf[2] : b->mu[t];
+        double damp = one ? cf[3] : b->damp[t], tdamp = one ? cf[4] : b->tdamp[t];
+        double coh = one ? cf[5] : b->coh[t], limit = one ? cf[6] : b->limit[t];
+        double rs = ri + rj;
         double inv = 1.0 / sqrt(dist2);
         double delta = rs - dist2 * inv;
         double cri = ri - 0.5 * delta, crj = rj - 0.5 * delta;   /* levers to the contact point */
@@ -53,11 +58,11 @@ static inline __attribute__((always_inline)) void pg_hertz_entries(pg_pair_batch
         double vn = -((vr0 * n0 + vr1 * n1) + vr2 * n2);
         double a = sqrt(Rs * delta);
         double kn = ((4.0 / 3.0) * E) * a;
-        double gn = b->damp[t] * sqrt(((2.0 * E) * a) * ms);
-        double kt = (8.0 * b->G[t]) * a;
-        double gt = b->tdamp[t] * gn;
+        double gn = damp * sqrt(((2.0 * E) * a) * ms);
+        double kt = (8.0 * G) * a;
+        double gt = tdamp * gn;
         double fn = kn * delta + gn * vn;
-        fn = (fn < 0.0) & (b->limit[t] != 0.0) ? 0.0 : fn;
+        fn = (fn < 0.0) & (limit != 0.0) ? 0.0 : fn;
         double fc = fn - ((coh * M_PI) * delta) * ((2.0 * Rs) - delta);
         fn = coh > 0.0 ? fc : fn;
         /* tangential: the spring on the history, Coulomb's limit on it alone (tangential_force) */
@@ -104,14 +109,19 @@ static inline __attribute__((always_inline)) void pg_hertz_entries(pg_pair_batch
     }
 }
 
-/* Forces of entries 0..n-1 (see contact_force; ``update``: advance the histories). */
+/* Forces of entries 0..n-1 (see contact_force; ``update``: advance the histories). ``cf``: the
+   pair values E, G, mu, damp, tdamp, coh, limit of every entry, or NULL: each entry's own. */
 __attribute__((target_clones("avx2", "default")))
-static void pg_hertz_batch(pg_pair_batch* restrict b, int n, double dt, int update)
+static void pg_hertz_batch(pg_pair_batch* restrict b, int n, double dt, int update, const double* cf)
 {
-    if (update)
-        pg_hertz_entries(b, n, dt, 1);
+    if (cf != NULL && update)
+        pg_hertz_entries(b, n, dt, 1, 1, cf);
+    else if (cf != NULL)
+        pg_hertz_entries(b, n, dt, 0, 1, cf);
+    else if (update)
+        pg_hertz_entries(b, n, dt, 1, 0, cf);
     else
-        pg_hertz_entries(b, n, dt, 0);
+        pg_hertz_entries(b, n, dt, 0, 0, cf);
 }
 
 #endif
