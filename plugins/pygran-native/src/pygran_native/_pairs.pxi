@@ -114,7 +114,8 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     for q in range(3):   # walls after the loop, into other arrays: fi can live in registers there
         F[q] = 0.0
         Ft[q] = 0.0
-    wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
+    if c.wl_start[i + 1] > c.wl_start[i]:
+        wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
     for q in range(3):
         buf[i * 6 + q] += fi[q] + F[q]
         buf[i * 6 + 3 + q] += fi[3 + q] + Ft[q]
@@ -201,8 +202,6 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
     cdef const double* g
     cdef const double* xi = &c.x[3 * i]
     cdef double ri = c.r[i]
-    if c.wl_start[i] == c.wl_start[i + 1]:
-        return
     for k in range(c.wl_start[i], c.wl_start[i + 1]):
         e = c.wl_e[k]
         h = &c.wl_h[<long long>k * c.whs]
@@ -383,7 +382,8 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
         for q in range(3):
             F[q] = 0.0
             Ft[q] = 0.0
-        wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
+        if c.wl_start[i + 1] > c.wl_start[i]:
+            wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
         for q in range(3):
             c.buf[i * 6 + q] += fi[q] + F[q]
             c.buf[i * 6 + 3 + q] += fi[3 + q] + Ft[q]
