@@ -35,9 +35,11 @@ cdef struct Tuner:
     # TUNE_MAX) while the choice stands and falls back to TUNE_MIN when it changes. On a busy
     # machine the team waits for a thread whose CPU another program holds, on a small system
     # for its own hand-offs: then one thread is faster. Results do not depend on the choice.
+    # Rebuilds are left out of the windows: one in a window of a few steps would decide it.
     bint solo, probing
     long long steps     # steps in the current window
     double elapsed      # seconds of the window in earlier runs (between runs is not timed)
+    double rebuilt      # the rebuild timer when the window started
     double start, next_probe, interval
     double per_step[2]  # seconds per step with the team [0] and solo [1], when last timed
 

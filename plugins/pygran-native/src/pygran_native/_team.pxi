@@ -75,11 +75,13 @@ cdef void tune(State* sim) noexcept nogil:
     """Before a step: time the window that ends here and choose how to run the next
     one (see Tuner)."""
     cdef Tuner* u = &sim.tuner
-    cdef double now = pg_now(), window = u.elapsed + now - u.start
+    cdef double now = pg_now(), window
     cdef int probe
     if u.interval == 0.0:   # the first step with a team
         u.interval = TUNE_MIN
         u.next_probe = now + TUNE_WINDOW
+        u.rebuilt = sim.timers[T_REBUILD]
+    window = u.elapsed + now - u.start - (sim.timers[T_REBUILD] - u.rebuilt)
     if u.steps > 0 and window >= TUNE_WINDOW:
         probe = 1 if u.solo else 0
         u.per_step[probe] = window / u.steps
@@ -97,6 +99,7 @@ cdef void tune(State* sim) noexcept nogil:
         u.steps = 0
         u.elapsed = 0.0
         u.start = now
+        u.rebuilt = sim.timers[T_REBUILD]
     u.steps += 1
 
 
