@@ -308,7 +308,6 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys) 
         n += 1
         keys[t] = k
         h = &c.nb_h[<long long>k * hs]
-        cf = &coef[c.type[j]]
         for q in range(3):
             bt.d[q * PG_BATCH + t] = d[q]
             bt.vr[q * PG_BATCH + t] = v[3 * i + q] - v[3 * j + q]
@@ -322,6 +321,7 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys) 
         bt.mj[t] = c.m[j]
         if c.ntypes == 1:   # pg_hertz_batch takes them once
             continue
+        cf = &coef[c.type[j]]
         bt.E[t] = cf.E
         bt.G[t] = cf.G
         bt.mu[t] = cf.mu
