@@ -5,6 +5,61 @@ cdef inline int row_work(int listed, int touching, int walls) noexcept nogil:
     return WROW + listed + WTOUCH * (touching + walls)
 
 
+cdef struct Sink:
+    # Where a block of the pair loop adds forces on a partner row j: the shared buffer for its
+    # own rows (j < own), else the block's halo (see Halo): near rows from entry near + j,
+    # far rows from entry far + j.
+    double* buf
+    double* halo
+    long long near, far
+    int own, near_end
+
+
+cdef inline Sink block_sink(const State* c, int b) noexcept nogil:
+    cdef const Halo* hb = &c.halos[b]
+    cdef Sink s
+    s.buf = c.buf
+    s.halo = c.halo
+    s.own = c.pb[b + 1]
+    s.near_end = hb.near_end
+    s.near = hb.near_off - s.own
+    s.far = hb.far_off - hb.far_lo
+    return s
+
+
+cdef inline double* partner_row(const Sink* s, int j, int* hmax) noexcept nogil:
+    """The 6 force and torque values of partner row j (``hmax``: the last near halo row)."""
+    if j < s.own:
+        return &s.buf[j * 6]
+    if j <= s.near_end:
+        if j > hmax[0]:
+            hmax[0] = j
+        return &s.halo[(s.near + j) * 6]
+    return &s.halo[(s.far + j) * 6]
+
+
+cdef inline void forget_pair(const State* c, long long k) noexcept nogil:
+    """Listed pair k is apart: its history cleared, no longer touching."""
+    memset(&c.nb_h[k * c.hs], 0, c.hs * sizeof(double))
+    c.nb_s[k] &= ~TOUCH
+
+
+cdef inline int finish_row(const State* c, int i, int b, const double* fi, int touching) noexcept nogil:
+    """Add row i's pair sums ``fi`` and its walls' forces to its buffer; returns its work."""
+    cdef int q
+    cdef double F[3]
+    cdef double T[3]
+    for q in range(3):   # walls into other arrays: fi can live in registers while pairs add up
+        F[q] = 0.0
+        T[q] = 0.0
+    if c.wl_start[i + 1] > c.wl_start[i]:
+        wall_row(c, i, F, T, &c.sacc[<long long>SACC * c.nslots * b])
+    for q in range(3):
+        c.buf[i * 6 + q] += fi[q] + F[q]
+        c.buf[i * 6 + 3 + q] += fi[3 + q] + T[q]
+    return row_work(c.nb_start[i + 1] - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
+
+
 cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     """Forces of particle i's half-list contacts and walls; returns the row's work.
 
@@ -25,14 +80,10 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef double* nb_f = c.nb_f
     cdef const double* shiftv = &c.shiftv[0]
     cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
-    cdef double* buf = c.buf
-    cdef double* halo = c.halo
-    cdef const Halo* hb = &c.halos[b]
-    cdef int own = c.pb[b + 1], near_end = hb.near_end
-    cdef long long near = hb.near_off - own, far = hb.far_off - hb.far_lo   # row j's entries
+    cdef Sink sink = block_sink(c, b)
     cdef int hs = c.hs, model = c.model, rolling = c.rolling, roff = c.roff, update = c.update
     cdef int k, j, q, res, kend = c.nb_start[i + 1]
-    cdef int touching = 0, last = -1
+    cdef int touching = 0
     cdef double dt = c.dt
     cdef double d[3]
     cdef double n[3]
@@ -68,8 +119,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         h = &nb_h[<long long>k * hs]
         if dist2 >= rs * rs and not (model == THORNTON_NING and h[H_DMAX] > 0.0):   # apart (adhesion stretches)
             if nb_s[k] & TOUCH:
-                memset(h, 0, hs * sizeof(double))
-                nb_s[k] &= ~TOUCH
+                forget_pair(c, k)
             continue
         inv = 1.0 / sqrt(dist2)
         mj = m[j]
@@ -90,38 +140,21 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
                             wrel, h, dt, update, F, Ft, Mr)
         if res != IN_CONTACT:
             if res == NO_CONTACT:
-                memset(h, 0, hs * sizeof(double))
-                nb_s[k] &= ~TOUCH
+                forget_pair(c, k)
             elif nb_s[k] & TOUCH:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
                 memset(&nb_f[<long long>3 * k], 0, 3 * sizeof(double))
             continue
         nb_s[k] |= TOUCH
         touching += 1
         cross3(n, Ft, cx)
-        if j < own:
-            bj = &buf[j * 6]
-        elif j <= near_end:
-            bj = &halo[(near + j) * 6]
-            last = j if j > last else last
-        else:
-            bj = &halo[(far + j) * 6]
+        bj = partner_row(&sink, j, hmax)
         for q in range(3):
             nb_f[<long long>3 * k + q] = F[q]
             fi[q] += F[q]
             fi[3 + q] += Mr[q] - cri * cx[q]
             bj[q] -= F[q]
             bj[3 + q] -= Mr[q] + crj * cx[q]
-    for q in range(3):   # walls after the loop, into other arrays: fi can live in registers there
-        F[q] = 0.0
-        Ft[q] = 0.0
-    if c.wl_start[i + 1] > c.wl_start[i]:
-        wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
-    for q in range(3):
-        buf[i * 6 + q] += fi[q] + F[q]
-        buf[i * 6 + 3 + q] += fi[3 + q] + Ft[q]
-    if last > hmax[0]:
-        hmax[0] = last
-    return row_work(kend - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
+    return finish_row(c, i, b, fi, touching)
 
 
 cdef int wall_contact(const State* c, int i, int e, double* h, double delta, const double* n,
@@ -301,8 +334,7 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys) 
         rs = ri + c.r[j]
         if dist2 >= rs * rs:
             if c.nb_s[k] & TOUCH:
-                memset(&c.nb_h[<long long>k * hs], 0, hs * sizeof(double))
-                c.nb_s[k] &= ~TOUCH
+                forget_pair(c, k)
             continue
         t = n
         n += 1
@@ -336,14 +368,10 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
                         int first, int nrows, int* hmax) noexcept nogil:
     """Add up the batch's forces for rows first..first+nrows-1 (row r's entries end at
     ``ends[r]``), in pair_row's order, with their walls; returns their work."""
-    cdef Halo* hb = &c.halos[b]
-    cdef int own = c.pb[b + 1], near_end = hb.near_end
-    cdef long long near = hb.near_off - own, far = hb.far_off - hb.far_lo
-    cdef int r, i, t = 0, k, j, q, touching, hs = c.hs
+    cdef Sink sink = block_sink(c, b)
+    cdef int r, i, t = 0, k, q, touching
     cdef long long total = 0
     cdef double fi[6]
-    cdef double F[3]
-    cdef double Ft[3]
     cdef double* h
     cdef double* bj
     for r in range(nrows):
@@ -353,25 +381,17 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
             fi[q] = 0.0
         while t < ends[r]:
             k = keys[t]
-            h = &c.nb_h[<long long>k * hs]
             if bt.touch[t] == 0.0:
-                memset(h, 0, hs * sizeof(double))
-                c.nb_s[k] &= ~TOUCH
+                forget_pair(c, k)
                 t += 1
                 continue
+            h = &c.nb_h[<long long>k * c.hs]
             for q in range(3):
                 h[H_SHEAR + q] = bt.xi[q * PG_BATCH + t]
             h[H_FN] = bt.fn[t]
             c.nb_s[k] |= TOUCH
             touching += 1
-            j = c.nb_j[k]
-            if j < own:
-                bj = &c.buf[j * 6]
-            elif j <= near_end:
-                bj = &c.halo[(near + j) * 6]
-                hmax[0] = j if j > hmax[0] else hmax[0]
-            else:
-                bj = &c.halo[(far + j) * 6]
+            bj = partner_row(&sink, c.nb_j[k], hmax)
             for q in range(3):
                 c.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
                 fi[q] += bt.F[q * PG_BATCH + t]
@@ -379,15 +399,7 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
                 bj[q] -= bt.F[q * PG_BATCH + t]
                 bj[3 + q] -= bt.Tj[q * PG_BATCH + t]
             t += 1
-        for q in range(3):
-            F[q] = 0.0
-            Ft[q] = 0.0
-        if c.wl_start[i + 1] > c.wl_start[i]:
-            wall_row(c, i, F, Ft, &c.sacc[<long long>SACC * c.nslots * b])
-        for q in range(3):
-            c.buf[i * 6 + q] += fi[q] + F[q]
-            c.buf[i * 6 + 3 + q] += fi[3 + q] + Ft[q]
-        c.work[i] = row_work(c.nb_start[i + 1] - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
+        c.work[i] = finish_row(c, i, b, fi, touching)
         total += c.work[i]
     return total
 
