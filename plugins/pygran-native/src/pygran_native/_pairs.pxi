@@ -311,46 +311,58 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
                 rec[6] = 1.0
 
 
-cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys) noexcept nogil:
+cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, int* partners) noexcept nogil:
     """Append particle i's half-list pairs within reach to the batch from entry n (their
-    indices in ``keys``); clears the pairs that came apart. Returns the new entry count."""
+    indices in ``keys``, their partners in ``partners``); clears the pairs that came apart.
+    Returns the new entry count. Every listed pair is written to entry n, which advances only
+    past those within reach: no branch on the test, whose outcome the CPU cannot predict."""
     cdef const double* x = c.x
     cdef const double* v = c.v
     cdef const double* w = c.w
+    cdef const double* r = c.r
+    cdef const double* m = c.m
+    cdef const int* nb_j = c.nb_j
+    cdef const uint8_t* nb_s = c.nb_s
+    cdef const double* nb_h = c.nb_h
     cdef const double* shiftv = &c.shiftv[0]
     cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
     cdef const Coef* cf
     cdef const double* sv
-    cdef double* h
-    cdef int k, j, q, t, hs = c.hs
-    cdef double ri = c.r[i], mi = c.m[i], rs, dist2
+    cdef const double* h
+    cdef int k, j, q, t, first = n, hs = c.hs, kend = c.nb_start[i + 1]
+    cdef bint within
+    cdef double ri = r[i], mi = m[i], rj, dist2
+    cdef double xi[3]
     cdef double d[3]
-    for k in range(c.nb_start[i], c.nb_start[i + 1]):
-        j = c.nb_j[k]
-        sv = &shiftv[3 * (c.nb_s[k] & IMAGE)]
+    for q in range(3):
+        xi[q] = x[3 * i + q]
+    for k in range(c.nb_start[i], kend):
+        j = nb_j[k]
+        sv = &shiftv[3 * (nb_s[k] & IMAGE)]
         for q in range(3):
-            d[q] = x[3 * i + q] - x[3 * j + q] + sv[q]
+            d[q] = xi[q] - x[3 * j + q] + sv[q]
+            bt.d[q * PG_BATCH + n] = d[q]
         dist2 = dot3(d, d)
-        rs = ri + c.r[j]
-        if dist2 >= rs * rs:
-            if c.nb_s[k] & TOUCH:
-                forget_pair(c, k)
-            continue
-        t = n
-        n += 1
-        keys[t] = k
-        h = &c.nb_h[<long long>k * hs]
+        rj = r[j]
+        bt.dist2[n] = dist2
+        bt.rj[n] = rj
+        keys[n] = k
+        partners[n] = j
+        within = not (dist2 >= (ri + rj) * (ri + rj))   # NaN: within, as pair_row has it
+        if (not within) & ((nb_s[k] & TOUCH) != 0):
+            forget_pair(c, k)
+        n += within
+    for t in range(first, n):
+        j = partners[t]
+        h = &nb_h[<long long>keys[t] * hs]
         for q in range(3):
-            bt.d[q * PG_BATCH + t] = d[q]
             bt.vr[q * PG_BATCH + t] = v[3 * i + q] - v[3 * j + q]
             bt.wi[q * PG_BATCH + t] = w[3 * i + q]
             bt.wj[q * PG_BATCH + t] = w[3 * j + q]
             bt.xi[q * PG_BATCH + t] = h[H_SHEAR + q]
-        bt.dist2[t] = dist2
         bt.ri[t] = ri
-        bt.rj[t] = c.r[j]
         bt.mi[t] = mi
-        bt.mj[t] = c.m[j]
+        bt.mj[t] = m[j]
         if c.ntypes == 1:   # pg_hertz_batch takes them once
             continue
         cf = &coef[c.type[j]]
@@ -411,6 +423,7 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     through pair_row. Returns the rows' work."""
     cdef pg_pair_batch bt
     cdef int keys[PG_BATCH]
+    cdef int partners[PG_BATCH]
     cdef int ends[PG_BATCH]
     cdef int i, n = 0, nrows = 0, first = c.pb[b], listed
     cdef long long total = 0
@@ -431,7 +444,7 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
             total += c.work[i]
             first = i + 1
             continue
-        n = gather_row(c, i, &bt, n, keys)
+        n = gather_row(c, i, &bt, n, keys, partners)
         ends[nrows] = n
         nrows += 1
     pg_hertz_batch(&bt, n, c.dt, c.update, cf)
