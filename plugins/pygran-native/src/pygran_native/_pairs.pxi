@@ -330,7 +330,7 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, 
     cdef const double* sv
     cdef const double* h
     cdef int k, j, q, t, first = n, hs = c.hs, kend = c.nb_start[i + 1]
-    cdef bint within
+    cdef int within, touched
     cdef double ri = r[i], mi = m[i], rj, dist2
     cdef double xi[3]
     cdef double d[3]
@@ -349,7 +349,8 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, 
         keys[n] = k
         partners[n] = j
         within = not (dist2 >= (ri + rj) * (ri + rj))   # NaN: within, as pair_row has it
-        if (not within) & ((nb_s[k] & TOUCH) != 0):
+        touched = (nb_s[k] & TOUCH) != 0
+        if touched > within:   # one rarely taken branch: apart now, touching before
             forget_pair(c, k)
         n += within
     for t in range(first, n):
