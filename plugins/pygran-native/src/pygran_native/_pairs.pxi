@@ -82,6 +82,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
     cdef Sink sink = block_sink(c, b)
     cdef int hs = c.hs, model = c.model, rolling = c.rolling, roff = c.roff, update = c.update
+    cdef bint record = not c.fuse   # see State.nb_f
     cdef int k, j, q, res, kend = c.nb_start[i + 1]
     cdef int touching = 0
     cdef double dt = c.dt
@@ -141,15 +142,17 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         if res != IN_CONTACT:
             if res == NO_CONTACT:
                 forget_pair(c, k)
-            elif nb_s[k] & TOUCH:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
+            elif nb_s[k] & TOUCH and record:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
                 memset(&nb_f[<long long>3 * k], 0, 3 * sizeof(double))
             continue
         nb_s[k] |= TOUCH
         touching += 1
         cross3(n, Ft, cx)
         bj = partner_row(&sink, j, hmax)
+        if record:
+            for q in range(3):
+                nb_f[<long long>3 * k + q] = F[q]
         for q in range(3):
-            nb_f[<long long>3 * k + q] = F[q]
             fi[q] += F[q]
             fi[3 + q] += Mr[q] - cri * cx[q]
             bj[q] -= F[q]
@@ -405,8 +408,10 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
             c.nb_s[k] |= TOUCH
             touching += 1
             bj = partner_row(&sink, c.nb_j[k], hmax)
+            if not c.fuse:   # see State.nb_f
+                for q in range(3):
+                    c.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
             for q in range(3):
-                c.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
                 fi[q] += bt.F[q * PG_BATCH + t]
                 fi[3 + q] += bt.Ti[q * PG_BATCH + t]
                 bj[q] -= bt.F[q * PG_BATCH + t]

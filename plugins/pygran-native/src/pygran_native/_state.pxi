@@ -95,7 +95,9 @@ cdef struct State:
     uint8_t *nb_s
     double *nb_h
     long long nb_cap
-    double *nb_f       # the force of each listed pair at the last evaluation, on i (3, see contact_forces)
+    double *nb_f       # the force of each listed pair on i (3, see contact_forces), written only by the
+                       # passes that end a run (not fused, see particle_row): the steps between skip
+                       # the store of 3 doubles per contact, which made the pair loop's largest stream
     long long nbf_cap
     int *ob_start
     int *ob_j
