@@ -235,13 +235,15 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
     cdef double nrm[3]
     cdef double* h
     cdef double* rec
+    cdef double scratch[WLF]   # the records of a pass that does not record (see State.nb_f)
+    cdef bint record = not c.fuse
     cdef const double* g
     cdef const double* xi = &c.x[3 * i]
     cdef double ri = c.r[i]
     for k in range(c.wl_start[i], c.wl_start[i + 1]):
         e = c.wl_e[k]
         h = &c.wl_h[<long long>k * c.whs]
-        rec = &c.wl_f[<long long>k * WLF]
+        rec = &c.wl_f[<long long>k * WLF] if record else scratch
         rec[6] = 0.0
         g = &c.egeo[9 * e]
         if c.ekind[e] != TRIANGLE:
@@ -306,7 +308,7 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
             dist = sqrt(cd2[a])
             for b in range(3):
                 nrm[b] = (xi[b] - cq[3 * a + b]) / dist
-            rec = &c.wl_f[<long long>k * WLF]
+            rec = &c.wl_f[<long long>k * WLF] if record else scratch
             if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T, sa, rec) == IN_CONTACT:
                 acc[nacc] = a
                 nacc += 1

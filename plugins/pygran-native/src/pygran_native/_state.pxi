@@ -109,7 +109,7 @@ cdef struct State:
     int *wl_e
     double *wl_h
     long long wl_cap
-    double *wl_f       # each listed wall entry at the last evaluation (WLF, see wall_row, contact_forces)
+    double *wl_f       # each listed wall entry (WLF, see wall_row, contact_forces), written as nb_f is
     long long wlf_cap
     int *ow_start
     int *ow_e
@@ -182,7 +182,7 @@ cdef struct State:
     # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
     double dt
     int update, kick, fuse
-    int forces_valid   # nb_f and wl_f hold the last evaluation's forces (not after set_state)
+    int forces_valid   # nb_f and wl_f hold the forces of a run's last pass (not after set_state)
 
 
 cdef struct Column:
