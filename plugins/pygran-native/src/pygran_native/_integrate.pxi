@@ -151,6 +151,7 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
     sim.update = update
     sim.kick = kick
     sim.fuse = fuse
+    sim.record = not fuse   # an unfused pass is the last of its run (see run_steps)
     for t in range(T):
         sim.tmax[PAD * t] = 0.0
         sim.cpu[PAD * t + 2] = 0.0

@@ -82,7 +82,6 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
     cdef Sink sink = block_sink(c, b)
     cdef int hs = c.hs, model = c.model, rolling = c.rolling, roff = c.roff, update = c.update
-    cdef bint record = not c.fuse   # see State.nb_f
     cdef int k, j, q, res, kend = c.nb_start[i + 1]
     cdef int touching = 0
     cdef double dt = c.dt
@@ -142,14 +141,14 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         if res != IN_CONTACT:
             if res == NO_CONTACT:
                 forget_pair(c, k)
-            elif nb_s[k] & TOUCH and record:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
+            elif nb_s[k] & TOUCH and c.record:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
                 memset(&nb_f[<long long>3 * k], 0, 3 * sizeof(double))
             continue
         nb_s[k] |= TOUCH
         touching += 1
         cross3(n, Ft, cx)
         bj = partner_row(&sink, j, hmax)
-        if record:
+        if c.record:
             for q in range(3):
                 nb_f[<long long>3 * k + q] = F[q]
         for q in range(3):
@@ -235,15 +234,14 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
     cdef double nrm[3]
     cdef double* h
     cdef double* rec
-    cdef double scratch[WLF]   # the records of a pass that does not record (see State.nb_f)
-    cdef bint record = not c.fuse
+    cdef double scratch[WLF]   # the records of a pass that does not record (see State.record)
     cdef const double* g
     cdef const double* xi = &c.x[3 * i]
     cdef double ri = c.r[i]
     for k in range(c.wl_start[i], c.wl_start[i + 1]):
         e = c.wl_e[k]
         h = &c.wl_h[<long long>k * c.whs]
-        rec = &c.wl_f[<long long>k * WLF] if record else scratch
+        rec = &c.wl_f[<long long>k * WLF] if c.record else scratch
         rec[6] = 0.0
         g = &c.egeo[9 * e]
         if c.ekind[e] != TRIANGLE:
@@ -308,7 +306,7 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
             dist = sqrt(cd2[a])
             for b in range(3):
                 nrm[b] = (xi[b] - cq[3 * a + b]) / dist
-            rec = &c.wl_f[<long long>k * WLF] if record else scratch
+            rec = &c.wl_f[<long long>k * WLF] if c.record else scratch
             if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T, sa, rec) == IN_CONTACT:
                 acc[nacc] = a
                 nacc += 1
@@ -410,7 +408,7 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
             c.nb_s[k] |= TOUCH
             touching += 1
             bj = partner_row(&sink, c.nb_j[k], hmax)
-            if not c.fuse:   # see State.nb_f
+            if c.record:
                 for q in range(3):
                     c.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
             for q in range(3):

@@ -95,9 +95,8 @@ cdef struct State:
     uint8_t *nb_s
     double *nb_h
     long long nb_cap
-    double *nb_f       # the force of each listed pair on i (3, see contact_forces), written only by the
-                       # passes that end a run (not fused, see particle_row): the steps between skip
-                       # the store of 3 doubles per contact, which made the pair loop's largest stream
+    double *nb_f       # the force of each listed pair on i (3, see contact_forces), written only by a
+                       # pass that records (see record)
     long long nbf_cap
     int *ob_start
     int *ob_j
@@ -109,7 +108,7 @@ cdef struct State:
     int *wl_e
     double *wl_h
     long long wl_cap
-    double *wl_f       # each listed wall entry (WLF, see wall_row, contact_forces), written as nb_f is
+    double *wl_f       # each listed wall entry (WLF, see wall_row, contact_forces), written as nb_f
     long long wlf_cap
     int *ow_start
     int *ow_e
@@ -182,7 +181,10 @@ cdef struct State:
     # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
     double dt
     int update, kick, fuse
-    int forces_valid   # nb_f and wl_f hold the forces of a run's last pass (not after set_state)
+    # the pass ends a run (the set-up pass, a run's last step): it writes nb_f and wl_f, which
+    # only contact_forces reads; the steps between skip those stores, the pair loop's largest
+    int record
+    int forces_valid   # nb_f and wl_f hold the forces of the last recording pass (not after set_state)
 
 
 cdef struct Column:
