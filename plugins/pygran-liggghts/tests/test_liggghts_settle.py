@@ -1,4 +1,4 @@
-"""The settle scenario of shared/benchmarks/settle.md at small N on 1 and 2 MPI ranks."""
+"""The settle scenario of benchmarks/README.md at small N on 1 and 2 MPI ranks."""
 
 import numpy as np
 import pytest
