@@ -181,6 +181,29 @@ def test_momentum_conserved_in_particle_collisions():
     np.testing.assert_allclose(p1, p0, atol=1e-13 * scale)
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_momentum_conserved_across_the_periodic_wrap(threads):
+    # a compressed periodic lattice: every sphere touches its 6 neighbours, across each face of
+    # the box too; with 2 threads, the last rows of the cell order get forces from the first
+    # through the wrap (the pair blocks' far halos), which the particle loop must add
+    n, a = 10, 1.9 * R
+    s = solver(periodic=(True, True, True), box=((0, 0, 0), (n * a,) * 3), threads=threads)
+    rng = np.random.default_rng(5)
+    grid = np.stack(np.meshgrid(*[np.arange(n)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    v = rng.normal(0, 0.05, grid.shape)
+    s.add_particles(
+        (grid + 0.5) * a + rng.uniform(-0.02 * R, 0.02 * R, grid.shape),
+        R,
+        densities=RHO,
+        velocities=v - v.mean(axis=0),
+    )
+    p0 = (s.masses[:, None] * s.velocities).sum(axis=0)
+    s.run(200, 1e-6)
+    assert len(s.contacts()[0]) == 3 * n**3
+    p1 = (s.masses[:, None] * s.velocities).sum(axis=0)
+    np.testing.assert_allclose(p1, p0, atol=1e-12 * np.abs(s.masses[:, None] * s.velocities).sum())
+
+
 def test_periodic_wrap_and_collision_across_the_boundary():
     s = solver(
         periodic=(True, False, False),

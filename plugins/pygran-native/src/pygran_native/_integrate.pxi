@@ -86,17 +86,51 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
         drift_one(&c.x[3 * i], v, w, &c.x0[3 * i], dt, s, u, F, T, &c.tmax[PAD * tid])
 
 
+cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid) noexcept nogil:
+    """Rows [lo, hi) of the particle loop through kick_drift.h (see particle_block)."""
+    c.tmax[PAD * tid] = pg_kick_drift(lo, hi, c.dt, c.tmax[PAD * tid], c.grav, c.m, c.r, c.type, c.visc,
+                                      c.buf, c.x, c.v, c.w, c.x0)
+
+
+cdef inline int halo_free(const State* c, int i, int hi, int nearmax, int end) noexcept nogil:
+    """The end of the run of rows from i (before hi) that no halo holds; i if one holds row i.
+    ``nearmax``: the last row that the near halos of blocks 0 to ``end - 1`` (those ending at
+    or before i) hold; block ``end``'s near halo starts where that block ends, so a run stops
+    there."""
+    cdef int k, stop = hi
+    if i <= nearmax:
+        return i
+    if end < c.nblocks - 1 and c.pb[end + 1] < stop:
+        stop = c.pb[end + 1]
+    for k in range(c.nfarblocks):
+        if c.halos[k].far_lo <= i <= c.halos[k].far_hi:
+            return i
+        if i < c.halos[k].far_lo < stop:
+            stop = c.halos[k].far_lo
+    return stop
+
+
 cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil:
     """Rows [lo, hi) of the particle loop. The pair blocks whose near halo can hold row i
     are among ``first`` to ``end - 1``: those ending at or before i whose rows have a near
-    partner at or after i (``last``); both bounds move forward with i."""
-    cdef int i, first = 0, end = 0
-    for i in range(lo, hi):
+    partner at or after i (``last``); both bounds move forward with i. Without clumps, at a
+    step that kicks and fuses the next drift, runs of rows that no halo holds go through
+    kick_drift.h, the same arithmetic in a tighter loop."""
+    cdef int i = lo, stop, first = 0, end = 0, nearmax = -1
+    cdef bint plain = not c.nbody and c.kick and c.fuse
+    while i < hi:
         while end < c.nblocks - 1 and c.pb[end + 1] <= i:
+            nearmax = max(nearmax, <int>c.tstat[PAD * end + 1])
             end += 1
         while first < end and (c.pb[first + 1] == 0 or c.last[c.pb[first + 1] - 1] < i):
             first += 1
-        particle_row(c, i, tid, first, end)
+        stop = halo_free(c, i, hi, nearmax, end) if plain else i
+        if stop > i:
+            kick_drift_rows(c, i, stop, tid)
+            i = stop
+        else:
+            particle_row(c, i, tid, first, end)
+            i += 1
 
 
 cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:

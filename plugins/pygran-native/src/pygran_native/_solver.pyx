@@ -92,6 +92,11 @@ cdef extern from "pair_batch.h":
         double touch[PG_BATCH]
     void pg_hertz_batch(pg_pair_batch* b, int n, double dt, int update, const double* cf) noexcept nogil
 
+cdef extern from "kick_drift.h":
+    double pg_kick_drift(int lo, int hi, double dt, double tmax, const double* grav, const double* m,
+                         const double* r, const int* type, const double* visc, double* buf, double* x,
+                         double* v, double* w, const double* x0) noexcept nogil
+
 cdef extern from "team.h":
     ctypedef struct pg_team:
         pass
