@@ -26,6 +26,30 @@ cdef inline void drift_row(const State* c, int i, int tid, const double* F, cons
               0.5 * dt / (0.4 * mi * ri * ri), F, T, &c.tmax[PAD * tid])
 
 
+cdef inline void add_halos(const State* c, int i, int first, int end, double* F, double* T) noexcept nogil:
+    """Add row i's halo entries to its force F and torque T, and clear them: the near halos of
+    the pair blocks ``first`` to ``end - 1`` that wrote it, then the far halos holding it, each
+    in block order."""
+    cdef int k, q
+    cdef double* b
+    for k in range(first, end):
+        if i > c.tstat[PAD * k + 1]:
+            continue
+        b = &c.halo[(c.halos[k].near_off + i - c.pb[k + 1]) * 6]
+        for q in range(3):
+            F[q] += b[q]
+            T[q] += b[3 + q]
+        memset(b, 0, 6 * sizeof(double))
+    for k in range(c.nfarblocks):
+        if not c.halos[k].far_lo <= i <= c.halos[k].far_hi:
+            continue
+        b = &c.halo[(c.halos[k].far_off + i - c.halos[k].far_lo) * 6]
+        for q in range(3):
+            F[q] += b[q]
+            T[q] += b[3 + q]
+        memset(b, 0, 6 * sizeof(double))
+
+
 cdef void particle_row(const State* c, int i, int tid, int first, int end) noexcept nogil:
     """Sum the buffers (the shared one, then the near halos of the pair blocks ``first`` to
     ``end - 1`` that wrote row i, then the far halos holding it, each in block order) and
@@ -43,7 +67,7 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
     cdef double grav[3]
     cdef double F[3]
     cdef double T[3]
-    cdef int k, q, kick = c.kick, fuse = c.fuse
+    cdef int q, kick = c.kick, fuse = c.fuse
     for q in range(3):
         grav[q] = c.grav[q]
     for q in range(3):
@@ -52,22 +76,7 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
         F[q] += b[q]
         T[q] += b[3 + q]
     memset(b, 0, 6 * sizeof(double))
-    for k in range(first, end):
-        if i > c.tstat[PAD * k + 1]:
-            continue
-        b = &c.halo[(c.halos[k].near_off + i - c.pb[k + 1]) * 6]
-        for q in range(3):
-            F[q] += b[q]
-            T[q] += b[3 + q]
-        memset(b, 0, 6 * sizeof(double))
-    for k in range(c.nfarblocks):
-        if not c.halos[k].far_lo <= i <= c.halos[k].far_hi:
-            continue
-        b = &c.halo[(c.halos[k].far_off + i - c.halos[k].far_lo) * 6]
-        for q in range(3):
-            F[q] += b[q]
-            T[q] += b[3 + q]
-        memset(b, 0, 6 * sizeof(double))
+    add_halos(c, i, first, end, F, T)
     if not fuse or member:
         for q in range(3):
             c.f[3 * i + q] = F[q]
@@ -114,10 +123,12 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
     """Rows [lo, hi) of the particle loop. The pair blocks whose near halo can hold row i
     are among ``first`` to ``end - 1``: those ending at or before i whose rows have a near
     partner at or after i (``last``); both bounds move forward with i. Without clumps, at a
-    step that kicks and fuses the next drift, runs of rows that no halo holds go through
-    kick_drift.h, the same arithmetic in a tighter loop."""
+    step that kicks and fuses the next drift, rows go through kick_drift.h (the same
+    arithmetic in tighter code), runs of rows that no halo holds in one call."""
     cdef int i = lo, stop, first = 0, end = 0, nearmax = -1
     cdef bint plain = not c.nbody and c.kick and c.fuse
+    cdef double F[3]
+    cdef double T[3]
     while i < hi:
         while end < c.nblocks - 1 and c.pb[end + 1] <= i:
             nearmax = max(nearmax, <int>c.tstat[PAD * end + 1])
@@ -128,9 +139,14 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
         if stop > i:
             kick_drift_rows(c, i, stop, tid)
             i = stop
+            continue
+        if plain:   # kick_drift.h's steps, with the halos added
+            pg_row_forces(i, c.grav[0], c.grav[1], c.grav[2], c.m, c.type, c.visc, c.buf, c.v, F, T)
+            add_halos(c, i, first, end, F, T)
+            c.tmax[PAD * tid] = pg_row_kick_drift(i, c.dt, c.tmax[PAD * tid], c.m, c.r, c.x, c.v, c.w, c.x0, F, T)
         else:
             particle_row(c, i, tid, first, end)
-            i += 1
+        i += 1
 
 
 cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:

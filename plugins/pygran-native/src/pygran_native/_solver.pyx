@@ -93,6 +93,10 @@ cdef extern from "pair_batch.h":
     void pg_hertz_batch(pg_pair_batch* b, int n, double dt, int update, const double* cf) noexcept nogil
 
 cdef extern from "kick_drift.h":
+    void pg_row_forces(long long i, double g0, double g1, double g2, const double* m, const int* type,
+                       const double* visc, double* buf, const double* v, double* F, double* T) noexcept nogil
+    double pg_row_kick_drift(long long i, double dt, double tmax, const double* m, const double* r, double* x,
+                             double* v, double* w, const double* x0, const double* F, const double* T) noexcept nogil
     double pg_kick_drift(int lo, int hi, double dt, double tmax, const double* grav, const double* m,
                          const double* r, const int* type, const double* visc, double* buf, double* x,
                          double* v, double* w, const double* x0) noexcept nogil
