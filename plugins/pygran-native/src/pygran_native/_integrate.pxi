@@ -1,29 +1,12 @@
 # Integration: the particle loop (summing the pair loop's buffers, gravity, viscous
 # forces, velocity Verlet kicks) and the drift.
 
-cdef inline void drift_one(double* x, double* v, double* w, const double* x0, double dt, double s, double u,
-                           const double* F, const double* T, double* tmax) noexcept nogil:
-    """First half kick (``s F``, ``u T``) and drift of the particle whose position, velocity,
-    angular velocity and position at the rebuild start at x, v, w, x0; its squared
-    displacement since the rebuild raises ``tmax[0]``."""
-    cdef int d
-    cdef double q, dd = 0.0
-    for d in range(3):
-        v[d] += s * F[d]
-        w[d] += u * T[d]
-        x[d] += dt * v[d]
-        q = x[d] - x0[d]
-        dd += q * q
-    if not dd <= tmax[0]:   # a non-finite particle forces a rebuild, which drops it
-        tmax[0] = dd if isfinite(dd) else INFINITY
-
-
 cdef inline void drift_row(const State* c, int i, int tid, const double* F, const double* T) noexcept nogil:
     """First half kick (force F, torque T) and drift of particle i; its squared displacement
     since the rebuild raises thread ``tid``'s maximum (per-thread maxima are a cache line apart)."""
-    cdef double dt = c.dt, mi = c.m[i], ri = c.r[i]
-    drift_one(&c.x[3 * i], &c.v[3 * i], &c.w[3 * i], &c.x0[3 * i], dt, 0.5 * dt / mi,
-              0.5 * dt / (0.4 * mi * ri * ri), F, T, &c.tmax[PAD * tid])
+    cdef double s, u
+    pg_row_kick_factors(i, c.dt, c.m, c.r, &s, &u)
+    c.tmax[PAD * tid] = pg_row_drift(i, c.dt, s, u, c.tmax[PAD * tid], c.x, c.v, c.w, c.x0, F, T)
 
 
 cdef inline void add_halos(const State* c, int i, int first, int end, double* F, double* T) noexcept nogil:
@@ -51,48 +34,37 @@ cdef inline void add_halos(const State* c, int i, int first, int end, double* F,
 
 
 cdef void particle_row(const State* c, int i, int tid, int first, int end) noexcept nogil:
-    """Sum the buffers (the shared one, then the near halos of the pair blocks ``first`` to
-    ``end - 1`` that wrote row i, then the far halos holding it, each in block order) and
-    clear them, add gravity and viscous forces; second half kick, and with ``fuse`` the first
-    half kick and drift of the next step (one pass instead of two, the same arithmetic; ``f``
-    and ``t`` are then left alone: they hold the forces of a run's last step, which is not
-    fused). A clump's sphere only stores its buffers' sums in f and t, for its body (see
-    body_row), which gravity and drag act on."""
-    # locals: the stores through double* may alias anything, including *c
+    """Sum the buffers (the shared one, then its halos: see add_halos) and clear them, add
+    gravity and viscous forces; second half kick, and with ``fuse`` the first half kick and
+    drift of the next step (one pass instead of two, the same arithmetic; ``f`` and ``t`` are
+    then left alone: they hold the forces of a run's last step, which is not fused). A clump's
+    sphere only stores its buffers' sums in f and t, for its body (see body_row), which gravity
+    and drag act on. A fused pass always kicks (see run_steps)."""
     cdef bint member = c.nbody and c.mem[i] >= 0
-    cdef double mi = c.m[i], ri = c.r[i], g = c.visc[c.type[i]], dt = c.dt, s = 0.0, u = 0.0
-    cdef double* v = &c.v[3 * i]
-    cdef double* w = &c.w[3 * i]
     cdef double* b = &c.buf[<long long>i * 6]
-    cdef double grav[3]
     cdef double F[3]
     cdef double T[3]
-    cdef int q, kick = c.kick, fuse = c.fuse
-    for q in range(3):
-        grav[q] = c.grav[q]
-    for q in range(3):
-        F[q] = 0.0 if member else mi * grav[q] - g * v[q]
-        T[q] = 0.0
-        F[q] += b[q]
-        T[q] += b[3 + q]
-    memset(b, 0, 6 * sizeof(double))
+    cdef double s, u
+    cdef int q
+    if member:
+        for q in range(3):
+            F[q] = 0.0 + b[q]
+            T[q] = 0.0 + b[3 + q]
+        memset(b, 0, 6 * sizeof(double))
+    else:
+        pg_row_forces(i, c.grav[0], c.grav[1], c.grav[2], c.m, c.type, c.visc, c.buf, c.v, F, T)
     add_halos(c, i, first, end, F, T)
-    if not fuse or member:
+    if not c.fuse or member:
         for q in range(3):
             c.f[3 * i + q] = F[q]
             c.t[3 * i + q] = T[q]
     if member:
         return
-    if kick or fuse:   # the kicks' factors (the same for the second half kick and the next first)
-        s = 0.5 * dt / mi
-        u = 0.5 * dt / (0.4 * mi * ri * ri)
-    if kick:
-        for q in range(3):
-            v[q] += s * F[q]
-        for q in range(3):
-            w[q] += u * T[q]
-    if fuse:
-        drift_one(&c.x[3 * i], v, w, &c.x0[3 * i], dt, s, u, F, T, &c.tmax[PAD * tid])
+    if c.fuse:
+        c.tmax[PAD * tid] = pg_row_kick_drift(i, c.dt, c.tmax[PAD * tid], c.m, c.r, c.x, c.v, c.w, c.x0, F, T)
+    elif c.kick:
+        pg_row_kick_factors(i, c.dt, c.m, c.r, &s, &u)
+        pg_row_kick(i, s, u, c.v, c.w, F, T)
 
 
 cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid) noexcept nogil:
@@ -123,12 +95,10 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
     """Rows [lo, hi) of the particle loop. The pair blocks whose near halo can hold row i
     are among ``first`` to ``end - 1``: those ending at or before i whose rows have a near
     partner at or after i (``last``); both bounds move forward with i. Without clumps, at a
-    step that kicks and fuses the next drift, rows go through kick_drift.h (the same
-    arithmetic in tighter code), runs of rows that no halo holds in one call."""
+    step that kicks and fuses the next drift, runs of rows that no halo holds go through
+    kick_drift.h in one call."""
     cdef int i = lo, stop, first = 0, end = 0, nearmax = -1
     cdef bint plain = not c.nbody and c.kick and c.fuse
-    cdef double F[3]
-    cdef double T[3]
     while i < hi:
         while end < c.nblocks - 1 and c.pb[end + 1] <= i:
             nearmax = max(nearmax, <int>c.tstat[PAD * end + 1])
@@ -140,12 +110,7 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
             kick_drift_rows(c, i, stop, tid)
             i = stop
             continue
-        if plain:   # kick_drift.h's steps, with the halos added
-            pg_row_forces(i, c.grav[0], c.grav[1], c.grav[2], c.m, c.type, c.visc, c.buf, c.v, F, T)
-            add_halos(c, i, first, end, F, T)
-            c.tmax[PAD * tid] = pg_row_kick_drift(i, c.dt, c.tmax[PAD * tid], c.m, c.r, c.x, c.v, c.w, c.x0, F, T)
-        else:
-            particle_row(c, i, tid, first, end)
+        particle_row(c, i, tid, first, end)
         i += 1
 
 

@@ -95,6 +95,12 @@ cdef extern from "pair_batch.h":
 cdef extern from "kick_drift.h":
     void pg_row_forces(long long i, double g0, double g1, double g2, const double* m, const int* type,
                        const double* visc, double* buf, const double* v, double* F, double* T) noexcept nogil
+    double pg_row_drift(long long i, double dt, double s, double u, double tmax, double* x, double* v, double* w,
+                        const double* x0, const double* F, const double* T) noexcept nogil
+    void pg_row_kick(long long i, double s, double u, double* v, double* w, const double* F,
+                     const double* T) noexcept nogil
+    void pg_row_kick_factors(long long i, double dt, const double* m, const double* r, double* s,
+                             double* u) noexcept nogil
     double pg_row_kick_drift(long long i, double dt, double tmax, const double* m, const double* r, double* x,
                              double* v, double* w, const double* x0, const double* F, const double* T) noexcept nogil
     double pg_kick_drift(int lo, int hi, double dt, double tmax, const double* grav, const double* m,

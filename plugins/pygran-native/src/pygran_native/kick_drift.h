@@ -1,14 +1,12 @@
 #ifndef PYGRAN_KICK_DRIFT_H
 #define PYGRAN_KICK_DRIFT_H
 
-/* The particle loop's common case (used by _integrate.pxi): no clumps, and a step that both
-   kicks and fuses the next drift. The same operations in the same order as particle_row and
-   drift_one, so the same results to the bit, without per-row flags to test and with restrict
-   pointers: a store to a particle's arrays does not make the compiler reload the state (which
-   particle_row must, through State*). That cuts the loop's time by about 40 %. Rows whose
-   forces are all in the shared buffer (no pair block's halo holds them; with one thread, every
-   row) go through pg_kick_drift in runs; the others through pg_row_forces, their halos, then
-   pg_row_kick_drift. */
+/* The particle loop's and the drift's arithmetic per row (used by _integrate.pxi), in C with
+   restrict pointers: a store to a particle's arrays does not make the compiler reload the
+   solver's state, as Cython code reading through State* must. That cuts the particle loop's
+   time by about 40 %. Rows whose forces are all in the shared buffer (no pair block's halo
+   holds them; with one thread, every row) go through pg_kick_drift in runs, at steps without
+   clumps that kick and fuse the next drift. */
 #include <math.h>
 
 /* Row i's forces from ``buf`` (then cleared), gravity (g0, g1, g2) and viscous drag into F and
@@ -30,35 +28,62 @@ static inline void pg_row_forces(long long i, double g0, double g1, double g2, c
     b[0] = b[1] = b[2] = b[3] = b[4] = b[5] = 0.0;
 }
 
-/* Row i's second half kick by force F and torque T, and the next step's first half kick and
-   drift. Returns the largest squared displacement from x0 (INFINITY if it is not finite), at
-   least ``tmax``. */
-static inline double pg_row_kick_drift(long long i, double dt, double tmax, const double* restrict m,
-                                       const double* restrict r, double* restrict x, double* restrict v,
-                                       double* restrict w, const double* restrict x0,
-                                       const double* restrict F, const double* restrict T)
+/* Row i's half kick (``s F``, ``u T``). */
+static inline void pg_row_kick(long long i, double s, double u, double* restrict v, double* restrict w,
+                               const double* restrict F, const double* restrict T)
 {
-    double mi = m[i], ri = r[i], half = 0.5 * dt;
     double* vi = v + 3 * i;
     double* wi = w + 3 * i;
+    vi[0] += s * F[0];
+    vi[1] += s * F[1];
+    vi[2] += s * F[2];
+    wi[0] += u * T[0];
+    wi[1] += u * T[1];
+    wi[2] += u * T[2];
+}
+
+/* Row i's first half kick (``s F``, ``u T``) and drift; returns the largest squared
+   displacement from x0 (INFINITY if it is not finite: that forces a rebuild, which drops the
+   particle), at least ``tmax``. */
+static inline double pg_row_drift(long long i, double dt, double s, double u, double tmax,
+                                  double* restrict x, double* restrict v, double* restrict w,
+                                  const double* restrict x0, const double* restrict F,
+                                  const double* restrict T)
+{
+    const double* vi = v + 3 * i;
     double* xi = x + 3 * i;
     const double* oi = x0 + 3 * i;
-    double s = half / mi;
-    double u = half / (((0.4 * mi) * ri) * ri);
-    vi[0] = (vi[0] + s * F[0]) + s * F[0];   /* the second half kick, then the next first one */
-    vi[1] = (vi[1] + s * F[1]) + s * F[1];
-    vi[2] = (vi[2] + s * F[2]) + s * F[2];
-    wi[0] = (wi[0] + u * T[0]) + u * T[0];
-    wi[1] = (wi[1] + u * T[1]) + u * T[1];
-    wi[2] = (wi[2] + u * T[2]) + u * T[2];
+    pg_row_kick(i, s, u, v, w, F, T);
     xi[0] += dt * vi[0];
     xi[1] += dt * vi[1];
     xi[2] += dt * vi[2];
     double q0 = xi[0] - oi[0], q1 = xi[1] - oi[1], q2 = xi[2] - oi[2];
     double dd = ((0.0 + q0 * q0) + q1 * q1) + q2 * q2;
-    if (!(dd <= tmax))   /* as drift_one: a non-finite particle forces a rebuild */
+    if (!(dd <= tmax))
         tmax = isfinite(dd) ? dd : INFINITY;
     return tmax;
+}
+
+/* Row i's half kick factors for force (``s``) and torque (``u``). */
+static inline void pg_row_kick_factors(long long i, double dt, const double* restrict m,
+                                       const double* restrict r, double* s, double* u)
+{
+    double mi = m[i], ri = r[i];
+    *s = (0.5 * dt) / mi;
+    *u = (0.5 * dt) / (((0.4 * mi) * ri) * ri);
+}
+
+/* Row i's second half kick by force F and torque T, then the next step's first half kick and
+   drift (see pg_row_drift). */
+static inline double pg_row_kick_drift(long long i, double dt, double tmax, const double* restrict m,
+                                       const double* restrict r, double* restrict x, double* restrict v,
+                                       double* restrict w, const double* restrict x0,
+                                       const double* restrict F, const double* restrict T)
+{
+    double s, u;
+    pg_row_kick_factors(i, dt, m, r, &s, &u);
+    pg_row_kick(i, s, u, v, w, F, T);
+    return pg_row_drift(i, dt, s, u, tmax, x, v, w, x0, F, T);
 }
 
 /* Rows [lo, hi), none of which a halo holds (see pg_row_kick_drift for the result). */
