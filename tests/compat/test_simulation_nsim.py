@@ -31,7 +31,9 @@ sim.setupWall(species=1, plane="zplane", peq=0.0)
 sim.createParticles(1, "single", 0.005, 0.005, 0.002)
 sim.run(pDict["stages"]["settle"], pDict["dt"])
 friction = sim.engine.spec.species[0].material["coefficientFriction"]
-print("run", sim.output.parent.name, sim.output.name, sim.extractVelocities()[0, 2], friction, flush=True)
+line = f"run {sim.output.parent.name} {sim.output.name} {sim.extractVelocities()[0, 2]} {friction}"
+sys.stdout.write(line + "\\n")  # one write: the ranks' lines stay whole, even unbuffered
+sys.stdout.flush()
 sim.close()
 """
 

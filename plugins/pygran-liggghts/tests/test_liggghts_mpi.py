@@ -13,6 +13,8 @@ from pygran_liggghts.session import mpirun_prefix
 from pygran_core.testing.solvers import require_solver
 
 SCRIPT = """
+import sys
+
 from pygran_core import simulation
 
 material = {"youngsModulus": 5e6, "poissonsRatio": 0.45, "coefficientRestitution": 0.3,
@@ -23,7 +25,8 @@ with simulation.DEM(engine="liggghts", model="HertzMindlin", nSim=2, box=(0, 0.0
     sim.setupWall(species=1, plane="zplane", peq=0.0)
     sim.createParticles(1, "single", 0.005, 0.005, 0.002)
     sim.run(100)
-    print("run", sim.output.name, sim.extractRadii()[0], flush=True)
+    sys.stdout.write(f"run {sim.output.name} {sim.extractRadii()[0]}\\n")  # one write: lines stay whole
+    sys.stdout.flush()
 """
 
 
