@@ -114,7 +114,8 @@ def breakdown(timings: dict) -> str:
         f"run {run:.2f} s (idle cores: {idle_seconds(timings):.2f} s): "
         + ", ".join(parts)
         + f", other {other:.3f} s; "
-        f"rebuild parts: {', '.join(rebuild)}; CPU s per thread: {', '.join(cpu)}"
+        f"rebuild parts: {', '.join(rebuild)}; CPU s per thread: {', '.join(cpu)}; "
+        f"steps without the team {timings['solo_steps']}"
     )
 
 

@@ -811,8 +811,10 @@ cdef class Core:
 
     def timings(self):
         """Seconds spent so far: wall clock per phase (``TIMERS``), and per-thread CPU time in
-        the pair and particle loops (``pairs_cpu``, ``particles_cpu``)."""
+        the pair and particle loops (``pairs_cpu``, ``particles_cpu``); the steps the master
+        ran without the team (``solo_steps``)."""
         out = {name: self.s.timers[k] for k, name in enumerate(TIMERS)}
+        out["solo_steps"] = self.s.tuner.solo_steps
         out["pairs_cpu"] = np.array([self.s.cpu[PAD * t] for t in range(self.s.nthreads)])
         out["particles_cpu"] = np.array([self.s.cpu[PAD * t + 1] for t in range(self.s.nthreads)])
         return out

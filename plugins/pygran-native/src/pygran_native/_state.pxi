@@ -38,6 +38,7 @@ cdef struct Tuner:
     # Rebuilds are left out of the windows: one in a window of a few steps would decide it.
     bint solo, probing
     long long steps     # steps in the current window
+    long long solo_steps  # steps the master ran alone, in all runs
     double elapsed      # seconds of the window in earlier runs (between runs is not timed)
     double rebuilt      # the rebuild timer when the window started
     double start, next_probe, interval

@@ -101,6 +101,7 @@ cdef void tune(State* sim) noexcept nogil:
         u.start = now
         u.rebuilt = sim.timers[T_REBUILD]
     u.steps += 1
+    u.solo_steps += u.solo
 
 
 cdef inline int estimated_work(State* sim, int i) noexcept nogil:

@@ -919,8 +919,9 @@ class Solver:
         ``rebuild_permute``, ``rebuild_count``, ``rebuild_fill``; the CPU seconds of each
         thread in the pair and particle loops (arrays ``pairs_cpu``, ``particles_cpu``), and
         their sums over steps of the busiest thread's CPU seconds (``pairs_span``,
-        ``particles_span``: the loops' wall time on otherwise idle cores). Not part of
-        :meth:`get_state`."""
+        ``particles_span``: the loops' wall time on otherwise idle cores), and the steps the
+        calling thread ran without the others, having found that faster (``solo_steps``: on
+        a busy machine or a small system). Not part of :meth:`get_state`."""
         return self._core.timings()
 
     @property
