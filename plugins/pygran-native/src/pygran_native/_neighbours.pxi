@@ -34,10 +34,25 @@ cdef uint8_t carry_pair(const State* c, int a, int b, double* h) noexcept nogil:
     return 0
 
 
-cdef int scan_pairs(const State* c, int i, bint fill) noexcept nogil:
-    """Partners j > i within r_i + r_j + skin, but for spheres of i's clump: counted, or written
-    from ``nb_start[i]``."""
-    cdef int d0, d1, d2, j, code, cid, cnt = 0, pos, wrap
+cdef int grow_found(Found* out) noexcept nogil:
+    """Double ``out``'s capacity (at least 4096 pairs); -1 when out of memory."""
+    cdef long long cap = max(2 * out.cap, 4096)
+    cdef void* a = grow(out.j, cap * sizeof(int))
+    if a == NULL:
+        return -1
+    out.j = <int*>a
+    a = grow(out.s, cap * sizeof(uint8_t))
+    if a == NULL:
+        return -1
+    out.s = <uint8_t*>a
+    out.cap = cap
+    return 0
+
+
+cdef int scan_pairs(const State* c, int i, Found* out, long long pos) noexcept nogil:
+    """Partners j > i within r_i + r_j + skin, but for spheres of i's clump: written to ``out``
+    from ``pos`` (see Found); how many, or -1 when out of memory."""
+    cdef int d0, d1, d2, j, code, cid, cnt = 0, wrap
     cdef int body = c.mbody[c.mem[i]] if c.nbody and c.mem[i] >= 0 else -1
     cdef int cc[3]
     cdef int nb[3]
@@ -46,7 +61,6 @@ cdef int scan_pairs(const State* c, int i, bint fill) noexcept nogil:
     cdef const double* xi = &c.x[3 * i]
     cdef const double* sv
     locate(xi, c.lo, c.cs, c.nc, c.ax, cc)
-    pos = c.nb_start[i] if fill else 0
     for d2 in range(-1, 2):
         nb[2] = cc[2] + d2
         s[2] = 0
@@ -85,10 +99,10 @@ cdef int scan_pairs(const State* c, int i, bint fill) noexcept nogil:
                     rc = c.r[i] + c.r[j] + c.skin
                     if dx * dx + dy * dy + dz * dz < rc * rc and not (
                             body >= 0 and c.mem[j] >= 0 and c.mbody[c.mem[j]] == body):
-                        if fill:
-                            c.nb_j[pos + cnt] = j
-                            c.nb_s[pos + cnt] = (<uint8_t>(code | wrap)
-                                                 | carry_pair(c, i, j, &c.nb_h[(pos + cnt) * c.hs]))
+                        if pos + cnt == out.cap and grow_found(out) < 0:
+                            return -1
+                        out.j[pos + cnt] = j
+                        out.s[pos + cnt] = <uint8_t>(code | wrap)
                         cnt += 1
                     j += 1
     return cnt
@@ -265,10 +279,12 @@ cdef void permute(State* sim, int n) noexcept nogil:
     parallel_rows(sim, P_COPY_BACK, n)
 
 
-cdef void rebuild_rows(State* sim, int phase, int lo, int hi) noexcept nogil:
-    """Rows [lo, hi) of a parallel pass of the rebuild (and bodies [lo, hi) of a body loop,
-    which the team hands out as rows too)."""
-    cdef int i, d, n = sim.rows
+cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept nogil:
+    """Rows [lo, hi), block b, of a parallel pass of the rebuild (and bodies [lo, hi) of a body
+    loop, which the team hands out as rows too)."""
+    cdef int i, d, n = sim.rows, j, cnt
+    cdef long long k, pos = 0
+    cdef Found* found = &sim.found[b]
     cdef int* perm = sim.perm
     cdef double* sr = sim.f
     cdef double* sm = sim.f + n
@@ -304,13 +320,23 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi) noexcept nogil:
                 sim.mem[i] = sb[i]
             for d in range(3):
                 sim.x0[3 * i + d] = sim.x[3 * i + d]
-    elif phase == P_COUNT:
+    elif phase == P_COUNT:   # the pairs go to the block's Found, the fill copies them
+        found.failed = 0
         for i in range(lo, hi):
-            sim.nb_start[i + 1] = scan_pairs(sim, i, False)
+            cnt = scan_pairs(sim, i, found, pos)
+            if cnt < 0:
+                found.failed = 1
+                cnt = 0
+            pos += cnt
+            sim.nb_start[i + 1] = cnt
             sim.wl_start[i + 1] = scan_walls(sim, i, False)
     elif phase == P_FILL:
+        pos = sim.nb_start[lo]
         for i in range(lo, hi):
-            scan_pairs(sim, i, True)
+            for k in range(sim.nb_start[i], sim.nb_start[i + 1]):
+                j = found.j[k - pos]
+                sim.nb_j[k] = j
+                sim.nb_s[k] = found.s[k - pos] | carry_pair(sim, i, j, &sim.nb_h[k * sim.hs])
             scan_walls(sim, i, True)
             sim.work[i] = estimated_work(sim, i)
             find_partners(sim, i)
@@ -414,6 +440,9 @@ cdef int rebuild(State* sim) noexcept nogil:
     dp = sim.ow_h; sim.ow_h = sim.wl_h; sim.wl_h = dp
     cap = sim.ow_cap; sim.ow_cap = sim.wl_cap; sim.wl_cap = cap
     parallel_rows(sim, P_COUNT, nnew)
+    for i in range(sim.nblocks):
+        if sim.found[i].failed:
+            return -1
     sim.nb_start[0] = 0
     sim.wl_start[0] = 0
     for i in range(nnew):

@@ -270,18 +270,24 @@ cdef class Core:
         self.s.pb = <int*>calloc(self.s.nblocks + 1, sizeof(int))
         self.s.tstat = <long long*>calloc(self.s.nblocks * PAD, sizeof(long long))
         self.s.halos = <Halo*>calloc(self.s.nblocks, sizeof(Halo))
+        self.s.found = <Found*>calloc(self.s.nblocks, sizeof(Found))
         self.s.team = pg_create(threads, SPIN)
         self.s.coef = <Coef*>calloc(1, sizeof(Coef))
         self.s.visc = <double*>calloc(1, sizeof(double))
         self.s.ntypes = 1
         if not (self.s.nb_start and self.s.ob_start and self.s.wl_start and self.s.ow_start and self.s.tmax
-                and self.s.pb and self.s.tstat and self.s.cpu and self.s.halos and self.s.team):
+                and self.s.pb and self.s.tstat and self.s.cpu and self.s.halos and self.s.found
+                and self.s.team):
             raise MemoryError()
 
     def __dealloc__(self):
         cdef Column cols[NCOLUMNS]
         cdef int k
         pg_destroy(self.s.team)
+        if self.s.found:
+            for k in range(self.s.nblocks):
+                free(self.s.found[k].j)
+                free(self.s.found[k].s)
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
             free(cols[k].p[0])
@@ -301,7 +307,7 @@ cdef class Core:
                   <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri,
                   <size_t>self.s.slots, <size_t>self.s.sacc, <size_t>self.s.vib,
                   <size_t>self.s.coef, <size_t>self.s.visc, <size_t>self.s.tmax,
-                  <size_t>self.s.pb, <size_t>self.s.tstat, <size_t>self.s.cpu):
+                  <size_t>self.s.pb, <size_t>self.s.tstat, <size_t>self.s.cpu, <size_t>self.s.found):
             free(<void*>p)
 
     # ------------------------------------------------------------------ memory ----------
@@ -826,7 +832,7 @@ cdef class Core:
     def memory_bytes(self):
         """Bytes held by the per-particle arrays and lists (allocated capacity)."""
         cdef Column cols[NCOLUMNS]
-        cdef size_t per_particle = 0, per_body = 0, per_member = 0
+        cdef size_t per_particle = 0, per_body = 0, per_member = 0, found = 0
         cdef int k
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
@@ -837,7 +843,9 @@ cdef class Core:
         member_columns(&self.s, cols)
         for k in range(NMCOLUMNS):
             per_member += cols[k].size
-        return (self.s.cap * per_particle + self.s.bcap * per_body + self.s.mcap * per_member
+        for k in range(self.s.nblocks):
+            found += self.s.found[k].cap * 5
+        return (found + self.s.cap * per_particle + self.s.bcap * per_body + self.s.mcap * per_member
                 + self.s.halo_cap * 6 * 8
                 + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs) + self.s.nbf_cap * 24
                 + self.s.wl_cap * (12 + 8 * self.s.hs) + self.s.ow_cap * (12 + 8 * self.s.hs)

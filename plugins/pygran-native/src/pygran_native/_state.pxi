@@ -28,6 +28,15 @@ cdef struct Halo:
     int near_end, far_lo, far_hi
 
 
+cdef struct Found:
+    # The pairs a block of the neighbour count found (partner, image code and WRAP flag), in
+    # the order of its rows: the fill copies them into the list, so one pass searches the cells.
+    int* j
+    uint8_t* s
+    long long cap
+    int failed         # out of memory in the last count
+
+
 cdef struct Tuner:
     # The master runs the phases alone (solo) or with the team, whichever was faster per step
     # when last compared: it times windows of at least TUNE_WINDOW seconds and, every
@@ -96,6 +105,7 @@ cdef struct State:
     uint8_t *nb_s
     double *nb_h
     long long nb_cap
+    Found* found       # per block of the rebuild's row passes, see Found
     double *nb_f       # the force of each listed pair on i (3, see contact_forces), written only by a
                        # pass that records (see record)
     long long nbf_cap

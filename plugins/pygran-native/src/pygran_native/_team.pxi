@@ -44,7 +44,7 @@ cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid) n
         if phase == P_DRIFT:
             drift_block(sim, <int>lo, <int>hi, tid)
         else:
-            rebuild_rows(sim, phase, <int>lo, <int>hi)
+            rebuild_rows(sim, phase, <int>lo, <int>hi, b)
 
 
 cdef void take(State* sim, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
