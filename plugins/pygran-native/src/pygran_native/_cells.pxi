@@ -25,6 +25,7 @@ cdef int setup_cells(State* sim, double rmax) noexcept nogil:
     """Cell grid of side >= 2 rmax + skin over the box; -1 when out of memory."""
     cdef double cut, size
     cdef int d, k
+    cdef int cc[3]
     cdef long long total
     cdef void* p
     cut = 2.0 * rmax + sim.skin
@@ -47,6 +48,12 @@ cdef int setup_cells(State* sim, double rmax) noexcept nogil:
         for k in range(2 - d):
             if sim.nc[sim.ax[k + 1]] > sim.nc[sim.ax[k]]:
                 sim.ax[k], sim.ax[k + 1] = sim.ax[k + 1], sim.ax[k]
+    k = 0   # (exactly 14 with 3 cells or more along each axis, which scan_pairs needs to use them)
+    for d in range(27):   # the order of scan_pairs' loops: offsets d0 (x), d1 (y), d2 (z) = -1, 0, 1
+        cc[0], cc[1], cc[2] = d % 3 - 1, d // 3 % 3 - 1, d // 9 - 1
+        if k < 14 and cell_id(sim.nc, sim.ax, cc) >= 0:
+            sim.up[k] = cell_id(sim.nc, sim.ax, cc)
+            k += 1
     if sim.ncells + 2 > sim.cell_cap:
         p = grow(sim.cell_start, (sim.ncells + 2) * sizeof(int))
         if p == NULL:

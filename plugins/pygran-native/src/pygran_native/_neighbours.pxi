@@ -49,18 +49,49 @@ cdef int grow_found(Found* out) noexcept nogil:
     return 0
 
 
+cdef inline int scan_cell(const State* c, int i, int cid, int code, int wrap, int body, Found* out,
+                          long long pos, int cnt) noexcept nogil:
+    """Append i's partners j > i in cell cid (seen through periodic image ``code``) to ``out``
+    after its ``cnt`` first (see scan_pairs); the new count, or -1 when out of memory."""
+    cdef int j = c.cell_start[cid]
+    cdef double dx, dy, dz, rc
+    cdef const double* xi = &c.x[3 * i]
+    cdef const double* sv = &c.shiftv[3 * code]
+    if j <= i:
+        j = i + 1
+    while j < c.cell_start[cid + 1]:
+        dx = xi[0] - c.x[3 * j] + sv[0]
+        dy = xi[1] - c.x[3 * j + 1] + sv[1]
+        dz = xi[2] - c.x[3 * j + 2] + sv[2]
+        rc = c.r[i] + c.r[j] + c.skin
+        if dx * dx + dy * dy + dz * dz < rc * rc and not (
+                body >= 0 and c.mem[j] >= 0 and c.mbody[c.mem[j]] == body):
+            if pos + cnt == out.cap and grow_found(out) < 0:
+                return -1
+            out.j[pos + cnt] = j
+            out.s[pos + cnt] = <uint8_t>(code | wrap)
+            cnt += 1
+        j += 1
+    return cnt
+
+
 cdef int scan_pairs(const State* c, int i, Found* out, long long pos) noexcept nogil:
     """Partners j > i within r_i + r_j + skin, but for spheres of i's clump: written to ``out``
-    from ``pos`` (see Found); how many, or -1 when out of memory."""
-    cdef int d0, d1, d2, j, code, cid, cnt = 0, wrap
+    from ``pos`` (see Found); how many, or -1 when out of memory. The cells around i's are
+    searched in the order of the loops below; rows are sorted by cell, so cells before i's hold
+    no j > i: inside the grid (no image, no edge) only the cells ``c.up`` after it are searched."""
+    cdef int d0, d1, d2, k, cid, cnt = 0
     cdef int body = c.mbody[c.mem[i]] if c.nbody and c.mem[i] >= 0 else -1
     cdef int cc[3]
     cdef int nb[3]
     cdef int s[3]
-    cdef double dx, dy, dz, rc
-    cdef const double* xi = &c.x[3 * i]
-    cdef const double* sv
-    locate(xi, c.lo, c.cs, c.nc, c.ax, cc)
+    cid = locate(&c.x[3 * i], c.lo, c.cs, c.nc, c.ax, cc)
+    if (0 < cc[0] < c.nc[0] - 1) and (0 < cc[1] < c.nc[1] - 1) and (0 < cc[2] < c.nc[2] - 1):
+        for k in range(14):
+            cnt = scan_cell(c, i, cid + c.up[k], 13, 0, body, out, pos, cnt)
+            if cnt < 0:
+                return -1
+        return cnt
     for d2 in range(-1, 2):
         nb[2] = cc[2] + d2
         s[2] = 0
@@ -85,26 +116,10 @@ cdef int scan_pairs(const State* c, int i, Found* out, long long pos) noexcept n
                         continue
                     s[0] = 1 if nb[0] < 0 else -1
                     nb[0] += s[0] * c.nc[0]
-                cid = cell_id(c.nc, c.ax, nb)
-                code = 9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1
-                sv = &c.shiftv[3 * code]
-                j = c.cell_start[cid]
-                if j <= i:
-                    j = i + 1
-                wrap = WRAP if s[c.ax[0]] != 0 else 0
-                while j < c.cell_start[cid + 1]:
-                    dx = xi[0] - c.x[3 * j] + sv[0]
-                    dy = xi[1] - c.x[3 * j + 1] + sv[1]
-                    dz = xi[2] - c.x[3 * j + 2] + sv[2]
-                    rc = c.r[i] + c.r[j] + c.skin
-                    if dx * dx + dy * dy + dz * dz < rc * rc and not (
-                            body >= 0 and c.mem[j] >= 0 and c.mbody[c.mem[j]] == body):
-                        if pos + cnt == out.cap and grow_found(out) < 0:
-                            return -1
-                        out.j[pos + cnt] = j
-                        out.s[pos + cnt] = <uint8_t>(code | wrap)
-                        cnt += 1
-                    j += 1
+                cnt = scan_cell(c, i, cell_id(c.nc, c.ax, nb), 9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1,
+                                WRAP if s[c.ax[0]] != 0 else 0, body, out, pos, cnt)
+                if cnt < 0:
+                    return -1
     return cnt
 
 

@@ -130,6 +130,8 @@ cdef struct State:
     int ax[3]          # axes from the slowest-varying in the cell index, see cell_id
     double cs[3]
     int ncells
+    int up[14]         # the offsets of the cell index to the cell itself and the 13 after it
+                       # among its 27 neighbours (inside the grid), see scan_pairs
     int *cell_start
     int cell_cap
     int *ctri_start
