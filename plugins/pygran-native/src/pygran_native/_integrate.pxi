@@ -67,10 +67,11 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
         pg_row_kick(i, s, u, c.v, c.w, F, T)
 
 
-cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid) noexcept nogil:
-    """Rows [lo, hi) of the particle loop through kick_drift.h (see particle_block)."""
+cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid, double* halo) noexcept nogil:
+    """Rows [lo, hi) of the particle loop through kick_drift.h (see particle_block): ``halo``
+    NULL, or the entry for row lo of the one halo that holds them."""
     c.tmax[PAD * tid] = pg_kick_drift(lo, hi, c.dt, c.tmax[PAD * tid], c.grav, c.m, c.r, c.type, c.visc,
-                                      c.buf, c.x, c.v, c.w, c.x0)
+                                      c.buf, c.x, c.v, c.w, c.x0, halo)
 
 
 cdef inline int halo_free(const State* c, int i, int hi, int nearmax, int end) noexcept nogil:
@@ -91,12 +92,30 @@ cdef inline int halo_free(const State* c, int i, int hi, int nearmax, int end) n
     return stop
 
 
+cdef inline int one_halo(const State* c, int i, int hi, int first, int end) noexcept nogil:
+    """The end of the run of rows from i (before hi) that the near halo of block ``end - 1``
+    holds and no other halo does; i if there is none (see particle_block)."""
+    cdef int k, q, stop
+    if end == 0 or i > c.tstat[PAD * (end - 1) + 1]:
+        return i
+    for k in range(first, end - 1):
+        if i <= c.tstat[PAD * k + 1]:
+            return i
+    stop = min(hi, <int>c.tstat[PAD * (end - 1) + 1] + 1)
+    for q in range(c.nfarblocks):
+        if c.halos[q].far_lo <= i <= c.halos[q].far_hi:
+            return i
+        if i < c.halos[q].far_lo < stop:
+            stop = c.halos[q].far_lo
+    return stop
+
+
 cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil:
     """Rows [lo, hi) of the particle loop. The pair blocks whose near halo can hold row i
     are among ``first`` to ``end - 1``: those ending at or before i whose rows have a near
     partner at or after i (``last``); both bounds move forward with i. Without clumps, at a
-    step that kicks and fuses the next drift, runs of rows that no halo holds go through
-    kick_drift.h in one call."""
+    step that kicks and fuses the next drift, runs of rows that no halo holds, and runs that
+    only the previous block's near halo holds, go through kick_drift.h in one call."""
     cdef int i = lo, stop, first = 0, end = 0, nearmax = -1
     cdef bint plain = not c.nbody and c.kick and c.fuse
     while i < hi:
@@ -107,7 +126,12 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
             first += 1
         stop = halo_free(c, i, hi, nearmax, end) if plain else i
         if stop > i:
-            kick_drift_rows(c, i, stop, tid)
+            kick_drift_rows(c, i, stop, tid, NULL)
+            i = stop
+            continue
+        stop = one_halo(c, i, hi, first, end) if plain else i
+        if stop > i:
+            kick_drift_rows(c, i, stop, tid, &c.halo[(c.halos[end - 1].near_off + i - c.pb[end]) * 6])
             i = stop
             continue
         particle_row(c, i, tid, first, end)

@@ -105,7 +105,7 @@ cdef extern from "kick_drift.h":
                              double* v, double* w, const double* x0, const double* F, const double* T) noexcept nogil
     double pg_kick_drift(int lo, int hi, double dt, double tmax, const double* grav, const double* m,
                          const double* r, const int* type, const double* visc, double* buf, double* x,
-                         double* v, double* w, const double* x0) noexcept nogil
+                         double* v, double* w, const double* x0, double* halo) noexcept nogil
 
 cdef extern from "team.h":
     ctypedef struct pg_team:

@@ -4,9 +4,9 @@
 /* The particle loop's and the drift's arithmetic per row (used by _integrate.pxi), in C with
    restrict pointers: a store to a particle's arrays does not make the compiler reload the
    solver's state, as Cython code reading through State* must. That cuts the particle loop's
-   time by about 40 %. Rows whose forces are all in the shared buffer (no pair block's halo
-   holds them; with one thread, every row) go through pg_kick_drift in runs, at steps without
-   clumps that kick and fuse the next drift. */
+   time by about 40 %. Rows whose forces are in the shared buffer and at most one pair block's
+   halo (with one thread, every row) go through pg_kick_drift in runs, at steps without clumps
+   that kick and fuse the next drift. */
 #include <math.h>
 
 /* Row i's forces from ``buf`` (then cleared), gravity (g0, g1, g2) and viscous drag into F and
@@ -86,15 +86,28 @@ static inline double pg_row_kick_drift(long long i, double dt, double tmax, cons
     return pg_row_drift(i, dt, s, u, tmax, x, v, w, x0, F, T);
 }
 
-/* Rows [lo, hi), none of which a halo holds (see pg_row_kick_drift for the result). */
+/* Rows [lo, hi) (see pg_row_kick_drift for the result) that no halo holds, or with ``halo``
+   (not NULL) that one halo holds, from its entry for row lo (added after the shared buffer, as
+   particle_row adds it, and cleared). */
 static double pg_kick_drift(int lo, int hi, double dt, double tmax, const double* restrict grav,
                             const double* restrict m, const double* restrict r, const int* restrict type,
                             const double* restrict visc, double* restrict buf, double* restrict x,
-                            double* restrict v, double* restrict w, const double* restrict x0)
+                            double* restrict v, double* restrict w, const double* restrict x0,
+                            double* restrict halo)
 {
     double F[3], T[3];
     for (long long i = lo; i < hi; i++) {
         pg_row_forces(i, grav[0], grav[1], grav[2], m, type, visc, buf, v, F, T);
+        if (halo) {
+            double* h = halo + 6 * (i - lo);
+            F[0] += h[0];
+            F[1] += h[1];
+            F[2] += h[2];
+            T[0] += h[3];
+            T[1] += h[4];
+            T[2] += h[5];
+            h[0] = h[1] = h[2] = h[3] = h[4] = h[5] = 0.0;
+        }
         tmax = pg_row_kick_drift(i, dt, tmax, m, r, x, v, w, x0, F, T);
     }
     return tmax;
