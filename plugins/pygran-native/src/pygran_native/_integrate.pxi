@@ -74,39 +74,30 @@ cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid, double
                                       c.buf, c.x, c.v, c.w, c.x0, halo)
 
 
-cdef inline int halo_free(const State* c, int i, int hi, int nearmax, int end) noexcept nogil:
-    """The end of the run of rows from i (before hi) that no halo holds; i if one holds row i.
-    ``nearmax``: the last row that the near halos of blocks 0 to ``end - 1`` (those ending at
-    or before i) hold; block ``end``'s near halo starts where that block ends, so a run stops
-    there."""
+cdef inline int halo_run(const State* c, int i, int hi, int first, int end, int nearmax,
+                         double** halo) noexcept nogil:
+    """The end of the run of rows from i (before hi) that no halo holds (``halo`` set to NULL)
+    or that the near halo of block ``end - 1`` alone holds (``halo`` set to its entry for row
+    i); i if another halo holds row i. ``nearmax``: the last row that the near halos of blocks
+    0 to ``end - 1`` (those ending at or before i) hold; block ``end``'s near halo starts where
+    that block ends, so a run stops there."""
     cdef int k, stop = hi
-    if i <= nearmax:
-        return i
-    if end < c.nblocks - 1 and c.pb[end + 1] < stop:
+    halo[0] = NULL
+    if i <= nearmax:   # a near halo holds row i: it must be block end - 1's, and only it
+        if i > c.tstat[PAD * (end - 1) + 1]:
+            return i
+        for k in range(first, end - 1):
+            if i <= c.tstat[PAD * k + 1]:
+                return i
+        stop = min(hi, <int>c.tstat[PAD * (end - 1) + 1] + 1)
+        halo[0] = &c.halo[(c.halos[end - 1].near_off + i - c.pb[end]) * 6]
+    elif end < c.nblocks - 1 and c.pb[end + 1] < stop:
         stop = c.pb[end + 1]
     for k in range(c.nfarblocks):
         if c.halos[k].far_lo <= i <= c.halos[k].far_hi:
             return i
         if i < c.halos[k].far_lo < stop:
             stop = c.halos[k].far_lo
-    return stop
-
-
-cdef inline int one_halo(const State* c, int i, int hi, int first, int end) noexcept nogil:
-    """The end of the run of rows from i (before hi) that the near halo of block ``end - 1``
-    holds and no other halo does; i if there is none (see particle_block)."""
-    cdef int k, q, stop
-    if end == 0 or i > c.tstat[PAD * (end - 1) + 1]:
-        return i
-    for k in range(first, end - 1):
-        if i <= c.tstat[PAD * k + 1]:
-            return i
-    stop = min(hi, <int>c.tstat[PAD * (end - 1) + 1] + 1)
-    for q in range(c.nfarblocks):
-        if c.halos[q].far_lo <= i <= c.halos[q].far_hi:
-            return i
-        if i < c.halos[q].far_lo < stop:
-            stop = c.halos[q].far_lo
     return stop
 
 
@@ -118,20 +109,16 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
     only the previous block's near halo holds, go through kick_drift.h in one call."""
     cdef int i = lo, stop, first = 0, end = 0, nearmax = -1
     cdef bint plain = not c.nbody and c.kick and c.fuse
+    cdef double* halo = NULL
     while i < hi:
         while end < c.nblocks - 1 and c.pb[end + 1] <= i:
             nearmax = max(nearmax, <int>c.tstat[PAD * end + 1])
             end += 1
         while first < end and (c.pb[first + 1] == 0 or c.last[c.pb[first + 1] - 1] < i):
             first += 1
-        stop = halo_free(c, i, hi, nearmax, end) if plain else i
+        stop = halo_run(c, i, hi, first, end, nearmax, &halo) if plain else i
         if stop > i:
-            kick_drift_rows(c, i, stop, tid, NULL)
-            i = stop
-            continue
-        stop = one_halo(c, i, hi, first, end) if plain else i
-        if stop > i:
-            kick_drift_rows(c, i, stop, tid, &c.halo[(c.halos[end - 1].near_off + i - c.pb[end]) * 6])
+            kick_drift_rows(c, i, stop, tid, halo)
             i = stop
             continue
         particle_row(c, i, tid, first, end)
