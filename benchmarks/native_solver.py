@@ -115,7 +115,7 @@ def breakdown(timings: dict) -> str:
         + ", ".join(parts)
         + f", other {other:.3f} s; "
         f"rebuild parts: {', '.join(rebuild)}; CPU s per thread: {', '.join(cpu)}; "
-        f"steps without the team {timings['solo_steps']}"
+        f"steps without the team {timings['solo_steps']}, moves off a teammate's CPU {timings['moves']}"
     )
 
 

@@ -18,8 +18,9 @@ import os, sys
 import numpy as np
 from pygran_native.solver import Solver
 
+cpus = os.sched_getaffinity(0)
 if sys.argv[3] == "one-cpu":
-    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    os.sched_setaffinity(0, {min(cpus)})
 a, n_side, R = 2.2e-3, 8, 1e-3
 s = Solver(box=[[0, 0, 0], [n_side * a, n_side * a, (n_side + 3) * a]], periodic=(True, True, False),
            gravity=(0, 0, -9.81), skin=4e-4, threads=int(sys.argv[2]))
@@ -35,10 +36,18 @@ for steps in (700, 800):
     s.run(steps, 1e-5)
 np.save(sys.argv[1], np.stack([s.positions, s.velocities, s.omegas, s.forces]))
 """
-# argv[1] steps; prints the steps the master ran without the team
+# argv[1] steps; prints the steps the master ran without the team, and the threads' moves
 SOLO_STEPS = """
 s.run(int(sys.argv[1]), 1e-5)
-print(s.timings["solo_steps"])
+print(s.timings["solo_steps"], s.timings["moves"])
+"""
+# started on one CPU, the team runs 10 steps; then this thread (only) may use every CPU again,
+# and the team runs argv[1] more steps; prints the threads' moves
+MOVES = """
+s.run(10, 1e-5)
+os.sched_setaffinity(0, cpus)
+s.run(int(sys.argv[1]), 1e-5)
+print(s.timings["moves"])
 """
 
 
@@ -74,10 +83,21 @@ def test_the_bits_do_not_depend_on_which_thread_runs_a_block(tmp_path):
 def test_a_team_that_shares_one_cpu_runs_alone():
     # three threads on one CPU could only take turns: the master runs most steps alone
     # (85-95 % of 60,000 measured; the tuner times the team in a window every 2 s at most,
-    # and one where the team seemed faster costs a few thousand steps)
+    # and one where the team seemed faster costs a few thousand steps); no CPU to move to
     steps = 60000
-    assert int(run_bed(SOLO_STEPS, str(steps), 3, "one-cpu")) > 0.6 * steps
-    assert int(run_bed(SOLO_STEPS, str(steps), 1, "all")) == 0
+    solo, moves = map(int, run_bed(SOLO_STEPS, str(steps), 3, "one-cpu").split())
+    assert solo > 0.6 * steps
+    assert moves == 0
+    assert run_bed(SOLO_STEPS, "2000", 1, "all").split() == ["0", "0"]
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2, reason="needs 2 CPUs"
+)
+def test_a_thread_woken_on_the_masters_cpu_moves_to_a_free_one():
+    # the worker, started on the master's one CPU, stays there when the master may use all
+    # again: at its first phase it finds itself next to the master and moves (once, measured)
+    assert int(run_bed(MOVES, "2000", 2, "one-cpu")) >= 1
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this system")

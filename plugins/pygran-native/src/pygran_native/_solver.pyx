@@ -120,6 +120,7 @@ cdef extern from "team.h":
     int pg_claim(pg_team* t, unsigned int epoch, int tid) noexcept nogil
     void pg_finished(pg_team* t, int k, int nblocks) noexcept nogil
     void pg_wait_done(pg_team* t, int nblocks) noexcept nogil
+    long long pg_moves(pg_team* t) noexcept nogil
 
 import numpy as np
 cimport numpy as cnp
@@ -818,9 +819,11 @@ cdef class Core:
     def timings(self):
         """Seconds spent so far: wall clock per phase (``TIMERS``), and per-thread CPU time in
         the pair and particle loops (``pairs_cpu``, ``particles_cpu``); the steps the master
-        ran without the team (``solo_steps``)."""
+        ran without the team (``solo_steps``); how often a thread moved off a teammate's CPU
+        (``moves``, see team.h)."""
         out = {name: self.s.timers[k] for k, name in enumerate(TIMERS)}
         out["solo_steps"] = self.s.tuner.solo_steps
+        out["moves"] = pg_moves(self.s.team) if self.s.team else 0
         out["pairs_cpu"] = np.array([self.s.cpu[PAD * t] for t in range(self.s.nthreads)])
         out["particles_cpu"] = np.array([self.s.cpu[PAD * t + 1] for t in range(self.s.nthreads)])
         return out

@@ -15,7 +15,13 @@
    its CPU (its run-queue delay, from /proc/thread-self/schedstat): a thread with nothing to
    do then gives its core away at once to the threads that have work, ours or another
    program's. Spinning in OpenMP's barriers (libgomp's default wait policy) is what made 2
-   threads 7x slower than 1 on a 2-core machine where another process kept a core busy. */
+   threads 7x slower than 1 on a 2-core machine where another process kept a core busy.
+
+   A woken thread that finds itself on the CPU of another thread of the team moves to one of
+   the team's CPUs that none of them is on (pg_spread). When no CPU is idle, Linux wakes a
+   thread on its waker's CPU; two threads of the team then take turns on one CPU while the
+   other program has a CPU to itself, and the load balancer, seeing each of them busy only
+   half the time, leaves it so. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <pthread.h>
@@ -23,6 +29,9 @@
 #include <limits.h>
 #include <stdio.h>
 #include <time.h>
+#ifndef _GNU_SOURCE
+#define _GNU_SOURCE   /* sched_getcpu, cpu_set_t */
+#endif
 #include <sched.h>
 #ifdef __linux__
 #include <fcntl.h>
@@ -33,7 +42,9 @@
 
 typedef struct { uint32_t word, sleepers; char pad[56]; } pg_flag;   /* a cache line */
 
-typedef struct { uint64_t word; char pad[56]; } pg_queue;   /* epoch << 32 | front << 16 | end */
+/* A thread's queue (epoch << 32 | front << 16 | end), the CPU it was on at its last phase and
+   how often it moved off a CPU of the team's (pg_spread). */
+typedef struct { uint64_t word; int cpu, moves; char pad[48]; } pg_queue;
 
 #define PG_STOP (-1)        /* the phase that ends the threads */
 
@@ -56,13 +67,19 @@ typedef struct pg_team_s {
     pg_start_arg* args;
     int started;
     pid_t pid;
+#ifdef __linux__
+    cpu_set_t cpus;        /* the CPUs the team may use: the master's at its last pg_start */
+#endif
     char pad1[64];
     pg_queue queue[];      /* thread q's blocks */
 } pg_team;
 
 static pg_team* pg_create(int nqueues, double spin) {
     pg_team* t = (pg_team*)calloc(1, sizeof(pg_team) + nqueues * sizeof(pg_queue));
+    int q;
     if (t) {
+        for (q = 0; q < nqueues; q++)
+            t->queue[q].cpu = -1;
         t->nqueues = nqueues;
         t->spin = spin;
     }
@@ -169,6 +186,9 @@ static void pg_begin(pg_team* t, int phase, int nblocks) {
     uint32_t e = __atomic_load_n(&t->epoch.word, __ATOMIC_RELAXED) + 1;
     uint64_t lo, hi;
     int q;
+#ifdef __linux__
+    __atomic_store_n(&t->queue[0].cpu, sched_getcpu(), __ATOMIC_RELAXED);
+#endif
     __atomic_store_n(&t->phase, phase, __ATOMIC_RELAXED);
     __atomic_store_n(&t->nblocks, nblocks, __ATOMIC_RELAXED);
     __atomic_store_n(&t->done.word, 0, __ATOMIC_RELAXED);
@@ -227,6 +247,42 @@ static void pg_wait_done(pg_team* t, int nblocks) {
 }
 
 
+/* Thread tid, woken for a phase: if another thread of the team was on its CPU at its last
+   phase, move to a CPU of the team's that none was on, when there is one (the change of
+   affinity moves the thread; putting the team's CPUs back then leaves it there). */
+static void pg_spread(pg_team* t, int tid) {
+#ifdef __linux__
+    cpu_set_t free_cpus;
+    int q, other, shared = 0, cpu = sched_getcpu();
+    if (cpu < 0 || cpu >= CPU_SETSIZE)
+        return;
+    free_cpus = t->cpus;
+    for (q = 0; q < t->nqueues; q++) {
+        if (q == tid || (other = __atomic_load_n(&t->queue[q].cpu, __ATOMIC_RELAXED)) < 0
+            || other >= CPU_SETSIZE)
+            continue;
+        shared |= other == cpu;
+        CPU_CLR(other, &free_cpus);
+    }
+    CPU_CLR(cpu, &free_cpus);
+    if (shared && CPU_COUNT(&free_cpus) && sched_setaffinity(0, sizeof(cpu_set_t), &free_cpus) == 0) {
+        sched_setaffinity(0, sizeof(cpu_set_t), &t->cpus);
+        cpu = sched_getcpu();
+        __atomic_store_n(&t->queue[tid].moves, t->queue[tid].moves + 1, __ATOMIC_RELAXED);
+    }
+    __atomic_store_n(&t->queue[tid].cpu, cpu, __ATOMIC_RELAXED);
+#endif
+}
+
+/* How often the team's threads moved off a teammate's CPU (pg_spread). */
+static long long pg_moves(pg_team* t) {
+    long long k = 0;
+    int q;
+    for (q = 0; q < t->nqueues; q++)
+        k += __atomic_load_n(&t->queue[q].moves, __ATOMIC_RELAXED);
+    return k;
+}
+
 static void* pg_main(void* p) {
     pg_start_arg* a = (pg_start_arg*)p;
     pg_team* t = a->team;
@@ -237,6 +293,7 @@ static void* pg_main(void* p) {
         phase = pg_phase(t);
         if (phase == PG_STOP)
             return NULL;
+        pg_spread(t, a->tid);
         t->task(t->owner, e, phase, pg_nblocks(t), a->tid);
     }
 }
@@ -248,6 +305,10 @@ static void* pg_main(void* p) {
 static int pg_start(pg_team* t, pg_task task, void* owner) {
     sigset_t all, old;
     int k;
+#ifdef __linux__
+    if (sched_getaffinity(0, sizeof(cpu_set_t), &t->cpus) != 0)
+        CPU_ZERO(&t->cpus);
+#endif
     if (t->started && t->pid == getpid())
         return t->started;
     t->started = 0;
