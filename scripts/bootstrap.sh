@@ -4,7 +4,8 @@
 #                                    # the hopper discharge study (pygran demo) into ./demo-output
 #   bash scripts/bootstrap.sh test   # the same set-up; then the complete test suite
 # Idempotent: packages already present are not reinstalled; pip reinstalls only when a
-# package definition (pyproject.toml, setup.py, .pyx) changed since the last run.
+# package definition or compiled source (pyproject.toml, setup.py, .pyx, .pxi, .pxd, .h)
+# changed since the last run.
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -33,8 +34,8 @@ install_python_packages() {
         /usr/bin/python3 -m venv "$VENV"
     fi
     local stamp=$VENV/.pygran-install-stamp digest
-    digest=$(cd "$ROOT" && cat pyproject.toml plugins/*/pyproject.toml plugins/*/setup.py \
-        plugins/*/src/*/*.pyx 2>/dev/null | sha256sum | cut -d' ' -f1)
+    digest=$(cd "$ROOT" && shopt -s nullglob && cat pyproject.toml plugins/*/pyproject.toml \
+        plugins/*/setup.py plugins/*/src/*/*.{pyx,pxi,pxd,h} | sha256sum | cut -d' ' -f1)
     if [[ -f $stamp && $(cat "$stamp") == "$digest" ]]; then
         return
     fi
