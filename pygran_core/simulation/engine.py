@@ -231,8 +231,6 @@ class Engine(abc.ABC):
         self._broken: set[int] = set()  # ids of non-finite particles counted by a _Watch
         #: (species, smallest radius, more than one) of the particles present; None: read anew
         self._present: tuple[tuple[int, float, bool], ...] | None = None
-        #: Positions and radii of the particles present, kept between runs for createParticles
-        self._placed: tuple[np.ndarray, np.ndarray] | None = None
         self._logger = logging.getLogger(f"pygran.simulation.{self.name}")
         self._log_handler = logging.FileHandler(self.output / LOG_NAME, encoding="utf-8")
         self._log_handler.setFormatter(logging.Formatter(_LOG_FORMAT))
@@ -259,6 +257,12 @@ class Engine(abc.ABC):
                 self._resume_path,
                 self._resume.step,
             )
+        #: Positions and radii of the particles present, kept between runs for createParticles
+        #: (``None``: read anew). A new simulation holds none, so its first createParticles
+        #: does not wait for the solver to start.
+        self._placed: tuple[np.ndarray, np.ndarray] | None = (
+            None if self._resume else (np.empty((0, 3)), np.empty(0))
+        )
 
     def _check_spec(self, spec: SimulationSpec) -> None:
         """Refuse, before the solver starts, whatever of ``spec`` this engine cannot do."""
