@@ -20,7 +20,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from pygran_core.errors import ConfigError, InsertionWarning, ReadError
 from pygran_core.simulation import clumps
@@ -243,6 +242,13 @@ def _members(
     return x[order], r[order], owner[order]
 
 
+def _tree(points: np.ndarray) -> Any:
+    """A k-d tree of ``points`` (scipy.spatial loads on first use: engines import this module)."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(points)
+
+
 def _first_come(
     centres: np.ndarray, radii: np.ndarray, owner: np.ndarray, slots: np.ndarray, clear: np.ndarray
 ) -> np.ndarray:
@@ -254,7 +260,7 @@ def _first_come(
     state = np.where(clear, 0, -1)  # 0: undecided, 1: kept, -1: dropped
     pairs = np.zeros((0, 2), int)  # overlapping candidates, the earlier first
     if len(centres):
-        near = cKDTree(centres).query_pairs(2 * float(radii.max()), output_type="ndarray")
+        near = _tree(centres).query_pairs(2 * float(radii.max()), output_type="ndarray")
         gap = np.linalg.norm(centres[near[:, 0]] - centres[near[:, 1]], axis=1)
         near = near[gap < radii[near[:, 0]] + radii[near[:, 1]]]
         pairs = np.column_stack([owner[near[:, 0]], owner[near[:, 1]]])
@@ -281,7 +287,7 @@ def _clashes(
     if len(centres) == 0 or len(others) == 0:
         return clash
     reach = float(radii.max() + others_radii.max())
-    pairs = cKDTree(centres).sparse_distance_matrix(cKDTree(others), reach, output_type="ndarray")
+    pairs = _tree(centres).sparse_distance_matrix(_tree(others), reach, output_type="ndarray")
     bad = pairs["v"] < radii[pairs["i"]] + others_radii[pairs["j"]]
     clash[pairs["i"][bad]] = True
     return clash
@@ -291,7 +297,7 @@ def _clear_of_earlier(centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Indices of the candidates that overlap no earlier candidate of the same batch."""
     if len(centres) == 0:
         return np.zeros(0, int)
-    pairs = cKDTree(centres).query_pairs(2 * float(radii.max()), output_type="ndarray")
+    pairs = _tree(centres).query_pairs(2 * float(radii.max()), output_type="ndarray")
     dropped = np.zeros(len(centres), bool)
     if len(pairs):
         gap = np.linalg.norm(centres[pairs[:, 0]] - centres[pairs[:, 1]], axis=1)

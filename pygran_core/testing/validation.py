@@ -40,10 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from pygran_core.analysis import Particles
-from pygran_core.analysis.equilibrium import Neighbors
 from pygran_core.errors import PyGranError, UnsupportedFeature, unknown_key
 from pygran_core.simulation.dem import DEM, resolve_engine
 from pygran_core.simulation.models import ContactModel, HertzMindlin, SpringDashpot, ThorntonNing
@@ -284,6 +281,8 @@ def energy_drift(
     mass, modulus = sphere_mass(material, radius), contact_modulus(material)
     dt = hertz_contact_time(mass / 2, radius / 2, modulus, 0.4) / 200
 
+    from scipy.spatial import cKDTree
+
     def total_energy(x: np.ndarray, v: np.ndarray, w: np.ndarray) -> float:
         kinetic = 0.5 * mass * np.sum(v**2) + 0.5 * 0.4 * mass * radius**2 * np.sum(w**2)
         pairs = cKDTree(x).query_pairs(2 * radius, output_type="ndarray")
@@ -381,6 +380,9 @@ def settle(
     inside it exactly; the coordination number is the mean count of touching neighbours
     (:class:`~pygran_core.analysis.equilibrium.Neighbors`) of the spheres centred in it.
     """
+    from pygran_core.analysis import Particles
+    from pygran_core.analysis.equilibrium import Neighbors
+
     with settle_setup(engine, output, shape, material, seed) as sim:
         for nsteps in steps:
             sim.run(nsteps)
