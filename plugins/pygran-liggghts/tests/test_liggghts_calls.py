@@ -2,6 +2,7 @@
 viscous drag, createParticles 'random' and angular velocities, run chunks with ``pre no``."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -367,3 +368,24 @@ def test_a_lattice_fills_its_region_with_whole_spheres(tmp_path):
     expected = sorted((a, b, c) for a in xs for b in ys for c in zs)
     np.testing.assert_allclose(sorted(map(tuple, x)), expected, atol=1e-12)
     assert "lattice sc" not in (tmp_path / "in.pygran").read_text()
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+@pytest.mark.parametrize(("chosen", "expected"), [(None, "^cm"), ("ob1", "ob1")])
+def test_the_worker_leaves_out_open_mpis_cm_pml_unless_the_user_chose_one(
+    tmp_path, monkeypatch, nprocs, chosen, expected
+):
+    """The cm PML probes PSM, PSM2 and libfabric at each start (0.2 s of every simulation's
+    start-up); a PML the environment chooses is kept. Read from the worker job's own
+    environment, and the job runs either way."""
+    monkeypatch.delenv("OMPI_MCA_mtl", raising=False)
+    if chosen is None:
+        monkeypatch.delenv("OMPI_MCA_pml", raising=False)
+    else:
+        monkeypatch.setenv("OMPI_MCA_pml", chosen)
+    with dem(tmp_path, nprocs=nprocs) as sim:
+        environ = (Path("/proc") / str(sim.engine._session.process.pid) / "environ").read_bytes()
+        assert f"OMPI_MCA_pml={expected}".encode() in environ.split(b"\0")
+        assert sim.createParticles(1, "single", 0.0, 0.0, 0.01, vel=(0.0, 0.0, -1.0)) == 1
+        sim.run(10)
+        assert sim.extractCoords()[0, 2] == pytest.approx(0.01 - 10 * DT)

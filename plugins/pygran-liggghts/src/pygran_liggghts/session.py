@@ -36,6 +36,10 @@ MESSAGE_LINES = 10
 #: Seconds to wait for a worker to connect, and to exit after ``close``.
 START_TIMEOUT = 120.0
 EXIT_TIMEOUT = 30.0
+#: Open MPI's cm PML probes the libraries of fast interconnects (PSM, PSM2, libfabric) at every
+#: start, 0.2 s, for networks a job on one node does not use; the worker leaves it out unless
+#: the environment chooses a PML or an MTL (``OMPI_MCA_pml``, ``OMPI_MCA_mtl``).
+WORKER_MPI = {"OMPI_MCA_pml": "^cm"}
 
 
 class LocalSession(Session):
@@ -130,7 +134,7 @@ class WorkerSession:
         try:
             with stderr.open("w") as out:
                 self.process = subprocess.Popen(
-                    command, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
+                    command, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=worker_env()
                 )
         except BaseException:
             self._cleanup()
@@ -220,6 +224,14 @@ class WorkerSession:
     def _cleanup(self) -> None:
         self._server.close()
         shutil.rmtree(self._dir, ignore_errors=True)
+
+
+def worker_env() -> dict[str, str]:
+    """This process's environment with :data:`WORKER_MPI` where it chooses no PML or MTL."""
+    env = dict(os.environ)
+    if not {"OMPI_MCA_pml", "OMPI_MCA_mtl"} & env.keys():
+        env.update(WORKER_MPI)
+    return env
 
 
 def wait_exit(process: subprocess.Popen[bytes], timeout: float) -> int:
