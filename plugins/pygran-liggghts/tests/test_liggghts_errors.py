@@ -133,8 +133,9 @@ def test_a_killed_script_leaves_no_worker_and_no_socket_folder(tmp_path, nprocs)
 
 
 def test_worker_that_cannot_start(tmp_path, monkeypatch):
-    """The worker starts in the background: DEM() returns, and the first call that waits for
-    LIGGGHTS raises the worker's own error."""
+    """The worker starts in the background: DEM() returns, so do setupWall and the first
+    createParticles (a new simulation has no particles to check against), and the first call
+    that waits for LIGGGHTS raises the worker's own error."""
     require_solver(find_library)
     monkeypatch.setenv(LIBRARY_ENV, str(tmp_path / "nope.so"))  # inherited by the worker
     sim = simulation.DEM(
@@ -146,6 +147,7 @@ def test_worker_that_cannot_start(tmp_path, monkeypatch):
         progress=False,
     )
     sim.setupWall(species=1, plane="zplane", peq=0.0)
+    assert sim.createParticles(1, "single", [(0.003, 0.005, 0.005), (0.007, 0.005, 0.005)]) == 2
     with pytest.raises(EngineError, match=r"(?s)could not start: .*nope\.so' is not a file"):
         sim.run(10, 1e-6)
     sim.close()
