@@ -17,7 +17,7 @@ import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -27,6 +27,9 @@ from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
 from pygran_core.simulation.checkpoint import encode_text, state_entry, state_json
 from pygran_core.simulation.engine import Engine, Handle
 from pygran_core.simulation.specs import SimulationSpec, given, positive_float, positive_int
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 
 @dataclass(frozen=True)
@@ -242,7 +245,7 @@ def _members(
     return x[order], r[order], owner[order]
 
 
-def _tree(points: np.ndarray) -> Any:
+def _tree(points: np.ndarray) -> cKDTree:
     """A k-d tree of ``points`` (scipy.spatial loads on first use: engines import this module)."""
     from scipy.spatial import cKDTree
 

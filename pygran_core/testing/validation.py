@@ -273,6 +273,8 @@ def energy_drift(
     sphere-sphere and sphere-wall overlap. The time step is 1/200 of the Hertz contact
     time at the largest possible approach speed.
     """
+    from scipy.spatial import cKDTree
+
     radius, spacing, n = RADIUS, 2.5e-3, 3
     side = n * spacing
     rng = np.random.default_rng(27)
@@ -280,8 +282,6 @@ def energy_drift(
     velocities = rng.uniform(-1, 1, centres.shape) * 0.2 / math.sqrt(3)
     mass, modulus = sphere_mass(material, radius), contact_modulus(material)
     dt = hertz_contact_time(mass / 2, radius / 2, modulus, 0.4) / 200
-
-    from scipy.spatial import cKDTree
 
     def total_energy(x: np.ndarray, v: np.ndarray, w: np.ndarray) -> float:
         kinetic = 0.5 * mass * np.sum(v**2) + 0.5 * 0.4 * mass * radius**2 * np.sum(w**2)
