@@ -235,8 +235,8 @@ def worker_env() -> dict[str, str]:
 
 
 def wait_exit(process: subprocess.Popen[bytes], timeout: float) -> int:
-    """``process.wait(timeout)`` without its polling, which sleeps up to 50 ms between checks
-    (up to 50 ms lost at the end of every simulation): waits on a pidfd where Linux has them."""
+    """``process.wait(timeout)`` on a pidfd where Linux has them: ``Popen.wait`` with a timeout
+    polls, sleeping up to 50 ms between checks, which delayed the end of every simulation."""
     try:
         pidfd = os.pidfd_open(process.pid)
     except (AttributeError, OSError):  # not Linux, or the process is reaped already
