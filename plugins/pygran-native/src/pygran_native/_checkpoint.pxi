@@ -97,6 +97,7 @@ cdef void restore(Core core, state) except *:
     for i in range(n):
         find_partners(&core.s, i)
     prefix_last(&core.s)
+    core.s.sub_build = 1
 
 
 cdef void restore_bodies(Core core, state) except *:

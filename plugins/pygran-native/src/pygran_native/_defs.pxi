@@ -1,7 +1,7 @@
 # Compile-time constants and enums of the native solver (included by _solver.pyx).
 
 DEF MAXCAND = 64
-DEF NCOLUMNS = 22  # per-particle arrays, see particle_columns
+DEF NCOLUMNS = 23  # per-particle arrays, see particle_columns
 DEF NBCOLUMNS = 12  # per-body arrays of clumps, see body_columns
 DEF NMCOLUMNS = 4   # per-member arrays of clumps, see member_columns
 DEF NECOLUMNS = 9  # per-element arrays, see element_columns
@@ -15,6 +15,7 @@ DEF NSLOT = 34     # values per stress mesh (a mesh whose force is summed, maybe
 DEF NVIB = 96      # values per vibrating mesh, see Vibration
 DEF NHARM = 30     # harmonics of a vibration at most
 DEF SACC = 8       # values per stress mesh in a pair block's sums, see Slot (A_FORCE...)
+DEF SUB_SKIN = 0.125   # the sublist's reach beyond contact, in skins (see State.sb_k)
 DEF WROW = 5       # work of a row of the pair loop, a touching pair and a wall entry in units of
 DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
 

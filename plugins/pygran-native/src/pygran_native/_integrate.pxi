@@ -6,7 +6,7 @@ cdef inline void drift_row(const State* c, int i, int tid, const double* F, cons
     since the rebuild raises thread ``tid``'s maximum (per-thread maxima are a cache line apart)."""
     cdef double s, u
     pg_row_kick_factors(i, c.dt, c.m, c.r, &s, &u)
-    c.tmax[PAD * tid] = pg_row_drift(i, c.dt, s, u, c.tmax[PAD * tid], c.x, c.v, c.w, c.x0, F, T)
+    pg_row_drift(i, c.dt, s, u, &c.tmax[PAD * tid], c.x, c.v, c.w, c.x0, F, T)
 
 
 cdef inline void add_halos(const State* c, int i, int first, int end, double* F, double* T) noexcept nogil:
@@ -61,7 +61,7 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
     if member:
         return
     if c.fuse:
-        c.tmax[PAD * tid] = pg_row_kick_drift(i, c.dt, c.tmax[PAD * tid], c.m, c.r, c.x, c.v, c.w, c.x0, F, T)
+        pg_row_kick_drift(i, c.dt, &c.tmax[PAD * tid], c.m, c.r, c.x, c.v, c.w, c.x0, F, T)
     elif c.kick:
         pg_row_kick_factors(i, c.dt, c.m, c.r, &s, &u)
         pg_row_kick(i, s, u, c.v, c.w, F, T)
@@ -70,8 +70,8 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
 cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid, double* halo) noexcept nogil:
     """Rows [lo, hi) of the particle loop through kick_drift.h (see particle_block): ``halo``
     NULL, or the entry for row lo of the one halo that holds them."""
-    c.tmax[PAD * tid] = pg_kick_drift(lo, hi, c.dt, c.tmax[PAD * tid], c.grav, c.m, c.r, c.type, c.visc,
-                                      c.buf, c.x, c.v, c.w, c.x0, halo)
+    pg_kick_drift(lo, hi, c.dt, &c.tmax[PAD * tid], c.grav, c.m, c.r, c.type, c.visc, c.buf, c.x, c.v, c.w,
+                  c.x0, halo)
 
 
 cdef inline int halo_run(const State* c, int i, int hi, int first, int end, int nearmax,
@@ -135,21 +135,32 @@ cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:
 
 
 cdef double max_displacement(State* sim) noexcept nogil:
+    """The largest displacement since the last rebuild; adds the drift's largest step to
+    ``sub_travel``."""
     cdef int i
-    cdef double dmax = 0.0
+    cdef double dmax = 0.0, vmax = 0.0
     for i in range(sim.nthreads):
         if sim.tmax[PAD * i] > dmax:
             dmax = sim.tmax[PAD * i]
+        if not sim.tmax[PAD * i + 1] <= vmax:
+            vmax = sim.tmax[PAD * i + 1]
+    sim.sub_travel += sim.dt * sqrt(vmax)
     return sqrt(dmax)
+
+
+cdef inline void reset_peaks(State* sim) noexcept nogil:
+    """Clear each thread's largest squared displacement and speed (see pg_row_drift)."""
+    cdef int t
+    for t in range(sim.nthreads):
+        sim.tmax[PAD * t] = 0.0
+        sim.tmax[PAD * t + 1] = 0.0
 
 
 cdef double drift(State* sim, double dt) noexcept nogil:
     """First half kick and drift; the largest displacement since the last rebuild."""
-    cdef int t
     cdef double t0 = pg_now()
     sim.dt = dt
-    for t in range(sim.nthreads):
-        sim.tmax[PAD * t] = 0.0
+    reset_peaks(sim)
     parallel_rows(sim, P_DRIFT, sim.n)
     if sim.nbody:
         body_loop(sim, P_BODY_DRIFT)
@@ -178,11 +189,17 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
     sim.kick = kick
     sim.fuse = fuse
     sim.record = not fuse   # an unfused pass is the last of its run (see run_steps)
+    if sim.nbody:   # clumps' spheres move with their bodies, which sub_travel does not follow
+        sim.sub_build = 1
+    reset_peaks(sim)
     for t in range(T):
-        sim.tmax[PAD * t] = 0.0
         sim.cpu[PAD * t + 2] = 0.0
         sim.cpu[PAD * t + 3] = 0.0
     run_phase(sim, P_PAIRS, sim.nblocks)
+    if sim.sub_build:
+        sim.sub_build = 0
+        sim.sub_travel = 0.0
+        sim.sub_builds += 1
     sim.forces_valid = 1
     if sim.nslots:
         servo_sums(sim)
@@ -234,6 +251,8 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
         if dp + dw > 0.5 * sim.skin:
             if rebuild(sim) < 0:
                 return -1
+        if not sim.sub_travel < 0.45 * SUB_SKIN * sim.skin:   # 0.5 less a margin for round-off
+            sim.sub_build = 1
         fused = s + 1 < nsteps   # the last step ends after its second half kick
         if forces(sim, dt, True, True, fused) < 0:
             return -1

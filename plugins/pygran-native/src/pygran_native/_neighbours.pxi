@@ -179,6 +179,13 @@ cdef int reserve_pairs(State* sim, long long need) noexcept nogil:
             return -1
         sim.nb_f = <double*>a
         sim.nbf_cap = cap
+    if need > sim.sbk_cap:
+        cap = need + need // 10 + 64
+        a = grow(sim.sb_k, cap * sizeof(int))
+        if a == NULL:
+            return -1
+        sim.sb_k = <int*>a
+        sim.sbk_cap = cap
     if need <= sim.nb_cap:
         return 0
     cap = need + need // 10 + 64
@@ -474,6 +481,7 @@ cdef int rebuild(State* sim) noexcept nogil:
     lap(sim, T_FILL, t1)
     lap(sim, T_REBUILD, t0)
     sim.rebuilds += 1
+    sim.sub_build = 1
     return 0
 
 

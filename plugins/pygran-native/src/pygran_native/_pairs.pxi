@@ -315,10 +315,12 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
 
 
 cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, int* partners) noexcept nogil:
-    """Append particle i's half-list pairs within reach to the batch from entry n (their
-    indices in ``keys``, their partners in ``partners``); clears the pairs that came apart.
-    Returns the new entry count. Every listed pair is written to entry n, which advances only
-    past those within reach: no branch on the test, whose outcome the CPU cannot predict."""
+    """Append particle i's pairs within reach to the batch from entry n (their indices in
+    ``keys``, their partners in ``partners``); clears the pairs that came apart. Returns the
+    new entry count. The pairs are those of its sublist (State.sb_k), or with ``sub_build``
+    all its listed pairs, whose sublist this makes. Every pair is written to entry n, which
+    advances only past those within reach: no branch on the test, whose outcome the CPU cannot
+    predict."""
     cdef const double* x = c.x
     cdef const double* v = c.v
     cdef const double* w = c.w
@@ -327,19 +329,22 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, 
     cdef const int* nb_j = c.nb_j
     cdef const uint8_t* nb_s = c.nb_s
     cdef const double* nb_h = c.nb_h
+    cdef int* sb_k = c.sb_k
     cdef const double* shiftv = &c.shiftv[0]
     cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
     cdef const Coef* cf
     cdef const double* sv
     cdef const double* h
-    cdef int k, j, q, t, first = n, hs = c.hs, kend = c.nb_start[i + 1]
+    cdef int k, j, q, t, e, first = n, hs = c.hs, build = c.sub_build, kept = 0
+    cdef int start = c.nb_start[i], end = c.nb_start[i + 1] if build else c.nb_start[i] + c.sb_n[i]
     cdef int within, touched
-    cdef double ri = r[i], mi = m[i], rj, dist2
+    cdef double ri = r[i], mi = m[i], rj, dist2, margin = SUB_SKIN * c.skin
     cdef double xi[3]
     cdef double d[3]
     for q in range(3):
         xi[q] = x[3 * i + q]
-    for k in range(c.nb_start[i], kend):
+    for e in range(start, end):
+        k = e if build else sb_k[e]
         j = nb_j[k]
         sv = &shiftv[3 * (nb_s[k] & IMAGE)]
         for q in range(3):
@@ -356,6 +361,11 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, 
         if touched > within:   # one rarely taken branch: apart now, touching before
             forget_pair(c, k)
         n += within
+        if build:
+            sb_k[start + kept] = k
+            kept += not (dist2 >= (ri + rj + margin) * (ri + rj + margin))
+    if build:
+        c.sb_n[i] = kept
     for t in range(first, n):
         j = partners[t]
         h = &nb_h[<long long>keys[t] * hs]
@@ -424,14 +434,14 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
 
 cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     """Block b's rows of the pair loop on the batched path (State.batched, pair_batch.h):
-    rows' pairs within reach gathered into a batch, their forces computed together, then added
-    up row by row as pair_row adds them; a row with more listed pairs than a batch holds goes
-    through pair_row. Returns the rows' work."""
+    rows' pairs within reach gathered into a batch (see gather_row), their forces computed
+    together, then added up row by row as pair_row adds them; a row with more listed pairs than
+    a batch holds goes through pair_row. Returns the rows' work."""
     cdef pg_pair_batch bt
     cdef int keys[PG_BATCH]
     cdef int partners[PG_BATCH]
     cdef int ends[PG_BATCH]
-    cdef int i, n = 0, nrows = 0, first = c.pb[b], listed
+    cdef int i, n = 0, nrows = 0, first = c.pb[b], listed, gathered
     cdef long long total = 0
     cdef double one[7]   # the pair values when there is one type
     cdef double* cf = NULL
@@ -440,7 +450,8 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
         cf = one
     for i in range(c.pb[b], c.pb[b + 1]):
         listed = c.nb_start[i + 1] - c.nb_start[i]
-        if n + listed > PG_BATCH or nrows == PG_BATCH:
+        gathered = listed if c.sub_build or listed > PG_BATCH else c.sb_n[i]
+        if n + gathered > PG_BATCH or nrows == PG_BATCH:
             pg_hertz_batch(&bt, n, c.dt, c.update, cf)
             total += add_rows(c, b, &bt, keys, ends, first, nrows, hmax)
             first = i

@@ -30,6 +30,8 @@ rebuild):
   code ``nb_s`` (0..26, with the flags TOUCH and WRAP) and ``hs`` history values per pair:
   tangential displacement (3), the last normal force, and for Thornton-Ning the largest
   overlap, the unloading curvature radius and the plastic offset;
+- its sublist (``sb_k``, ``sb_n``): each row's listed pairs that were near contact when it was
+  built, which the batched pair loop visits instead of the whole list (see State.sb_k);
 - wall list (CSR over particles): wall element ``wl_e`` and its ``whs = hs + 1`` history
   values: the contact's ``hs`` values and, for a plane, the side the contact started on
   (``+1`` along the plane's normal, ``-1`` against it, ``0`` while there is no contact);
@@ -95,15 +97,15 @@ cdef extern from "pair_batch.h":
 cdef extern from "kick_drift.h":
     void pg_row_forces(long long i, double g0, double g1, double g2, const double* m, const int* type,
                        const double* visc, double* buf, const double* v, double* F, double* T) noexcept nogil
-    double pg_row_drift(long long i, double dt, double s, double u, double tmax, double* x, double* v, double* w,
-                        const double* x0, const double* F, const double* T) noexcept nogil
+    void pg_row_drift(long long i, double dt, double s, double u, double* peak, double* x, double* v, double* w,
+                      const double* x0, const double* F, const double* T) noexcept nogil
     void pg_row_kick(long long i, double s, double u, double* v, double* w, const double* F,
                      const double* T) noexcept nogil
     void pg_row_kick_factors(long long i, double dt, const double* m, const double* r, double* s,
                              double* u) noexcept nogil
-    double pg_row_kick_drift(long long i, double dt, double tmax, const double* m, const double* r, double* x,
-                             double* v, double* w, const double* x0, const double* F, const double* T) noexcept nogil
-    double pg_kick_drift(int lo, int hi, double dt, double tmax, const double* grav, const double* m,
+    void pg_row_kick_drift(long long i, double dt, double* peak, const double* m, const double* r, double* x,
+                           double* v, double* w, const double* x0, const double* F, const double* T) noexcept nogil
+    void pg_kick_drift(int lo, int hi, double dt, double* peak, const double* grav, const double* m,
                          const double* r, const int* type, const double* visc, double* buf, double* x,
                          double* v, double* w, const double* x0, double* halo) noexcept nogil
 
@@ -302,8 +304,8 @@ cdef class Core:
         for k in range(NMCOLUMNS):
             free(cols[k].p[0])
         for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.nb_j,
-                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.nb_f, <size_t>self.s.ob_j,
-                  <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
+                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.nb_f, <size_t>self.s.sb_k,
+                  <size_t>self.s.ob_j, <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
                   <size_t>self.s.wl_h, <size_t>self.s.wl_f, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
                   <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri,
                   <size_t>self.s.slots, <size_t>self.s.sacc, <size_t>self.s.vib,
@@ -820,9 +822,11 @@ cdef class Core:
         """Seconds spent so far: wall clock per phase (``TIMERS``), and per-thread CPU time in
         the pair and particle loops (``pairs_cpu``, ``particles_cpu``); the steps the master
         ran without the team (``solo_steps``); how often a thread moved off a teammate's CPU
-        (``moves``, see team.h)."""
+        (``moves``, see team.h); the pair loop's passes that built the sublist (``sublist_builds``,
+        see State.sb_k)."""
         out = {name: self.s.timers[k] for k, name in enumerate(TIMERS)}
         out["solo_steps"] = self.s.tuner.solo_steps
+        out["sublist_builds"] = self.s.sub_builds
         out["moves"] = pg_moves(self.s.team) if self.s.team else 0
         out["pairs_cpu"] = np.array([self.s.cpu[PAD * t] for t in range(self.s.nthreads)])
         out["particles_cpu"] = np.array([self.s.cpu[PAD * t + 1] for t in range(self.s.nthreads)])
@@ -850,7 +854,7 @@ cdef class Core:
             found += self.s.found[k].cap * 5
         return (found + self.s.cap * per_particle + self.s.bcap * per_body + self.s.mcap * per_member
                 + self.s.halo_cap * 6 * 8
-                + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs) + self.s.nbf_cap * 24
+                + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs) + self.s.nbf_cap * 24 + self.s.sbk_cap * 4
                 + self.s.wl_cap * (12 + 8 * self.s.hs) + self.s.ow_cap * (12 + 8 * self.s.hs)
                 + self.s.wlf_cap * WLF * 8
                 + self.s.cell_cap * 8 + self.s.ctri_cap * 4)

@@ -109,6 +109,17 @@ cdef struct State:
     double *nb_f       # the force of each listed pair on i (3, see contact_forces), written only by a
                        # pass that records (see record)
     long long nbf_cap
+    # the sublist of the batched path: row i's listed pairs that were within SUB_SKIN skins of
+    # contact when it was built, in list order, are sb_k[nb_start[i]] to
+    # sb_k[nb_start[i] + sb_n[i] - 1] (their list indices). No other pair can come into contact
+    # while every particle has moved less than half that reach, so the pair loop skips them
+    # (see gather_row) and sums the same forces in the same order.
+    int *sb_k
+    long long sbk_cap
+    int *sb_n
+    int sub_build      # this pass's pair loop builds the sublist: after a rebuild, ...
+    double sub_travel  # ... and once its drifts since the last build may add up to half the reach
+    long long sub_builds
     int *ob_start
     int *ob_j
     uint8_t *ob_s
@@ -160,7 +171,7 @@ cdef struct State:
     # contact tables
     Coef *coef
     double *visc
-    double *tmax       # per thread (PAD apart): largest squared displacement
+    double *tmax       # per thread (PAD apart): largest squared displacement, then speed (see pg_row_drift)
     int nblocks        # blocks of the pair loop
     int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
     int *work          # work of each row in the last pair loop (see row_work)
@@ -241,6 +252,7 @@ cdef void particle_columns(State* s, Column* c) noexcept nogil:
     column(&c[19], <void**>&s.fhi, sizeof(int), 0, False)
     column(&c[20], <void**>&s.buf, 6 * sizeof(double), 0, True)   # the pair loop's, zero between steps
     column(&c[21], <void**>&s.mem, sizeof(int), 0, False)
+    column(&c[22], <void**>&s.sb_n, sizeof(int), 0, False)
 
 
 cdef void element_columns(State* s, Column* c) noexcept nogil:

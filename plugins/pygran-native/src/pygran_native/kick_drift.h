@@ -42,13 +42,12 @@ static inline void pg_row_kick(long long i, double s, double u, double* restrict
     wi[2] += u * T[2];
 }
 
-/* Row i's first half kick (``s F``, ``u T``) and drift; returns the largest squared
+/* Row i's first half kick (``s F``, ``u T``) and drift. Raises ``peak``: [0] the largest squared
    displacement from x0 (INFINITY if it is not finite: that forces a rebuild, which drops the
-   particle), at least ``tmax``. */
-static inline double pg_row_drift(long long i, double dt, double s, double u, double tmax,
-                                  double* restrict x, double* restrict v, double* restrict w,
-                                  const double* restrict x0, const double* restrict F,
-                                  const double* restrict T)
+   particle), [1] the largest squared speed of a drift (see State.sub_travel). */
+static inline void pg_row_drift(long long i, double dt, double s, double u, double* restrict peak,
+                                double* restrict x, double* restrict v, double* restrict w,
+                                const double* restrict x0, const double* restrict F, const double* restrict T)
 {
     const double* vi = v + 3 * i;
     double* xi = x + 3 * i;
@@ -59,9 +58,10 @@ static inline double pg_row_drift(long long i, double dt, double s, double u, do
     xi[2] += dt * vi[2];
     double q0 = xi[0] - oi[0], q1 = xi[1] - oi[1], q2 = xi[2] - oi[2];
     double dd = ((0.0 + q0 * q0) + q1 * q1) + q2 * q2;
-    if (!(dd <= tmax))
-        tmax = isfinite(dd) ? dd : INFINITY;
-    return tmax;
+    if (!(dd <= peak[0]))
+        peak[0] = isfinite(dd) ? dd : INFINITY;
+    double vv = (vi[0] * vi[0] + vi[1] * vi[1]) + vi[2] * vi[2];
+    peak[1] = vv > peak[1] ? vv : peak[1];
 }
 
 /* Row i's half kick factors for force (``s``) and torque (``u``). */
@@ -75,7 +75,7 @@ static inline void pg_row_kick_factors(long long i, double dt, const double* res
 
 /* Row i's second half kick by force F and torque T, then the next step's first half kick and
    drift (see pg_row_drift). */
-static inline double pg_row_kick_drift(long long i, double dt, double tmax, const double* restrict m,
+static inline void pg_row_kick_drift(long long i, double dt, double* restrict peak, const double* restrict m,
                                        const double* restrict r, double* restrict x, double* restrict v,
                                        double* restrict w, const double* restrict x0,
                                        const double* restrict F, const double* restrict T)
@@ -83,19 +83,19 @@ static inline double pg_row_kick_drift(long long i, double dt, double tmax, cons
     double s, u;
     pg_row_kick_factors(i, dt, m, r, &s, &u);
     pg_row_kick(i, s, u, v, w, F, T);
-    return pg_row_drift(i, dt, s, u, tmax, x, v, w, x0, F, T);
+    pg_row_drift(i, dt, s, u, peak, x, v, w, x0, F, T);
 }
 
-/* Rows [lo, hi) (see pg_row_kick_drift for the result) that no halo holds, or with ``halo``
+/* Rows [lo, hi) (see pg_row_kick_drift for ``peak``) that no halo holds, or with ``halo``
    (not NULL) that one halo holds, from its entry for row lo (added after the shared buffer, as
    particle_row adds it, and cleared). */
-static double pg_kick_drift(int lo, int hi, double dt, double tmax, const double* restrict grav,
+static void pg_kick_drift(int lo, int hi, double dt, double* restrict peak, const double* restrict grav,
                             const double* restrict m, const double* restrict r, const int* restrict type,
                             const double* restrict visc, double* restrict buf, double* restrict x,
                             double* restrict v, double* restrict w, const double* restrict x0,
                             double* restrict halo)
 {
-    double F[3], T[3];
+    double F[3], T[3], top[2] = {peak[0], peak[1]};
     for (long long i = lo; i < hi; i++) {
         pg_row_forces(i, grav[0], grav[1], grav[2], m, type, visc, buf, v, F, T);
         if (halo) {
@@ -108,9 +108,10 @@ static double pg_kick_drift(int lo, int hi, double dt, double tmax, const double
             T[2] += h[5];
             h[0] = h[1] = h[2] = h[3] = h[4] = h[5] = 0.0;
         }
-        tmax = pg_row_kick_drift(i, dt, tmax, m, r, x, v, w, x0, F, T);
+        pg_row_kick_drift(i, dt, top, m, r, x, v, w, x0, F, T);
     }
-    return tmax;
+    peak[0] = top[0];
+    peak[1] = top[1];
 }
 
 #endif

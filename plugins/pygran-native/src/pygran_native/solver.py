@@ -921,9 +921,11 @@ class Solver:
         their sums over steps of the busiest thread's CPU seconds (``pairs_span``,
         ``particles_span``: the loops' wall time on otherwise idle cores), and the steps the
         calling thread ran without the others, having found that faster (``solo_steps``: on
-        a busy machine or a small system), and how often a thread woken next to a teammate
-        moved to a CPU of the team's that none was on (``moves``: on a busy machine). Not
-        part of :meth:`get_state`."""
+        a busy machine or a small system), how often a thread woken next to a teammate
+        moved to a CPU of the team's that none was on (``moves``: on a busy machine), and how
+        often the pair loop built its sublist of the pairs near contact (``sublist_builds``:
+        hertz without rolling resistance skips the other listed pairs until a particle may
+        have moved far enough to reach one). Not part of :meth:`get_state`."""
         return self._core.timings()
 
     @property
