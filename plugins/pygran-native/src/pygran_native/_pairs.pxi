@@ -45,19 +45,22 @@ cdef inline void forget_pair(const State* c, long long k) noexcept nogil:
 
 
 cdef inline int finish_row(const State* c, int i, int b, const double* fi, int touching) noexcept nogil:
-    """Add row i's pair sums ``fi`` and its walls' forces to its buffer; returns its work."""
-    cdef int q
+    """Add row i's pair sums ``fi`` and its walls' forces to its buffer; returns its work. A
+    row without contacts or walls adds nothing: its sums are +0.0, and the buffer never holds
+    -0.0 (it starts at +0.0 and only adds and subtracts), so adding them would change no bit."""
+    cdef int q, walls = c.wl_start[i + 1] - c.wl_start[i]
     cdef double F[3]
     cdef double T[3]
-    for q in range(3):   # walls into other arrays: fi can live in registers while pairs add up
-        F[q] = 0.0
-        T[q] = 0.0
-    if c.wl_start[i + 1] > c.wl_start[i]:
-        wall_row(c, i, F, T, &c.sacc[<long long>SACC * c.nslots * b])
-    for q in range(3):
-        c.buf[i * 6 + q] += fi[q] + F[q]
-        c.buf[i * 6 + 3 + q] += fi[3 + q] + T[q]
-    return row_work(c.nb_start[i + 1] - c.nb_start[i], touching, c.wl_start[i + 1] - c.wl_start[i])
+    if touching or walls:
+        for q in range(3):   # walls into other arrays: fi can live in registers while pairs add up
+            F[q] = 0.0
+            T[q] = 0.0
+        if walls:
+            wall_row(c, i, F, T, &c.sacc[<long long>SACC * c.nslots * b])
+        for q in range(3):
+            c.buf[i * 6 + q] += fi[q] + F[q]
+            c.buf[i * 6 + 3 + q] += fi[3 + q] + T[q]
+    return row_work(c.nb_start[i + 1] - c.nb_start[i], touching, walls)
 
 
 cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
