@@ -171,7 +171,8 @@ cdef struct State:
     # contact tables
     Coef *coef
     double *visc
-    double *tmax       # per thread (PAD apart): largest squared displacement, then speed (see pg_row_drift)
+    double *tmax       # per thread (PAD apart): largest squared displacement, then squared speed
+                       # (see pg_row_drift)
     int nblocks        # blocks of the pair loop
     int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
     int *work          # work of each row in the last pair loop (see row_work)

@@ -76,9 +76,9 @@ static inline void pg_row_kick_factors(long long i, double dt, const double* res
 /* Row i's second half kick by force F and torque T, then the next step's first half kick and
    drift (see pg_row_drift). */
 static inline void pg_row_kick_drift(long long i, double dt, double* restrict peak, const double* restrict m,
-                                       const double* restrict r, double* restrict x, double* restrict v,
-                                       double* restrict w, const double* restrict x0,
-                                       const double* restrict F, const double* restrict T)
+                                     const double* restrict r, double* restrict x, double* restrict v,
+                                     double* restrict w, const double* restrict x0,
+                                     const double* restrict F, const double* restrict T)
 {
     double s, u;
     pg_row_kick_factors(i, dt, m, r, &s, &u);
@@ -90,10 +90,10 @@ static inline void pg_row_kick_drift(long long i, double dt, double* restrict pe
    (not NULL) that one halo holds, from its entry for row lo (added after the shared buffer, as
    particle_row adds it, and cleared). */
 static void pg_kick_drift(int lo, int hi, double dt, double* restrict peak, const double* restrict grav,
-                            const double* restrict m, const double* restrict r, const int* restrict type,
-                            const double* restrict visc, double* restrict buf, double* restrict x,
-                            double* restrict v, double* restrict w, const double* restrict x0,
-                            double* restrict halo)
+                          const double* restrict m, const double* restrict r, const int* restrict type,
+                          const double* restrict visc, double* restrict buf, double* restrict x,
+                          double* restrict v, double* restrict w, const double* restrict x0,
+                          double* restrict halo)
 {
     double F[3], T[3], top[2] = {peak[0], peak[1]};
     for (long long i = lo; i < hi; i++) {
