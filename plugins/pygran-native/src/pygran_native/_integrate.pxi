@@ -135,17 +135,23 @@ cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:
 
 
 cdef double max_displacement(State* sim) noexcept nogil:
-    """The largest displacement since the last rebuild; adds the drift's largest step to
-    ``sub_travel``."""
+    """The largest displacement since the last rebuild."""
     cdef int i
-    cdef double dmax = 0.0, vmax = 0.0
+    cdef double dmax = 0.0
     for i in range(sim.nthreads):
         if sim.tmax[PAD * i] > dmax:
             dmax = sim.tmax[PAD * i]
-        if not sim.tmax[PAD * i + 1] <= vmax:
-            vmax = sim.tmax[PAD * i + 1]
-    sim.sub_travel += sim.dt * sqrt(vmax)
     return sqrt(dmax)
+
+
+cdef double max_speed(State* sim) noexcept nogil:
+    """The largest speed of the last drift (a non-finite one forces a rebuild: see pg_row_drift)."""
+    cdef int i
+    cdef double vmax = 0.0
+    for i in range(sim.nthreads):
+        if sim.tmax[PAD * i + 1] > vmax:
+            vmax = sim.tmax[PAD * i + 1]
+    return sqrt(vmax)
 
 
 cdef inline void reset_peaks(State* sim) noexcept nogil:
@@ -242,6 +248,7 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
         if sim.nthreads > 1:
             tune(sim)
         dp = max_displacement(sim) if fused else drift(sim, dt)
+        sim.sub_travel += dt * max_speed(sim)
         sim.step += 1
         sim.time = sim.t_base + (sim.step - sim.step_base) * dt
         t1 = pg_now()
