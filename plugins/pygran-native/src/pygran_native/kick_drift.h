@@ -42,26 +42,52 @@ static inline void pg_row_kick(long long i, double s, double u, double* restrict
     wi[2] += u * T[2];
 }
 
-/* Row i's first half kick (``s F``, ``u T``) and drift. Raises ``peak``: [0] the largest squared
-   displacement from x0 (INFINITY if it is not finite: that forces a rebuild, which drops the
-   particle), [1] the largest squared speed of a drift (see State.sub_travel). */
+/* Row i's ``kicks`` half kicks (``s F``, ``u T``; 1 or 2, each rounded as pg_row_kick rounds
+   it, with v and w kept in registers between them) and drift. Raises ``peak``: [0] the largest
+   squared displacement from x0 (INFINITY if it is not finite: that forces a rebuild, which drops
+   the particle), [1] the largest squared speed of a drift (see State.sub_travel). */
+static inline void pg_row_kicks_drift(long long i, int kicks, double dt, double s, double u,
+                                      double* restrict peak, double* restrict x, double* restrict v,
+                                      double* restrict w, const double* restrict x0,
+                                      const double* restrict F, const double* restrict T)
+{
+    double* vi = v + 3 * i;
+    double* wi = w + 3 * i;
+    double* xi = x + 3 * i;
+    const double* oi = x0 + 3 * i;
+    double v0 = vi[0], v1 = vi[1], v2 = vi[2], w0 = wi[0], w1 = wi[1], w2 = wi[2];
+    for (int k = 0; k < kicks; k++) {
+        v0 += s * F[0];
+        v1 += s * F[1];
+        v2 += s * F[2];
+        w0 += u * T[0];
+        w1 += u * T[1];
+        w2 += u * T[2];
+    }
+    vi[0] = v0;
+    vi[1] = v1;
+    vi[2] = v2;
+    wi[0] = w0;
+    wi[1] = w1;
+    wi[2] = w2;
+    double p0 = xi[0] + dt * v0, p1 = xi[1] + dt * v1, p2 = xi[2] + dt * v2;
+    xi[0] = p0;
+    xi[1] = p1;
+    xi[2] = p2;
+    double q0 = p0 - oi[0], q1 = p1 - oi[1], q2 = p2 - oi[2];
+    double dd = ((0.0 + q0 * q0) + q1 * q1) + q2 * q2;
+    if (!(dd <= peak[0]))
+        peak[0] = isfinite(dd) ? dd : INFINITY;
+    double vv = (v0 * v0 + v1 * v1) + v2 * v2;
+    peak[1] = vv > peak[1] ? vv : peak[1];
+}
+
+/* Row i's first half kick and drift (see pg_row_kicks_drift). */
 static inline void pg_row_drift(long long i, double dt, double s, double u, double* restrict peak,
                                 double* restrict x, double* restrict v, double* restrict w,
                                 const double* restrict x0, const double* restrict F, const double* restrict T)
 {
-    const double* vi = v + 3 * i;
-    double* xi = x + 3 * i;
-    const double* oi = x0 + 3 * i;
-    pg_row_kick(i, s, u, v, w, F, T);
-    xi[0] += dt * vi[0];
-    xi[1] += dt * vi[1];
-    xi[2] += dt * vi[2];
-    double q0 = xi[0] - oi[0], q1 = xi[1] - oi[1], q2 = xi[2] - oi[2];
-    double dd = ((0.0 + q0 * q0) + q1 * q1) + q2 * q2;
-    if (!(dd <= peak[0]))
-        peak[0] = isfinite(dd) ? dd : INFINITY;
-    double vv = (vi[0] * vi[0] + vi[1] * vi[1]) + vi[2] * vi[2];
-    peak[1] = vv > peak[1] ? vv : peak[1];
+    pg_row_kicks_drift(i, 1, dt, s, u, peak, x, v, w, x0, F, T);
 }
 
 /* Row i's half kick factors for force (``s``) and torque (``u``). */
@@ -82,8 +108,7 @@ static inline void pg_row_kick_drift(long long i, double dt, double* restrict pe
 {
     double s, u;
     pg_row_kick_factors(i, dt, m, r, &s, &u);
-    pg_row_kick(i, s, u, v, w, F, T);
-    pg_row_drift(i, dt, s, u, peak, x, v, w, x0, F, T);
+    pg_row_kicks_drift(i, 2, dt, s, u, peak, x, v, w, x0, F, T);
 }
 
 /* Rows [lo, hi) (see pg_row_kick_drift for ``peak``) that no halo holds, or with ``halo``
