@@ -464,7 +464,10 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
             total += c.work[i]
             first = i + 1
             continue
-        n = gather_row(c, i, &bt, n, keys, partners)
+        if gathered:
+            n = gather_row(c, i, &bt, n, keys, partners)
+        elif c.sub_build:   # an empty sublist: nothing to gather
+            c.sb_n[i] = 0
         ends[nrows] = n
         nrows += 1
     pg_hertz_batch(&bt, n, c.dt, c.update, cf)
