@@ -317,31 +317,78 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
                 rec[6] = 1.0
 
 
-cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, int* partners) noexcept nogil:
+cdef struct Gather:
+    # What gather_row reads of the state, copied once per block into batched_rows' frame. Read
+    # through State*, it was loaded again for every row, since a store through the flag bytes
+    # (nb_s) may alias the state; the copy made the settle scenario's settling phase about 4 %
+    # faster at N = 20,000.
+    const double* x
+    const double* v
+    const double* w
+    const double* r
+    const double* m
+    const int* type
+    const int* nb_start
+    const int* nb_j
+    const uint8_t* nb_s
+    const double* nb_h
+    int* sb_k
+    int* sb_n
+    const double* shiftv
+    const Coef* coef
+    int ntypes, hs, build
+    double margin
+
+
+cdef inline Gather gather_state(const State* c) noexcept nogil:
+    """The state as gather_row reads it, for one pass of the pair loop."""
+    cdef Gather g
+    g.x = c.x
+    g.v = c.v
+    g.w = c.w
+    g.r = c.r
+    g.m = c.m
+    g.type = c.type
+    g.nb_start = c.nb_start
+    g.nb_j = c.nb_j
+    g.nb_s = c.nb_s
+    g.nb_h = c.nb_h
+    g.sb_k = c.sb_k
+    g.sb_n = c.sb_n
+    g.shiftv = &c.shiftv[0]
+    g.coef = c.coef
+    g.ntypes = c.ntypes
+    g.hs = c.hs
+    g.build = c.sub_build
+    g.margin = SUB_SKIN * c.skin
+    return g
+
+
+cdef int gather_row(const State* c, const Gather* g, int i, pg_pair_batch* bt, int n, int* keys,
+                    int* partners) noexcept nogil:
     """Append particle i's pairs within reach to the batch from entry n (their indices in
     ``keys``, their partners in ``partners``); clears the pairs that came apart. Returns the
     new entry count. The pairs are those of its sublist (State.sb_k), or with ``sub_build``
     all its listed pairs, whose sublist this makes. Every pair is written to entry n, which
     advances only past those within reach: no branch on the test, whose outcome the CPU cannot
     predict."""
-    cdef const double* x = c.x
-    cdef const double* v = c.v
-    cdef const double* w = c.w
-    cdef const double* r = c.r
-    cdef const double* m = c.m
-    cdef const int* nb_j = c.nb_j
-    cdef const uint8_t* nb_s = c.nb_s
-    cdef const double* nb_h = c.nb_h
-    cdef int* sb_k = c.sb_k
-    cdef const double* shiftv = &c.shiftv[0]
-    cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
+    cdef const double* x = g.x
+    cdef const double* v = g.v
+    cdef const double* w = g.w
+    cdef const double* r = g.r
+    cdef const double* m = g.m
+    cdef const int* nb_j = g.nb_j
+    cdef const uint8_t* nb_s = g.nb_s
+    cdef const double* nb_h = g.nb_h
+    cdef int* sb_k = g.sb_k
+    cdef const double* shiftv = g.shiftv
     cdef const Coef* cf
     cdef const double* sv
     cdef const double* h
-    cdef int k, j, q, t, e, first = n, hs = c.hs, build = c.sub_build, kept = 0
-    cdef int start = c.nb_start[i], end = c.nb_start[i + 1] if build else c.nb_start[i] + c.sb_n[i]
+    cdef int k, j, q, t, e, first = n, hs = g.hs, build = g.build, kept = 0
+    cdef int start = g.nb_start[i], end = g.nb_start[i + 1] if build else g.nb_start[i] + g.sb_n[i]
     cdef int within, touched
-    cdef double ri = r[i], mi = m[i], rj, dist2, margin = SUB_SKIN * c.skin
+    cdef double ri = r[i], mi = m[i], rj, dist2, margin = g.margin
     cdef double xi[3]
     cdef double d[3]
     for q in range(3):
@@ -368,7 +415,7 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, 
             sb_k[start + kept] = k
             kept += not (dist2 >= (ri + rj + margin) * (ri + rj + margin))
     if build:
-        c.sb_n[i] = kept
+        g.sb_n[i] = kept
     for t in range(first, n):
         j = partners[t]
         h = &nb_h[<long long>keys[t] * hs]
@@ -380,9 +427,9 @@ cdef int gather_row(const State* c, int i, pg_pair_batch* bt, int n, int* keys, 
         bt.ri[t] = ri
         bt.mi[t] = mi
         bt.mj[t] = m[j]
-        if c.ntypes == 1:   # pg_hertz_batch takes them once
+        if g.ntypes == 1:   # pg_hertz_batch takes them once
             continue
-        cf = &coef[c.type[j]]
+        cf = &g.coef[g.type[i] * g.ntypes + g.type[j]]
         bt.E[t] = cf.E
         bt.G[t] = cf.G
         bt.mu[t] = cf.mu
@@ -448,6 +495,7 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     cdef long long total = 0
     cdef double one[7]   # the pair values when there is one type
     cdef double* cf = NULL
+    cdef Gather g = gather_state(c)   # see Gather
     if c.ntypes == 1:
         one[:] = [c.coef.E, c.coef.G, c.coef.mu, c.coef.damp, c.coef.tdamp, c.coef.coh, c.coef.limit]
         cf = one
@@ -465,7 +513,7 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
             first = i + 1
             continue
         if gathered:
-            n = gather_row(c, i, &bt, n, keys, partners)
+            n = gather_row(c, &g, i, &bt, n, keys, partners)
         elif c.sub_build:   # an empty sublist: nothing to gather
             c.sb_n[i] = 0
         ends[nrows] = n
