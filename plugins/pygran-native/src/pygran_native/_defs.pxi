@@ -1,7 +1,7 @@
 # Compile-time constants and enums of the native solver (included by _solver.pyx).
 
 DEF MAXCAND = 64
-DEF NCOLUMNS = 23  # per-particle arrays, see particle_columns
+DEF NCOLUMNS = 24  # per-particle arrays, see particle_columns
 DEF NBCOLUMNS = 12  # per-body arrays of clumps, see body_columns
 DEF NMCOLUMNS = 4   # per-member arrays of clumps, see member_columns
 DEF NECOLUMNS = 9  # per-element arrays, see element_columns

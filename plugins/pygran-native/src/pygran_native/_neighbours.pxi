@@ -185,6 +185,10 @@ cdef int reserve_pairs(State* sim, long long need) noexcept nogil:
         if a == NULL:
             return -1
         sim.sb_k = <int*>a
+        a = grow(sim.sb_i, cap * sizeof(int))
+        if a == NULL:
+            return -1
+        sim.sb_i = <int*>a
         sim.sbk_cap = cap
     if need <= sim.nb_cap:
         return 0

@@ -333,10 +333,12 @@ cdef struct Gather:
     const uint8_t* nb_s
     const double* nb_h
     int* sb_k
+    int* sb_i
     int* sb_n
+    int* sb_at
     const double* shiftv
     const Coef* coef
-    int ntypes, hs, build
+    int ntypes, hs
     double margin
 
 
@@ -354,79 +356,36 @@ cdef inline Gather gather_state(const State* c) noexcept nogil:
     g.nb_s = c.nb_s
     g.nb_h = c.nb_h
     g.sb_k = c.sb_k
+    g.sb_i = c.sb_i
     g.sb_n = c.sb_n
+    g.sb_at = c.sb_at
     g.shiftv = &c.shiftv[0]
     g.coef = c.coef
     g.ntypes = c.ntypes
     g.hs = c.hs
-    g.build = c.sub_build
     g.margin = SUB_SKIN * c.skin
     return g
 
 
-cdef int gather_row(const State* c, const Gather* g, int i, pg_pair_batch* bt, int n, int* keys,
-                    int* partners) noexcept nogil:
-    """Append particle i's pairs within reach to the batch from entry n (their indices in
-    ``keys``, their partners in ``partners``); clears the pairs that came apart. Returns the
-    new entry count. The pairs are those of its sublist (State.sb_k), or with ``sub_build``
-    all its listed pairs, whose sublist this makes. Every pair is written to entry n, which
-    advances only past those within reach: no branch on the test, whose outcome the CPU cannot
-    predict."""
-    cdef const double* x = g.x
-    cdef const double* v = g.v
-    cdef const double* w = g.w
-    cdef const double* r = g.r
-    cdef const double* m = g.m
-    cdef const int* nb_j = g.nb_j
-    cdef const uint8_t* nb_s = g.nb_s
-    cdef const double* nb_h = g.nb_h
-    cdef int* sb_k = g.sb_k
-    cdef const double* shiftv = g.shiftv
-    cdef const Coef* cf
-    cdef const double* sv
+cdef inline void fill_entries(const Gather* g, pg_pair_batch* bt, int first, int n, const int* keys,
+                              const int* partners, const int* rows, int row0) noexcept nogil:
+    """Entries first..n-1 of the batch, whose distances gather_row or gather_sublists wrote:
+    the rest of what pg_hertz_batch reads (entry t's row is row0 + ``rows[t]``)."""
+    cdef int t, q, i, j
     cdef const double* h
-    cdef int k, j, q, t, e, first = n, hs = g.hs, build = g.build, kept = 0
-    cdef int start = g.nb_start[i], end = g.nb_start[i + 1] if build else g.nb_start[i] + g.sb_n[i]
-    cdef int within, touched
-    cdef double ri = r[i], mi = m[i], rj, dist2, margin = g.margin
-    cdef double xi[3]
-    cdef double d[3]
-    for q in range(3):
-        xi[q] = x[3 * i + q]
-    for e in range(start, end):
-        k = e if build else sb_k[e]
-        j = nb_j[k]
-        sv = &shiftv[3 * (nb_s[k] & IMAGE)]
-        for q in range(3):
-            d[q] = xi[q] - x[3 * j + q] + sv[q]
-            bt.d[q * PG_BATCH + n] = d[q]
-        dist2 = dot3(d, d)
-        rj = r[j]
-        bt.dist2[n] = dist2
-        bt.rj[n] = rj
-        keys[n] = k
-        partners[n] = j
-        within = not (dist2 >= (ri + rj) * (ri + rj))   # NaN: within, as pair_row has it
-        touched = (nb_s[k] & TOUCH) != 0
-        if touched > within:   # one rarely taken branch: apart now, touching before
-            forget_pair(c, k)
-        n += within
-        if build:
-            sb_k[start + kept] = k
-            kept += not (dist2 >= (ri + rj + margin) * (ri + rj + margin))
-    if build:
-        g.sb_n[i] = kept
+    cdef const Coef* cf
     for t in range(first, n):
+        i = row0 + rows[t]
         j = partners[t]
-        h = &nb_h[<long long>keys[t] * hs]
+        h = &g.nb_h[<long long>keys[t] * g.hs]
         for q in range(3):
-            bt.vr[q * PG_BATCH + t] = v[3 * i + q] - v[3 * j + q]
-            bt.wi[q * PG_BATCH + t] = w[3 * i + q]
-            bt.wj[q * PG_BATCH + t] = w[3 * j + q]
+            bt.vr[q * PG_BATCH + t] = g.v[3 * i + q] - g.v[3 * j + q]
+            bt.wi[q * PG_BATCH + t] = g.w[3 * i + q]
+            bt.wj[q * PG_BATCH + t] = g.w[3 * j + q]
             bt.xi[q * PG_BATCH + t] = h[H_SHEAR + q]
-        bt.ri[t] = ri
-        bt.mi[t] = mi
-        bt.mj[t] = m[j]
+        bt.ri[t] = g.r[i]
+        bt.mi[t] = g.m[i]
+        bt.mj[t] = g.m[j]
         if g.ntypes == 1:   # pg_hertz_batch takes them once
             continue
         cf = &g.coef[g.type[i] * g.ntypes + g.type[j]]
@@ -437,6 +396,76 @@ cdef int gather_row(const State* c, const Gather* g, int i, pg_pair_batch* bt, i
         bt.tdamp[t] = cf.tdamp
         bt.coh[t] = cf.coh
         bt.limit[t] = cf.limit
+
+
+cdef inline int gather_entry(const State* c, const Gather* g, int k, int i, const double* xi, double ri,
+                             pg_pair_batch* bt, int n, int* keys, int* partners, double* dist2) noexcept nogil:
+    """Listed pair k of row i (at ``xi``, radius ``ri``) written to entry n of the batch (its
+    distance and partner's radius, ``keys``, ``partners``), and its squared distance to
+    ``dist2``; clears it if it came apart. Returns whether it is within reach (then entry n is
+    kept). No branch on the reach test, whose outcome the CPU cannot predict."""
+    cdef int q, j = g.nb_j[k], within, touched
+    cdef double rj = g.r[j]
+    cdef double d[3]
+    cdef const double* sv = &g.shiftv[3 * (g.nb_s[k] & IMAGE)]
+    for q in range(3):
+        d[q] = xi[q] - g.x[3 * j + q] + sv[q]
+        bt.d[q * PG_BATCH + n] = d[q]
+    dist2[0] = dot3(d, d)
+    bt.dist2[n] = dist2[0]
+    bt.rj[n] = rj
+    keys[n] = k
+    partners[n] = j
+    within = not (dist2[0] >= (ri + rj) * (ri + rj))   # NaN: within, as pair_row has it
+    touched = (g.nb_s[k] & TOUCH) != 0
+    if touched > within:   # one rarely taken branch: apart now, touching before
+        forget_pair(c, k)
+    return within
+
+
+cdef int gather_row(const State* c, const Gather* g, int i, int* at, pg_pair_batch* bt, int n, int* keys,
+                    int* partners, int* rows, int row) noexcept nogil:
+    """Append particle i's listed pairs within reach to the batch from entry n (their indices
+    in ``keys``, their partners in ``partners``, ``row`` in ``rows``) and make its sublist
+    (State.sb_k) from entry ``at[0]``, which it advances; clears the pairs that came apart.
+    Returns the new entry count."""
+    cdef int k, q, within, first = n, kept = 0, pos = at[0]
+    cdef double ri = g.r[i], dist2, reach
+    cdef double xi[3]
+    for q in range(3):
+        xi[q] = g.x[3 * i + q]
+    for k in range(g.nb_start[i], g.nb_start[i + 1]):
+        rows[n] = row
+        within = gather_entry(c, g, k, i, xi, ri, bt, n, keys, partners, &dist2)
+        reach = ri + bt.rj[n] + g.margin
+        n += within
+        g.sb_k[pos + kept] = k
+        g.sb_i[pos + kept] = i
+        kept += not (dist2 >= reach * reach)
+    g.sb_at[i] = pos
+    g.sb_n[i] = kept
+    at[0] = pos + kept
+    fill_entries(g, bt, first, n, keys, partners, rows, i - row)
+    return n
+
+
+cdef int gather_sublists(const State* c, const Gather* g, int e0, int e1, int row0, pg_pair_batch* bt,
+                         int* keys, int* partners, int* rows) noexcept nogil:
+    """The pairs within reach among sublist entries e0..e1-1 (the sublists of a run of rows
+    from row0, see State.sb_k) written to the batch from entry 0, as gather_row writes them;
+    ``rows``: each entry's row less row0. Returns the entry count. One loop over the run's
+    entries, not one per row: a row's sublist length is as unpredictable as its contacts."""
+    cdef int e, i, k, q, n = 0
+    cdef double dist2
+    cdef double xi[3]
+    for e in range(e0, e1):
+        k = g.sb_k[e]
+        i = g.sb_i[e]
+        for q in range(3):
+            xi[q] = g.x[3 * i + q]
+        rows[n] = i - row0
+        n += gather_entry(c, g, k, i, xi, g.r[i], bt, n, keys, partners, &dist2)
+    fill_entries(g, bt, 0, n, keys, partners, rows, row0)
     return n
 
 
@@ -482,16 +511,34 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
     return total
 
 
+cdef inline long long flush_rows(const State* c, int b, pg_pair_batch* bt, const int* keys, const int* rows,
+                                 int* ends, int n, int first, int nrows, const double* cf, int* hmax) noexcept nogil:
+    """The forces of the batch's n entries, added up for its nrows rows from ``first`` (entry t
+    belongs to row first + ``rows[t]``; ``ends`` is scratch). Returns the rows' work."""
+    cdef int r, t
+    for r in range(nrows):
+        ends[r] = 0
+    for t in range(n):
+        ends[rows[t]] += 1
+    for r in range(1, nrows):
+        ends[r] += ends[r - 1]
+    pg_hertz_batch(bt, n, c.dt, c.update, cf)
+    return add_rows(c, b, bt, keys, ends, first, nrows, hmax)
+
+
 cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
-    """Block b's rows of the pair loop on the batched path (State.batched, pair_batch.h):
-    rows' pairs within reach gathered into a batch (see gather_row), their forces computed
-    together, then added up row by row as pair_row adds them; a row with more listed pairs than
-    a batch holds goes through pair_row. Returns the rows' work."""
+    """Block b's rows of the pair loop on the batched path (State.batched, pair_batch.h): the
+    pairs within reach of a run of rows gathered into a batch (see gather_sublists, and
+    gather_row at a pass that makes the sublists), their forces computed together, then added
+    up row by row as pair_row adds them; a row with more listed pairs than a batch holds goes
+    through pair_row. Returns the rows' work."""
     cdef pg_pair_batch bt
     cdef int keys[PG_BATCH]
     cdef int partners[PG_BATCH]
+    cdef int rows[PG_BATCH]
     cdef int ends[PG_BATCH]
-    cdef int i, n = 0, nrows = 0, first = c.pb[b], listed, gathered
+    cdef int i, n = 0, nrows = 0, first = c.pb[b], listed, gathered, at = c.nb_start[c.pb[b]], e0 = 0, e1 = 0
+    cdef int build = c.sub_build
     cdef long long total = 0
     cdef double one[7]   # the pair values when there is one type
     cdef double* cf = NULL
@@ -501,25 +548,32 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
         cf = one
     for i in range(c.pb[b], c.pb[b + 1]):
         listed = c.nb_start[i + 1] - c.nb_start[i]
-        gathered = listed if c.sub_build or listed > PG_BATCH else c.sb_n[i]
-        if n + gathered > PG_BATCH or nrows == PG_BATCH:
-            pg_hertz_batch(&bt, n, c.dt, c.update, cf)
-            total += add_rows(c, b, &bt, keys, ends, first, nrows, hmax)
+        gathered = listed if build or listed > PG_BATCH else c.sb_n[i]
+        # a full batch, or a row whose sublist does not follow the run's (the blocks of the
+        # pass that made them ended there)
+        if (n + gathered > PG_BATCH or nrows == PG_BATCH
+                or not build and gathered and e1 > e0 and c.sb_at[i] != e1):
+            if not build:
+                n = gather_sublists(c, &g, e0, e1, first, &bt, keys, partners, rows)
+            total += flush_rows(c, b, &bt, keys, rows, ends, n, first, nrows, cf, hmax)
             first = i
-            n = nrows = 0
+            n = nrows = e0 = e1 = 0
         if listed > PG_BATCH:
             c.work[i] = pair_row(c, i, b, hmax)
             total += c.work[i]
             first = i + 1
             continue
-        if gathered:
-            n = gather_row(c, &g, i, &bt, n, keys, partners)
-        elif c.sub_build:   # an empty sublist: nothing to gather
-            c.sb_n[i] = 0
-        ends[nrows] = n
+        if build:
+            n = gather_row(c, &g, i, &at, &bt, n, keys, partners, rows, nrows)
+        elif gathered:
+            if e1 == e0:
+                e0 = c.sb_at[i]
+            e1 = c.sb_at[i] + gathered
+            n += gathered   # an upper bound until gather_sublists
         nrows += 1
-    pg_hertz_batch(&bt, n, c.dt, c.update, cf)
-    return total + add_rows(c, b, &bt, keys, ends, first, nrows, hmax)
+    if not build:
+        n = gather_sublists(c, &g, e0, e1, first, &bt, keys, partners, rows)
+    return total + flush_rows(c, b, &bt, keys, rows, ends, n, first, nrows, cf, hmax)
 
 
 cdef void pair_block(const State* c, int b) noexcept nogil:

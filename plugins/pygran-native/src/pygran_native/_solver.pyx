@@ -30,7 +30,7 @@ rebuild):
   code ``nb_s`` (0..26, with the flags TOUCH and WRAP) and ``hs`` history values per pair:
   tangential displacement (3), the last normal force, and for Thornton-Ning the largest
   overlap, the unloading curvature radius and the plastic offset;
-- its sublist (``sb_k``, ``sb_n``): each row's listed pairs that were near contact when it was
+- its sublist (``sb_k``, ``sb_i``, ``sb_at``, ``sb_n``): each row's listed pairs that were near contact when it was
   built, which the batched pair loop visits instead of the whole list (see State.sb_k);
 - wall list (CSR over particles): wall element ``wl_e`` and its ``whs = hs + 1`` history
   values: the contact's ``hs`` values and, for a plane, the side the contact started on
@@ -304,7 +304,7 @@ cdef class Core:
         for k in range(NMCOLUMNS):
             free(cols[k].p[0])
         for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.nb_j,
-                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.nb_f, <size_t>self.s.sb_k,
+                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.nb_f, <size_t>self.s.sb_k, <size_t>self.s.sb_i,
                   <size_t>self.s.ob_j, <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
                   <size_t>self.s.wl_h, <size_t>self.s.wl_f, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
                   <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri,
@@ -854,7 +854,7 @@ cdef class Core:
             found += self.s.found[k].cap * 5
         return (found + self.s.cap * per_particle + self.s.bcap * per_body + self.s.mcap * per_member
                 + self.s.halo_cap * 6 * 8
-                + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs) + self.s.nbf_cap * 24 + self.s.sbk_cap * 4
+                + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs) + self.s.nbf_cap * 24 + self.s.sbk_cap * 8
                 + self.s.wl_cap * (12 + 8 * self.s.hs) + self.s.ow_cap * (12 + 8 * self.s.hs)
                 + self.s.wlf_cap * WLF * 8
                 + self.s.cell_cap * 8 + self.s.ctri_cap * 4)

@@ -110,13 +110,17 @@ cdef struct State:
                        # pass that records (see record)
     long long nbf_cap
     # the sublist of the batched path: row i's listed pairs that were within SUB_SKIN skins of
-    # contact when it was built, in list order, are sb_k[nb_start[i]] to
-    # sb_k[nb_start[i] + sb_n[i] - 1] (their list indices). No other pair can come into contact
-    # while every particle has moved less than half that reach, so the pair loop skips them
-    # (see gather_row) and sums the same forces in the same order.
+    # contact when it was built, in list order, are entries sb_at[i] to sb_at[i] + sb_n[i] - 1
+    # of sb_k (their list indices) and sb_i (i). No other pair can come into contact while every
+    # particle has moved less than half that reach, so the pair loop skips them (see
+    # gather_sublists) and sums the same forces in the same order. A block's rows have their
+    # entries one after the other from its first row's list offset (see gather_row), so a run of
+    # rows is one run of entries.
     int *sb_k
+    int *sb_i
     long long sbk_cap
     int *sb_n
+    int *sb_at
     int sub_build      # this pass's pair loop builds the sublist: after a rebuild, ...
     double sub_travel  # ... and once its drifts since the last build may add up to half the reach
     long long sub_builds
@@ -254,6 +258,7 @@ cdef void particle_columns(State* s, Column* c) noexcept nogil:
     column(&c[20], <void**>&s.buf, 6 * sizeof(double), 0, True)   # the pair loop's, zero between steps
     column(&c[21], <void**>&s.mem, sizeof(int), 0, False)
     column(&c[22], <void**>&s.sb_n, sizeof(int), 0, False)
+    column(&c[23], <void**>&s.sb_at, sizeof(int), 0, False)
 
 
 cdef void element_columns(State* s, Column* c) noexcept nogil:
