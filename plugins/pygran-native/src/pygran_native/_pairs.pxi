@@ -318,8 +318,8 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
 
 
 cdef struct Gather:
-    # What gather_row reads of the state, copied once per block into batched_rows' frame. Read
-    # through State*, it was loaded again for every row, since a store through the flag bytes
+    # What the gather (gather_row, gather_sublists) reads of the state, copied once per block
+    # into batched_rows' frame. Read through State*, it was loaded again for every row, since a store through the flag bytes
     # (nb_s) may alias the state; the copy made the settle scenario's settling phase about 4 %
     # faster at N = 20,000.
     const double* x
@@ -343,7 +343,7 @@ cdef struct Gather:
 
 
 cdef inline Gather gather_state(const State* c) noexcept nogil:
-    """The state as gather_row reads it, for one pass of the pair loop."""
+    """The state as the gather reads it, for one pass of the pair loop."""
     cdef Gather g
     g.x = c.x
     g.v = c.v
@@ -423,10 +423,10 @@ cdef inline int gather_entry(const State* c, const Gather* g, int k, int i, cons
     return within
 
 
-cdef int gather_row(const State* c, const Gather* g, int i, int* at, pg_pair_batch* bt, int n, int* keys,
-                    int* partners, int* rows, int row) noexcept nogil:
+cdef int gather_row(const State* c, const Gather* g, int i, int row0, int* at, pg_pair_batch* bt, int n,
+                    int* keys, int* partners, int* rows) noexcept nogil:
     """Append particle i's listed pairs within reach to the batch from entry n (their indices
-    in ``keys``, their partners in ``partners``, ``row`` in ``rows``) and make its sublist
+    in ``keys``, their partners in ``partners``, i - row0 in ``rows``) and make its sublist
     (State.sb_k) from entry ``at[0]``, which it advances; clears the pairs that came apart.
     Returns the new entry count."""
     cdef int k, q, within, first = n, kept = 0, pos = at[0]
@@ -435,7 +435,7 @@ cdef int gather_row(const State* c, const Gather* g, int i, int* at, pg_pair_bat
     for q in range(3):
         xi[q] = g.x[3 * i + q]
     for k in range(g.nb_start[i], g.nb_start[i + 1]):
-        rows[n] = row
+        rows[n] = i - row0
         within = gather_entry(c, g, k, i, xi, ri, bt, n, keys, partners, &dist2)
         reach = ri + bt.rj[n] + g.margin
         n += within
@@ -445,7 +445,7 @@ cdef int gather_row(const State* c, const Gather* g, int i, int* at, pg_pair_bat
     g.sb_at[i] = pos
     g.sb_n[i] = kept
     at[0] = pos + kept
-    fill_entries(g, bt, first, n, keys, partners, rows, i - row)
+    fill_entries(g, bt, first, n, keys, partners, rows, row0)
     return n
 
 
@@ -538,7 +538,7 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     cdef int rows[PG_BATCH]
     cdef int ends[PG_BATCH]
     cdef int i, n = 0, nrows = 0, first = c.pb[b], listed, gathered, at = c.nb_start[c.pb[b]], e0 = 0, e1 = 0
-    cdef int build = c.sub_build
+    cdef int build = c.sub_build, entries
     cdef long long total = 0
     cdef double one[7]   # the pair values when there is one type
     cdef double* cf = NULL
@@ -549,9 +549,10 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     for i in range(c.pb[b], c.pb[b + 1]):
         listed = c.nb_start[i + 1] - c.nb_start[i]
         gathered = listed if build or listed > PG_BATCH else c.sb_n[i]
+        entries = n if build else e1 - e0   # the batch's so far: without build, its run's sublists
         # a full batch, or a row whose sublist does not follow the run's (the blocks of the
         # pass that made them ended there)
-        if (n + gathered > PG_BATCH or nrows == PG_BATCH
+        if (entries + gathered > PG_BATCH or nrows == PG_BATCH
                 or not build and gathered and e1 > e0 and c.sb_at[i] != e1):
             if not build:
                 n = gather_sublists(c, &g, e0, e1, first, &bt, keys, partners, rows)
@@ -564,12 +565,11 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
             first = i + 1
             continue
         if build:
-            n = gather_row(c, &g, i, &at, &bt, n, keys, partners, rows, nrows)
+            n = gather_row(c, &g, i, first, &at, &bt, n, keys, partners, rows)
         elif gathered:
             if e1 == e0:
                 e0 = c.sb_at[i]
             e1 = c.sb_at[i] + gathered
-            n += gathered   # an upper bound until gather_sublists
         nrows += 1
     if not build:
         n = gather_sublists(c, &g, e0, e1, first, &bt, keys, partners, rows)
