@@ -28,24 +28,29 @@ static inline void pg_row_forces(long long i, double g0, double g1, double g2, c
     b[0] = b[1] = b[2] = b[3] = b[4] = b[5] = 0.0;
 }
 
-/* Row i's half kick (``s F``, ``u T``). */
+/* One half kick (``s F``, ``u T``) of a velocity v and spin w (3 values each). */
+static inline void pg_kick(double* restrict v, double* restrict w, double s, double u,
+                           const double* restrict F, const double* restrict T)
+{
+    v[0] += s * F[0];
+    v[1] += s * F[1];
+    v[2] += s * F[2];
+    w[0] += u * T[0];
+    w[1] += u * T[1];
+    w[2] += u * T[2];
+}
+
+/* Row i's half kick (see pg_kick). */
 static inline void pg_row_kick(long long i, double s, double u, double* restrict v, double* restrict w,
                                const double* restrict F, const double* restrict T)
 {
-    double* vi = v + 3 * i;
-    double* wi = w + 3 * i;
-    vi[0] += s * F[0];
-    vi[1] += s * F[1];
-    vi[2] += s * F[2];
-    wi[0] += u * T[0];
-    wi[1] += u * T[1];
-    wi[2] += u * T[2];
+    pg_kick(v + 3 * i, w + 3 * i, s, u, F, T);
 }
 
-/* Row i's ``kicks`` half kicks (``s F``, ``u T``; 1 or 2, each rounded as pg_row_kick rounds
-   it, with v and w kept in registers between them) and drift. Raises ``peak``: [0] the largest
-   squared displacement from x0 (INFINITY if it is not finite: that forces a rebuild, which drops
-   the particle), [1] the largest squared speed of a drift (see State.sub_travel). */
+/* Row i's ``kicks`` half kicks (1 or 2, see pg_kick; v and w kept in registers between them)
+   and drift. Raises ``peak``: [0] the largest squared displacement from x0 (INFINITY if it is
+   not finite: that forces a rebuild, which drops the particle), [1] the largest squared speed
+   of a drift (see State.sub_travel). */
 static inline void pg_row_kicks_drift(long long i, int kicks, double dt, double s, double u,
                                       double* restrict peak, double* restrict x, double* restrict v,
                                       double* restrict w, const double* restrict x0,
@@ -55,21 +60,16 @@ static inline void pg_row_kicks_drift(long long i, int kicks, double dt, double 
     double* wi = w + 3 * i;
     double* xi = x + 3 * i;
     const double* oi = x0 + 3 * i;
-    double v0 = vi[0], v1 = vi[1], v2 = vi[2], w0 = wi[0], w1 = wi[1], w2 = wi[2];
-    for (int k = 0; k < kicks; k++) {
-        v0 += s * F[0];
-        v1 += s * F[1];
-        v2 += s * F[2];
-        w0 += u * T[0];
-        w1 += u * T[1];
-        w2 += u * T[2];
-    }
+    double vl[3] = {vi[0], vi[1], vi[2]}, wl[3] = {wi[0], wi[1], wi[2]};
+    for (int k = 0; k < kicks; k++)
+        pg_kick(vl, wl, s, u, F, T);
+    double v0 = vl[0], v1 = vl[1], v2 = vl[2];
     vi[0] = v0;
     vi[1] = v1;
     vi[2] = v2;
-    wi[0] = w0;
-    wi[1] = w1;
-    wi[2] = w2;
+    wi[0] = wl[0];
+    wi[1] = wl[1];
+    wi[2] = wl[2];
     double p0 = xi[0] + dt * v0, p1 = xi[1] + dt * v1, p2 = xi[2] + dt * v2;
     xi[0] = p0;
     xi[1] = p1;
