@@ -25,6 +25,8 @@ DEF SPIN = 1e-4    # seconds a waiting thread spins before it sleeps (when not c
 DEF TUNE_WINDOW = 0.02   # seconds: shortest window the Tuner times
 DEF TUNE_MIN = 0.1       # seconds between the Tuner's comparisons, at first and after a change
 DEF TUNE_MAX = 2.0       # ... at most
+DEF TUNE_AHEAD = 0.75    # the team's time per step, at most, against its guess of one thread's ...
+DEF TUNE_TRUSTED = 10.0  # ... for the Tuner to skip comparisons for up to this many seconds
 
 cdef enum:
     HOOKE = 0

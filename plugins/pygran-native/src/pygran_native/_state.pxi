@@ -45,12 +45,18 @@ cdef struct Tuner:
     # machine the team waits for a thread whose CPU another program holds, on a small system
     # for its own hand-offs: then one thread is faster. Results do not depend on the choice.
     # Rebuilds are left out of the windows: one in a window of a few steps would decide it.
+    # A comparison costs a window of the slower mode. It is left out while the team's window
+    # is well ahead (TUNE_AHEAD) of its guess of one thread's: the window with the loops'
+    # wall time replaced by the sum of the threads' CPU time in them (a thread kept from its
+    # CPU or waiting for a hand-off adds wall time but no CPU time), for up to TUNE_TRUSTED.
     bint solo, probing
     long long steps     # steps in the current window
     long long solo_steps  # steps the master ran alone, in all runs
     double elapsed      # seconds of the window in earlier runs (between runs is not timed)
     double rebuilt      # the rebuild timer when the window started
-    double start, next_probe, interval
+    double loops_wall   # the pair and particle loops' wall time when the window started
+    double loops_cpu    # ... and their threads' CPU time
+    double start, next_probe, interval, probed
     double per_step[2]  # seconds per step with the team [0] and solo [1], when last timed
 
 

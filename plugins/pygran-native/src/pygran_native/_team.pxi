@@ -71,16 +71,29 @@ cdef void team_task(void* owner, unsigned int epoch, int phase, int nblocks, int
     take(<State*>owner, epoch, phase, nblocks, tid)
 
 
+cdef double loops_cpu(const State* sim) noexcept nogil:
+    """The CPU seconds of all threads in the pair and particle loops, in all runs."""
+    cdef int t
+    cdef double total = 0.0
+    for t in range(sim.nthreads):
+        total += sim.cpu[PAD * t] + sim.cpu[PAD * t + 1]
+    return total
+
+
 cdef void tune(State* sim) noexcept nogil:
     """Before a step: time the window that ends here and choose how to run the next
     one (see Tuner)."""
     cdef Tuner* u = &sim.tuner
-    cdef double now = pg_now(), window
+    cdef double now = pg_now(), window, loops_wall = sim.timers[T_PAIRS] + sim.timers[T_PARTICLES]
+    cdef double one_thread
     cdef int probe
     if u.interval == 0.0:   # the first step with a team
         u.interval = TUNE_MIN
         u.next_probe = now + TUNE_WINDOW
         u.rebuilt = sim.timers[T_REBUILD]
+        u.loops_wall = loops_wall
+        u.loops_cpu = loops_cpu(sim)
+        u.probed = now
     window = u.elapsed + now - u.start - (sim.timers[T_REBUILD] - u.rebuilt)
     if u.steps > 0 and window >= TUNE_WINDOW:
         probe = 1 if u.solo else 0
@@ -94,12 +107,19 @@ cdef void tune(State* sim) noexcept nogil:
                 u.interval = min(2.0 * u.interval, TUNE_MAX)
             u.next_probe = now + u.interval
         elif now >= u.next_probe:
-            u.probing = True
-            u.solo = not u.solo
+            one_thread = window - (loops_wall - u.loops_wall) + (loops_cpu(sim) - u.loops_cpu)
+            if not u.solo and window < TUNE_AHEAD * one_thread and now < u.probed + TUNE_TRUSTED:
+                u.next_probe = now + u.interval
+            else:
+                u.probing = True
+                u.solo = not u.solo
+                u.probed = now
         u.steps = 0
         u.elapsed = 0.0
         u.start = now
         u.rebuilt = sim.timers[T_REBUILD]
+        u.loops_wall = loops_wall
+        u.loops_cpu = loops_cpu(sim)
     u.steps += 1
     u.solo_steps += u.solo
 
