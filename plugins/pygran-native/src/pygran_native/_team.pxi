@@ -80,6 +80,14 @@ cdef double loops_cpu(const State* sim) noexcept nogil:
     return total
 
 
+cdef inline void mark_window(State* sim, double loops_wall) noexcept nogil:
+    """Keep the timers the Tuner's window that starts now is measured from: rebuilds, and the
+    pair and particle loops' wall time (``loops_wall``) and CPU time."""
+    sim.tuner.rebuilt = sim.timers[T_REBUILD]
+    sim.tuner.loops_wall = loops_wall
+    sim.tuner.loops_cpu = loops_cpu(sim)
+
+
 cdef void tune(State* sim) noexcept nogil:
     """Before a step: time the window that ends here and choose how to run the next
     one (see Tuner)."""
@@ -90,10 +98,8 @@ cdef void tune(State* sim) noexcept nogil:
     if u.interval == 0.0:   # the first step with a team
         u.interval = TUNE_MIN
         u.next_probe = now + TUNE_WINDOW
-        u.rebuilt = sim.timers[T_REBUILD]
-        u.loops_wall = loops_wall
-        u.loops_cpu = loops_cpu(sim)
         u.probed = now
+        mark_window(sim, loops_wall)
     window = u.elapsed + now - u.start - (sim.timers[T_REBUILD] - u.rebuilt)
     if u.steps > 0 and window >= TUNE_WINDOW:
         probe = 1 if u.solo else 0
@@ -117,9 +123,7 @@ cdef void tune(State* sim) noexcept nogil:
         u.steps = 0
         u.elapsed = 0.0
         u.start = now
-        u.rebuilt = sim.timers[T_REBUILD]
-        u.loops_wall = loops_wall
-        u.loops_cpu = loops_cpu(sim)
+        mark_window(sim, loops_wall)
     u.steps += 1
     u.solo_steps += u.solo
 
