@@ -319,9 +319,9 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
 
 cdef struct Gather:
     # What the gather (gather_row, gather_sublists) reads of the state, copied once per block
-    # into batched_rows' frame. Read through State*, it was loaded again for every row, since a store through the flag bytes
-    # (nb_s) may alias the state; the copy made the settle scenario's settling phase about 4 %
-    # faster at N = 20,000.
+    # into batched_rows' frame. Read through State*, it was loaded again for every row, since a
+    # store through the flag bytes (nb_s) may alias the state; the copy made the settle
+    # scenario's settling phase about 4 % faster at N = 20,000.
     const double* x
     const double* v
     const double* w

@@ -30,8 +30,9 @@ rebuild):
   code ``nb_s`` (0..26, with the flags TOUCH and WRAP) and ``hs`` history values per pair:
   tangential displacement (3), the last normal force, and for Thornton-Ning the largest
   overlap, the unloading curvature radius and the plastic offset;
-- its sublist (``sb_k``, ``sb_i``, ``sb_at``, ``sb_n``): each row's listed pairs that were near contact when it was
-  built, which the batched pair loop visits instead of the whole list (see State.sb_k);
+- its sublist (``sb_k``, ``sb_i``, ``sb_at``, ``sb_n``): each row's listed pairs that were near
+  contact when it was built, which the batched pair loop visits instead of the whole list (see
+  State.sb_k);
 - wall list (CSR over particles): wall element ``wl_e`` and its ``whs = hs + 1`` history
   values: the contact's ``hs`` values and, for a plane, the side the contact started on
   (``+1`` along the plane's normal, ``-1`` against it, ``0`` while there is no contact);
