@@ -21,6 +21,7 @@ DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and
 
 DEF BLOCKS = 4     # blocks of the pair loop per thread (more threads than one): a thread
                    # kept from its core holds up at most 1 / (BLOCKS threads) of a pass
+DEF SPLIT = 4      # blocks of the particle loop per pair-loop block: its threads end closer
 DEF SPIN = 1e-4    # seconds a waiting thread spins before it sleeps (when not contended)
 DEF TUNE_WINDOW = 0.02   # seconds: shortest window the Tuner times
 DEF TUNE_MIN = 0.1       # seconds between the Tuner's comparisons, at first and after a change

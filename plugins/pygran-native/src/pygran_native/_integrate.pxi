@@ -102,11 +102,13 @@ cdef inline int halo_run(const State* c, int i, int hi, int first, int end, int 
 
 
 cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil:
-    """Rows [lo, hi) of the particle loop. The pair blocks whose near halo can hold row i
-    are among ``first`` to ``end - 1``: those ending at or before i whose rows have a near
-    partner at or after i (``last``); both bounds move forward with i. Without clumps, at a
-    step that kicks and fuses the next drift, runs of rows that no halo holds, and runs that
-    only the previous block's near halo holds, go through kick_drift.h in one call."""
+    """Rows [lo, hi) of the particle loop, inside one pair block (a run that halo_run finds
+    in a near halo stops only at hi or at the halo's end). The pair blocks whose near halo
+    can hold row i are among ``first`` to ``end - 1``: those ending at or before i whose rows
+    have a near partner at or after i (``last``); both bounds move forward with i. Without
+    clumps, at a step that kicks and fuses the next drift, runs of rows that no halo holds,
+    and runs that only the previous block's near halo holds, go through kick_drift.h in one
+    call."""
     cdef int i = lo, stop, first = 0, end = 0, nearmax = -1
     cdef bint plain = not c.nbody and c.kick and c.fuse
     cdef double* halo = NULL
@@ -181,8 +183,8 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
 
     The pair loop's blocks (see pair_row) fix the order of the sums and depend only on the
     state: results are deterministic for a given thread count, whichever thread runs a
-    block. The particle loop takes the same blocks of rows, so a thread that ran a block
-    of the pair loop usually sums and integrates the same rows.
+    block. The particle loop takes the same blocks of rows, each in SPLIT parts, so a thread
+    that ran a block of the pair loop usually sums and integrates the same rows.
     """
     cdef int t, T = sim.nthreads
     cdef double t0 = pg_now()
@@ -212,7 +214,7 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
         if update:
             servo_control(sim, dt)
     t0 = lap(sim, T_PAIRS, t0)
-    run_phase(sim, P_PARTICLES, sim.nblocks)
+    run_phase(sim, P_PARTICLES, sim.nblocks * SPLIT)
     if sim.nbody:
         body_loop(sim, P_BODIES)
     rebalance(sim)

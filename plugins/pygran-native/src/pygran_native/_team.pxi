@@ -32,12 +32,16 @@ cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
 
 
 cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid) noexcept nogil:
-    """Block b of a phase, run by thread ``tid``."""
+    """Block b of a phase, run by thread ``tid``: of the particle loop, part b % SPLIT of
+    pair block b // SPLIT."""
     cdef long long lo, hi
     if phase == P_PAIRS:
         pair_block(sim, b)
     elif phase == P_PARTICLES:
-        particle_block(sim, sim.pb[b], sim.pb[b + 1], tid)
+        lo = sim.pb[b // SPLIT]
+        hi = sim.pb[b // SPLIT + 1]
+        particle_block(sim, <int>(lo + (hi - lo) * (b % SPLIT) // SPLIT),
+                       <int>(lo + (hi - lo) * (b % SPLIT + 1) // SPLIT), tid)
     else:
         lo = <long long>sim.rows * b // nblocks
         hi = <long long>sim.rows * (b + 1) // nblocks
