@@ -49,9 +49,9 @@ cell-sorted rows (slabs of the domain): 1 for one thread, BLOCKS per thread othe
 bounds move after every step to where the work the loop counted (listed pairs, touching
 pairs, wall entries) splits evenly. Forces on a block's own rows go to a shared buffer,
 forces on later rows to the block's halo buffers (see Halo); the particle loop, over the same
-blocks (each in SPLIT parts), adds them up in block order. The bounds are part of the state and the order of every
-sum depends on the blocks only, so results are bitwise reproducible for a given thread count,
-whichever thread runs a block.
+blocks (each in SPLIT parts), adds them up in block order. The bounds are part of the state
+and the order of every sum depends on the blocks only, so results are bitwise reproducible
+for a given thread count, whichever thread runs a block.
 
 The threads are the solver's own (team.h), started at the first run and asleep between
 runs; the calling thread runs the time-step loop and hands each parallel pass out to the team
