@@ -31,24 +31,29 @@ cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
     pg_wait_done(sim.team, nblocks)
 
 
+cdef inline int part_start(int lo, int hi, int k, int parts) noexcept nogil:
+    """Where part k of rows [lo, hi) cut in ``parts`` equal parts starts (k = parts: hi)."""
+    return <int>(lo + <long long>(hi - lo) * k // parts)
+
+
 cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid) noexcept nogil:
     """Block b of a phase, run by thread ``tid``: of the particle loop, part b % SPLIT of
-    pair block b // SPLIT."""
-    cdef long long lo, hi
+    pair block b // SPLIT; of the other loops over rows, part b of ``nblocks``."""
+    cdef int lo, hi
     if phase == P_PAIRS:
         pair_block(sim, b)
     elif phase == P_PARTICLES:
         lo = sim.pb[b // SPLIT]
         hi = sim.pb[b // SPLIT + 1]
-        particle_block(sim, <int>(lo + (hi - lo) * (b % SPLIT) // SPLIT),
-                       <int>(lo + (hi - lo) * (b % SPLIT + 1) // SPLIT), tid)
+        particle_block(sim, part_start(lo, hi, b % SPLIT, SPLIT), part_start(lo, hi, b % SPLIT + 1, SPLIT),
+                       tid)
     else:
-        lo = <long long>sim.rows * b // nblocks
-        hi = <long long>sim.rows * (b + 1) // nblocks
+        lo = part_start(0, sim.rows, b, nblocks)
+        hi = part_start(0, sim.rows, b + 1, nblocks)
         if phase == P_DRIFT:
-            drift_block(sim, <int>lo, <int>hi, tid)
+            drift_block(sim, lo, hi, tid)
         else:
-            rebuild_rows(sim, phase, <int>lo, <int>hi, b)
+            rebuild_rows(sim, phase, lo, hi, b)
 
 
 cdef void take(State* sim, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
