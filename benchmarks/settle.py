@@ -3,26 +3,31 @@
     python benchmarks/settle.py --engine native --n 20000 --threads 1
     python benchmarks/settle.py --engine liggghts --n 20000
     python benchmarks/settle.py --engine native --against liggghts --n 20000 --threads 1 --repeats 3
+    python benchmarks/settle.py --engine native --against liggghts-bare --n 20000 --threads 1 --repeats 3
 
 Prints particle-steps per second (N x steps / wall seconds of the loop) for the settling
 phase (8,000 steps from the lattice) and the dense-bed phase (4,000 more), the peak memory
-and the mean coordination number, then one JSON line:
+and the mean coordination number (not for ``liggghts-bare``), then one JSON line:
 ``{"engine", "N", "threads", "settle_pss", "bed_pss", "peak_rss_mb", "coordination"}``.
 
 With ``--against``, the two engines run alternately, each run in a fresh process with the
 same ``--threads`` (threads, or MPI ranks for LIGGGHTS), ``--repeats`` rounds; it prints
 each round's ratios ``--engine`` / ``--against`` per phase (the host's speed drifts between
 rounds, not within one), their median and the ratio of each engine's best, then one JSON
-line. LIGGGHTS runs through PyGran here; ``liggghts_overhead.py`` measures what that adds
-against the bare binary (1.3 % on one rank at N = 20,000), by which a ratio against the
-bare binary is lower.
+line. ``liggghts`` runs LIGGGHTS through PyGran. ``liggghts-bare`` runs the bare ``liggghts``
+binary (``mpirun`` for more ranks) on the commands PyGran generated for the scenario, with its
+two runs as a LIGGGHTS user writes them (``run 8000``, ``run 4000``), and takes each phase's
+time from LIGGGHTS' own ``Loop time`` line: what the binary spends stepping, without start-up,
+particle creation or the set-up of a run.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -37,9 +42,13 @@ from pygran_core.analysis.equilibrium import Neighbors
 from pygran_core.testing.validation import settle_setup
 
 SHAPES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
+PHASE_STEPS = (8000, 4000)
+BARE = "liggghts-bare"
 
 
 def run(engine: str, n: int, threads: int | None) -> dict:
+    if engine == BARE:
+        return run_bare(n, threads or 1)
     # threads=None: the engine's default (settle_setup's own default is one thread)
     parallel = {"nprocs": threads} if engine == "liggghts" else {"threads": threads}
     with tempfile.TemporaryDirectory() as output:
@@ -49,7 +58,7 @@ def run(engine: str, n: int, threads: int | None) -> dict:
             assert len(sim.extractIds()) == n
             workers = sim.engine._facts().get("threads", threads or 1)
             timings = []
-            for steps in (8000, 4000):
+            for steps in PHASE_STEPS:
                 start = time.perf_counter()
                 sim.run(steps)
                 timings.append(n * steps / (time.perf_counter() - start))
@@ -71,6 +80,45 @@ def run(engine: str, n: int, threads: int | None) -> dict:
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "coordination": float(Neighbors(bed).coon.mean()),
         "create_s": created,
+    }
+
+
+def run_bare(n: int, ranks: int) -> dict:
+    """The scenario on the bare ``liggghts`` binary: the commands PyGran's LIGGGHTS engine
+    generates for it (``in.pygran``), then the two runs; each phase's particle-steps per
+    second from its ``Loop time`` line."""
+    from pygran_liggghts.session import mpirun_prefix
+
+    binary = shutil.which("liggghts")
+    if binary is None:
+        raise SystemExit("liggghts-bare needs the liggghts binary: apt-get install -y liggghts")
+    with tempfile.TemporaryDirectory() as output:
+        work = Path(output)
+        with settle_setup("liggghts", work / "pygran", SHAPES[n], nprocs=ranks):
+            pass  # closing writes the last queued commands
+        generated = (work / "pygran" / "in.pygran").read_text().splitlines()
+        lines = [line for line in generated if not line.startswith("run ")]
+        (work / "in.bare").write_text("\n".join([*lines, *(f"run {s}" for s in PHASE_STEPS)]) + "\n")
+        launcher = mpirun_prefix(ranks) if ranks > 1 else []
+        log = work / "bare.log"
+        subprocess.run(
+            [*launcher, binary, "-in", str(work / "in.bare"), "-screen", str(log), "-log", "none"],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
+        loops = re.findall(r"^Loop time of (\S+) on \d+ procs for (\d+) steps", log.read_text(), re.M)
+    if [int(steps) for _, steps in loops] != list(PHASE_STEPS):
+        raise SystemExit(f"expected loop times of runs {PHASE_STEPS} in LIGGGHTS' log, found {loops}")
+    settle, bed = (n * int(steps) / float(seconds) for seconds, steps in loops)
+    return {
+        "engine": BARE,
+        "N": n,
+        "threads": ranks,
+        "settle_pss": settle,
+        "bed_pss": bed,
+        "peak_rss_mb": None,
+        "coordination": None,
+        "create_s": None,
     }
 
 
@@ -142,10 +190,11 @@ def main() -> None:
     print(f"{args.engine}: N = {args.n}, threads/ranks = {result['threads']}")
     print(f"  settle    {result['settle_pss'] / 1e6:6.2f} M particle-steps/s")
     print(f"  dense bed {result['bed_pss'] / 1e6:6.2f} M particle-steps/s")
-    print(
-        f"  peak RSS  {result['peak_rss_mb']:.0f} MB of this process; "
-        f"coordination {result['coordination']:.2f}"
-    )
+    if result["engine"] != BARE:
+        print(
+            f"  peak RSS  {result['peak_rss_mb']:.0f} MB of this process; "
+            f"coordination {result['coordination']:.2f}"
+        )
     print(
         json.dumps(
             {
