@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shutil
 import subprocess
 import sys
@@ -30,8 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
-SIZES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
-PHASES = (8000, 4000)
+from scenario import SIZES, STEPS, bare_command, bare_input, loop_times
 
 
 def settle(n: int, nprocs: int, output: str) -> None:
@@ -39,26 +37,15 @@ def settle(n: int, nprocs: int, output: str) -> None:
     from pygran_core.testing.validation import settle_setup
 
     with settle_setup("liggghts", Path(output), SIZES[n], nprocs=nprocs, progress=False) as sim:
-        for steps in PHASES:
+        for steps in STEPS:
             sim.run(steps)
-
-
-def bare_input(generated: Path, target: Path) -> None:
-    """``generated`` without its ``run`` lines, followed by the script's runs."""
-    lines = [line for line in generated.read_text().splitlines() if not line.startswith("run ")]
-    target.write_text("\n".join([*lines, *(f"run {steps}" for steps in PHASES)]) + "\n")
-
-
-def loop_time(log: Path) -> float:
-    """Seconds LIGGGHTS spent in its run loops, from its screen output."""
-    return sum(float(t) for t in re.findall(r"^Loop time of (\S+)", log.read_text(), re.M))
 
 
 def timed(command: list[str], log: Path, env: dict[str, str] | None = None) -> tuple[float, float]:
     """Wall seconds of ``command`` as a whole process, and its loop time from ``log``."""
     start = time.perf_counter()
     subprocess.run(command, check=True, stdout=subprocess.DEVNULL, env=env)
-    return time.perf_counter() - start, loop_time(log)
+    return time.perf_counter() - start, sum(seconds for _, seconds in loop_times(log))
 
 
 def main() -> None:
@@ -74,12 +61,10 @@ def main() -> None:
     if args.one:
         settle(args.n, args.nprocs, args.one)
         return
-    from pygran_liggghts.session import mpirun_prefix, worker_env
+    from pygran_liggghts.session import worker_env
 
     work = Path(tempfile.mkdtemp(prefix="liggghts-overhead-"))
     output = work / "settle"
-    launcher = mpirun_prefix(args.nprocs) if args.nprocs > 1 else []
-    binary = shutil.which("liggghts") or "/usr/bin/liggghts"
     script = [sys.executable, __file__, "--n", str(args.n), "--nprocs", str(args.nprocs), "--one"]
     bare_log = work / "bare.log"
     load = [os.getloadavg()[0]]
@@ -90,7 +75,7 @@ def main() -> None:
             bare_input(output / "in.pygran", work / "in.bare")
         bare.append(
             timed(
-                [*launcher, binary, "-in", str(work / "in.bare"), "-screen", str(bare_log), "-log", "none"],
+                bare_command(work / "in.bare", bare_log, args.nprocs),
                 bare_log,
                 worker_env() if args.worker_mpi else None,
             )

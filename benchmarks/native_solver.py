@@ -26,8 +26,8 @@ import time
 
 import numpy as np
 from pygran_native.solver import Solver
+from scenario import SIZES, STEPS
 
-SIZES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
 RADIUS, SPACING, DT = 1e-3, 2.2e-3, 1e-5
 
 
@@ -74,14 +74,13 @@ def measure(n: int, threads: int, chunk: int) -> dict:
     baseline = rss_bytes()
     solver = scenario(box, x, threads)
     solver.run(0, DT)
-    settle = advance(solver, 8000, chunk)
-    bed = advance(solver, 4000, chunk)
+    settle, bed = (advance(solver, steps, chunk) for steps in STEPS)
     grown = rss_bytes() - baseline
     return {
         "N": solver.n,
         "threads": threads,
-        "settle_pss": n * 8000 / settle["wall"],
-        "bed_pss": n * 4000 / bed["wall"],
+        "settle_pss": n * STEPS[0] / settle["wall"],
+        "bed_pss": n * STEPS[1] / bed["wall"],
         "settle_timings": settle,
         "bed_timings": bed,
         "coordination": 2 * len(solver.contacts()[0]) / solver.n,

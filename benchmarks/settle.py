@@ -25,9 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import resource
-import shutil
 import statistics
 import subprocess
 import sys
@@ -36,13 +34,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scenario import SIZES, STEPS, bare_command, bare_input, loop_times
 
 from pygran_core.analysis import Particles
 from pygran_core.analysis.equilibrium import Neighbors
 from pygran_core.testing.validation import settle_setup
 
-SHAPES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
-PHASE_STEPS = (8000, 4000)
 BARE = "liggghts-bare"
 
 
@@ -53,12 +50,12 @@ def run(engine: str, n: int, threads: int | None) -> dict:
     parallel = {"nprocs": threads} if engine == "liggghts" else {"threads": threads}
     with tempfile.TemporaryDirectory() as output:
         start = time.perf_counter()
-        with settle_setup(engine, Path(output), SHAPES[n], **parallel) as sim:
+        with settle_setup(engine, Path(output), SIZES[n], **parallel) as sim:
             created = time.perf_counter() - start
             assert len(sim.extractIds()) == n
             workers = sim.engine._facts().get("threads", threads or 1)
             timings = []
-            for steps in PHASE_STEPS:
+            for steps in STEPS:
                 start = time.perf_counter()
                 sim.run(steps)
                 timings.append(n * steps / (time.perf_counter() - start))
@@ -84,32 +81,20 @@ def run(engine: str, n: int, threads: int | None) -> dict:
 
 
 def run_bare(n: int, ranks: int) -> dict:
-    """The scenario on the bare ``liggghts`` binary: the commands PyGran's LIGGGHTS engine
-    generates for it (``in.pygran``), then the two runs; each phase's particle-steps per
-    second from its ``Loop time`` line."""
-    from pygran_liggghts.session import mpirun_prefix
-
-    binary = shutil.which("liggghts")
-    if binary is None:
-        raise SystemExit("liggghts-bare needs the liggghts binary: apt-get install -y liggghts")
+    """The scenario on the bare ``liggghts`` binary (scenario.bare_input: the commands
+    PyGran's LIGGGHTS engine generates for it, then its two runs); each phase's particle-steps
+    per second from its ``Loop time`` line."""
     with tempfile.TemporaryDirectory() as output:
         work = Path(output)
-        with settle_setup("liggghts", work / "pygran", SHAPES[n], nprocs=ranks):
+        with settle_setup("liggghts", work / "pygran", SIZES[n], nprocs=ranks):
             pass  # closing writes the last queued commands
-        generated = (work / "pygran" / "in.pygran").read_text().splitlines()
-        lines = [line for line in generated if not line.startswith("run ")]
-        (work / "in.bare").write_text("\n".join([*lines, *(f"run {s}" for s in PHASE_STEPS)]) + "\n")
-        launcher = mpirun_prefix(ranks) if ranks > 1 else []
+        bare_input(work / "pygran" / "in.pygran", work / "in.bare")
         log = work / "bare.log"
-        subprocess.run(
-            [*launcher, binary, "-in", str(work / "in.bare"), "-screen", str(log), "-log", "none"],
-            check=True,
-            stdout=subprocess.DEVNULL,
-        )
-        loops = re.findall(r"^Loop time of (\S+) on \d+ procs for (\d+) steps", log.read_text(), re.M)
-    if [int(steps) for _, steps in loops] != list(PHASE_STEPS):
-        raise SystemExit(f"expected loop times of runs {PHASE_STEPS} in LIGGGHTS' log, found {loops}")
-    settle, bed = (n * int(steps) / float(seconds) for seconds, steps in loops)
+        subprocess.run(bare_command(work / "in.bare", log, ranks), check=True, stdout=subprocess.DEVNULL)
+        loops = loop_times(log)
+    if [steps for steps, _ in loops] != list(STEPS):
+        raise SystemExit(f"expected loop times of runs {STEPS} in LIGGGHTS' log, found {loops}")
+    settle, bed = (n * steps / seconds for steps, seconds in loops)
     return {
         "engine": BARE,
         "N": n,
@@ -172,7 +157,7 @@ def main() -> None:
     parser.add_argument("--engine", default="native")
     parser.add_argument("--against", help="a second engine: run both alternately and print the ratios")
     parser.add_argument("--repeats", type=int, default=3, help="rounds with --against")
-    parser.add_argument("--n", type=int, default=5000, choices=sorted(SHAPES))
+    parser.add_argument("--n", type=int, default=5000, choices=sorted(SIZES))
     parser.add_argument("--threads", type=int, help="threads (native, yade) or MPI ranks (liggghts)")
     args = parser.parse_args()
     if args.against:

@@ -25,7 +25,8 @@ import sys
 import time
 
 from pygran_native.solver import default_threads
-from settle import SHAPES, run
+from scenario import SIZES
+from settle import run
 
 PHASES = ("settle_pss", "bed_pss")
 
@@ -65,7 +66,7 @@ def measure(n: int, reps: int, pin: bool) -> dict[tuple[bool, str], dict[str, li
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=20000, choices=sorted(SHAPES))
+    parser.add_argument("--n", type=int, default=20000, choices=sorted(SIZES))
     parser.add_argument("--reps", type=int, default=2, help="interleaved repetitions of the four cases")
     parser.add_argument("--pin", action="store_true", help="pin the busy loop to one CPU")
     args = parser.parse_args()
