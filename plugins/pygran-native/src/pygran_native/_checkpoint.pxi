@@ -98,6 +98,8 @@ cdef void restore(Core core, state) except *:
         find_partners(&core.s, i)
     prefix_last(&core.s)
     core.s.sub_build = 1
+    core.s.travel = INFINITY   # not saved: drifts measure until the next rebuild
+    core.s.measure = 1
 
 
 cdef void restore_bodies(Core core, state) except *:

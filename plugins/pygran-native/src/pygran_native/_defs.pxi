@@ -85,6 +85,7 @@ cdef enum:
     P_FILL = 9
     P_BODIES = 10      # clumps: sum their spheres' forces, kick (and with fuse drift), see body_row
     P_BODY_DRIFT = 11  # clumps: first half kick and drift
+    P_DISPLACEMENT = 12  # the largest displacement since the rebuild, of a drift that did not measure it
 
 # A stress mesh's values (NSLOT doubles): the particles' force on it is summed each step (LIGGGHTS
 # mesh/surface/stress); a servo moves it by LIGGGHTS' controller (mesh/surface/stress/servo,

@@ -1,12 +1,18 @@
 # Integration: the particle loop (summing the pair loop's buffers, gravity, viscous
 # forces, velocity Verlet kicks) and the drift.
 
+cdef inline const double* origins(const State* c) noexcept nogil:
+    """x0 for a drift that measures displacements, else NULL (see State.measure)."""
+    return c.x0 if c.measure else NULL
+
+
 cdef inline void drift_row(const State* c, int i, int tid, const double* F, const double* T) noexcept nogil:
-    """First half kick (force F, torque T) and drift of particle i; its squared displacement
-    since the rebuild raises thread ``tid``'s maximum (per-thread maxima are a cache line apart)."""
+    """First half kick (force F, torque T) and drift of particle i; its squared speed and, if
+    measured, displacement since the rebuild raise thread ``tid``'s maxima (per-thread maxima
+    are a cache line apart)."""
     cdef double s, u
     pg_row_kick_factors(i, c.dt, c.m, c.r, &s, &u)
-    pg_row_drift(i, c.dt, s, u, &c.tmax[PAD * tid], c.x, c.v, c.w, c.x0, F, T)
+    pg_row_drift(i, c.dt, s, u, &c.tmax[PAD * tid], c.x, c.v, c.w, origins(c), F, T)
 
 
 cdef inline void add_halos(const State* c, int i, int first, int end, double* F, double* T) noexcept nogil:
@@ -61,7 +67,7 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
     if member:
         return
     if c.fuse:
-        pg_row_kick_drift(i, c.dt, &c.tmax[PAD * tid], c.m, c.r, c.x, c.v, c.w, c.x0, F, T)
+        pg_row_kick_drift(i, c.dt, &c.tmax[PAD * tid], c.m, c.r, c.x, c.v, c.w, origins(c), F, T)
     elif c.kick:
         pg_row_kick_factors(i, c.dt, c.m, c.r, &s, &u)
         pg_row_kick(i, s, u, c.v, c.w, F, T)
@@ -71,7 +77,7 @@ cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid, double
     """Rows [lo, hi) of the particle loop through kick_drift.h (see particle_block): ``halo``
     NULL, or the entry for row lo of the one halo that holds them."""
     pg_kick_drift(lo, hi, c.dt, &c.tmax[PAD * tid], c.grav, c.m, c.r, c.type, c.visc, c.buf, c.x, c.v, c.w,
-                  c.x0, halo)
+                  origins(c), halo)
 
 
 cdef inline int halo_run(const State* c, int i, int hi, int first, int end, int nearmax,
@@ -136,6 +142,47 @@ cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:
         drift_row(c, i, t, &c.f[3 * i], &c.t[3 * i])
 
 
+cdef void displacement_block(const State* c, int lo, int hi, int tid) noexcept nogil:
+    """Rows [lo, hi) of a pass measuring the displacements (see displacement)."""
+    cdef int i
+    for i in range(lo, hi):
+        pg_row_displacement(i, &c.tmax[PAD * tid], c.x, c.x0)
+
+
+cdef inline bint surely_within(const State* sim, double travel, double dw) noexcept nogil:
+    """Whether no particle can have moved more than ``0.5 skin - dw`` since the last rebuild
+    if none moved further than ``travel`` in its drifts: with a margin for the round-off of
+    summing travel and of the positions' updates (at most 4 ulp of the largest coordinate per
+    step, particles being in the box or within a skin of it)."""
+    cdef double xmag = sim.skin + travel
+    cdef int d
+    for d in range(3):
+        xmag = max(xmag, fabs(sim.lo[d]) + sim.skin + travel, fabs(sim.hi[d]) + sim.skin + travel)
+    return travel * (1.0 + 1e-6) + (sim.since + 1) * 4.0 * DBL_EPSILON * xmag + dw <= 0.5 * sim.skin
+
+
+cdef double displacement(State* sim, double dw) noexcept nogil:
+    """The largest displacement since the last rebuild, after a drift, or a value that like it
+    leaves ``displacement + dw`` at most half the skin. A drift that did not measure it
+    (``measure`` off) leaves travel to prove that, or a pass over the particles to measure."""
+    cdef double t0
+    if sim.measure:
+        return max_displacement(sim)
+    if surely_within(sim, sim.travel, dw):
+        return 0.0
+    t0 = pg_now()
+    parallel_rows(sim, P_DISPLACEMENT, sim.n)
+    lap(sim, T_DRIFT, t0)
+    return max_displacement(sim)
+
+
+cdef inline void plan_measure(State* sim, double dt, double dw) noexcept nogil:
+    """Whether the next drift measures displacements: with clumps always (their spheres move
+    with their bodies), else unless travel, even with twice the last drift's speed added,
+    proves no rebuild due (else displacement measures them in a pass of its own)."""
+    sim.measure = sim.nbody > 0 or not surely_within(sim, sim.travel + 2.0 * dt * sim.vlast, dw)
+
+
 cdef double max_displacement(State* sim) noexcept nogil:
     """The largest displacement since the last rebuild."""
     cdef int i
@@ -164,8 +211,8 @@ cdef inline void reset_peaks(State* sim) noexcept nogil:
         sim.tmax[PAD * t + 1] = 0.0
 
 
-cdef double drift(State* sim, double dt) noexcept nogil:
-    """First half kick and drift; the largest displacement since the last rebuild."""
+cdef void drift(State* sim, double dt) noexcept nogil:
+    """First half kick and drift."""
     cdef double t0 = pg_now()
     sim.dt = dt
     reset_peaks(sim)
@@ -173,7 +220,6 @@ cdef double drift(State* sim, double dt) noexcept nogil:
     if sim.nbody:
         body_loop(sim, P_BODY_DRIFT)
     lap(sim, T_DRIFT, t0)
-    return max_displacement(sim)
 
 
 cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexcept nogil:
@@ -249,20 +295,28 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
     for s in range(nsteps):
         if sim.nthreads > 1:
             tune(sim)
-        dp = max_displacement(sim) if fused else drift(sim, dt)
-        sim.sub_travel += dt * max_speed(sim)
+        if not fused:
+            plan_measure(sim, dt, 0.0)
+            drift(sim, dt)
+        sim.vlast = max_speed(sim)
+        sim.sub_travel += dt * sim.vlast
+        sim.travel += dt * sim.vlast
+        sim.since += 1
         sim.step += 1
         sim.time = sim.t_base + (sim.step - sim.step_base) * dt
         t1 = pg_now()
         servo_move(sim, dt)
         dw = move_walls(sim)
         lap(sim, T_WALLS, t1)
+        dp = displacement(sim, dw)
         if dp + dw > 0.5 * sim.skin:
             if rebuild(sim) < 0:
                 return -1
         if not sim.sub_travel < 0.45 * SUB_SKIN * sim.skin:   # 0.5 less a margin for round-off
             sim.sub_build = 1
         fused = s + 1 < nsteps   # the last step ends after its second half kick
+        if fused:
+            plan_measure(sim, dt, dw)
         if forces(sim, dt, True, True, fused) < 0:
             return -1
     sim.tuner.elapsed += lap(sim, T_RUN, t0) - sim.tuner.start

@@ -486,6 +486,8 @@ cdef int rebuild(State* sim) noexcept nogil:
     lap(sim, T_REBUILD, t0)
     sim.rebuilds += 1
     sim.sub_build = 1
+    sim.travel = 0.0
+    sim.since = 0
     return 0
 
 

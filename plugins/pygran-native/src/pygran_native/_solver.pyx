@@ -62,6 +62,7 @@ pass by at most the block it is in, and threads with nothing to do sleep instead
 """
 
 from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
+from libc.float cimport DBL_EPSILON
 from libc.stdlib cimport malloc, calloc, realloc, free
 from libc.string cimport memcpy, memmove, memset
 from libc.stdint cimport int64_t, uint8_t
@@ -100,6 +101,7 @@ cdef extern from "kick_drift.h":
                        const double* visc, double* buf, const double* v, double* F, double* T) noexcept nogil
     void pg_row_drift(long long i, double dt, double s, double u, double* peak, double* x, double* v, double* w,
                       const double* x0, const double* F, const double* T) noexcept nogil
+    void pg_row_displacement(long long i, double* peak, const double* x, const double* x0) noexcept nogil
     void pg_row_kick(long long i, double s, double u, double* v, double* w, const double* F,
                      const double* T) noexcept nogil
     void pg_row_kick_factors(long long i, double dt, const double* m, const double* r, double* s,
@@ -262,6 +264,8 @@ cdef class Core:
         self.s.whs = 5
         self.s.model = HERTZ
         self.s.dirty = 1
+        self.s.travel = INFINITY
+        self.s.measure = 1
         self.s.nb_start = <int*>calloc(1, sizeof(int))
         self.s.ob_start = <int*>calloc(1, sizeof(int))
         self.s.wl_start = <int*>calloc(1, sizeof(int))

@@ -52,6 +52,8 @@ cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid) n
         hi = part_start(0, sim.rows, b + 1, nblocks)
         if phase == P_DRIFT:
             drift_block(sim, lo, hi, tid)
+        elif phase == P_DISPLACEMENT:
+            displacement_block(sim, lo, hi, tid)
         else:
             rebuild_rows(sim, phase, lo, hi, b)
 

@@ -47,10 +47,23 @@ static inline void pg_row_kick(long long i, double s, double u, double* restrict
     pg_kick(v + 3 * i, w + 3 * i, s, u, F, T);
 }
 
+/* Raises peak[0] to row i's squared displacement from x0 (INFINITY if it is not finite: that
+   forces a rebuild, which drops the particle). */
+static inline void pg_row_displacement(long long i, double* restrict peak, const double* restrict x,
+                                       const double* restrict x0)
+{
+    const double* xi = x + 3 * i;
+    const double* oi = x0 + 3 * i;
+    double q0 = xi[0] - oi[0], q1 = xi[1] - oi[1], q2 = xi[2] - oi[2];
+    double dd = ((0.0 + q0 * q0) + q1 * q1) + q2 * q2;
+    if (!(dd <= peak[0]))
+        peak[0] = isfinite(dd) ? dd : INFINITY;
+}
+
 /* Row i's ``kicks`` half kicks (1 or 2, see pg_kick; v and w kept in registers between them)
-   and drift. Raises ``peak``: [0] the largest squared displacement from x0 (INFINITY if it is
-   not finite: that forces a rebuild, which drops the particle), [1] the largest squared speed
-   of a drift (see State.sub_travel). */
+   and drift. Raises ``peak``: [0] with x0 (not NULL) the largest squared displacement (see
+   pg_row_displacement), [1] the largest squared speed of a drift (INFINITY if it is not
+   finite; see State.travel and State.sub_travel). */
 static inline void pg_row_kicks_drift(long long i, int kicks, double dt, double s, double u,
                                       double* restrict peak, double* restrict x, double* restrict v,
                                       double* restrict w, const double* restrict x0,
@@ -59,7 +72,6 @@ static inline void pg_row_kicks_drift(long long i, int kicks, double dt, double 
     double* vi = v + 3 * i;
     double* wi = w + 3 * i;
     double* xi = x + 3 * i;
-    const double* oi = x0 + 3 * i;
     double vl[3] = {vi[0], vi[1], vi[2]}, wl[3] = {wi[0], wi[1], wi[2]};
     for (int k = 0; k < kicks; k++)
         pg_kick(vl, wl, s, u, F, T);
@@ -74,12 +86,11 @@ static inline void pg_row_kicks_drift(long long i, int kicks, double dt, double 
     xi[0] = p0;
     xi[1] = p1;
     xi[2] = p2;
-    double q0 = p0 - oi[0], q1 = p1 - oi[1], q2 = p2 - oi[2];
-    double dd = ((0.0 + q0 * q0) + q1 * q1) + q2 * q2;
-    if (!(dd <= peak[0]))
-        peak[0] = isfinite(dd) ? dd : INFINITY;
+    if (x0)
+        pg_row_displacement(i, peak, x, x0);
     double vv = (v0 * v0 + v1 * v1) + v2 * v2;
-    peak[1] = vv > peak[1] ? vv : peak[1];
+    if (!(vv <= peak[1]))
+        peak[1] = isfinite(vv) ? vv : INFINITY;
 }
 
 /* Row i's first half kick and drift (see pg_row_kicks_drift). */
@@ -111,7 +122,7 @@ static inline void pg_row_kick_drift(long long i, double dt, double* restrict pe
     pg_row_kicks_drift(i, 2, dt, s, u, peak, x, v, w, x0, F, T);
 }
 
-/* Rows [lo, hi) (see pg_row_kick_drift for ``peak``) that no halo holds, or with ``halo``
+/* Rows [lo, hi) (see pg_row_kick_drift for ``peak`` and x0) that no halo holds, or with ``halo``
    (not NULL) that one halo holds, from its entry for row lo (added after the shared buffer, as
    particle_row adds it, and cleared). */
 static void pg_kick_drift(int lo, int hi, double dt, double* restrict peak, const double* restrict grav,
