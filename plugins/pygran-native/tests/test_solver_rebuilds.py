@@ -75,6 +75,13 @@ def test_lists_are_rebuilt_at_the_first_step_past_half_the_skin(threads):
             replica.v = v.copy()
         s.run(steps, DT)
         replica.run(steps)
+        state = s.get_state()
+        by_id = np.argsort(state["core_id"])
         assert s.rebuilds == replica.rebuilds
-        assert np.array_equal(s.positions[np.argsort(s.ids)], replica.x)
+        assert np.array_equal(state["core_x0"].reshape(-1, 3)[by_id], replica.x0)  # the last one's step
+        assert np.array_equal(s.positions, replica.x)
     assert s.lost == 0 and replica.rebuilds > 30
+    # all three ways of deciding were taken: a drift that measured, a pass after one that did
+    # not, and speeds that ruled a rebuild out
+    measured, passes = s.timings["measured_drifts"], s.timings["displacement_passes"]
+    assert measured > 0 and passes > 0 and measured + passes < s.step / 2

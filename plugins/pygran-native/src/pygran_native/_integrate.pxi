@@ -167,9 +167,11 @@ cdef double displacement(State* sim, double dw) noexcept nogil:
     (``measure`` off) leaves travel to prove that, or a pass over the particles to measure."""
     cdef double t0
     if sim.measure:
+        sim.measured += 1
         return max_displacement(sim)
     if surely_within(sim, sim.travel, dw):
         return 0.0
+    sim.passes += 1
     t0 = pg_now()
     parallel_rows(sim, P_DISPLACEMENT, sim.n)
     lap(sim, T_DRIFT, t0)
@@ -178,8 +180,9 @@ cdef double displacement(State* sim, double dw) noexcept nogil:
 
 cdef inline void plan_measure(State* sim, double dt, double dw) noexcept nogil:
     """Whether the next drift measures displacements: with clumps always (their spheres move
-    with their bodies), else unless travel, even with twice the last drift's speed added,
-    proves no rebuild due (else displacement measures them in a pass of its own)."""
+    with their bodies), else unless travel, even with twice the last drift's speed added, and
+    the walls' move ``dw`` prove no rebuild due (when speeds or walls outgrow that, displacement
+    measures in a pass of its own)."""
     sim.measure = sim.nbody > 0 or not surely_within(sim, sim.travel + 2.0 * dt * sim.vlast, dw)
 
 
@@ -296,17 +299,18 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
         if sim.nthreads > 1:
             tune(sim)
         if not fused:
-            plan_measure(sim, dt, 0.0)
+            plan_measure(sim, dt, sim.dw_last)
             drift(sim, dt)
         sim.vlast = max_speed(sim)
         sim.sub_travel += dt * sim.vlast
-        sim.travel += dt * sim.vlast
+        sim.travel += fabs(dt) * sim.vlast
         sim.since += 1
         sim.step += 1
         sim.time = sim.t_base + (sim.step - sim.step_base) * dt
         t1 = pg_now()
         servo_move(sim, dt)
         dw = move_walls(sim)
+        sim.dw_last = dw
         lap(sim, T_WALLS, t1)
         dp = displacement(sim, dw)
         if dp + dw > 0.5 * sim.skin:

@@ -828,10 +828,14 @@ cdef class Core:
         the pair and particle loops (``pairs_cpu``, ``particles_cpu``); the steps the master
         ran without the team (``solo_steps``); how often a thread moved off a teammate's CPU
         (``moves``, see team.h); the pair loop's passes that built the sublist (``sublist_builds``,
-        see State.sb_k)."""
+        see State.sb_k); the steps whose drift measured displacements (``measured_drifts``) and
+        the passes that measured them after a drift that did not (``displacement_passes``, see
+        State.travel)."""
         out = {name: self.s.timers[k] for k, name in enumerate(TIMERS)}
         out["solo_steps"] = self.s.tuner.solo_steps
         out["sublist_builds"] = self.s.sub_builds
+        out["measured_drifts"] = self.s.measured
+        out["displacement_passes"] = self.s.passes
         out["moves"] = pg_moves(self.s.team) if self.s.team else 0
         out["pairs_cpu"] = np.array([self.s.cpu[PAD * t] for t in range(self.s.nthreads)])
         out["particles_cpu"] = np.array([self.s.cpu[PAD * t + 1] for t in range(self.s.nthreads)])

@@ -183,14 +183,16 @@ cdef struct State:
     double *visc
     double *tmax       # per thread (PAD apart): largest squared displacement, then squared speed
                        # (see pg_row_drift)
-    # the displacement check: no particle has moved further since the last rebuild than
-    # ``travel`` (the drifts' largest speeds times dt, summed over its ``since`` steps) and
+    # the displacement check: no free sphere has moved further since the last rebuild than
+    # ``travel`` (the drifts' largest speeds times |dt|, summed over its ``since`` steps) and
     # round-off; while that proves no rebuild due, a drift need not measure each particle's
-    # displacement from x0 (``measure``, see displacement)
+    # displacement from x0 (``measure``, see displacement; with clumps it always does)
     double travel
     double vlast       # the largest speed of the last drift
+    double dw_last     # the walls' largest move since the rebuild, at the last step
     long long since
     int measure
+    long long measured, passes   # steps whose drift measured, and passes that measured after one
     int nblocks        # blocks of the pair loop
     int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
     int *work          # work of each row in the last pair loop (see row_work)

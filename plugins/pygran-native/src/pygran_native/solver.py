@@ -913,7 +913,8 @@ class Solver:
     @property
     def timings(self) -> dict:
         """Seconds spent in :meth:`run` so far, by phase (wall clock): ``run`` (all of it),
-        ``drift`` (first half kicks not fused with the previous step), ``walls`` (moving the
+        ``drift`` (first half kicks not fused with the previous step, and passes measuring
+        displacements), ``walls`` (moving the
         meshes), ``pairs`` (pair and wall forces), ``particles`` (summing them, gravity,
         viscous forces, integration), ``rebuild`` and its parts ``rebuild_cells``, ``rebuild_sort``,
         ``rebuild_permute``, ``rebuild_count``, ``rebuild_fill``; the CPU seconds of each
@@ -925,7 +926,10 @@ class Solver:
         moved to a CPU of the team's that none was on (``moves``: on a busy machine), and how
         often the pair loop built its sublist of the pairs near contact (``sublist_builds``:
         hertz without rolling resistance skips the other listed pairs until a particle may
-        have moved far enough to reach one). Not part of :meth:`get_state`."""
+        have moved far enough to reach one), and of the steps, how many drifts measured each
+        particle's displacement for the rebuild check (``measured_drifts``) and how many passes
+        measured them after a drift that did not (``displacement_passes``; the other steps'
+        speeds ruled a rebuild out). Not part of :meth:`get_state`."""
         return self._core.timings()
 
     @property
