@@ -221,3 +221,29 @@ def test_analysis_exports():
         "Grid3D",
         "GridCylindrical",
     }
+
+
+def _emptied(path):
+    """Every dataset of an H5MD file cut to no frames: the file a run killed between laying it
+    out and writing its first frame leaves."""
+    import h5py
+
+    with h5py.File(path, "r+") as f:
+        datasets = []
+        f.visititems(lambda _, item: datasets.append(item) if isinstance(item, h5py.Dataset) else None)
+        for d in datasets:
+            if d.maxshape and d.maxshape[0] is None:
+                d.resize(0, axis=0)
+
+
+def test_a_trajectory_without_frames_is_a_read_error_and_contacts_without_frames_are_none(tmp_path):
+    path = tmp_path / "traj.h5"
+    with open_writer(path, contacts=True) as writer:
+        for k in range(3):
+            writer.write_frame(frame(k, 4))
+    with System(Particles=str(path)) as system:  # contacts laid out, none written: no Contacts
+        assert len(system) == 3 and [len(system.Particles) for _ in system] == [4, 4, 4]
+        assert not hasattr(system, "Contacts")
+    _emptied(path)
+    with pytest.raises(ReadError, match=r"traj\.h5'? holds no frames"):
+        System(Particles=str(path))

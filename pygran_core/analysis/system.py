@@ -40,7 +40,7 @@ from pygran_core.analysis.contacts import Contacts
 from pygran_core.analysis.mesh import Mesh
 from pygran_core.analysis.particles import Particles
 from pygran_core.analysis.subsystem import SubSystem
-from pygran_core.errors import ConfigError, SelectionError, did_you_mean
+from pygran_core.errors import ConfigError, ReadError, SelectionError, did_you_mean
 from pygran_core.io import Trajectory, open_trajectory
 
 PathLike = str | os.PathLike[str]
@@ -135,6 +135,13 @@ class _Source:
                 f"System: {cls.__name__}= takes a file name or glob, a list of files, (file, options), an "
                 f"open trajectory or a {cls.__name__} object, not {value!r}"
             )
+        if self.trajectory is not None and self.trajectory.n_frames == 0:
+            if self.trajectory is not value:
+                self.trajectory.close()
+            raise ReadError(
+                f"System: {cls.__name__}={value!r} holds no frames, so there is nothing to analyse (a run "
+                "stopped before it wrote its first frame leaves such a file)"
+            )
 
     @property
     def n_frames(self) -> int:
@@ -181,7 +188,9 @@ class System:
                 if source.trajectory is None or "Contacts" in self._sources
                 else source.trajectory.contacts()
             )
-            if stored is not None:
+            if stored is not None and stored.n_frames == 0:  # laid out for contacts, none written
+                stored.close()
+            elif stored is not None:
                 self._sources["Contacts"] = _Source(Contacts, stored, {})
         counts = {name: s.n_frames for name, s in self._sources.items() if s.n_frames > 1}
         if len(set(counts.values())) > 1:
