@@ -1,6 +1,7 @@
 """Resuming runs that were really killed: a user's study script runs in a child process, is
 SIGKILLed (at seeded random moments, and at chosen points: inside a checkpoint's HDF5 write,
-between its seal and its rename, in the middle of an H5MD trajectory frame, while a resumed
+between its seal and its rename, after an H5MD trajectory is laid out and before its first
+frame, in the middle of a frame, while a resumed
 run cuts its trajectory back; after its last checkpoint, as when a finished study is simply
 run again), then the same script is run again. Every file a kill leaves is
 readable (or a ``ReadError``, never a hang), and the run that finishes ends where an
@@ -169,6 +170,15 @@ elif point in ("frame", "cut"):  # a trajectory frame half written (while cuttin
         return setitem(self, key, value)
 
     h5py.Dataset.__setitem__ = writing
+elif point == "layout":  # the trajectory file laid out, its first frame not yet begun
+    resize = h5py.Dataset.resize
+
+    def resizing(self, size, axis=None):
+        if self.name.startswith("/particles/") and self.name.endswith("/step") and self.shape[0] == 0:
+            reach()
+        return resize(self, size, axis)
+
+    h5py.Dataset.resize = resizing
 runpy.run_path(script, run_name="__main__")
 """
 
@@ -405,6 +415,24 @@ def test_killed_at_random_moments_resumes(scripts, straight, tmp_path, engine, k
         resumed += resumed_from(output)
     # where the kills landed is measured, not assumed
     assert len(resumed) >= after_checkpoint, f"only {len(resumed)} of {kills} kills came after a checkpoint"
+
+
+@pytest.mark.parametrize("engine", ["native", "liggghts"])
+def test_killed_before_the_first_frame_starts_over(scripts, straight, tmp_path, engine):
+    """Killed between laying out its trajectory file and writing the first frame: the file
+    has no frames, which reading names as a ReadError, and the rerun starts over."""
+    expected = straight(engine)[0]
+    output = tmp_path / "out"
+    kill_at(scripts, engine, output, "layout", 1)
+    left = check_left_files(scripts, output)
+    assert (
+        left[str(output / "traj.h5")][0] == "ReadError"
+        and "holds no frames" in left[str(output / "traj.h5")][1]
+    )
+    assert not [p for p in left if "/restart/" in p]
+    finish(scripts, engine, output)
+    assert resumed_from(output) == []
+    SAME[engine](outcome(output), expected)
 
 
 @pytest.mark.parametrize(
