@@ -154,10 +154,11 @@ cdef inline bint surely_within(const State* sim, double travel, double dw) noexc
     if none moved further than ``travel`` in its drifts: with a margin for the round-off of
     summing travel and of the positions' updates (at most 4 ulp of the largest coordinate per
     step, particles being in the box or within a skin of it)."""
-    cdef double xmag = sim.skin + travel
+    cdef double xmag = 0.0
     cdef int d
     for d in range(3):
-        xmag = max(xmag, fabs(sim.lo[d]) + sim.skin + travel, fabs(sim.hi[d]) + sim.skin + travel)
+        xmag = max(xmag, fabs(sim.lo[d]), fabs(sim.hi[d]))
+    xmag += sim.skin + travel
     return travel * (1.0 + 1e-6) + (sim.since + 1) * 4.0 * DBL_EPSILON * xmag + dw <= 0.5 * sim.skin
 
 
@@ -280,7 +281,7 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
 
 cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
     cdef long long s
-    cdef double dp, dw, t0 = pg_now(), t1
+    cdef double dp, dw, moved, t0 = pg_now(), t1
     cdef bint fused = False
     if dt != sim.dt_base:
         sim.t_base = sim.time
@@ -302,8 +303,9 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
             plan_measure(sim, dt, sim.dw_last)
             drift(sim, dt)
         sim.vlast = max_speed(sim)
-        sim.sub_travel += dt * sim.vlast
-        sim.travel += fabs(dt) * sim.vlast
+        moved = fabs(dt) * sim.vlast   # no particle moved further in this drift
+        sim.sub_travel += moved
+        sim.travel += moved
         sim.since += 1
         sim.step += 1
         sim.time = sim.t_base + (sim.step - sim.step_base) * dt
