@@ -6,7 +6,7 @@ coordination number, the peak RSS growth per particle from creating and running 
 solver (inputs are built before the baseline is taken), the load average, and per phase the
 solver's timers (:attr:`Solver.timings`: wall seconds per phase, and each thread's CPU
 seconds in the pair and particle loops, which show the load balance even on a busy
-machine; with their busiest thread's sums, ``*_span``, they give the run's time on idle
+machine; with the busiest thread's sum, ``forces_span``, they give the run's time on idle
 cores). ``--chunk 80`` calls ``Solver.run`` with at most 80 steps, as ``simulation.DEM``
 does (100 calls per run). ``--repeats 3`` alternates the thread counts three times and keeps
 the fastest run of each: on a shared host identical runs vary by 15 %.
@@ -93,8 +93,8 @@ def measure(n: int, threads: int, chunk: int) -> dict:
 
 def idle_seconds(timings: dict) -> float:
     """The calls' estimated wall time on idle cores: the pair and particle loops taking their
-    busiest thread's CPU time (``*_span``) instead of their wall time."""
-    return timings["wall"] + sum(timings[f"{k}_span"] - timings[k] for k in ("pairs", "particles"))
+    busiest thread's CPU time (``forces_span``) instead of their wall time."""
+    return timings["wall"] + timings["forces_span"] - timings["pairs"] - timings["particles"]
 
 
 def breakdown(timings: dict) -> str:
@@ -104,10 +104,8 @@ def breakdown(timings: dict) -> str:
     parts = [f"{k} {timings[k]:.2f} s ({100 * timings[k] / run:.1f}%)" for k in phases]
     rebuild = [f"{k[8:]} {timings[k]:.3f}" for k in timings if k.startswith("rebuild_")]
     other = run - sum(timings[k] for k in phases)
-    cpu = [
-        f"{k} " + "/".join(f"{t:.2f}" for t in timings[f"{k}_cpu"]) + f" (span {timings[f'{k}_span']:.2f})"
-        for k in ("pairs", "particles")
-    ]
+    cpu = [f"{k} " + "/".join(f"{t:.2f}" for t in timings[f"{k}_cpu"]) for k in ("pairs", "particles")]
+    cpu[-1] += f" (span of both {timings['forces_span']:.2f})"
     return (
         f"calls {timings['wall']:.2f} s, outside the solver's loop {timings['wall'] - run:.3f} s; "
         f"run {run:.2f} s (idle cores: {idle_seconds(timings):.2f} s): "

@@ -67,16 +67,14 @@ cdef enum:
     T_PERMUTE = 8
     T_COUNT = 9
     T_FILL = 10
-    T_PAIRS_SPAN = 11
-    T_PARTICLES_SPAN = 12
-    NTIMERS = 13
+    T_FORCES_SPAN = 11
+    NTIMERS = 12
 
 
 # phases of a run on the team (see take)
 cdef enum:
     P_DRIFT = 1
-    P_PAIRS = 2
-    P_PARTICLES = 3
+    P_FORCES = 2       # the pair loop, then the particle loop (see force_phase)
     P_PLACE = 4
     P_GATHER = 5
     P_GATHER_SCALARS = 6

@@ -233,13 +233,12 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
 
     The pair loop's blocks (see pair_row) fix the order of the sums and depend only on the
     state: results are deterministic for a given thread count, whichever thread runs a
-    block. The particle loop takes the same blocks of rows, each in SPLIT parts, so a thread
-    that ran a block of the pair loop usually sums and integrates the same rows.
+    block. The particle loop takes the same blocks of rows, each in SPLIT parts, in the same
+    pass (see force_phase), so a thread that ran a block of the pair loop usually sums and
+    integrates the same rows.
     """
     cdef int t, T = sim.nthreads
-    cdef double t0 = pg_now()
-    cdef double span[2]
-    span[0] = span[1] = 0.0
+    cdef double t0 = pg_now(), now, span = 0.0
     if place_halos(sim) < 0:
         return -1
     sim.dt = dt
@@ -253,7 +252,13 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
     for t in range(T):
         sim.cpu[PAD * t + 2] = 0.0
         sim.cpu[PAD * t + 3] = 0.0
-    run_phase(sim, P_PAIRS, sim.nblocks)
+    force_phase(sim)
+    now = pg_now()
+    if sim.turn == 0.0:
+        sim.turn = now
+    sim.timers[T_PAIRS] += sim.turn - t0
+    sim.timers[T_PARTICLES] += now - sim.turn
+    t0 = now
     if sim.sub_build:
         sim.sub_build = 0
         sim.sub_travel = 0.0
@@ -263,8 +268,6 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
         servo_sums(sim)
         if update:
             servo_control(sim, dt)
-    t0 = lap(sim, T_PAIRS, t0)
-    run_phase(sim, P_PARTICLES, sim.nblocks * SPLIT)
     if sim.nbody:
         body_loop(sim, P_BODIES)
     rebalance(sim)
@@ -272,10 +275,8 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
     for t in range(T):   # the busiest thread's CPU time: the loops' wall time on idle cores
         sim.cpu[PAD * t] += sim.cpu[PAD * t + 2]
         sim.cpu[PAD * t + 1] += sim.cpu[PAD * t + 3]
-        span[0] = max(span[0], sim.cpu[PAD * t + 2])
-        span[1] = max(span[1], sim.cpu[PAD * t + 3])
-    sim.timers[T_PAIRS_SPAN] += span[0]
-    sim.timers[T_PARTICLES_SPAN] += span[1]
+        span = max(span, sim.cpu[PAD * t + 2] + sim.cpu[PAD * t + 3])
+    sim.timers[T_FORCES_SPAN] += span
     return 0
 
 

@@ -593,13 +593,15 @@ cdef void pair_block(const State* c, int b) noexcept nogil:
 
 
 cdef int place_halos(State* sim) noexcept nogil:
-    """The pair blocks' halos (see Halo) for the current bounds; -1 when out of memory."""
+    """The pair blocks' halos (see Halo) for the current bounds, their last rows written
+    (``tstat``) -1 until the blocks run; -1 when out of memory."""
     cdef int b, i, start, end
     cdef long long total = 0
     cdef Halo* h
     cdef void* p
     sim.nfarblocks = 0
     for b in range(sim.nblocks):
+        sim.tstat[PAD * b + 1] = -1
         h = &sim.halos[b]
         start = sim.pb[b]
         end = sim.pb[b + 1]

@@ -58,7 +58,8 @@ runs; the calling thread runs the time-step loop and hands each parallel pass ou
 as blocks: each thread first takes its own share (the same slab step after step), then the
 blocks others have not started. So a thread whose core is taken by another program delays a
 pass by at most the block it is in, and threads with nothing to do sleep instead of spinning
-(see team.h for why that matters).
+(see team.h for why that matters). The pair and particle loops are one pass of two stages: a
+part of the particle loop waits only for the pair blocks it reads (see force_phase).
 """
 
 from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
@@ -121,7 +122,12 @@ cdef extern from "team.h":
     void pg_destroy(pg_team* t) noexcept nogil
     double pg_now() noexcept nogil
     unsigned int pg_epoch(pg_team* t) noexcept nogil
-    void pg_begin(pg_team* t, int phase, int nblocks) noexcept nogil
+    ctypedef struct pg_flag:
+        pass
+    void pg_begin(pg_team* t, int phase, int nfirst, int nsecond) noexcept nogil
+    void pg_post(pg_flag* f, unsigned int epoch) noexcept nogil
+    void pg_await(pg_flag* f, unsigned int epoch, double spin) noexcept nogil
+    int pg_posted(pg_flag* f, unsigned int epoch) noexcept nogil
     int pg_claim(pg_team* t, unsigned int epoch, int tid) noexcept nogil
     void pg_finished(pg_team* t, int k, int nblocks) noexcept nogil
     void pg_wait_done(pg_team* t, int nblocks) noexcept nogil
@@ -142,7 +148,7 @@ VIBRATION_VALUES = NVIB
 LOST_PLACES = ("x-", "x+", "y-", "y+", "z-", "z+", "non-finite")
 
 TIMERS = ("run", "drift", "walls", "pairs", "particles", "rebuild", "rebuild_cells", "rebuild_sort",
-          "rebuild_permute", "rebuild_count", "rebuild_fill", "pairs_span", "particles_span")
+          "rebuild_permute", "rebuild_count", "rebuild_fill", "forces_span")
 
 
 include "_state.pxi"
@@ -278,13 +284,14 @@ cdef class Core:
         self.s.pb = <int*>calloc(self.s.nblocks + 1, sizeof(int))
         self.s.tstat = <long long*>calloc(self.s.nblocks * PAD, sizeof(long long))
         self.s.halos = <Halo*>calloc(self.s.nblocks, sizeof(Halo))
+        self.s.posted = <pg_flag*>calloc(self.s.nblocks, sizeof(pg_flag))
         self.s.found = <Found*>calloc(self.s.nblocks, sizeof(Found))
         self.s.team = pg_create(threads, SPIN)
         self.s.coef = <Coef*>calloc(1, sizeof(Coef))
         self.s.visc = <double*>calloc(1, sizeof(double))
         self.s.ntypes = 1
         if not (self.s.nb_start and self.s.ob_start and self.s.wl_start and self.s.ow_start and self.s.tmax
-                and self.s.pb and self.s.tstat and self.s.cpu and self.s.halos and self.s.found
+                and self.s.pb and self.s.tstat and self.s.cpu and self.s.halos and self.s.posted and self.s.found
                 and self.s.team):
             raise MemoryError()
 
@@ -308,7 +315,7 @@ cdef class Core:
         member_columns(&self.s, cols)
         for k in range(NMCOLUMNS):
             free(cols[k].p[0])
-        for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.nb_j,
+        for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.posted, <size_t>self.s.nb_j,
                   <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.nb_f, <size_t>self.s.sb_k, <size_t>self.s.sb_i,
                   <size_t>self.s.ob_j, <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
                   <size_t>self.s.wl_h, <size_t>self.s.wl_f, <size_t>self.s.ow_e, <size_t>self.s.ow_h,

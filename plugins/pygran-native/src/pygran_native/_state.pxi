@@ -197,6 +197,8 @@ cdef struct State:
     int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
     int *work          # work of each row in the last pair loop (see row_work)
     long long *tstat   # per block (PAD apart): work of its rows, last row of its halo
+    pg_flag *posted    # per block: the epoch of the team's last phase that ran it (see force_phase)
+    double turn        # when the master began the particle loop of the last force phase
     pg_team *team      # the threads of a run (see pg_team)
     int rows           # rows of the current row phase
     Tuner tuner        # whether the master runs the phases with the team or alone

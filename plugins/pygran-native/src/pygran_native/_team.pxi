@@ -18,17 +18,73 @@ cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
     """Master: open a phase, take blocks of it like the other threads, and return when
     all its blocks are done (whichever threads ran them); alone, run them in order."""
     cdef int b
-    cdef double t0
     if sim.nthreads == 1 or sim.tuner.solo:
-        t0 = thread_cpu() if phase == P_PAIRS or phase == P_PARTICLES else 0.0
         for b in range(nblocks):
-            run_block(sim, phase, b, nblocks, 0)
-        if phase == P_PAIRS or phase == P_PARTICLES:
-            sim.cpu[2 if phase == P_PAIRS else 3] += thread_cpu() - t0
+            run_block(sim, phase, b, nblocks, 0, 0)
         return
-    pg_begin(sim.team, phase, nblocks)
+    pg_begin(sim.team, phase, nblocks, 0)
     take(sim, pg_epoch(sim.team), phase, nblocks, 0)
     pg_wait_done(sim.team, nblocks)
+
+
+cdef void force_phase(State* sim) noexcept nogil:
+    """Master: the pair loop's blocks, then the particle loop's (SPLIT parts of each pair
+    block), in one phase of two stages: a part waits only for the pair blocks it reads (see
+    await_pairs), so a thread that ends its pair blocks early goes on with its particles, and
+    the particle loop's small parts even out the threads. ``turn``: when the master began
+    the particle loop (0 if the team left it none)."""
+    cdef int b, nparts = sim.nblocks * SPLIT
+    cdef double t0, t1
+    if sim.nthreads == 1 or sim.tuner.solo:
+        t0 = thread_cpu()
+        for b in range(sim.nblocks):
+            pair_block(sim, b)
+        t1 = thread_cpu()
+        sim.turn = pg_now()
+        for b in range(nparts):
+            particle_part(sim, b, 0, 0)
+        sim.cpu[2] += t1 - t0
+        sim.cpu[3] += thread_cpu() - t1
+        return
+    sim.turn = 0.0
+    pg_begin(sim.team, P_FORCES, sim.nblocks, nparts)
+    take(sim, pg_epoch(sim.team), P_FORCES, sim.nblocks + nparts, 0)
+    pg_wait_done(sim.team, sim.nblocks + nparts)
+
+
+cdef inline void await_pair(State* sim, int b, unsigned int epoch, int tid) noexcept nogil:
+    """Thread ``tid``: wait until pair block b of phase ``epoch`` is done; the CPU time of the
+    wait is not the particle loop's."""
+    cdef double t0
+    if not pg_posted(&sim.posted[b], epoch):
+        t0 = thread_cpu()
+        pg_await(&sim.posted[b], epoch, SPIN)
+        sim.cpu[PAD * tid + 3] -= thread_cpu() - t0
+
+
+cdef void await_pairs(State* sim, int b, int lo, int hi, unsigned int epoch, int tid) noexcept nogil:
+    """Thread ``tid``: wait for the pair blocks of phase ``epoch`` that read rows [lo, hi) of
+    pair block b or put forces on them: b, those before it whose near halo reaches lo, and
+    those whose far halo meets the rows. The others' ``tstat`` halo ends, which particle_block
+    reads, are -1 or final (see place_halos), and either way below lo."""
+    cdef int k
+    for k in range(b):
+        if sim.halos[k].near_end >= lo:
+            await_pair(sim, k, epoch, tid)
+    await_pair(sim, b, epoch, tid)
+    for k in range(sim.nfarblocks):
+        if sim.halos[k].far_lo < hi and sim.halos[k].far_hi >= lo:
+            await_pair(sim, k, epoch, tid)
+
+
+cdef inline void particle_part(State* sim, int p, int tid, unsigned int epoch) noexcept nogil:
+    """Part p of the particle loop: part p % SPLIT of pair block p // SPLIT, run by thread
+    ``tid``; in phase ``epoch`` of the team once the pair blocks it reads are done (0: alone)."""
+    cdef int b = p // SPLIT, lo = part_start(sim.pb[b], sim.pb[b + 1], p % SPLIT, SPLIT)
+    cdef int hi = part_start(sim.pb[b], sim.pb[b + 1], p % SPLIT + 1, SPLIT)
+    if epoch:
+        await_pairs(sim, b, lo, hi, epoch, tid)
+    particle_block(sim, lo, hi, tid)
 
 
 cdef inline int part_start(int lo, int hi, int k, int parts) noexcept nogil:
@@ -36,17 +92,17 @@ cdef inline int part_start(int lo, int hi, int k, int parts) noexcept nogil:
     return <int>(lo + <long long>(hi - lo) * k // parts)
 
 
-cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid) noexcept nogil:
-    """Block b of a phase, run by thread ``tid``: of the particle loop, part b % SPLIT of
-    pair block b // SPLIT; of the other loops over rows, part b of ``nblocks``."""
+cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid, unsigned int epoch) noexcept nogil:
+    """Block b of a phase, run by thread ``tid`` (in phase ``epoch`` of the team; 0: alone): of
+    the force phase, pair block b, then part b - nblocks of the particle loop (see
+    force_phase); of the other loops over rows, part b of ``nblocks``."""
     cdef int lo, hi
-    if phase == P_PAIRS:
-        pair_block(sim, b)
-    elif phase == P_PARTICLES:
-        lo = sim.pb[b // SPLIT]
-        hi = sim.pb[b // SPLIT + 1]
-        particle_block(sim, part_start(lo, hi, b % SPLIT, SPLIT), part_start(lo, hi, b % SPLIT + 1, SPLIT),
-                       tid)
+    if phase == P_FORCES:
+        if b < sim.nblocks:
+            pair_block(sim, b)
+            pg_post(&sim.posted[b], epoch)
+        else:
+            particle_part(sim, b - sim.nblocks, tid, epoch)
     else:
         lo = part_start(0, sim.rows, b, nblocks)
         hi = part_start(0, sim.rows, b + 1, nblocks)
@@ -61,19 +117,26 @@ cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid) n
 cdef void take(State* sim, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
     """Claim and run blocks of phase ``epoch`` until none is left, then report them done;
     the CPU time of the pair and particle loops goes to thread ``tid``'s counters."""
-    cdef int b, k = 0
-    cdef double t0 = 0.0
+    cdef int b, k = 0, stage = 2   # the force phase's counter the CPU time goes to
+    cdef double t0 = 0.0, t1
     b = pg_claim(sim.team, epoch, tid)
     if b < 0:
         return
-    if phase == P_PAIRS or phase == P_PARTICLES:
+    if phase == P_FORCES:
         t0 = thread_cpu()
     while b >= 0:
-        run_block(sim, phase, b, nblocks, tid)
+        if phase == P_FORCES and stage == 2 and b >= sim.nblocks:
+            t1 = thread_cpu()
+            sim.cpu[PAD * tid + 2] += t1 - t0
+            t0 = t1
+            stage = 3
+            if tid == 0:
+                sim.turn = pg_now()
+        run_block(sim, phase, b, nblocks, tid, epoch)
         k += 1
         b = pg_claim(sim.team, epoch, tid)
-    if phase == P_PAIRS or phase == P_PARTICLES:
-        sim.cpu[PAD * tid + (2 if phase == P_PAIRS else 3)] += thread_cpu() - t0
+    if phase == P_FORCES:
+        sim.cpu[PAD * tid + stage] += thread_cpu() - t0
     pg_finished(sim.team, k, nblocks)
 
 

@@ -10,6 +10,10 @@
    step, and a thread that is held up (its core taken by another program) leaves its blocks to
    the others. Results do not depend on which thread runs a block.
 
+   A phase can have two stages, each with its own queues: no block of the second is taken
+   while one of the first is left. A block of the second stage may wait for blocks of the
+   first (pg_post, pg_await); those are then taken already, so they finish without waiting.
+
    A waiting thread spins for a moment (waking a sleeping thread takes tens of microseconds),
    then sleeps on a futex; it does not spin at all while it has lately been kept waiting for
    its CPU (its run-queue delay, from /proc/thread-self/schedstat): a thread with nothing to
@@ -42,9 +46,9 @@
 
 typedef struct { uint32_t word, sleepers; char pad[56]; } pg_flag;   /* a cache line */
 
-/* A thread's queue (epoch << 32 | front << 16 | end), the CPU it was on at its last phase and
-   how often it moved off a CPU of the team's (pg_spread). */
-typedef struct { uint64_t word; int cpu, moves; char pad[48]; } pg_queue;
+/* A thread's queues of the two stages (each epoch << 32 | front << 16 | end), the CPU it was
+   on at its last phase and how often it moved off a CPU of the team's (pg_spread). */
+typedef struct { uint64_t word[2]; int cpu, moves; char pad[40]; } pg_queue;
 
 #define PG_STOP (-1)        /* the phase that ends the threads */
 
@@ -58,7 +62,8 @@ typedef struct pg_team_s {
     char pad0[64];
     pg_flag epoch;         /* phase number; the threads wait for it to change */
     pg_flag done;          /* blocks finished in the phase; the master waits for nblocks */
-    int phase, nblocks;    /* written by the master before it moves epoch on */
+    int phase, nblocks;    /* written by the master before it moves epoch on: the phase, its */
+    int nfirst;            /* blocks, and those of its first stage */
     int nqueues;           /* one per thread */
     double spin;           /* seconds a waiting thread spins before it sleeps */
     pg_task task;          /* the threads started by pg_start (in process pid) */
@@ -183,56 +188,81 @@ static inline int pg_phase(pg_team* t) { return __atomic_load_n(&t->phase, __ATO
 
 static inline int pg_nblocks(pg_team* t) { return __atomic_load_n(&t->nblocks, __ATOMIC_RELAXED); }
 
-/* Master: open phase `phase` of `nblocks` (< 65536) blocks and wake the team. */
-static void pg_begin(pg_team* t, int phase, int nblocks) {
+/* Master: open phase `phase` of `nfirst` blocks, then `nsecond` in a second stage (blocks
+   nfirst to nfirst + nsecond - 1; each stage < 65536 blocks), and wake the team. */
+static void pg_begin(pg_team* t, int phase, int nfirst, int nsecond) {
     uint32_t e = __atomic_load_n(&t->epoch.word, __ATOMIC_RELAXED) + 1;
     uint64_t lo, hi;
-    int q;
+    int q, s, n;
 #ifdef __linux__
     __atomic_store_n(&t->queue[0].cpu, sched_getcpu(), __ATOMIC_RELAXED);
 #endif
     __atomic_store_n(&t->phase, phase, __ATOMIC_RELAXED);
-    __atomic_store_n(&t->nblocks, nblocks, __ATOMIC_RELAXED);
+    __atomic_store_n(&t->nblocks, nfirst + nsecond, __ATOMIC_RELAXED);
+    __atomic_store_n(&t->nfirst, nfirst, __ATOMIC_RELAXED);
     __atomic_store_n(&t->done.word, 0, __ATOMIC_RELAXED);
-    for (q = 0; q < t->nqueues; q++) {
-        lo = (uint64_t)nblocks * q / t->nqueues;
-        hi = (uint64_t)nblocks * (q + 1) / t->nqueues;
-        __atomic_store_n(&t->queue[q].word, (uint64_t)e << 32 | lo << 16 | hi, __ATOMIC_RELAXED);
+    for (s = 0; s < 2; s++) {
+        n = s ? nsecond : nfirst;
+        for (q = 0; q < t->nqueues; q++) {
+            lo = (uint64_t)n * q / t->nqueues;
+            hi = (uint64_t)n * (q + 1) / t->nqueues;
+            __atomic_store_n(&t->queue[q].word[s], (uint64_t)e << 32 | lo << 16 | hi, __ATOMIC_RELAXED);
+        }
     }
     __atomic_store_n(&t->epoch.word, e, __ATOMIC_SEQ_CST);
     pg_wake(&t->epoch);
 }
 
-/* The front (or last) block of queue q of phase `epoch`; -1 when it is empty or the phase is
-   over. */
-static inline int pg_take(pg_queue* q, uint32_t epoch, int last) {
-    uint64_t w = __atomic_load_n(&q->word, __ATOMIC_ACQUIRE);
+/* The front (or last) block of queue q of stage s of phase `epoch`, counted in the stage; -1
+   when it is empty or the phase is over. */
+static inline int pg_take(pg_queue* q, int s, uint32_t epoch, int last) {
+    uint64_t w = __atomic_load_n(&q->word[s], __ATOMIC_ACQUIRE);
     uint32_t lo, hi;
     for (;;) {
         lo = (w >> 16) & 0xffff;
         hi = w & 0xffff;
         if ((uint32_t)(w >> 32) != epoch || lo >= hi)
             return -1;
-        if (__atomic_compare_exchange_n(&q->word, &w, last ? w - 1 : w + (1u << 16), 1,
+        if (__atomic_compare_exchange_n(&q->word[s], &w, last ? w - 1 : w + (1u << 16), 1,
                                         __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE))
             return (int)(last ? hi - 1 : lo);
     }
 }
 
-/* A block of phase `epoch` for thread `tid`: the next of its own queue, which even threads
-   run forwards and odd threads backwards (two neighbouring threads reach the blocks at their
-   common border last), else one from the other end of another queue (the nearest queue after
-   its own first); -1 when none is left. */
+/* A block of phase `epoch` for thread `tid`, of its first stage while one is left: the next
+   of its own queue, which even threads run forwards and odd threads backwards (two
+   neighbouring threads reach the blocks at their common border last), else one from the
+   other end of another queue (the nearest queue after its own first); -1 when none is left. */
 static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
-    int k, b, q, nq = t->nqueues;
-    if (tid < nq && (b = pg_take(&t->queue[tid], epoch, tid & 1)) >= 0)
-        return b;
-    for (k = 1; k < nq; k++) {
-        q = (tid + k) % nq;
-        if ((b = pg_take(&t->queue[q], epoch, !(q & 1))) >= 0)
-            return b;
+    int k, b, q, s, nq = t->nqueues;
+    for (s = 0; s < 2; s++) {
+        if (tid < nq && (b = pg_take(&t->queue[tid], s, epoch, tid & 1)) >= 0)
+            return s ? t->nfirst + b : b;
+        for (k = 1; k < nq; k++) {
+            q = (tid + k) % nq;
+            if ((b = pg_take(&t->queue[q], s, epoch, !(q & 1))) >= 0)
+                return s ? t->nfirst + b : b;
+        }
     }
     return -1;
+}
+
+/* A block of the first stage of phase `epoch` is done: stamp its flag f with the epoch. */
+static inline void pg_post(pg_flag* f, uint32_t epoch) {
+    __atomic_store_n(&f->word, epoch, __ATOMIC_SEQ_CST);
+    pg_wake(f);
+}
+
+/* Whether flag f carries the stamp of phase `epoch` (see pg_post). */
+static inline int pg_posted(pg_flag* f, uint32_t epoch) {
+    return __atomic_load_n(&f->word, __ATOMIC_ACQUIRE) == epoch;
+}
+
+/* Wait until flag f carries the stamp of phase `epoch` (see pg_post). */
+static inline void pg_await(pg_flag* f, uint32_t epoch, double spin) {
+    uint32_t v;
+    while ((v = __atomic_load_n(&f->word, __ATOMIC_ACQUIRE)) != epoch)
+        pg_wait(f, v, spin);
 }
 
 /* A thread finished k blocks of the phase (after its last claim failed). */
@@ -343,7 +373,7 @@ static void pg_destroy(pg_team* t) {
     if (!t)
         return;
     if (t->started && t->pid == getpid()) {
-        pg_begin(t, PG_STOP, 0);
+        pg_begin(t, PG_STOP, 0, 0);
         for (k = 1; k <= t->started; k++)
             pthread_join(t->threads[k], NULL);
     }
