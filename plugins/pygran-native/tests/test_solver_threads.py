@@ -1,6 +1,8 @@
 """The native solver's threads: the same bits whichever thread runs a block, the choice
-between the team and one thread, the default thread count, and its limit."""
+between the team and one thread, the loops' CPU timers, the default thread count, and its
+limit."""
 
+import json
 import os
 import subprocess
 import sys
@@ -35,6 +37,12 @@ SETTLE = """
 for steps in (700, 800):
     s.run(steps, 1e-5)
 np.save(sys.argv[1], np.stack([s.positions, s.velocities, s.omegas, s.forces]))
+"""
+# argv[1] steps; prints the timings as JSON
+TIMINGS = """
+import json
+s.run(int(sys.argv[1]), 1e-5)
+print(json.dumps({k: getattr(v, "tolist", lambda: v)() for k, v in s.timings.items()}))
 """
 # argv[1] steps; prints the steps the master ran without the team, and the threads' moves
 SOLO_STEPS = """
@@ -77,6 +85,20 @@ def test_the_bits_do_not_depend_on_which_thread_runs_a_block(tmp_path):
     one = settle(tmp_path, 1)
     assert not np.array_equal(one, three)  # another thread count sums in another order
     assert np.abs(one[0] - three[0]).max() < 1e-4
+
+
+def test_the_loops_cpu_times_and_their_span():
+    # forces_span sums each step's busiest thread's CPU time in the pair and particle loops:
+    # alone, that thread's whole time; with four threads (on this machine's CPUs, waiting for
+    # each other's pair blocks), between the busiest thread's total and all threads' total
+    one = json.loads(run_bed(TIMINGS, "500", 1, "all"))
+    assert one["forces_span"] == pytest.approx(one["pairs_cpu"][0] + one["particles_cpu"][0], rel=1e-12)
+    t = json.loads(run_bed(TIMINGS, "1500", 4, "all"))
+    per_thread = np.add(t["pairs_cpu"], t["particles_cpu"])
+    assert len(per_thread) == 4
+    assert min(t["pairs_cpu"]) > 0 and min(t["particles_cpu"]) > 0
+    assert per_thread.max() <= t["forces_span"] * (1 + 1e-9) <= per_thread.sum() * (1 + 1e-9)
+    assert t["pairs"] > 0 and t["particles"] > 0
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this system")
