@@ -6,8 +6,8 @@ coordination number, the peak RSS growth per particle from creating and running 
 solver (inputs are built before the baseline is taken), the load average, and per phase the
 solver's timers (:attr:`Solver.timings`: wall seconds per phase, and each thread's CPU
 seconds in the pair and particle loops, which show the load balance even on a busy
-machine; with the busiest thread's sum, ``forces_span``, they give the run's time on idle
-cores). ``--chunk 80`` calls ``Solver.run`` with at most 80 steps, as ``simulation.DEM``
+machine; with the busiest thread's sum, ``forces_span``, they estimate the run's time on
+idle cores, from below: waits are not CPU time). ``--chunk 80`` calls ``Solver.run`` with at most 80 steps, as ``simulation.DEM``
 does (100 calls per run). ``--repeats 3`` alternates the thread counts three times and keeps
 the fastest run of each: on a shared host identical runs vary by 15 %.
 
@@ -93,7 +93,7 @@ def measure(n: int, threads: int, chunk: int) -> dict:
 
 def idle_seconds(timings: dict) -> float:
     """The calls' estimated wall time on idle cores: the pair and particle loops taking their
-    busiest thread's CPU time (``forces_span``) instead of their wall time."""
+    busiest thread's CPU time (``forces_span``, waits left out) instead of their wall time."""
     return timings["wall"] + timings["forces_span"] - timings["pairs"] - timings["particles"]
 
 

@@ -59,7 +59,8 @@ as blocks: each thread first takes its own share (the same slab step after step)
 blocks others have not started. So a thread whose core is taken by another program delays a
 pass by at most the block it is in, and threads with nothing to do sleep instead of spinning
 (see team.h for why that matters). The pair and particle loops are one pass of two stages: a
-part of the particle loop waits only for the pair blocks it reads (see force_phase).
+part of the particle loop waits only for the pair blocks that read its rows or put forces on
+them (see force_phase).
 """
 
 from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
@@ -128,6 +129,7 @@ cdef extern from "team.h":
     void pg_post(pg_flag* f, unsigned int epoch) noexcept nogil
     void pg_await(pg_flag* f, unsigned int epoch, double spin) noexcept nogil
     int pg_posted(pg_flag* f, unsigned int epoch) noexcept nogil
+    pg_flag* pg_flags(int n) noexcept nogil
     int pg_claim(pg_team* t, unsigned int epoch, int tid) noexcept nogil
     void pg_finished(pg_team* t, int k, int nblocks) noexcept nogil
     void pg_wait_done(pg_team* t, int nblocks) noexcept nogil
@@ -284,7 +286,7 @@ cdef class Core:
         self.s.pb = <int*>calloc(self.s.nblocks + 1, sizeof(int))
         self.s.tstat = <long long*>calloc(self.s.nblocks * PAD, sizeof(long long))
         self.s.halos = <Halo*>calloc(self.s.nblocks, sizeof(Halo))
-        self.s.posted = <pg_flag*>calloc(self.s.nblocks, sizeof(pg_flag))
+        self.s.posted = pg_flags(self.s.nblocks)
         self.s.found = <Found*>calloc(self.s.nblocks, sizeof(Found))
         self.s.team = pg_create(threads, SPIN)
         self.s.coef = <Coef*>calloc(1, sizeof(Coef))

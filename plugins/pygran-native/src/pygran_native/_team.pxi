@@ -29,8 +29,8 @@ cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
 
 cdef void force_phase(State* sim) noexcept nogil:
     """Master: the pair loop's blocks, then the particle loop's (SPLIT parts of each pair
-    block), in one phase of two stages: a part waits only for the pair blocks it reads (see
-    await_pairs), so a thread that ends its pair blocks early goes on with its particles, and
+    block), in one phase of two stages: a part waits only for the pair blocks that read its
+    rows or put forces on them (see await_pairs), so a thread that ends its pair blocks early goes on with its particles, and
     the particle loop's small parts even out the threads. ``turn``: when the master began
     the particle loop (0 if the team left it none)."""
     cdef int b, nparts = sim.nblocks * SPLIT
@@ -82,6 +82,8 @@ cdef inline void particle_part(State* sim, int p, int tid, unsigned int epoch) n
     ``tid``; in phase ``epoch`` of the team once the pair blocks it reads are done (0: alone)."""
     cdef int b = p // SPLIT, lo = part_start(sim.pb[b], sim.pb[b + 1], p % SPLIT, SPLIT)
     cdef int hi = part_start(sim.pb[b], sim.pb[b + 1], p % SPLIT + 1, SPLIT)
+    if lo == hi:
+        return
     if epoch:
         await_pairs(sim, b, lo, hi, epoch, tid)
     particle_block(sim, lo, hi, tid)

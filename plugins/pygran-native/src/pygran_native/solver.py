@@ -916,13 +916,13 @@ class Solver:
         ``drift`` (first half kicks not fused with the previous step, and passes measuring
         displacements), ``walls`` (moving the
         meshes), ``pairs`` (pair and wall forces), ``particles`` (summing them, gravity,
-        viscous forces, integration; with threads the two loops overlap, and ``pairs`` ends
-        when the calling thread starts on the particles), ``rebuild`` and its parts
-        ``rebuild_cells``, ``rebuild_sort``, ``rebuild_permute``, ``rebuild_count``,
-        ``rebuild_fill``; the CPU seconds of each thread in the pair and particle loops (arrays
-        ``pairs_cpu``, ``particles_cpu``, without waits), and the sum over steps of the busiest
-        thread's CPU seconds in both (``forces_span``: their wall time on otherwise idle
-        cores), and the steps the
+        viscous forces, integration, clumps' bodies, servo walls; with threads the two loops
+        overlap, and ``pairs`` ends when the calling thread starts on the particles),
+        ``rebuild`` and its parts ``rebuild_cells``, ``rebuild_sort``, ``rebuild_permute``,
+        ``rebuild_count``, ``rebuild_fill``; the CPU seconds of each thread in the pair and
+        particle loops (arrays ``pairs_cpu``, ``particles_cpu``, without waits), and the sum
+        over steps of the busiest thread's CPU seconds in both (``forces_span``: a lower bound
+        of their wall time on otherwise idle cores), and the steps the
         calling thread ran without the others, having found that faster (``solo_steps``: on
         a busy machine or a small system), how often a thread woken next to a teammate
         moved to a CPU of the team's that none was on (``moves``: on a busy machine), and how

@@ -28,6 +28,7 @@
    half the time, leaves it so. */
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 #include <pthread.h>
 #include <signal.h>
 #include <limits.h>
@@ -194,6 +195,8 @@ static void pg_begin(pg_team* t, int phase, int nfirst, int nsecond) {
     uint32_t e = __atomic_load_n(&t->epoch.word, __ATOMIC_RELAXED) + 1;
     uint64_t lo, hi;
     int q, s, n;
+    if (e == 0)   /* after 2^32 phases: 0 is no phase (flags start at 0, see pg_post) */
+        e = 1;
 #ifdef __linux__
     __atomic_store_n(&t->queue[0].cpu, sched_getcpu(), __ATOMIC_RELAXED);
 #endif
@@ -245,6 +248,15 @@ static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
         }
     }
     return -1;
+}
+
+/* n zeroed flags, each on a cache line of its own (free with free); NULL when out of memory. */
+static pg_flag* pg_flags(int n) {
+    void* p = NULL;
+    if (posix_memalign(&p, 64, (size_t)(n > 0 ? n : 1) * sizeof(pg_flag)) != 0)
+        return NULL;
+    memset(p, 0, (size_t)(n > 0 ? n : 1) * sizeof(pg_flag));
+    return (pg_flag*)p;
 }
 
 /* A block of the first stage of phase `epoch` is done: stamp its flag f with the epoch. */
