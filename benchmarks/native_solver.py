@@ -7,9 +7,10 @@ solver (inputs are built before the baseline is taken), the load average, and pe
 solver's timers (:attr:`Solver.timings`: wall seconds per phase, and each thread's CPU
 seconds in the pair and particle loops, which show the load balance even on a busy
 machine; with the busiest thread's sum, ``forces_span``, they estimate the run's time on
-idle cores, from below: waits are not CPU time). ``--chunk 80`` calls ``Solver.run`` with at most 80 steps, as ``simulation.DEM``
-does (100 calls per run). ``--repeats 3`` alternates the thread counts three times and keeps
-the fastest run of each: on a shared host identical runs vary by 15 %.
+idle cores, from below: waits are not CPU time). ``--chunk 80`` calls ``Solver.run`` with at
+most 80 steps, as ``simulation.DEM`` does (100 calls per run). ``--repeats 3`` alternates the
+thread counts three times and keeps the fastest run of each: on a shared host identical runs
+vary by 15 %.
 
     .venv/bin/python benchmarks/native_solver.py --n 20000 --threads 2 --repeats 3
 """
