@@ -240,11 +240,11 @@ static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
     int k, b, q, s, nq = t->nqueues;
     for (s = 0; s < 2; s++) {
         if (tid < nq && (b = pg_take(&t->queue[tid], s, epoch, tid & 1)) >= 0)
-            return s ? t->nfirst + b : b;
+            return s ? __atomic_load_n(&t->nfirst, __ATOMIC_RELAXED) + b : b;
         for (k = 1; k < nq; k++) {
             q = (tid + k) % nq;
             if ((b = pg_take(&t->queue[q], s, epoch, !(q & 1))) >= 0)
-                return s ? t->nfirst + b : b;
+                return s ? __atomic_load_n(&t->nfirst, __ATOMIC_RELAXED) + b : b;
         }
     }
     return -1;
