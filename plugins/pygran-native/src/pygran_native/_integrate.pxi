@@ -272,7 +272,7 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
         body_loop(sim, P_BODIES)
     rebalance(sim)
     lap(sim, T_PARTICLES, t0)
-    for t in range(T):   # the busiest thread's CPU time: the loops' wall time on idle cores
+    for t in range(T):   # the busiest thread's CPU time: a lower bound of the loops' wall time on idle cores
         sim.cpu[PAD * t] += sim.cpu[PAD * t + 2]
         sim.cpu[PAD * t + 1] += sim.cpu[PAD * t + 3]
         span = max(span, sim.cpu[PAD * t + 2] + sim.cpu[PAD * t + 3])

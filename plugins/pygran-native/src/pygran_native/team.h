@@ -250,13 +250,13 @@ static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
     return -1;
 }
 
-/* n zeroed flags, each on a cache line of its own (free with free); NULL when out of memory. */
+/* n (> 0) zeroed flags, each on a cache line of its own (free with free); NULL when out of
+   memory. */
 static pg_flag* pg_flags(int n) {
     void* p = NULL;
-    if (posix_memalign(&p, 64, (size_t)(n > 0 ? n : 1) * sizeof(pg_flag)) != 0)
+    if (posix_memalign(&p, 64, (size_t)n * sizeof(pg_flag)) != 0)
         return NULL;
-    memset(p, 0, (size_t)(n > 0 ? n : 1) * sizeof(pg_flag));
-    return (pg_flag*)p;
+    return (pg_flag*)memset(p, 0, (size_t)n * sizeof(pg_flag));
 }
 
 /* A block of the first stage of phase `epoch` is done: stamp its flag f with the epoch. */
