@@ -5,14 +5,17 @@
 
    The calling thread (the master) runs the time-step loop and hands each parallel phase out
    as numbered blocks, a contiguous share of them queued for each thread. A thread takes
-   blocks from the front of its own queue, then from the back of the others' queues, then
-   waits for the next phase: on an idle machine each thread works on the same rows step after
+   blocks from its own queue, then from the others' queues (see pg_claim), then waits for
+   the next phase: on an idle machine each thread works on the same rows step after
    step, and a thread that is held up (its core taken by another program) leaves its blocks to
    the others. Results do not depend on which thread runs a block.
 
    A phase can have two stages, each with its own queues: no block of the second is taken
    while one of the first is left. A block of the second stage may wait for blocks of the
    first (pg_post, pg_await); those are then taken already, so they finish without waiting.
+   Blocks of the second stage are taken from another queue at the end its owner takes next:
+   they depend on the first stage's blocks in the owner's order, so those are the ones that
+   are ready, while at the other end they wait for the owner's last block of the first.
 
    A waiting thread spins for a moment (waking a sleeping thread takes tens of microseconds),
    then sleeps on a futex; it does not spin at all while it has lately been kept waiting for
@@ -234,8 +237,9 @@ static inline int pg_take(pg_queue* q, int s, uint32_t epoch, int last) {
 
 /* A block of phase `epoch` for thread `tid`, of its first stage while one is left: the next
    of its own queue, which even threads run forwards and odd threads backwards (two
-   neighbouring threads reach the blocks at their common border last), else one from the
-   other end of another queue (the nearest queue after its own first); -1 when none is left. */
+   neighbouring threads reach the blocks at their common border last), else one of another
+   queue (the nearest after its own first), from its other end in the first stage and from
+   the end its owner takes next in the second; -1 when none is left. */
 static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
     int k, b, q, s, nq = t->nqueues;
     for (s = 0; s < 2; s++) {
@@ -243,7 +247,7 @@ static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
             return s ? __atomic_load_n(&t->nfirst, __ATOMIC_RELAXED) + b : b;
         for (k = 1; k < nq; k++) {
             q = (tid + k) % nq;
-            if ((b = pg_take(&t->queue[q], s, epoch, !(q & 1))) >= 0)
+            if ((b = pg_take(&t->queue[q], s, epoch, s ? (q & 1) : !(q & 1))) >= 0)
                 return s ? __atomic_load_n(&t->nfirst, __ATOMIC_RELAXED) + b : b;
         }
     }
