@@ -83,11 +83,12 @@ cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid, double
 cdef inline int halo_run(const State* c, int i, int hi, int first, int end, int nearmax,
                          double** halo) noexcept nogil:
     """The end of the run of rows from i (before hi) that no halo holds (``halo`` set to NULL)
-    or that the near halo of block ``end - 1`` alone holds (``halo`` set to its entry for row
-    i); i if another halo holds row i. ``nearmax``: the last row that the near halos of blocks
-    0 to ``end - 1`` (those ending at or before i) hold; block ``end``'s near halo starts where
-    that block ends, so a run stops there."""
-    cdef int k, stop = hi
+    or that one halo alone holds, the near halo of block ``end - 1`` or a block's far halo
+    (``halo`` set to its entry for row i); i if two halos hold row i, or a near halo of another
+    block. ``nearmax``: the last row that the near halos of blocks 0 to ``end - 1`` (those
+    ending at or before i) hold; block ``end``'s near halo starts where that block ends, so a
+    run stops there."""
+    cdef int k, far = -1, stop = hi
     halo[0] = NULL
     if i <= nearmax:   # a near halo holds row i: it must be block end - 1's, and only it
         if i > c.tstat[PAD * (end - 1) + 1]:
@@ -101,9 +102,14 @@ cdef inline int halo_run(const State* c, int i, int hi, int first, int end, int 
         stop = c.pb[end + 1]
     for k in range(c.nfarblocks):
         if c.halos[k].far_lo <= i <= c.halos[k].far_hi:
-            return i
-        if i < c.halos[k].far_lo < stop:
+            if halo[0] != NULL or far >= 0:
+                return i
+            far = k
+        elif i < c.halos[k].far_lo < stop:
             stop = c.halos[k].far_lo
+    if far >= 0:
+        halo[0] = &c.halo[(c.halos[far].far_off + i - c.halos[far].far_lo) * 6]
+        stop = min(stop, c.halos[far].far_hi + 1)
     return stop
 
 
@@ -113,8 +119,7 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
     can hold row i are among ``first`` to ``end - 1``: those ending at or before i whose rows
     have a near partner at or after i (``last``); both bounds move forward with i. Without
     clumps, at a step that kicks and fuses the next drift, runs of rows that no halo holds,
-    and runs that only the previous block's near halo holds, go through kick_drift.h in one
-    call."""
+    and runs that one halo alone holds (see halo_run), go through kick_drift.h in one call."""
     cdef int i = lo, stop, first = 0, end = 0, nearmax = -1
     cdef bint plain = not c.nbody and c.kick and c.fuse
     cdef double* halo = NULL
