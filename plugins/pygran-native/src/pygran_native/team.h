@@ -241,14 +241,15 @@ static inline int pg_take(pg_queue* q, int s, uint32_t epoch, int last) {
    queue (the nearest after its own first), from its other end in the first stage and from
    the end its owner takes next in the second; -1 when none is left. */
 static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
-    int k, b, q, s, nq = t->nqueues;
+    int k, b, q, s, base, nq = t->nqueues;
     for (s = 0; s < 2; s++) {
+        base = s ? __atomic_load_n(&t->nfirst, __ATOMIC_RELAXED) : 0;   /* the stage's first block */
         if (tid < nq && (b = pg_take(&t->queue[tid], s, epoch, tid & 1)) >= 0)
-            return s ? __atomic_load_n(&t->nfirst, __ATOMIC_RELAXED) + b : b;
+            return base + b;
         for (k = 1; k < nq; k++) {
             q = (tid + k) % nq;
             if ((b = pg_take(&t->queue[q], s, epoch, s ? (q & 1) : !(q & 1))) >= 0)
-                return s ? __atomic_load_n(&t->nfirst, __ATOMIC_RELAXED) + b : b;
+                return base + b;
         }
     }
     return -1;
