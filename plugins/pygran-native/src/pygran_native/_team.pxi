@@ -30,9 +30,9 @@ cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
 cdef void force_phase(State* sim) noexcept nogil:
     """Master: the pair loop's blocks, then the particle loop's (SPLIT parts of each pair
     block), in one phase of two stages: a part waits only for the pair blocks that read its
-    rows or put forces on them (see await_pairs), so a thread that ends its pair blocks early goes on with its particles, and
-    the particle loop's small parts even out the threads. ``turn``: when the master began
-    the particle loop (0 if the team left it none)."""
+    rows or put forces on them (see await_pairs), so a thread that ends its pair blocks early
+    goes on with its particles, and the particle loop's small parts even out the threads.
+    ``turn``: when the master began the particle loop (0 if the team left it none)."""
     cdef int b, nparts = sim.nblocks * SPLIT
     cdef double t0, t1
     if sim.nthreads == 1 or sim.tuner.solo:
