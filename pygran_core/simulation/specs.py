@@ -117,12 +117,38 @@ def one_of(value: Any, name: str, choices: Sequence[str]) -> str:
     return value
 
 
+#: Characters a solver's input language gives a meaning of its own: LIGGGHTS reads ``#`` as
+#: the start of a comment, ``$`` as a variable, quotes as the ends of a word and a final ``&``
+#: as a continued line. A word holding one is refused, never passed on.
+COMMAND_CHARACTERS = frozenset("#$'\"&")
+
+
+def control_characters(text: str) -> list[str]:
+    """The control characters (line breaks, tabs, NUL, ...) in ``text``, as ``repr``s."""
+    return sorted({repr(c) for c in text if ord(c) < 32 or 127 <= ord(c) < 160})
+
+
+def command_words(words: Sequence[str], name: str) -> tuple[str, ...]:
+    """``words`` as a solver's input may carry them, or a :class:`ConfigError` naming
+    ``name`` and the character: a control character would start a new command line, and
+    :data:`COMMAND_CHARACTERS` would drop or change the rest of the line."""
+    for word in words:
+        bad = control_characters(word) + sorted(repr(c) for c in COMMAND_CHARACTERS & set(word))
+        if bad:
+            raise ConfigError(
+                f"{name}: {word!r} holds {', '.join(bad)}, which a solver's input reads as the end of "
+                "the line, a comment, a variable, a quote or a continuation: give plain words such as "
+                "('sort id',)"
+            )
+    return tuple(words)
+
+
 def words(value: Any, name: str) -> tuple[str, ...]:
-    """``value`` as a tuple of strings (one string is one word)."""
+    """``value`` as a tuple of plain words (one string is one word), see :func:`command_words`."""
     value = (value,) if isinstance(value, str) else value
     if not isinstance(value, Sequence) or not all(isinstance(v, str) for v in value):
         raise ConfigError(f"{name} must be a sequence of words such as ('id', 'x'), got {value!r}")
-    return tuple(value)
+    return command_words(value, name)
 
 
 def columns(value: Any, name: str) -> tuple[str, ...]:
@@ -132,9 +158,34 @@ def columns(value: Any, name: str) -> tuple[str, ...]:
 
 
 def file_name(value: Any, name: str) -> str | os.PathLike[str]:
-    if not isinstance(value, (str, os.PathLike)) or not str(value):
+    """A file or folder name without control characters (a line break or NUL in a name
+    breaks every tool that lists or reads it back), or a :class:`ConfigError` naming ``name``."""
+    if not isinstance(value, (str, os.PathLike)) or not isinstance(os.fspath(value), str) or not str(value):
         raise ConfigError(f"{name} must be a file or folder name, got {value!r}")
+    bad = control_characters(str(value))
+    if bad:
+        raise ConfigError(f"{name} {str(value)!r} holds the control character(s) {', '.join(bad)}: rename it")
     return value
+
+
+def command_path(path: Path, name: str, patterns: bool = False, folder: bool = False) -> Path:
+    """``path`` as LIGGGHTS' input can name it, so that the saved input reruns as the live
+    run ran, or a :class:`ConfigError` naming ``name``: no ``$`` (a variable, even in
+    quotes), not both kinds of quote (no quoting could hold it); with ``patterns`` (a file
+    LIGGGHTS names by step or processor: dumps, restarts; or a ``folder`` holding them) ``*``
+    and ``%`` only in the file name itself, where they mean the step and the processor."""
+    text = str(path)
+    file_name(text, name)
+    fault = None
+    if "$" in text:
+        fault = "'$', which LIGGGHTS reads as a variable even inside quotes"
+    elif "'" in text and '"' in text:
+        fault = "both kinds of quote, which no LIGGGHTS word can hold"
+    elif patterns and any(c in str(path if folder else path.parent) for c in "*%"):
+        fault = "'*' or '%' in a folder name, which LIGGGHTS reads as the step or the processor"
+    if fault is not None:
+        raise ConfigError(f"{name} {text!r} holds {fault}: choose a name without it for the LIGGGHTS engine")
+    return path
 
 
 def check_keys(kind: str, given: Mapping[str, Any], known: Sequence[str]) -> None:

@@ -4,8 +4,9 @@
 per-call specs into LIGGGHTS 3.x commands. Ids of fixes, regions, groups and dumps are
 ``pg_<kind><n>`` with one counter per simulation, so the same calls always give the same
 input. Materials become ``fix property/global`` tables built with PyGran's shared mixing
-rules; paths are absolute (quoted or linked where LIGGGHTS would misread them, see
-:meth:`Commands.path`), so the saved input reruns anywhere with the ``liggghts`` binary.
+rules; paths are absolute (quoted where LIGGGHTS would misread them, see
+:meth:`Commands.path`; those it cannot name are refused), so the saved input reruns anywhere
+with the ``liggghts`` binary.
 """
 
 from __future__ import annotations
@@ -13,8 +14,6 @@ from __future__ import annotations
 import itertools
 import math
 import re
-import shutil
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -29,7 +28,13 @@ from pygran_core.simulation.calls import (
     WallSpec,
 )
 from pygran_core.simulation.models import mixing
-from pygran_core.simulation.specs import RadiusDistribution, ServoSpec, SimulationSpec, given
+from pygran_core.simulation.specs import (
+    RadiusDistribution,
+    ServoSpec,
+    SimulationSpec,
+    command_path,
+    given,
+)
 
 #: Contact-model kernel (``ContactModel.kernel``) -> LIGGGHTS' ``gran model``.
 MODELS = {"spring-dashpot": "hooke", "hertz-mindlin": "hertz"}
@@ -86,7 +91,7 @@ def size_classes(radius: RadiusDistribution) -> list[tuple[float, float]]:
     return [(float(r), float(w)) for r, w in zip(radii, weights)]
 
 
-#: Paths LIGGGHTS reads as they are; others are quoted or linked (:meth:`Commands.path`).
+#: Paths LIGGGHTS reads as they are; others are quoted (:meth:`Commands.path`).
 PLAIN_PATH = re.compile(r"[\w./+,:=@~-]+")
 
 
@@ -120,7 +125,7 @@ class Commands:
     def __init__(self, spec: SimulationSpec) -> None:
         self.spec = spec
         self._counter = itertools.count(1)
-        self._links: Path | None = None  # the directory of links to awkward directories
+        self.check_paths()
         self.model = MODELS[given(spec.model.kernel, "the contact model's kernel")]  # others refused
         #: The ``rolling_friction`` model (the model's ``rolling``, default the original's cdt).
         self.rolling_model = getattr(spec.model, "rolling", "cdt")
@@ -156,38 +161,33 @@ class Commands:
         return f"pg_{kind}{next(self._counter)}"
 
     def path(self, path: Path) -> str:
-        """``path`` as a word of a LIGGGHTS input line: as it is when plain; in quotes when it
-        has spaces, ``#`` or one kind of quote; through a symbolic link of a plain name to its
-        directory (in a private temporary directory removed by :meth:`close`) when it has ``$``
-        (which LIGGGHTS 3.8 substitutes even inside quotes) or both kinds of quote, or when its
-        directory has ``*`` or ``%`` (which LIGGGHTS reads in a file name as the step and the
-        processor). A ``*`` or ``%`` in the file name itself keeps LIGGGHTS' meaning.
-        """
-        text = str(path)
+        """``path`` as a word of a LIGGGHTS input line: as it is when plain, else in quotes
+        (spaces, ``#``, ``&``, one kind of quote). The paths of the simulation were checked
+        when it was made (:meth:`check_paths`); others are checked here."""
+        text = str(command_path(path, "path"))
         if PLAIN_PATH.fullmatch(text):
             return text
-        if "$" in text or ('"' in text and "'" in text) or any(c in str(path.parent) for c in "*%"):
-            if "$" in path.name or ('"' in path.name and "'" in path.name):
-                raise ConfigError(
-                    f"LIGGGHTS cannot read the file name {path.name!r} ('$' or both kinds of quote): "
-                    "rename it"
-                )
-            if self._links is None:
-                self._links = Path(tempfile.mkdtemp(prefix="pygran-liggghts-paths-"))
-            link = self._links / f"dir{len(list(self._links.iterdir())) + 1}"
-            path.parent.mkdir(parents=True, exist_ok=True)  # LIGGGHTS makes folders, not through links
-            link.symlink_to(path.parent.absolute(), target_is_directory=True)
-            text = str(link / path.name)
-            if PLAIN_PATH.fullmatch(text):
-                return text
         quote = '"' if '"' not in text else "'"
         return f"{quote}{text}{quote}"
 
+    def check_paths(self) -> None:
+        """Refuse, naming the keyword, a path of the simulation LIGGGHTS' input cannot name
+        (see :func:`~pygran_core.simulation.specs.command_path`): the saved ``in.pygran``
+        must rerun as the live run ran, writing where it wrote."""
+        spec = self.spec
+        command_path(spec.output, "output", patterns=True, folder=True)
+        for mesh in spec.meshes:
+            command_path(mesh.file, f"mesh {mesh.name!r} file")
+        for key in ("pfile", "mfile"):
+            path = getattr(spec.traj, key)
+            if path is not None:
+                command_path(path, f"traj {key}", patterns=True)
+        if spec.restart is not None:
+            command_path(spec.restart.directory, "restart dir", patterns=True, folder=True)
+            command_path(spec.restart.directory / spec.restart.fname, "restart fname", patterns=True)
+
     def close(self) -> None:
-        """Remove the links :meth:`path` made."""
-        if self._links is not None:
-            shutil.rmtree(self._links, ignore_errors=True)
-            self._links = None
+        """Nothing to release: every path is named as it is (kept for the engine's close)."""
 
     @property
     def granular(self) -> str:
