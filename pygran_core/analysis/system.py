@@ -28,7 +28,7 @@ import importlib
 import importlib.util
 import os
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core import units as _units
+from pygran_core.analysis import parallel
 from pygran_core.analysis.contacts import Contacts
 from pygran_core.analysis.mesh import Mesh
 from pygran_core.analysis.particles import Particles
@@ -182,6 +183,7 @@ class System:
         self._sources = {
             name: _Source(resolve_class(name, user_module), v, options) for name, v in named.items()
         }
+        self._given, self._options = named, options  # what System.map's workers reopen
         for source in list(self._sources.values()):  # the contact records a trajectory's file holds
             stored = (
                 None
@@ -306,6 +308,29 @@ class System:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    def map(
+        self,
+        func: Callable[[System], Any],
+        frames: parallel.Frames = None,
+        client: Any = None,
+        workers: int | None = None,
+    ) -> list[Any]:
+        """``[func(system) for each frame]`` in parallel on a Dask cluster, in frame order.
+
+        ``func`` takes the System at a frame (``lambda s: s.Particles.computeRDF()``) and returns
+        anything picklable; ``frames``: None (all), an index, a slice or a list. ``client``: a
+        ``dask.distributed.Client``, a scheduler address (``"tcp://host:8786"``), None for a
+        ``LocalCluster`` of ``workers`` processes of one thread each (default: one per core),
+        or ``"serial"`` to run here, frame after frame. Workers open the trajectories by their
+        file names and read only their frames (at most two at a time each); see
+        :mod:`pygran_core.analysis.parallel`.
+        """
+        if isinstance(client, str) and client == "serial":
+            return parallel.map_frames(self, None, func, frames, None, workers)
+        classes = {name: source.cls for name, source in self._sources.items()}
+        source = parallel.recipe(type(self), classes, self._given, self._options, self._units)
+        return parallel.map_frames(self, source, func, frames, client, workers)
 
     def close(self) -> None:
         """Close the trajectories' files."""
