@@ -266,11 +266,71 @@ class TestWriterMeshesBinary(TestWriterMeshes):
     options = {"binary": True}
 
 
+class TestWriterParticlesVTP(TestWriterParticles):
+    """The XML polydata writer: particles as vertices, every value exact."""
+
+    reader, writer, suffix = "vtk", "vtp", ".vtp"
+    options: dict = {}
+
+    def make_sample(self, tmp_path):
+        frames = self.sample_frames()
+        with open_writer(tmp_path / "p*.vtp") as out:
+            for frame in frames:
+                out.write_frame(frame)
+        return str(tmp_path / "p*.vtp"), frames
+
+
+class TestWriterMeshesVTP(TestWriterMeshes):
+    reader, writer, suffix = "vtk", "vtp", ".vtp"
+    options: dict = {}
+
+    def make_sample(self, tmp_path):
+        return TestWriterParticlesVTP.make_sample(self, tmp_path)
+
+
+class TestPVDSeries(TestWriterMeshes):
+    """``out.pvd`` written and read back: the index gives every frame its step and time."""
+
+    reader = writer = "pvd"
+    suffix = ".pvd"
+
+    def make_sample(self, tmp_path):
+        return FormatConformance.make_sample(self, tmp_path)
+
+    def bad_files(self, tmp_path):
+        broken = tmp_path / "broken.pvd"
+        broken.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection"><Collection><DataSet timestep=')
+        missing = tmp_path / "missing.pvd"
+        missing.write_text(
+            '<?xml version="1.0"?>\n<VTKFile type="Collection"><Collection>\n'
+            '<DataSet timestep="0" file="gone.vtp"/></Collection></VTKFile>\n'
+        )
+        return [*super().bad_files(tmp_path), (broken, 0), (missing, 0)]
+
+
+def test_series_writes_an_unchanged_frame_once_and_indexes_it_at_every_step(tmp_path):
+    """A static wall: one file, three entries with their own step and time; then it moves."""
+    frame = expected_frame(*sample_meshes()[0])
+    frame.attrs = {"kind": "mesh", "point_data": [], "cell_data": []}
+    frame.arrays = {k: frame.arrays[k] for k in ("points", "cells", "cell_types")}
+    moved = Frame(dict(frame.arrays, points=frame.arrays["points"] + 1.0), attrs=frame.attrs)
+    with open_writer(tmp_path / "walls*.vtk") as out:
+        for step, item in ((0, frame), (10, frame), (20, frame), (30, moved)):
+            item.timestep, item.time = step, step * 1e-6
+            out.write_frame(item)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["walls.pvd", "walls0.vtk", "walls30.vtk"]
+    with open_trajectory(tmp_path / "walls.pvd") as series:
+        assert [f.timestep for f in series] == [0, 10, 20, 30]
+        assert [f.time for f in series] == [step * 1e-6 for step in (0, 10, 20, 30)]
+        np.testing.assert_array_equal(series[2].arrays["points"], frame.arrays["points"])
+        np.testing.assert_array_equal(series[3].arrays["points"], frame.arrays["points"] + 1.0)
+
+
 def test_writer_replaces_files_atomically_and_names_them_by_timestep(tmp_path):
     frame = Frame({"x": np.zeros(2), "y": np.zeros(2), "z": np.ones(2)}, timestep=42)
     with open_writer(tmp_path / "plain.vtk") as out:
         out.write_frame(frame)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain42.vtk"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.pvd", "plain42.vtk"]
     with pytest.raises(UnsupportedFeature, match="lacks \\['z'\\]"):
         open_writer(tmp_path / "p*.vtk").write_frame(Frame({"x": np.zeros(1), "y": np.zeros(1)}))
 

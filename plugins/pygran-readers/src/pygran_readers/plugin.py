@@ -1,4 +1,5 @@
-"""Registers the pygran-readers file formats with PyGran: VTK (legacy, VTU, VTP) and YADE output.
+"""Registers the pygran-readers file formats with PyGran: VTK (legacy, VTU, VTP), ParaView's
+``.pvd`` series index and YADE output.
 
 The LIGGGHTS dump, H5MD and STL are the core's own (``pygran_core.formats``). Only this
 module is imported at plugin discovery; vtk is imported inside the functions that use it.
@@ -7,7 +8,7 @@ module is imported at plugin discovery; vtk is imported inside the functions tha
 from __future__ import annotations
 
 from pygran_core.hookspecs import ReaderSpec, WriterSpec, hookimpl
-from pygran_readers import vtk, yade
+from pygran_readers import series, vtk, vtp, yade
 
 
 @hookimpl
@@ -29,6 +30,14 @@ def pygran_readers():
         kinds=frozenset({"mesh", "particles"}),
         description="VTK legacy and XML meshes or particle points, one frame per file",
     )
+    yield ReaderSpec(
+        name="pvd",
+        extensions=(".pvd",),
+        open=series.PVDTrajectory,
+        can_open=series.can_open,
+        kinds=frozenset({"mesh", "particles"}),
+        description="ParaView .pvd index of a VTK series: each frame's file, time and step",
+    )
 
 
 @hookimpl
@@ -38,6 +47,21 @@ def pygran_writers():
         extensions=(".vtk",),
         open=vtk.VTKWriter,
         kinds=frozenset({"mesh", "particles"}),
-        description="legacy VTK, a file per frame ('*' in the name is the timestep)",
-        options={"binary": False},
+        description="legacy VTK, a file per frame ('*' in the name is the step), indexed in a .pvd",
+        options={"binary": False, "index": None},
+    )
+    yield WriterSpec(
+        name="vtp",
+        extensions=(".vtp",),
+        open=vtp.VTPWriter,
+        kinds=frozenset({"mesh", "particles"}),
+        description="VTK XML polydata, a file per frame ('*' in the name is the step), indexed in a .pvd",
+        options={"index": None},
+    )
+    yield WriterSpec(
+        name="pvd",
+        extensions=(".pvd",),
+        open=vtp.PVDWriter,
+        kinds=frozenset({"mesh", "particles"}),
+        description="ParaView series: out.pvd indexing out_<step>.vtp, one per frame",
     )

@@ -14,7 +14,6 @@ parsed a whole section at a time with numpy.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +22,8 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature
-from pygran_core.io import Frame, PathLike, Trajectory, TrajectoryWriter
+from pygran_core.io import Frame, PathLike, Trajectory
+from pygran_readers.series import SeriesWriter
 
 #: legacy type name -> big-endian binary dtype
 DTYPES = {
@@ -50,13 +50,14 @@ _POLYGON_TYPE = {3: 5, 4: 9}  # triangle, quad; other sizes are polygons (7)
 
 
 def can_open(path: Path) -> bool:
-    """True for a legacy VTK header or a VTK XML file."""
+    """True for a legacy VTK header or a VTK XML dataset (not a ``.pvd`` collection)."""
     try:
         with open(path, "rb") as handle:
             head = handle.read(256)
     except OSError:
         return False
-    return head.startswith(b"# vtk DataFile") or (head.lstrip().startswith(b"<") and b"<VTKFile" in head)
+    xml = head.lstrip().startswith(b"<") and b"<VTKFile" in head and b'type="Collection"' not in head
+    return head.startswith(b"# vtk DataFile") or xml
 
 
 @dataclass
@@ -379,6 +380,12 @@ def _reader_for(path: Path) -> Any:
     return read_legacy if head.startswith(b"# vtk DataFile") else vtkxml.read_xml
 
 
+def read_any(path: Path) -> Mesh:
+    """Parse a VTK file, legacy or XML (by its suffix, else by its first bytes)."""
+    reader: Mesh = _reader_for(path)(path)
+    return reader
+
+
 def mesh_frame(mesh: Mesh, kind: str | None) -> Frame:
     """A Frame from a mesh: particles when every cell is a vertex (or ``kind`` says so)."""
     vertices_only = all(t in (VERTEX, POLY_VERTEX) for t in mesh.cell_types)
@@ -453,31 +460,23 @@ _TRIPLES = {
 }
 
 
-class VTKWriter(TrajectoryWriter):
-    """Legacy VTK files, one per frame (ASCII by default, or big-endian ``binary=True``).
+class VTKWriter(SeriesWriter):
+    """Legacy VTK files, one per frame (ASCII by default, or big-endian ``binary=True``),
+    and their ``.pvd`` index (see :class:`~pygran_readers.series.SeriesWriter`: a ``*`` in
+    the name is the step, unchanged frames are not written again).
 
-    A ``*`` in the file name is replaced by the frame's timestep, as LIGGGHTS names its
-    mesh dumps; without one the timestep goes before the extension. Meshes are written as
-    POLYDATA polygons (UNSTRUCTURED_GRID when some cells are not polygons), particles as
-    POLYDATA vertices with their columns as point data (``vx vy vz`` as the vector ``v``).
-    The frame's timestep and time go in the CYCLE and TIME field data. Each file is written
-    to a temporary name and renamed, so a crash never leaves a half-written frame.
+    Meshes are written as POLYDATA polygons (UNSTRUCTURED_GRID when some cells are not
+    polygons), particles as POLYDATA vertices with their columns as point data (``vx vy vz``
+    as the vector ``v``). The frame's step and time go in the CYCLE and TIME field data, after
+    the geometry, where OVITO's reader accepts them.
     """
 
-    def __init__(self, path: PathLike, binary: bool = False) -> None:
-        self.path = Path(path)
+    def __init__(self, path: PathLike, binary: bool = False, index: PathLike | None = None) -> None:
+        super().__init__(path, index)
         self.binary = bool(binary)
-        self.count = 0
 
-    def write_frame(self, frame: Frame) -> None:
-        step = frame.timestep if frame.timestep is not None else self.count
-        name = self.path.name
-        name = name.replace("*", str(step)) if "*" in name else f"{self.path.stem}{step}{self.path.suffix}"
-        target = self.path.with_name(name)
-        partial = target.with_name(target.name + ".part")
-        partial.write_bytes(b"".join(_legacy_chunks(frame, self.binary)))
-        os.replace(partial, target)
-        self.count += 1
+    def encode(self, frame: Frame) -> bytes:
+        return b"".join(_legacy_chunks(frame, self.binary))
 
 
 def _legacy_chunks(frame: Frame, binary: bool) -> Iterator[bytes]:
@@ -542,9 +541,6 @@ def _mesh_chunks(frame: Frame, binary: bool) -> Iterator[bytes]:
     connectivity = np.column_stack([sizes, cells])[keep]  # row by row: size, then the cell's points
     polydata = set(types.tolist()) <= _POLYGON_CELLS
     yield b"DATASET POLYDATA\n" if polydata else b"DATASET UNSTRUCTURED_GRID\n"
-    timing = _timing(frame)
-    if timing:
-        yield from _field(timing, binary)
     yield from _points_chunks(arrays["points"], binary)
     section = "POLYGONS" if polydata else "CELLS"
     yield f"{section} {len(cells)} {len(connectivity)}\n".encode("ascii")
@@ -552,6 +548,9 @@ def _mesh_chunks(frame: Frame, binary: bool) -> Iterator[bytes]:
     if not polydata:
         yield f"CELL_TYPES {len(cells)}\n".encode("ascii")
         yield _numbers(types.astype(np.int64), binary, 1, integer=">i4")
+    timing = _timing(frame)
+    if timing:
+        yield from _field(timing, binary)
     for section, names, size in (
         ("CELL_DATA", frame.attrs.get("cell_data", ()), len(cells)),
         ("POINT_DATA", frame.attrs.get("point_data", ()), len(arrays["points"])),
@@ -578,12 +577,12 @@ def _particle_chunks(frame: Frame, binary: bool) -> Iterator[bytes]:
             data[name] = values
     n = len(points)
     yield b"DATASET POLYDATA\n"
-    timing = _timing(frame)
-    if timing:
-        yield from _field(timing, binary)
     yield from _points_chunks(points, binary)
     yield f"VERTICES {n} {2 * n}\n".encode("ascii")
     yield _numbers(np.column_stack([np.ones(n, np.int64), np.arange(n)]), binary, 2, integer=">i4")
+    timing = _timing(frame)
+    if timing:
+        yield from _field(timing, binary)
     if data:
         yield f"POINT_DATA {n}\n".encode("ascii")
         yield from _field(data, binary)

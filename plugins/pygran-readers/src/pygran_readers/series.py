@@ -1,0 +1,206 @@
+"""Series of VTK files with a ParaView ``.pvd`` index: the writers' common part and the reader.
+
+A writer of a series writes one file per frame (``walls*.vtk`` -> ``walls100.vtk``, ...) and,
+after every frame, the index ``walls.pvd``: one ``<DataSet timestep="TIME" file="..."/>`` per
+frame, in order, which ParaView, pyvista and OVITO open as one time series with the simulated
+time on its axis. A frame whose content (every array, box and attribute but the time) equals
+the last file's is not written again: its entry names that file, so a static wall is one file
+indexed at every frame, and a wall's file is rewritten only when it moves or changes.
+
+Each entry also carries ``cycle``, the frame's step number; ParaView, pyvista and OVITO ignore
+attributes they do not know. :class:`PVDTrajectory` reads an index back as a trajectory: the
+time and step of each frame from the index, its data from the file it names.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+from xml.parsers import expat
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.io import Frame, PathLike, Trajectory, TrajectoryWriter
+
+#: What opens an index.
+PVD_HEAD = (
+    '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+    "<Collection>\n"
+)
+PVD_TAIL = "</Collection>\n</VTKFile>\n"
+
+
+def index_path(pattern: Path) -> Path:
+    """The index of the series ``pattern``: ``walls*.vtk`` -> ``walls.pvd``, ``mesh_*.vtp`` ->
+    ``mesh.pvd``, ``traj.vtk`` -> ``traj.pvd``."""
+    stem = pattern.name[: -len(pattern.suffix)] if pattern.suffix else pattern.name
+    stem = stem.replace("*", "").rstrip("_.-") or "series"
+    return pattern.with_name(stem + ".pvd")
+
+
+def write_atomically(target: Path, data: bytes) -> None:
+    """Write ``data`` to ``target`` through a temporary name, so a crash never leaves half a file."""
+    partial = target.with_name(target.name + ".part")
+    partial.write_bytes(data)
+    os.replace(partial, target)
+
+
+def same_content(a: Frame, b: Frame) -> bool:
+    """Whether two frames hold the same data (time and step aside)."""
+    if a.arrays.keys() != b.arrays.keys() or a.attrs != b.attrs or a.boundary != b.boundary:
+        return False
+    if a.box is None or b.box is None:
+        if a.box is not b.box:
+            return False
+    elif not np.array_equal(a.box, b.box):
+        return False
+    return all(np.array_equal(a.arrays[k], b.arrays[k]) for k in a.arrays)
+
+
+class SeriesWriter(TrajectoryWriter):
+    """One file per frame, a ``.pvd`` index after each frame, unchanged frames not written again.
+
+    ``path`` names the files: a ``*`` is replaced by the frame's step, else the step goes
+    before the extension. ``index`` is the index file (default :func:`index_path`). A frame
+    without a time is indexed at its step. Subclasses give :meth:`encode`.
+    """
+
+    def __init__(self, path: PathLike, index: PathLike | None = None) -> None:
+        self.path = Path(path)
+        self.index = Path(index) if index is not None else index_path(self.path)
+        self.count = 0
+        self._entries: list[str] = []
+        self._last: Frame | None = None
+        self._last_file = ""
+
+    @abc.abstractmethod
+    def encode(self, frame: Frame) -> bytes:
+        """One frame as the bytes of its file."""
+
+    def file_for(self, step: int) -> Path:
+        """The file of the frame at ``step``."""
+        name = self.path.name
+        if "*" in name:
+            return self.path.with_name(name.replace("*", str(step)))
+        return self.path.with_name(f"{self.path.stem}{step}{self.path.suffix}")
+
+    def write_frame(self, frame: Frame) -> None:
+        step = int(frame.timestep) if frame.timestep is not None else self.count
+        time = float(frame.time) if frame.time is not None else float(step)
+        if not math.isfinite(time):
+            raise UnsupportedFeature(f"A .pvd index needs a finite time; frame {self.count} has {time}")
+        if self._last is None or not same_content(frame, self._last):
+            target = self.file_for(step)
+            write_atomically(target, self.encode(frame))
+            self._last = Frame(
+                {k: np.array(v, copy=True) for k, v in frame.arrays.items()},
+                box=None if frame.box is None else np.array(frame.box, copy=True),
+                boundary=frame.boundary,
+                attrs=dict(frame.attrs),
+            )
+            self._last_file = Path(os.path.relpath(target, self.index.parent)).as_posix()
+        self._entries.append(
+            f'<DataSet timestep="{time!r}" cycle="{step}" part="0" file={quoteattr(self._last_file)}/>\n'
+        )
+        write_atomically(self.index, (PVD_HEAD + "".join(self._entries) + PVD_TAIL).encode("utf-8"))
+        self.count += 1
+
+
+def can_open(path: Path) -> bool:
+    """True for a VTK XML collection (a ``.pvd`` index)."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(256)
+    except OSError:
+        return False
+    return b"<VTKFile" in head and b'type="Collection"' in head
+
+
+def read_index(path: Path) -> list[dict[str, str]]:
+    """The ``DataSet`` entries of a ``.pvd`` file, in order, as attribute dictionaries."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ReadError(f"{path}: cannot read the file: {exc}") from exc
+    entries: list[dict[str, str]] = []
+    tags: list[str] = []
+    parser = expat.ParserCreate()
+
+    def start(tag: str, attrs: dict[str, str]) -> None:
+        tags.append(tag)
+        if tag == "DataSet":
+            entries.append(dict(attrs, line=str(parser.CurrentLineNumber)))
+
+    def refuse(*args: Any) -> None:
+        raise ReadError(f"{path}: a .pvd index has no document type declaration")
+
+    parser.StartElementHandler = start
+    parser.StartDoctypeDeclHandler = refuse
+    try:
+        parser.Parse(data, True)
+    except expat.ExpatError as exc:
+        raise ReadError(f"{path}: not a valid .pvd index (XML error: {exc})") from None
+    if tags[:2] != ["VTKFile", "Collection"]:
+        raise ReadError(f"{path}: not a .pvd index (no <VTKFile type='Collection'><Collection>)")
+    return entries
+
+
+class PVDTrajectory(Trajectory):
+    """The frames a ``.pvd`` index lists: each ``DataSet``'s file read as VTK (legacy or XML),
+    with the index's ``timestep`` as the frame's time and its ``cycle`` (else the file's) as
+    its step. A file listed for several frames is parsed once."""
+
+    def __init__(self, paths: Sequence[PathLike], kind: str | None = None) -> None:
+        from pygran_readers import vtk
+
+        if kind not in (None, "mesh", "particles"):
+            raise ReadError(f"kind must be 'mesh', 'particles' or None, got {kind!r}")
+        self._vtk, self.kind = vtk, kind
+        self.entries: list[tuple[Path, float, int | None, Path]] = []
+        for index in paths:
+            index = Path(index)
+            for entry in read_index(index):
+                where = f"{index}: line {entry['line']}"
+                if entry.get("part", "0") != "0":
+                    raise UnsupportedFeature(
+                        f"{where}: datasets of several parts are not read; open each file"
+                    )
+                if "file" not in entry:
+                    raise ReadError(f"{where}: a DataSet names no file")
+                try:
+                    time = float(entry.get("timestep", "nan"))
+                    cycle = int(entry["cycle"]) if "cycle" in entry else None
+                except ValueError:
+                    raise ReadError(f"{where}: timestep or cycle is not a number") from None
+                if not math.isfinite(time):
+                    raise ReadError(f"{where}: a DataSet has no finite timestep")
+                self.entries.append((index.parent / entry["file"], time, cycle, index))
+        self._cached: tuple[Path, Any] | None = None
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.entries)
+
+    def _read_frame(self, index: int) -> Frame:
+        path, time, cycle, source = self.entries[index]
+        if self._cached is None or self._cached[0] != path:
+            if not path.is_file():
+                raise ReadError(f"{source}: frame {index} is {path}, which does not exist")
+            try:
+                self._cached = (path, self._vtk.read_any(path))
+            except ReadError as exc:
+                raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
+        frame = self._vtk.mesh_frame(self._cached[1], self.kind)
+        frame.arrays = {
+            name: values.copy() for name, values in frame.arrays.items()
+        }  # the cache stays intact
+        frame.time = time
+        if cycle is not None:
+            frame.timestep = cycle
+        return frame
