@@ -35,7 +35,7 @@ install_python_packages() {
     fi
     local stamp=$VENV/.pygran-install-stamp digest
     digest=$(cd "$ROOT" && shopt -s nullglob && cat pyproject.toml plugins/*/pyproject.toml \
-        plugins/*/setup.py plugins/*/src/*/*.{pyx,pxi,pxd,h} | sha256sum | cut -d' ' -f1)
+        plugins/*/setup.py plugins/*/src/*/*.{pyx,pxi,pxd,h} plugins/*/src/*/*/*.{cpp,h} | sha256sum | cut -d' ' -f1)
     if [[ -f $stamp && $(cat "$stamp") == "$digest" ]]; then
         return
     fi

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from pygran_liggghts.library import find_library
+from pygran_liggghts.library import find_library, load_addon
 from pygran_liggghts.screen import capture_screen
 
 #: PyGran quantity -> (LIGGGHTS per-atom array, columns, ctypes element type).
@@ -67,8 +67,11 @@ def _comm_type() -> type[ctypes.c_int] | type[ctypes.c_void_p]:
 
 @cache
 def load() -> ctypes.CDLL:
-    """libliggghts with its signatures declared (loaded once per process)."""
-    return _declare(ctypes.CDLL(find_library(), mode=ctypes.RTLD_GLOBAL), _comm_type())
+    """libliggghts with its signatures declared, and PyGran's add-on to it when built (each
+    loaded once per process, before any LIGGGHTS instance reads a ``pair_style``)."""
+    lib = _declare(ctypes.CDLL(find_library(), mode=ctypes.RTLD_GLOBAL), _comm_type())
+    load_addon()
+    return lib
 
 
 class Liggghts:

@@ -35,9 +35,12 @@ from pygran_core.simulation.specs import (
     command_path,
     given,
 )
+from pygran_liggghts.library import ADDON_MODEL
 
-#: Contact-model kernel (``ContactModel.kernel``) -> LIGGGHTS' ``gran model``.
-MODELS = {"spring-dashpot": "hooke", "hertz-mindlin": "hertz"}
+#: Contact-model kernel (``ContactModel.kernel``) -> LIGGGHTS' ``gran model`` (Thornton-Ning:
+#: PyGran's add-on, :data:`~pygran_liggghts.library.ADDON_MODEL`; LIGGGHTS' own
+#: ``thornton_ning`` is another law).
+MODELS = {"spring-dashpot": "hooke", "hertz-mindlin": "hertz", "thornton-ning": ADDON_MODEL}
 #: LIGGGHTS ``rolling_friction`` model -> the material keys it reads besides
 #: ``coefficientRollingFriction`` (``epsd3`` also reads the global ``coeffRollingStiffness``,
 #: which PyGran's materials do not carry).
@@ -193,7 +196,7 @@ class Commands:
     def granular(self) -> str:
         """The ``model ...`` arguments shared by ``pair_style gran`` and ``fix wall/gran``."""
         words = f"model {self.model} tangential history"
-        if self.cohesion:
+        if self.cohesion and self.model != ADDON_MODEL:  # Thornton-Ning's adhesion is its own (JKR)
             words += " cohesion sjkr"
         if self.rolling:
             words += f" rolling_friction {self.rolling_model}"
@@ -305,7 +308,9 @@ class Commands:
 
     def _material_tables(self) -> list[str]:
         """``fix property/global`` tables of the materials by atom type, pairs mixed by PyGran's rules."""
-        required = ["youngsModulus", "poissonsRatio", "coefficientFriction", "coefficientRestitution"]
+        required = ["youngsModulus", "poissonsRatio", "coefficientFriction"]
+        # Thornton-Ning dissipates by plasticity and adhesion hysteresis, without damping
+        required.append("yieldPress" if self.model == ADDON_MODEL else "coefficientRestitution")
         if self.model == "hooke":
             required.append("characteristicVelocity")
         if self.rolling:
@@ -329,16 +334,20 @@ class Commands:
             return f"fix pg_{name} all property/global {name} peratomtype " + " ".join(fmt(v) for v in values)
 
         E, nu = column("youngsModulus"), column("poissonsRatio")
-        restitution = mixing.pair_table(mixing.pair_restitution, column("coefficientRestitution"))
         lines = [
             per_type("youngsModulus", E),
             per_type("poissonsRatio", nu),
-            table("coefficientRestitution", restitution),
             table(
                 "coefficientFriction", mixing.pair_table(mixing.pair_friction, column("coefficientFriction"))
             ),
         ]
-        if self.cohesion:
+        if self.model == ADDON_MODEL:
+            yield_pressure = mixing.pair_table(mixing.pair_yield_pressure, column("yieldPress"))
+            lines.append(table("yieldPress", yield_pressure))
+        else:
+            restitution = mixing.pair_table(mixing.pair_restitution, column("coefficientRestitution"))
+            lines.append(table("coefficientRestitution", restitution))
+        if self.cohesion or self.model == ADDON_MODEL:
             lines.append(
                 table(
                     "cohesionEnergyDensity",

@@ -56,6 +56,7 @@ from pygran_liggghts.commands import (
     native_particles,
     size_classes,
 )
+from pygran_liggghts.library import ADDON_CAPABILITIES, load_addon
 from pygran_liggghts.screen import InsertionEvent, insertion_events
 from pygran_liggghts.session import LocalSession, WorkerSession
 
@@ -137,7 +138,7 @@ class LiggghtsEngine(Engine):
             "neighbor-styles",
             "contact-output",
         }
-    )
+    ) | (ADDON_CAPABILITIES if load_addon().loaded else frozenset())
     #: Each run chunk is a LIGGGHTS ``run``; few chunks keep the overhead negligible.
     max_run_chunks = 10
 
@@ -221,6 +222,15 @@ class LiggghtsEngine(Engine):
             self._execute(self.commands.setup(resume))
         except BaseException:
             self.close()
+            raise
+
+    def require(self, capability: str, what: str | None = None) -> None:
+        """As :meth:`Engine.require`; a refusal of the add-on's capabilities says why it is missing."""
+        try:
+            super().require(capability, what)
+        except UnsupportedFeature as exc:
+            if capability in ADDON_CAPABILITIES:
+                raise UnsupportedFeature(f"{exc} On LIGGGHTS: {load_addon().reason}") from None
             raise
 
     # -- messages: once per simulation, from rank 0 of its group ---------------------------

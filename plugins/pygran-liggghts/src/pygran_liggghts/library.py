@@ -1,13 +1,29 @@
-"""Finding the LIGGGHTS shared library without searching the disk."""
+"""Finding the LIGGGHTS shared library without searching the disk, and PyGran's add-on to it."""
 
 from __future__ import annotations
 
 import ctypes.util
+import logging
 import os
+from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 LIBRARY_ENV = "PYGRAN_LIGGGHTS_LIB"
 INSTALL = "apt-get install -y liggghts libliggghts-dev openmpi-bin libopenmpi-dev"
+#: LIGGGHTS' ``gran model`` name of the Thornton-Ning add-on (``addon/``, built by ``setup.py``).
+ADDON_MODEL = "thornton_ning_pygran"
+#: The capabilities the add-on gives the engine.
+ADDON_CAPABILITIES = frozenset({"thornton-ning"})
+REINSTALL = "apt-get install -y libliggghts-dev, then pip install --force-reinstall --no-deps pygran-liggghts"
+
+
+def _library_or_none() -> str | None:
+    """``$PYGRAN_LIGGGHTS_LIB`` if it is a file, else what the dynamic loader finds, or None."""
+    explicit = os.environ.get(LIBRARY_ENV)
+    if explicit:
+        return explicit if Path(explicit).is_file() else None
+    return ctypes.util.find_library("liggghts")
 
 
 def find_library() -> str:
@@ -17,11 +33,9 @@ def find_library() -> str:
     LIGGGHTS worker imports this module: ``pygran_core`` is imported only on an error.)
     """
     explicit = os.environ.get(LIBRARY_ENV)
-    if explicit:
-        if not Path(explicit).is_file():
-            raise _error(f"{LIBRARY_ENV}={explicit!r} is not a file; point it at libliggghts.so")
-        return explicit
-    found = ctypes.util.find_library("liggghts")
+    if explicit and not Path(explicit).is_file():
+        raise _error(f"{LIBRARY_ENV}={explicit!r} is not a file; point it at libliggghts.so")
+    found = _library_or_none()
     if found is None:
         raise _error(
             "The LIGGGHTS shared library (libliggghts.so) is not installed. On Debian/Ubuntu: "
@@ -34,3 +48,48 @@ def _error(message: str) -> Exception:
     from pygran_core.errors import EngineError
 
     return EngineError(message)
+
+
+@dataclass(frozen=True)
+class Addon:
+    """Whether the Thornton-Ning add-on loaded into this process, and if not, why."""
+
+    loaded: bool
+    reason: str = ""
+
+
+@cache
+def load_addon() -> Addon:
+    """Load libliggghts, then the add-on, both with ``RTLD_GLOBAL`` (once per process).
+
+    Its static initializer registers ``thornton_ning_pygran`` with LIGGGHTS' contact-model
+    and granular-style factories, so it must be loaded before ``pair_style gran``. A failure
+    is logged (logger ``pygran.liggghts``) and returned, never raised.
+    """
+    reason = _load_addon()
+    if reason:
+        logging.getLogger("pygran.liggghts").warning("ThorntonNing unavailable on LIGGGHTS: %s", reason)
+    return Addon(not reason, reason)
+
+
+def _load_addon() -> str:
+    """Load the add-on; the reason it is unavailable, or ``""``."""
+    found = sorted(Path(__file__).parent.glob("_thornton_ning*.so"))
+    if not found:
+        return (
+            "the Thornton-Ning add-on to LIGGGHTS is not built (pip found no LIGGGHTS headers when "
+            f"it installed pygran-liggghts): {REINSTALL}"
+        )
+    library = _library_or_none()
+    if library is None:
+        return f"no LIGGGHTS shared library (${LIBRARY_ENV} or the dynamic loader): {INSTALL}"
+    try:
+        ctypes.CDLL(library, mode=ctypes.RTLD_GLOBAL)
+        addon = ctypes.CDLL(str(found[0]), mode=ctypes.RTLD_GLOBAL)
+    except OSError as exc:
+        return f"the Thornton-Ning add-on {found[0].name} does not load ({exc}): {REINSTALL}"
+    addon.pygran_thornton_ning_model.restype = ctypes.c_char_p
+    name = addon.pygran_thornton_ning_model().decode()
+    if name != ADDON_MODEL:
+        return f"{found[0].name} registers the model {name!r}, not {ADDON_MODEL!r}: {REINSTALL}"
+    return ""
