@@ -78,7 +78,8 @@ def check_in_step(system: System, steps: list[int]) -> None:
 def test_dump_local_beside_a_dump(tmp_path):
     with ContactEngine(tmp_path, traj={**TRAJ, "pfile": "traj*.dump", "cfile": "contacts*.dump"}) as engine:
         engine.run(2000)
-    assert "ITEM: NUMBER OF ENTRIES\n3\n" in (tmp_path / "contacts1500.dump").read_text()
+    assert "ITEM: NUMBER OF ENTRIES\n2\n" in (tmp_path / "contacts1500.dump").read_text()  # the pairs
+    assert "ITEM: NUMBER OF ENTRIES\n1\n" in (tmp_path / "wall-contacts1500.dump").read_text()
     with System(Particles=str(tmp_path / "traj*.dump"), Contacts=str(tmp_path / "contacts*.dump")) as system:
         check_in_step(system, [0, 500, 1000, 1500, 2000])
         system.goto(3)

@@ -24,6 +24,12 @@ Rows may name particles absent from a particle frame written at the same step (a
 selection ``traj sel``, or a frame of another file): readers keep them, and analysis that
 needs both matches them by id.
 
+A contacts dump (LIGGGHTS' ``dump local``) holds the pair contacts; the wall contacts go to a
+file beside it (:func:`wall_file`: ``contacts.dump`` -> ``wall-contacts.dump``), as LIGGGHTS
+writes ``pair/gran/local`` and ``wall/gran/local`` to two dumps. So every row of the pair file
+is a bond between two particles, which OVITO loads as such (:data:`OVITO_COLUMNS`), and the
+dump reader gives both files' rows as one frame.
+
 LIGGGHTS' ``compute pair/gran/local`` and ``wall/gran/local`` columns, as its ``dump local``
 writes them (``c_ID[1] c_ID[2] ...``), are mapped to the schema by :func:`from_liggghts`.
 """
@@ -32,6 +38,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -44,6 +51,17 @@ COLUMNS = ("id1", "id2", "fx", "fy", "fz", "cx", "cy", "cz", "bx", "by", "bz")
 INT_COLUMNS = frozenset({"id1", "id2"})
 #: Column groups as 3-vectors (H5MD elements ``force``, ``point``, ``branch``).
 VECTORS = {"force": ("fx", "fy", "fz"), "point": ("cx", "cy", "cz"), "branch": ("bx", "by", "bz")}
+
+#: OVITO's bond properties for the columns of a pair-contacts dump, in order: the ``columns``
+#: of ``LoadTrajectoryModifier().source.load(path, columns=...)``, which makes each contact a
+#: bond with its force, contact point and branch vector (OVITO guesses no mapping itself).
+OVITO_COLUMNS = (
+    "Particle Identifiers.1",
+    "Particle Identifiers.2",
+    *(f"{name}.{k}" for name in ("Force", "Contact Point", "Branch") for k in (1, 2, 3)),
+)
+#: What the name of a contacts dump's wall-contacts file starts with.
+WALL_PREFIX = "wall-"
 
 #: Values per keyword of LIGGGHTS 3.8's ``compute pair/gran/local``, in the order of its
 #: columns whatever the order of the keywords (``history``: its width is the rest).
@@ -83,6 +101,20 @@ def is_contacts(columns: Sequence[str]) -> bool:
 def empty() -> dict[str, np.ndarray]:
     """The arrays of a frame without contacts."""
     return {name: np.empty(0, np.int64 if name in INT_COLUMNS else np.float64) for name in COLUMNS}
+
+
+def wall_file(path: Path) -> Path:
+    """The file of the wall contacts beside the contacts dump ``path``."""
+    return path.with_name(WALL_PREFIX + path.name)
+
+
+def split(arrays: Mapping[str, np.ndarray]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The rows of particle pairs and those of walls (``id2 < 0``), each in the schema's order."""
+    wall = np.asarray(arrays["id2"]) < 0
+    return (
+        {name: np.asarray(arrays[name])[~wall] for name in COLUMNS},
+        {name: np.asarray(arrays[name])[wall] for name in COLUMNS},
+    )
 
 
 def checked(arrays: Mapping[str, Any], where: str) -> dict[str, np.ndarray]:

@@ -22,6 +22,7 @@ bytes of text), or from where the last read stopped when reading in order.
 
 from __future__ import annotations
 
+import dataclasses
 import gzip
 import io
 import os
@@ -298,6 +299,8 @@ class _Kept:
 
 
 _ATOM_COUNT = re.compile(rb"^ITEM: NUMBER OF ATOMS[ \t\r]*\n[ \t]*(\d+)[ \t\r]*$", re.MULTILINE)
+#: The most atoms a frame may declare: LAMMPS counts them in 64-bit integers.
+MAX_ATOMS = 2**63 - 1
 
 
 def _atoms_at(text: bytes) -> tuple[int, int, int] | None:
@@ -307,7 +310,7 @@ def _atoms_at(text: bytes) -> tuple[int, int, int] | None:
     count = _ATOM_COUNT.search(head)
     atoms = head.find(b"\nITEM: ATOMS", count.end()) if count else -1
     end = head.find(b"\n", atoms + 1) if atoms >= 0 else -1
-    if count is None or end < 0:
+    if count is None or end < 0 or int(count.group(1)) > MAX_ATOMS:
         return None
     return end + 1, len(head[atoms + 12 : end].split()), int(count.group(1))
 
@@ -467,6 +470,28 @@ class DumpTrajectory(Trajectory):
             if ahead is not None:
                 ahead.shutdown(wait=False)  # its thread ends once the tables queued are parsed
         self._gz: tuple[int, _Inflater] | None = None
+        self._walls = self._wall_contacts()
+
+    def _wall_contacts(self) -> DumpTrajectory | None:
+        """The wall contacts written beside these contacts files (``contacts.dump`` ->
+        ``wall-contacts.dump``), one frame for each of theirs; None without such files."""
+        if self.compute is not None:
+            return None
+        walls = [_contacts.wall_file(path) for path in self.paths]
+        present = [path.is_file() for path in walls]
+        if not any(present):
+            return None
+        if not all(present):
+            at = present.index(False)
+            raise ReadError(f"{walls[at]} is missing: the wall contacts of the frames of {self.paths[at]}")
+        found = DumpTrajectory(walls, self.extra_columns, contacts=True)
+        if found.n_frames != self.n_frames:
+            found.close()
+            raise ReadError(
+                f"{walls[0]} holds {found.n_frames} frames of wall contacts, but {self.paths[0]} "
+                f"holds {self.n_frames} frames of pair contacts"
+            )
+        return found
 
     @property
     def n_frames(self) -> int:
@@ -476,6 +501,8 @@ class DumpTrajectory(Trajectory):
         self._close_stream()
         for kept in self._kept.values():
             kept.close()
+        if self._walls is not None:
+            self._walls.close()
 
     def _close_stream(self) -> None:
         if self._gz is not None:
@@ -539,7 +566,19 @@ class DumpTrajectory(Trajectory):
         ahead = None if kept is None else kept.take(block.start)
         header = self._parse_header(index, data)
         table = self._parse_atoms(index, data, header, ahead)
-        return self._build_frame(index, header, table)
+        frame = self._build_frame(index, header, table)
+        if self._walls is not None and frame.attrs.get("kind") == _contacts.KIND:
+            walls = self._walls[index]
+            if walls.timestep != frame.timestep:
+                raise self._error(
+                    index,
+                    block.line,
+                    f"its wall contacts ({self._walls.paths[0].name}) are of step {walls.timestep}",
+                )
+            frame.arrays = {
+                name: np.concatenate([frame.arrays[name], walls.arrays[name]]) for name in frame.arrays
+            }
+        return frame
 
     def read_header(self, index: int) -> dict[str, Any]:
         """Timestep, atom count, box and columns of frame ``index`` without parsing its atoms."""
@@ -596,8 +635,10 @@ class DumpTrajectory(Trajectory):
             elif name in ("NUMBER OF ATOMS", "NUMBER OF ENTRIES"):
                 header.natoms = number(int, next_line(), "atom count" if name[10] == "A" else "entry count")
                 header.natoms_line = line_no - 1
-                if header.natoms < 0:
-                    raise self._error(index, line_no - 1, f"negative atom count {header.natoms}")
+                if not 0 <= header.natoms <= MAX_ATOMS:
+                    raise self._error(
+                        index, line_no - 1, f"atom count {header.natoms} is outside 0 to {MAX_ATOMS}"
+                    )
             elif name.startswith("BOX BOUNDS"):
                 flags = words[2:]
                 triclinic = flags[:3] == ["xy", "xz", "yz"]
@@ -808,22 +849,40 @@ def _unscale(
 
 
 class DumpWriter(TrajectoryWriter):
-    """Writes particle frames as a LIGGGHTS/LAMMPS text dump.
+    """Writes particle frames as a LIGGGHTS/LAMMPS text dump, exactly as LIGGGHTS' ``dump
+    custom`` lays it out, so that every dump reader (OVITO, MDAnalysis, LIGGGHTS' tools) opens it.
 
     A ``*`` in the file name writes one file per frame with the timestep in its place (as
     LIGGGHTS does); otherwise frames are appended to one file. Floats are written with the
-    shortest text that reads back to the same float64, integers exactly.
+    shortest text that reads back to the same float64, integers exactly. ``time=True`` writes
+    each frame's time in an ``ITEM: TIME`` block before ``ITEM: TIMESTEP``, as LAMMPS'
+    ``dump_modify time yes`` does (OVITO reads it; MDAnalysis' dump reader does not).
+    Contacts frames are written as ``dump local`` entries: the pair contacts in this file,
+    the wall contacts in :func:`~pygran_core.formats.contacts.wall_file` beside it.
     """
 
-    def __init__(self, path: PathLike, **options: Any) -> None:
+    def __init__(self, path: PathLike, time: bool = False, **options: Any) -> None:
         if options:
-            raise UnsupportedFeature(f"The dump writer takes no options, got {sorted(options)}")
+            raise UnsupportedFeature(f"The dump writer takes one option, time=True|False: {sorted(options)}")
+        if not isinstance(time, bool):
+            raise UnsupportedFeature(f"The dump writer's option time is True or False, got {time!r}")
         self.path = Path(path)
+        self.time = time
         self.count = 0
         self._handle: IO[bytes] | None = None
+        self._walls: DumpWriter | None = None
 
     def write_frame(self, frame: Frame) -> None:
-        text = format_frame(frame, self.count).encode("ascii")
+        if frame.attrs.get("kind") == _contacts.KIND:
+            pairs, walls = _contacts.split(frame.arrays)
+            if self._walls is None:
+                self._walls = DumpWriter(_contacts.wall_file(self.path), time=self.time)
+            self._walls._write(dataclasses.replace(frame, arrays=walls))
+            frame = dataclasses.replace(frame, arrays=pairs)
+        self._write(frame)
+
+    def _write(self, frame: Frame) -> None:
+        text = format_frame(frame, self.count, time=self.time).encode("ascii")
         if "*" in self.path.name:
             step = frame.timestep if frame.timestep is not None else self.count
             with open(self.path.with_name(self.path.name.replace("*", str(step))), "wb") as handle:
@@ -839,10 +898,14 @@ class DumpWriter(TrajectoryWriter):
         if self._handle is not None:
             self._handle.close()
             self._handle = None
+        if self._walls is not None:
+            self._walls.close()
 
 
-def format_frame(frame: Frame, index: int = 0) -> str:
-    """One frame as dump text: ``ITEM: ENTRIES`` (``dump local``) for contacts or local frames."""
+def format_frame(frame: Frame, index: int = 0, time: bool = False) -> str:
+    """One frame as dump text: ``ITEM: ENTRIES`` (``dump local``) for contacts or local frames;
+    ``time``: an ``ITEM: TIME`` block first (LAMMPS' ``dump_modify time yes``) when the frame
+    has a time."""
     columns = list(frame.arrays)
     bad = [c for c in columns if np.ndim(frame.arrays[c]) != 1]
     if bad:
@@ -855,7 +918,7 @@ def format_frame(frame: Frame, index: int = 0) -> str:
     boundary = " ".join(frame.boundary) if frame.boundary else "pp pp pp"
     step = frame.timestep if frame.timestep is not None else index
     lines = [f"ITEM: TIMESTEP\n{int(step)}\n"]
-    if frame.time is not None:
+    if time and frame.time is not None:
         lines.insert(0, f"ITEM: TIME\n{float(frame.time)!r}\n")
     noun = "ENTRIES" if frame.attrs.get("kind") in (_contacts.KIND, "local") else "ATOMS"
     lines.append(f"ITEM: NUMBER OF {noun}\n{n}\n")

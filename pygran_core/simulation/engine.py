@@ -942,10 +942,15 @@ class Engine(abc.ABC):
         Files written a frame each need nothing: later frames are overwritten as they come.
         """
         before = before_resume(path)
-        if before.exists():  # an earlier resume was killed while copying: the original is there
-            path.unlink(missing_ok=True)
-        else:
-            os.replace(path, before)
+        moved = [(path, before)]
+        walls = _contacts.wall_file(path), _contacts.wall_file(before)
+        if key == "contacts" and (walls[0].is_file() or walls[1].is_file()):  # a contacts dump's walls
+            moved.append(walls)
+        for now, kept_as in moved:
+            if kept_as.exists():  # an earlier resume was killed while copying: the original is there
+                now.unlink(missing_ok=True)
+            else:
+                os.replace(now, kept_as)
         writer = self._writers[key] = self._open_writer(key, path)
         kept = 0
         try:
@@ -972,7 +977,8 @@ class Engine(abc.ABC):
                 level=logging.WARNING,
             )
             return
-        before.unlink()
+        for _, kept_as in moved:
+            kept_as.unlink()
         self.log("resume: %d frames up to step %d kept in %s", kept, self.step, path)
 
     def _contacts_with(self, key: str) -> bool:

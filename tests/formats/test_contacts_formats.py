@@ -53,7 +53,18 @@ def assert_same_contacts(written: list[Frame], read: list[Frame]) -> None:
             np.testing.assert_array_equal(b.arrays[name], a.arrays[name], err_msg=name)
 
 
+def pairs_first(frames: list[Frame]) -> list[Frame]:
+    """The frames as a contacts dump gives them back: the pair rows, then the wall rows."""
+    out = []
+    for frame in frames:
+        order = np.argsort(frame.arrays["id2"] < 0, kind="stable")
+        out.append(Frame({k: v[order] for k, v in frame.arrays.items()}, frame.timestep, attrs=frame.attrs))
+    return out
+
+
 def test_dump_local_round_trip(tmp_path):
+    """Pair contacts in ``contacts.dump``, wall contacts beside it in ``wall-contacts.dump``
+    (LIGGGHTS' two dump local files); read back as one frame each, pairs first."""
     frames = contact_frames()
     with open_writer(tmp_path / "contacts.dump") as out:
         for frame in frames:
@@ -62,12 +73,47 @@ def test_dump_local_round_trip(tmp_path):
     assert text.count("ITEM: NUMBER OF ENTRIES") == 4 and "ITEM: ATOMS" not in text
     assert "ITEM: ENTRIES id1 id2 fx fy fz cx cy cz bx by bz\n" in text
     with open_trajectory(tmp_path / "contacts.dump") as read:
-        assert_same_contacts(frames, list(read))
+        assert_same_contacts(pairs_first(frames), list(read))
         assert read[2].boundary == ("pp", "pp", "ff")
+    with open_trajectory(tmp_path / "wall-contacts.dump") as walls:
+        for frame, written in zip(walls, frames):
+            wall = written.arrays["id2"] < 0
+            assert frame.timestep == written.timestep
+            np.testing.assert_array_equal(frame.arrays["id2"], written.arrays["id2"][wall])
     with open_writer(tmp_path / "step*.dump") as out:  # a file per frame
         for frame in frames:
             out.write_frame(frame)
-    assert_same_contacts(frames, list(open_trajectory(tmp_path / "step*.dump", contacts=True)))
+    assert sorted(p.name for p in tmp_path.glob("wall-step*.dump")) == [
+        f"wall-step{1000 * k}.dump" for k in range(4)
+    ]
+    assert_same_contacts(pairs_first(frames), list(open_trajectory(tmp_path / "step*.dump", contacts=True)))
+
+
+def test_dump_pair_file_holds_particle_pairs_only(tmp_path):
+    """Every row of the pair file names two particles, as OVITO's bonds need; a wall file
+    missing or of other frames is a ReadError naming it."""
+    frames = contact_frames()
+    with open_writer(tmp_path / "contacts.dump") as out:
+        for frame in frames:
+            out.write_frame(frame)
+    text = (
+        (tmp_path / "contacts.dump").read_text().split("ITEM: ENTRIES id1 id2 fx fy fz cx cy cz bx by bz\n")
+    )
+    rows = [line.split() for block in text[1:] for line in block.splitlines() if not line.startswith("ITEM")]
+    rows = [r for r in rows if len(r) == len(COLUMNS)]
+    assert len(rows) == sum(int(np.count_nonzero(f.arrays["id2"] >= 0)) for f in frames)
+    assert all(int(r[1]) >= 0 for r in rows)
+    lines = (tmp_path / "wall-contacts.dump").read_text().splitlines(keepends=True)
+    (tmp_path / "wall-contacts.dump").write_text("".join(lines[: lines.index("ITEM: TIMESTEP\n", 1)]))
+    with pytest.raises(ReadError, match="wall-contacts.dump holds 1 frames of wall contacts.*4 frames"):
+        open_trajectory(tmp_path / "contacts.dump")
+    (tmp_path / "wall-contacts.dump").unlink()
+    with open_writer(tmp_path / "c*.dump") as out:
+        for frame in frames[:2]:
+            out.write_frame(frame)
+    (tmp_path / "wall-c1000.dump").unlink()
+    with pytest.raises(ReadError, match="wall-c1000.dump is missing"):
+        open_trajectory(tmp_path / "c*.dump")
 
 
 def test_h5md_round_trip_beside_particles(tmp_path):
