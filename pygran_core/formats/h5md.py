@@ -1,15 +1,26 @@
-"""HDF5 trajectories in the H5MD layout (https://www.nongnu.org/h5md/), read and written.
+"""HDF5 trajectories in the H5MD 1.1 layout (https://www.nongnu.org/h5md/), read and written.
 
-Layout written (``<g>`` is the particle group, ``all`` by default)::
+Layout written (``<g>`` is the particle group, ``trajectory`` by default: the name MDAnalysis
+looks for)::
 
-    /h5md                         version = [1, 1]; author/, creator/ with a name attribute
+    /h5md                         version = [1, 1]; author/, creator/ with a name attribute;
+                                  modules/units (system "SI") when the units are SI
     /particles/<g>/box            dimension = 3, boundary = periodic|none per axis
         edges/{step,time,value}   (F, 3) box lengths (F, 3, 3) box vectors when triclinic
         pygran_bounds/...         (F, 3, 2) the exact dump bounds; pygran_tilt (F, 3) if any
     /particles/<g>/<element>/{step,time,value}
-        position, velocity, force, image   (F, N, 3) from x y z, vx vy vz, fx fy fz, ix iy iz
-        id (F, N) int, padded with -1; species (F, N) from ``type``; any other column (F, N)
+        position, velocity, force, image, angular_velocity, torque   (F, N, 3) from
+            x y z, vx vy vz, fx fy fz, ix iy iz, omegax omegay omegaz, tqx tqy tqz
+        id (F, N) int, -1 where a row holds no particle; species (F, N) from ``type``;
+        any other column (F, N)
+        pygran_order (F, N) int: where each row's particle stood in the frame as written
     /observables/<g>/particle_number/{step,time,value}   (F,) particles in each frame
+
+Rows are identities: a particle keeps the row it got at its first frame for the whole file
+(LAMMPS' ``dump h5md`` and MDAnalysis take row i to be one particle throughout); rows of
+particles absent from a frame hold the fill values (id -1, NaN), as the H5MD ``id`` element
+specifies. Frames without an ``id`` column fill rows in order. Every ``value`` with a physical
+dimension carries its ``unit`` attribute (H5MD units module), and so does every ``time``.
 
 Contact records (:mod:`~pygran_core.formats.contacts`), when written, in the same layout::
 
@@ -17,20 +28,22 @@ Contact records (:mod:`~pygran_core.formats.contacts`), when written, in the sam
     /contacts/<g>/{force,point,branch}/{step,time,value}  (F, C, 3) fx fy fz, cx cy cz, bx by bz
     /observables/<g>/contact_number/{step,time,value}     (F,) contacts in each frame
 
-Every ``value`` is chunked, gzip-compressed and resizable in frames and rows; rows beyond a
-frame's count hold the fill value (-1 for particle ids, 0 for contact ids, NaN for floats);
-HDF5 stores no chunk that holds fill values only. ``step`` and ``time`` are one pair of
-datasets hard-linked into every element of a group (particles, contacts). The file is
-written in SWMR mode and flushed after every frame, so a killed writer leaves every
-completed frame readable; ``particle_number`` and ``contact_number`` are written last and
-set the frame counts.
+Every ``value`` is chunked, gzip-compressed and resizable in frames and rows; HDF5 stores no
+chunk that holds fill values only. ``step`` and ``time`` are one pair of datasets hard-linked
+into every element of a group (particles, contacts). The file is written in SWMR mode and
+flushed after every frame, so a killed writer leaves every completed frame readable;
+``particle_number`` and ``contact_number`` are written last and set the frame counts. Next to
+the file, the XDMF sidecar (:mod:`~pygran_core.formats.xdmf`) shows the particles in ParaView.
+
+Reading checks what a file from elsewhere may get wrong: it must be self-contained
+(:func:`~pygran_core.formats.hdf5.open_hdf5`), its elements must agree in frames and rows,
+vectors must have 3 components, ids and species must be integers, no element may be a sparse
+shell larger than what it stores, steps must increase, and every frame must be physically sane
+(:mod:`~pygran_core.formats.sanity`).
 """
 
 from __future__ import annotations
 
-import ctypes
-import functools
-import os
 from collections.abc import Sequence
 from importlib.metadata import version
 from pathlib import Path
@@ -38,9 +51,12 @@ from typing import Any
 
 import numpy as np
 
-from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.errors import PyGranError, ReadError, UnsupportedFeature
 from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
+from pygran_core.formats.hdf5 import HDF5_SIGNATURE, Claim, WriteError, no_space, open_hdf5, stored_elements
+from pygran_core.formats.sanity import particle_problem, step_problem
+from pygran_core.formats.xdmf import XdmfSidecar, frame_groups
 
 #: H5MD vector elements and the dump columns they hold.
 VECTORS = {
@@ -48,23 +64,29 @@ VECTORS = {
     "velocity": ("vx", "vy", "vz"),
     "force": ("fx", "fy", "fz"),
     "image": ("ix", "iy", "iz"),
+    "angular_velocity": ("omegax", "omegay", "omegaz"),
+    "torque": ("tqx", "tqy", "tqz"),
 }
 #: H5MD scalar element names that differ from the dump column.
 RENAMED = {"type": "species"}
+#: Elements whose values are integers.
+INTEGER_ELEMENTS = ("id", "species", "image", "pygran_order")
+#: The H5MD unit strings of SI data (H5MD units module; the force as "N", which MDAnalysis reads).
 SI_UNITS = {
     "position": "m",
     "velocity": "m s-1",
-    "force": "kg m s-2",
+    "force": "N",
+    "angular_velocity": "rad s-1",
+    "torque": "N m",
     "radius": "m",
     "diameter": "m",
     "mass": "kg",
     "density": "kg m-3",
     "time": "s",
+    "edges": "m",
+    "pygran_bounds": "m",
+    "pygran_tilt": "m",
 }
-HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-#: Metadata read attempts of an SWMR reader: HDF5 sleeps 1, 2, 4, ... ns between them, so
-#: 20 bound the wait to about a millisecond (its default of 100 is forever).
-SWMR_READ_ATTEMPTS = 20
 #: What h5py raises on a damaged file (HDF5's own errors are OSError, RuntimeError, KeyError
 #: or ValueError; an object of the wrong kind gives TypeError or IndexError).
 _DAMAGE = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError)
@@ -99,39 +121,80 @@ def _elements(columns: Sequence[str]) -> list[tuple[str, tuple[str, ...]]]:
     return elements
 
 
-class H5MDWriter(TrajectoryWriter):
-    """Appends particle frames, and contacts frames, to an H5MD file, flushing each one.
+class _Rows:
+    """The row of the (frames, rows) arrays that holds each particle id: the next free row at
+    the particle's first frame, kept for good."""
 
-    Options: ``group`` (particle group name), ``units`` (``"si"`` or a mapping from element
-    name to unit string, written as ``unit`` attributes), ``compression`` level (gzip 0-9),
-    ``contacts``: whether contacts frames (``attrs["kind"] == "contacts"``) come besides the
-    particle frames (the file is laid out for both at its first particle frame with columns).
-    A writer whose first frame is a contacts frame, without ``contacts=True``, writes a file
-    of contacts only.
+    def __init__(self) -> None:
+        self.count = 0
+        self._ids = np.empty(0, dtype=np.int64)  # sorted
+        self._rows = np.empty(0, dtype=np.int64)
+
+    def of(self, ids: np.ndarray) -> np.ndarray:
+        """The rows of ``ids`` (unique), giving new ids the next free rows in their order."""
+        where = np.searchsorted(self._ids, ids)
+        known = where < len(self._ids)
+        known[known] = self._ids[where[known]] == ids[known]
+        rows = np.empty(len(ids), dtype=np.int64)
+        rows[known] = self._rows[where[known]]
+        fresh = np.flatnonzero(~known)
+        rows[fresh] = self.count + np.arange(len(fresh))
+        self.count += len(fresh)
+        if len(fresh):
+            ids_all = np.concatenate([self._ids, ids[fresh]])
+            rows_all = np.concatenate([self._rows, rows[fresh]])
+            order = np.argsort(ids_all, kind="stable")
+            self._ids, self._rows = ids_all[order], rows_all[order]
+        return rows
+
+
+class H5MDWriter(TrajectoryWriter):
+    """Appends particle frames, and contacts frames, to an H5MD file, flushing each one, and
+    the XDMF sidecar of the particle frames (``xdmf=False``: none).
+
+    Options: ``group`` (particle group name), ``units`` (``"si"``, the default: the data are
+    in SI units; a mapping from element name to unit string; or None: no ``unit``
+    attributes), ``compression`` level (gzip 0-9), ``contacts``: whether contacts frames
+    (``attrs["kind"] == "contacts"``) come besides the particle frames (the file is laid out
+    for both at its first particle frame with columns). A writer whose first frame is a
+    contacts frame, without ``contacts=True``, writes a file of contacts only.
+
+    The file is claimed before it is emptied (a second writer of the same file gets a
+    :class:`~pygran_core.formats.hdf5.WriteError` and the first one's file is untouched), and
+    each frame's disk space is reserved before it is written: a full disk gives one
+    ``WriteError`` naming the file, with every earlier frame readable.
     """
 
     def __init__(
         self,
         path: PathLike,
-        group: str = "all",
-        units: str | dict[str, str] | None = None,
+        group: str = "trajectory",
+        units: str | dict[str, str] | None = "si",
         compression: int = 4,
         contacts: bool = False,
+        xdmf: bool = True,
     ) -> None:
         if isinstance(units, str) and units != "si":
-            raise UnsupportedFeature(f"H5MD units must be 'si' or a mapping, got {units!r}")
+            raise UnsupportedFeature(f"H5MD units must be 'si', a mapping or None, got {units!r}")
         self.path = Path(path)
         self.group = group
         self.units = SI_UNITS if isinstance(units, str) else dict(units or {})
+        self.si = isinstance(units, str)
         self.compression = compression
         self.contacts = contacts
+        self.xdmf = xdmf
         self.count = 0
         self.contact_count = 0
         self._file: Any = None
+        self._claim: Claim | None = None
+        self._sidecar: XdmfSidecar | None = None
+        self._failed: str | None = None
         self._columns: list[str] | None = None
         self._boundary: tuple[str, ...] | None = None
         self._pending: list[Frame] = []
         self._contact_values: list[tuple[Any, tuple[str, ...]]] = []
+        self._rows = _Rows()
+        self._last_step: int | None = None
 
     # -- file creation ---------------------------------------------------------------------
     def _create(self, frame: Frame | None) -> None:
@@ -139,6 +202,8 @@ class H5MDWriter(TrajectoryWriter):
         asked or if ``frame`` is None, for contacts; then in SWMR mode."""
         import h5py
 
+        self._claim = Claim(self.path)
+        self._claim.truncate()
         self._file = f = h5py.File(self.path, "w", libver="latest", track_order=True)
         h5md = f.create_group("h5md")
         h5md.attrs["version"] = np.array([1, 1], dtype=np.int32)
@@ -146,6 +211,10 @@ class H5MDWriter(TrajectoryWriter):
         creator = h5md.create_group("creator")
         creator.attrs["name"] = "PyGran"
         creator.attrs["version"] = version("pygran-core")
+        if self.si:
+            units = h5md.create_group("modules/units")
+            units.attrs["version"] = np.array([1, 0], dtype=np.int32)
+            units.attrs["system"] = "SI"
         if frame is not None:
             self._layout_particles(f, frame)
         if self.contacts or frame is None:
@@ -175,17 +244,21 @@ class H5MDWriter(TrajectoryWriter):
         bad = [c for c in columns if np.ndim(frame.arrays[c]) != 1]
         if bad:
             raise UnsupportedFeature(f"H5MD particle columns must be 1-D; {bad} are not (a mesh frame?)")
-        n = len(frame.arrays[columns[0]])
         particles = f.create_group(f"particles/{self.group}", track_order=True)
         self._clock: Any = None  # the element holding the step and time datasets
         self._values: list[tuple[Any, tuple[str, ...]]] = []
-        for element, cols in _elements(columns):
-            dtype = np.int64 if np.asarray(frame.arrays[cols[0]]).dtype.kind in "iub" else np.float64
-            fill = -1 if dtype is np.int64 else np.nan
+        self._elements = _elements(columns)
+        for element, cols in self._elements:
+            integer = element in INTEGER_ELEMENTS or np.asarray(frame.arrays[cols[0]]).dtype.kind in "iub"
+            dtype = np.int64 if integer else np.float64
+            fill = -1 if integer else np.nan
             tail = (3,) if len(cols) == 3 else ()
-            group = self._element(particles, element, (0, n, *tail), dtype, fill, self._clock)
+            group = self._element(particles, element, (0, 0, *tail), dtype, fill, self._clock)
             self._clock = group if self._clock is None else self._clock
             self._values.append((group["value"], cols))
+        self._order = None
+        if "id" in columns:
+            self._order = self._element(particles, "pygran_order", (0, 0), np.int64, -1, self._clock)["value"]
         box = particles.create_group("box")
         box.attrs["dimension"] = 3
         self._boundary = frame.boundary
@@ -210,6 +283,8 @@ class H5MDWriter(TrajectoryWriter):
             f.require_group(f"observables/{self.group}"), "particle_number", (0,), np.int64, -1, clock
         )["value"]
         self._columns = columns
+        if self.xdmf and "position" in dict(self._elements):
+            self._sidecar = XdmfSidecar(self.path)
 
     def _element(
         self, parent: Any, name: str, shape: tuple[int, ...], dtype: Any, fill: Any, clock: Any
@@ -226,6 +301,8 @@ class H5MDWriter(TrajectoryWriter):
             group["step"] = clock["step"]
             group["time"] = clock["time"]
         chunks = (1, *(min(max(s, 1), _PARTICLE_CHUNK) for s in shape[1:2]), *shape[2:])
+        if len(shape) > 1 and shape[1] == 0:
+            chunks = (1, 1024, *shape[2:])
         value = group.create_dataset(
             "value",
             shape=shape,
@@ -243,16 +320,33 @@ class H5MDWriter(TrajectoryWriter):
 
     # -- appending -----------------------------------------------------------------------------
     def write_frame(self, frame: Frame) -> None:
-        contacts = frame.attrs.get("kind") == _contacts.KIND
-        if self._file is None:
-            if (self.contacts and contacts) or (not contacts and not frame.arrays):
-                self._pending.append(frame)  # no particle columns yet to lay the file out with
-                return
-            self._create(None if contacts else frame)
-            for pending in self._pending:
-                self._dispatch(pending)
-            self._pending.clear()
-        self._dispatch(frame)
+        if self._failed is not None:
+            raise WriteError(
+                f"{self.path}: nothing more is written after an earlier failure ({self._failed})"
+            )
+        try:
+            contacts = frame.attrs.get("kind") == _contacts.KIND
+            if self._file is None:
+                if (self.contacts and contacts) or (not contacts and not frame.arrays):
+                    self._pending.append(frame)  # no particle columns yet to lay the file out with
+                    return
+                self._create(None if contacts else frame)
+                for pending in self._pending:
+                    self._dispatch(pending)
+                self._pending.clear()
+            self._dispatch(frame)
+        except WriteError as exc:
+            self._fail(str(exc))
+            raise
+        except (OSError, RuntimeError) as exc:  # HDF5 failing to write
+            why = "no space left" if no_space(exc) else str(exc)
+            self._fail(why)
+            raise WriteError(f"{self.path}: frame {self.count} could not be written: {why}") from None
+
+    def _fail(self, why: str) -> None:
+        """Stop writing, leaving the frames written so far readable."""
+        self._failed = why
+        self.close()
 
     def _dispatch(self, frame: Frame) -> None:
         if frame.attrs.get("kind") == _contacts.KIND:
@@ -272,6 +366,8 @@ class H5MDWriter(TrajectoryWriter):
             raise UnsupportedFeature(str(exc)) from None
         n = len(arrays["id1"])
         k = self.contact_count
+        assert self._claim is not None
+        self._claim.reserve(sum(a.nbytes for a in arrays.values()))
         step = frame.timestep if frame.timestep is not None else k
         for name, value in (("step", step), ("time", np.nan if frame.time is None else frame.time)):
             dataset = self._contact_clock[name]
@@ -290,7 +386,8 @@ class H5MDWriter(TrajectoryWriter):
         self._file.flush()
         self.contact_count += 1
 
-    def _append(self, frame: Frame) -> None:
+    def _checked(self, frame: Frame) -> tuple[int, np.ndarray]:
+        """The frame's particle count and rows, once its columns, ids and step are right."""
         if self._columns is None:
             raise UnsupportedFeature(f"{self.path}: a particle frame, but the file holds contacts only")
         if frame.arrays and list(frame.arrays) != self._columns:
@@ -303,24 +400,45 @@ class H5MDWriter(TrajectoryWriter):
                 f"H5MD frame {self.count} changes the boundary flags to "
                 f"{frame.boundary} from {self._boundary}"
             )
+        step = frame.timestep if frame.timestep is not None else self.count
+        problem = step_problem(self._last_step, step) or particle_problem(frame.arrays)
         n = len(next(iter(frame.arrays.values()))) if frame.arrays else 0
+        ids = np.asarray(frame.arrays["id"], dtype=np.int64) if "id" in self._columns and n else None
+        if ids is not None and ids.min() < 0:
+            problem = problem or f"negative ids (such as {ids.min()}): H5MD marks absent particles with -1"
+        if problem:
+            raise UnsupportedFeature(f"H5MD frame {self.count}: {problem}")
+        rows = self._rows.of(ids) if ids is not None else np.arange(n)
+        self._rows.count = max(self._rows.count, n)
+        return n, rows
+
+    def _append(self, frame: Frame) -> None:
+        n, rows = self._checked(frame)
         k = self.count
+        lo, hi = (int(rows.min()), int(rows.max()) + 1) if n else (0, 0)
+        span = rows - lo
+        assert self._claim is not None
+        self._claim.reserve(sum(8 * (hi - lo) * (3 if v.ndim == 3 else 1) for v, _ in self._values))
         step = frame.timestep if frame.timestep is not None else k
         for name, value in (("step", step), ("time", np.nan if frame.time is None else frame.time)):
             dataset = self._clock[name]
             dataset.resize((k + 1,))
             dataset[k] = value
-        for value, cols in self._values:
-            if n > value.shape[1]:
-                value.resize(n, axis=1)
+        order = [(self._order, ("pygran_order",))] if self._order is not None else []
+        for value, cols in [*self._values, *order]:
+            if self._rows.count > value.shape[1]:
+                value.resize(self._rows.count, axis=1)
             value.resize(k + 1, axis=0)
             if n:
-                data = (
-                    np.column_stack([frame.arrays[c] for c in cols])
-                    if len(cols) == 3
-                    else np.asarray(frame.arrays[cols[0]])
-                )
-                value[k, :n] = data
+                if cols == ("pygran_order",):
+                    data: np.ndarray = np.arange(n)
+                elif len(cols) == 3:
+                    data = np.column_stack([frame.arrays[c] for c in cols])
+                else:
+                    data = np.asarray(frame.arrays[cols[0]])
+                block = np.full((hi - lo, *value.shape[2:]), value.fillvalue, dtype=value.dtype)
+                block[span] = data
+                value[k, lo:hi] = block
         box = np.asarray(frame.box if frame.box is not None else np.full((3, 2), np.nan), dtype=np.float64)
         lengths = box[:, 1] - box[:, 0]
         for dataset, row in (
@@ -335,13 +453,21 @@ class H5MDWriter(TrajectoryWriter):
         self._number[k] = n
         self._file.flush()
         self.count += 1
+        self._last_step = step
+        if self._sidecar is not None:
+            time = float(step) if frame.time is None or np.isnan(frame.time) else float(frame.time)
+            self._sidecar.add(k, time, frame_groups(frame.arrays, self._elements))
 
     def close(self) -> None:
-        if self._file is None and self._pending:
+        if self._file is None and self._pending and self._failed is None:
             raise UnsupportedFeature("H5MD: no frame with particle columns was written; nothing to lay out")
-        if self._file is not None:
-            self._file.close()
-            self._file = None
+        for resource in (self._file, self._sidecar, self._claim):
+            if resource is not None:
+                try:
+                    resource.close() if not isinstance(resource, Claim) else resource.release()
+                except (OSError, RuntimeError, PyGranError):
+                    pass  # the failure that stopped the writer was reported
+        self._file = self._sidecar = self._claim = None
 
 
 def _edges(lengths: np.ndarray, tilt: Any, triclinic: bool) -> np.ndarray:
@@ -349,69 +475,6 @@ def _edges(lengths: np.ndarray, tilt: Any, triclinic: bool) -> np.ndarray:
         return lengths
     xy, xz, yz = np.asarray(tilt, dtype=np.float64)
     return np.array([[lengths[0], 0, 0], [xy, lengths[1], 0], [xz, yz, lengths[2]]])
-
-
-def open_hdf5(path: Path) -> Any:
-    """``path`` opened for reading with h5py, or a :class:`ReadError`.
-
-    The file is opened without SWMR, which checks its superblock and its size. Only a file
-    that a writer left marked open (a writer killed before closing it, or one still writing)
-    is then opened in SWMR mode, with HDF5's metadata read attempts bounded: an SWMR reader
-    otherwise retries a damaged block with ever longer sleeps, which hangs on a truncated
-    or damaged file.
-    """
-    import h5py
-
-    try:
-        return h5py.File(path, "r")
-    except OSError as exc:
-        if "already open for write" not in str(exc):
-            raise ReadError(f"{path}: not a readable HDF5 file: {exc}") from exc
-    library = _hdf5_library()
-    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
-    if library is None or library.H5Pset_metadata_read_attempts(fapl.id, SWMR_READ_ATTEMPTS) < 0:
-        raise ReadError(
-            f"{path}: the file is still marked open by its writer (killed, or still running), and "
-            "this platform's HDF5 cannot be read in SWMR mode safely; once no writer runs, clear "
-            f"the mark with `h5clear -s {path}`"
-        )
-    fapl.set_fclose_degree(h5py.h5f.CLOSE_STRONG)
-    try:
-        fid = h5py.h5f.open(os.fsencode(path), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, fapl=fapl)
-    except OSError as exc:
-        raise ReadError(f"{path}: not a readable HDF5 file (left open by its writer): {exc}") from exc
-    return h5py.File(fid)
-
-
-@functools.cache
-def _hdf5_library() -> ctypes.CDLL | None:
-    """The HDF5 library h5py runs on (found among the loaded libraries), for the one setting
-    h5py does not expose, or None where it cannot be found."""
-    import h5py  # noqa: F401 - loads the library
-
-    names: list[str] = []
-    try:
-        with open("/proc/self/maps") as maps:  # Linux
-            names = [
-                fields[5].strip() for fields in (line.split(None, 5) for line in maps) if len(fields) == 6
-            ]
-    except OSError:
-        try:  # macOS
-            dyld = ctypes.CDLL(None)
-            dyld._dyld_get_image_name.restype = ctypes.c_char_p
-            names = [dyld._dyld_get_image_name(i).decode() for i in range(dyld._dyld_image_count())]
-        except (OSError, AttributeError):
-            return None
-    for name in dict.fromkeys(n for n in names if "libhdf5" in Path(n).name and "hdf5_hl" not in n):
-        try:
-            library = ctypes.CDLL(name)
-            setter = library.H5Pset_metadata_read_attempts
-        except (OSError, AttributeError):
-            continue
-        setter.argtypes = [ctypes.c_int64, ctypes.c_uint]
-        setter.restype = ctypes.c_int
-        return library
-    return None
 
 
 def open_h5md(paths: Sequence[PathLike], group: str | None = None, contacts: bool = False) -> Trajectory:
@@ -434,6 +497,8 @@ class _H5MDFile(Trajectory):
 
     what = "particle"
     _n: int
+    _step: Any  # the step and time datasets of the frames
+    _time: Any
 
     def __init__(self, paths: Sequence[PathLike], group: str | None = None) -> None:
         if len(paths) != 1:
@@ -493,6 +558,18 @@ class _H5MDFile(Trajectory):
             raise self._fail(f"{found.name} has shape {found.shape} and type {found.dtype}")
         return found
 
+    def _check_clock(self) -> None:
+        """Refuse steps that do not increase, or times that decrease, over the frames."""
+        steps = self._step[: self._n]
+        if self._step.dtype.kind not in "iu":
+            raise self._fail(f"{self._step.name} holds {self._step.dtype}: steps must be integers")
+        for k in np.flatnonzero(np.diff(steps) <= 0)[:1]:
+            raise self._fail(f"frame {k + 1}: {step_problem(int(steps[k]), int(steps[k + 1]))}")
+        times = self._time[: self._n]
+        known = times[~np.isnan(times)]
+        if (np.diff(known) < 0).any():
+            raise self._fail(f"{self._time.name}: times decrease from frame to frame")
+
     @property
     def n_frames(self) -> int:
         return self._n
@@ -542,6 +619,7 @@ class H5MDContacts(_H5MDFile):
         self._number = self._dataset(number, "value", 1, 1)
         lengths = [len(v) for _, v in self._values] + [len(self._step), len(self._time), len(self._number)]
         self._n = min(lengths)
+        self._check_clock()
         self._boundary = self._boundary_of(self._file.get(f"particles/{self.group}/box"))
 
     def _frame(self, index: int) -> Frame:
@@ -570,7 +648,12 @@ class H5MDContacts(_H5MDFile):
 
 
 class H5MDTrajectory(_H5MDFile):
-    """Frames of one H5MD file's particle group (``group=None``: the only one there is)."""
+    """Frames of one H5MD file's particle group (``group=None``: the only one there is).
+
+    A frame holds the rows whose ``id`` is not -1 (all rows without an ``id`` element; the
+    first ``particle_number`` rows without either), in the order they were written
+    (``pygran_order``) or else in row order.
+    """
 
     def _index(self, group: str | None) -> None:
         import h5py
@@ -581,25 +664,33 @@ class H5MDTrajectory(_H5MDFile):
                 raise _ContactsOnly(f"{self.path}: holds contact records only")
             raise self._fail("no /particles group: not an H5MD trajectory")
         root = self._root("particles", group)
-        #: (name, dataset, time-dependent) of every element but the box
+        #: (name, dataset, time-dependent) of every element but the box and the order
         self._elements: list[tuple[str, Any, bool]] = []
+        self._order: Any = None
+        self._rows: int | None = None  # particles per frame, and the element that says so
+        self._rows_from = ""
         clock = None
         for name, obj in root.items():
             if name == "box":
                 continue
-            if isinstance(obj, h5py.Group):
+            timed = isinstance(obj, h5py.Group)
+            dataset = self._dataset(obj, "value", 2, 3) if timed else self._dataset(root, name, 1, 2)
+            self._check_element(name, dataset, timed)
+            if timed:
                 clock = obj if clock is None else clock
-                self._elements.append((name, self._dataset(obj, "value", 2, 3), True))
-            elif isinstance(obj, h5py.Dataset):
-                self._elements.append((name, obj, False))
+            if name == "pygran_order":
+                self._order = dataset
+            else:
+                self._elements.append((name, dataset, timed))
         if clock is None:
-            raise self._fail(f"particle group {group!r} has no time-dependent element")
+            raise self._fail(f"particle group {self.group!r} has no time-dependent element")
         self._step, self._time = self._dataset(clock, "step", 1, 1), self._dataset(clock, "time", 1, 1)
         lengths = [len(d) for _, d, timed in self._elements if timed] + [len(self._step), len(self._time)]
-        number = self._file.get(f"observables/{group}/particle_number")
+        number = self._file.get(f"observables/{self.group}/particle_number")
         self._number = None if number is None else self._dataset(number, "value", 1, 1)
         if self._number is not None:
             lengths.append(len(self._number))
+        self._ids = next((d for name, d, timed in self._elements if name == "id" and timed), None)
         box = root.get("box")
         self._box_parts: dict[str, Any] = {}
         if isinstance(box, h5py.Group):
@@ -608,7 +699,30 @@ class H5MDTrajectory(_H5MDFile):
                     self._box_parts[part] = self._dataset(box[part], "value", *dims)
                     lengths.append(len(self._box_parts[part]))
         self._n = min(lengths)
+        self._check_clock()
         self._boundary = self._boundary_of(box)
+
+    def _check_element(self, name: str, dataset: Any, timed: bool) -> None:
+        """Refuse an element whose rows, components, type or storage do not fit the others."""
+        shape = dataset.shape[1:] if timed else dataset.shape
+        rows = self._rows
+        if rows is not None and shape[0] != rows:
+            raise self._fail(
+                f"{dataset.name} holds {shape[0]} particles per frame, but {self._rows_from} holds {rows}"
+            )
+        self._rows, self._rows_from = shape[0], dataset.name
+        if name in VECTORS and shape[1:] != (3,):
+            raise self._fail(
+                f"{dataset.name} has shape {dataset.shape}: {name} needs 3 components per particle"
+            )
+        if name in INTEGER_ELEMENTS and dataset.dtype.kind not in "iu":
+            raise self._fail(f"{dataset.name} holds {dataset.dtype}: {name} must be integers")
+        declared = int(np.prod(shape, dtype=np.int64))
+        if declared and stored_elements(dataset) < declared:
+            raise self._fail(
+                f"{dataset.name} declares {shape[0]} particles but stores data for fewer than one frame "
+                f"of them ({stored_elements(dataset)} of {declared} values): a sparse shell"
+            )
 
     def contacts(self) -> Trajectory | None:
         """The contact records of this particle group stored in the same file, if any."""
@@ -616,35 +730,50 @@ class H5MDTrajectory(_H5MDFile):
             return None
         return H5MDContacts([self.path], self.group)
 
-    def _frame(self, index: int) -> Frame:
+    def _present(self, index: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """The rows holding particles in frame ``index``, and where each stood as written."""
         count = int(self._number[index]) if self._number is not None else None
-        rows: dict[str, np.ndarray] = {}
-        for name, dataset, timed in self._elements:
-            data = dataset[index] if timed else dataset[()]
-            if data.ndim == 0 or data.dtype.kind not in "biuf":
-                raise self._fail(f"frame {index}: element {name!r} has shape {data.shape}, type {data.dtype}")
-            if count is None and name == "id":
-                count = int(np.count_nonzero(data >= 0))
-            rows[name] = data
+        if self._ids is not None:
+            rows = np.flatnonzero(self._ids[index] != self._ids.fillvalue)
+            if count is not None and count != len(rows):
+                raise self._fail(f"frame {index}: {count} particles counted, but {len(rows)} rows have an id")
+        else:
+            held = self._rows or 0
+            count = held if count is None else count
+            if not 0 <= count <= held:
+                raise self._fail(f"frame {index}: {count} particles, but the elements hold {held}")
+            rows = np.arange(count)
+        if self._order is None or not len(rows):
+            return rows, None
+        order = self._order[index, rows[0] : rows[-1] + 1][rows - rows[0]]
+        if not np.array_equal(np.sort(order), np.arange(len(rows))):
+            raise self._fail(
+                f"frame {index}: {self._order.name} is not an order of its {len(rows)} particles"
+            )
+        return rows, order
+
+    def _frame(self, index: int) -> Frame:
+        rows, order = self._present(index)
+        span = slice(int(rows[0]), int(rows[-1]) + 1) if len(rows) else slice(0, 0)
         arrays: dict[str, np.ndarray] = {}
-        for name, data in rows.items():
-            if count is not None:
-                if not 0 <= count <= len(data):
-                    raise self._fail(f"frame {index}: {count} particles, but {name!r} holds {len(data)}")
-                data = data[:count]
+        for name, dataset, timed in self._elements:
+            data = (dataset[index, span] if timed else dataset[span])[rows - span.start]
             data = data.astype(np.int64 if data.dtype.kind in "biu" else np.float64)
-            if name in VECTORS and data.shape[1:] == (3,):
+            if order is not None:
+                placed = np.empty_like(data)
+                placed[order] = data
+                data = placed
+            if name in VECTORS:
                 for j, column in enumerate(VECTORS[name]):
                     arrays[column] = np.ascontiguousarray(data[:, j])
             elif data.ndim == 2:
                 for j in range(data.shape[1]):
                     arrays[f"{name}[{j + 1}]"] = np.ascontiguousarray(data[:, j])
-            elif data.ndim == 1:
-                arrays["type" if name == "species" else name] = data
             else:
-                raise self._fail(f"frame {index}: element {name!r} has shape {data.shape}")
-        if len({len(v) for v in arrays.values()}) > 1:
-            raise self._fail(f"frame {index}: the elements hold different particle counts")
+                arrays["type" if name == "species" else name] = data
+        problem = particle_problem(arrays)
+        if problem:
+            raise self._fail(f"frame {index}: {problem}")
         box, attrs = None, {}
         if "pygran_bounds" in self._box_parts:
             box = np.asarray(self._box_parts["pygran_bounds"][index], dtype=np.float64).reshape(3, 2)

@@ -50,5 +50,5 @@ def pygran_writers() -> Iterator[WriterSpec]:
         open=h5md.H5MDWriter,
         kinds=frozenset({"particles", "contacts"}),
         description="HDF5 in the H5MD layout, flushed frame by frame",
-        options={"group": "all", "units": None, "compression": 4, "contacts": False},
+        options={"group": "trajectory", "units": "si", "compression": 4, "contacts": False, "xdmf": True},
     )

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ConfigError, ReadError
-from pygran_core.formats.h5md import HDF5_SIGNATURE
+from pygran_core.formats.hdf5 import HDF5_SIGNATURE, open_hdf5
 from pygran_core.simulation.specs import RestartSpec
 
 FORMAT = "pygran-checkpoint"
@@ -176,9 +176,8 @@ def read_checkpoint(path: Path) -> Checkpoint:
     wrong type, datasets that are not numeric or whose shape is not what is stored, a journal
     or facts that are not UTF-8 JSON of the expected shape, monitors that are not tables of
     samples. What the engine's state arrays must hold is checked by the engine restoring them.
+    A file that reaches outside itself (external links or storage, virtual datasets) is refused.
     """
-    import h5py
-
     try:
         with open(path, "rb") as handle:
             head = handle.read(_SEAL_SIZE + 8)
@@ -191,7 +190,7 @@ def read_checkpoint(path: Path) -> Checkpoint:
             raise ReadError(
                 f"{path}: unreadable checkpoint: not a PyGran checkpoint, or its first bytes are damaged"
             )
-        with h5py.File(path, "r") as f:
+        with open_hdf5(path) as f:  # refuses a file that reaches outside itself
             checkpoint, version = _read(path, f)
     except _DAMAGE as exc:
         raise ReadError(f"{path}: unreadable checkpoint ({type(exc).__name__}: {exc})") from None

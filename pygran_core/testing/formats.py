@@ -42,6 +42,7 @@ def particle_frames() -> list[Frame]:
         arrays: dict[str, np.ndarray] = {"id": ids, "type": rng.integers(1, 4, n).astype(np.int64)}
         for name in ("x", "y", "z", "radius", "vx", "vy", "vz", "fx", "fy", "fz", "c_stress[2]"):
             arrays[name] = rng.normal(size=n) * 10.0 ** rng.integers(-300, 300, n)
+        arrays["radius"] = np.abs(arrays["radius"])  # physically sane: radii are positive
         if n:
             arrays["x"][0] = 1 / 3
             arrays["vx"][-1] = -0.0

@@ -34,30 +34,52 @@ class TestH5MD(FormatConformance):
 
 def test_standard_layout_in_plain_h5py(tmp_path):
     frames = particle_frames()
-    with open_writer(tmp_path / "t.h5md", units="si") as out:
+    with open_writer(tmp_path / "t.h5md") as out:
         for frame in frames:
             out.write_frame(frame)
+    distinct = np.unique(np.concatenate([f.arrays["id"] for f in frames]))
     with h5py.File(tmp_path / "t.h5md", "r") as f:
         assert list(f["h5md"].attrs["version"]) == [1, 1]
         assert f["h5md/creator"].attrs["name"] == "PyGran"
-        group = f["particles/all"]
+        assert f["h5md/modules/units"].attrs["system"] == "SI"
+        group = f["particles/trajectory"]
         assert {"position", "velocity", "force", "id", "species", "radius", "box"} <= set(group)
         position = group["position"]
-        assert position["value"].shape == (4, 12, 3) and position["value"].maxshape == (None, None, 3)
+        # one row per particle that ever appeared
+        assert position["value"].shape == (4, len(distinct), 3) and position["value"].maxshape == (
+            None,
+            None,
+            3,
+        )
         assert position["value"].chunks is not None and position["value"].compression == "gzip"
-        assert position["value"].attrs["unit"] == "m" and position["time"].attrs["unit"] == "s"
+        units = {
+            name: group[f"{name}/value"].attrs.get("unit")
+            for name in ("position", "velocity", "force", "radius")
+        }
+        assert units == {"position": "m", "velocity": "m s-1", "force": "N", "radius": "m"}
+        assert all(group[f"{name}/time"].attrs["unit"] == "s" for name in group if name != "box")
+        assert "unit" not in group["id/value"].attrs and "unit" not in group["species/value"].attrs
         assert position["step"][:].tolist() == [0, 1000, 2000, 3000]
         # step and time are one dataset, hard-linked into every element
         assert group["id/step"].id == position["step"].id
-        np.testing.assert_array_equal(position["value"][2, :, 0], frames[2].arrays["x"])
         ids = group["id/value"][:]
-        assert ids.dtype == np.int64 and ids[0, 5:].tolist() == [-1] * 7 and ids[1].tolist() == [-1] * 12
-        np.testing.assert_array_equal(group["species/value"][3, :3], frames[3].arrays["type"])
-        assert np.isnan(position["value"][3, 3:]).all()
-        assert f["observables/all/particle_number/value"][:].tolist() == [5, 0, 12, 3]
+        assert ids.dtype == np.int64 and ids[1].tolist() == [-1] * len(distinct)
+        for row in ids.T:  # row i holds one particle in every frame where it is present
+            assert len(set(row[row >= 0].tolist())) == 1
+        for k, frame in enumerate(frames):
+            present = ids[k] >= 0
+            assert present.sum() == len(frame.arrays["id"])
+            where = {int(i): r for r, i in enumerate(ids[k]) if i >= 0}
+            rows = [where[int(i)] for i in frame.arrays["id"]]
+            np.testing.assert_array_equal(position["value"][k][rows, 0], frame.arrays["x"])
+            np.testing.assert_array_equal(group["species/value"][k][rows], frame.arrays["type"])
+            np.testing.assert_array_equal(group["pygran_order/value"][k][rows], np.arange(len(rows)))
+            assert np.isnan(position["value"][k, ~present]).all()
+        assert f["observables/trajectory/particle_number/value"][:].tolist() == [5, 0, 12, 3]
         box = group["box"]
         assert box.attrs["dimension"] == 3 and list(box.attrs["boundary"]) == ["periodic", "none", "none"]
         np.testing.assert_array_equal(box["edges/value"][0], [2.0, 4.0, 0.1])
+        assert box["edges/value"].attrs["unit"] == "m"
         assert "c_stress[2]" in group
 
 
@@ -77,7 +99,7 @@ def test_triclinic_box(tmp_path):
     np.testing.assert_array_equal(back.attrs["tilt"], [0.1, 0.2, 0.3])
     with h5py.File(tmp_path / "t.h5") as f:
         np.testing.assert_array_equal(
-            f["particles/all/box/edges/value"][0], [[1, 0, 0], [0.1, 2, 0], [0.2, 0.3, 3]]
+            f["particles/trajectory/box/edges/value"][0], [[1, 0, 0], [0.1, 2, 0], [0.2, 0.3, 3]]
         )
 
 
