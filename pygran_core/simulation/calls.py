@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ConfigError, did_you_mean, unknown_key
+from pygran_core.simulation import geometry
 from pygran_core.simulation.specs import (
     BOX_TOLERANCE,
     SimulationSpec,
@@ -37,14 +38,23 @@ from pygran_core.simulation.specs import (
 @dataclass(frozen=True)
 class Region:
     """A region of space: ``block`` (xlo, xhi, ylo, yhi, zlo, zhi), ``cylinder`` (axis, c1,
-    c2, radius, lo, hi: LIGGGHTS order, the axis one of x/y/z) or ``sphere`` (x, y, z, r)."""
+    c2, radius, lo, hi: LIGGGHTS order, the axis one of x/y/z), ``cone`` (axis, c1, c2, radlo,
+    radhi, lo, hi: LIGGGHTS' order), ``sphere`` (x, y, z, r), ``mesh`` (a closed
+    :class:`~pygran_core.simulation.geometry.Surface`: its inside) or ``intersect`` (regions:
+    the points inside all of them)."""
 
     kind: str
     args: tuple[Any, ...]
 
     def __str__(self) -> str:
         """As a script gives it: ``('block', 0, 0.01, 0, 0.01, 0, 0.02)``."""
-        words = [repr(a) if isinstance(a, str) else f"{a:g}" for a in (self.kind, *self.args)]
+
+        def word(a: Any) -> str:
+            if isinstance(a, Region):
+                return str(a)
+            return repr(a) if isinstance(a, (str, geometry.Surface)) else f"{a:g}"
+
+        words = [word(a) for a in (self.kind, *self.args)]
         return f"({', '.join(words)})"
 
     def bounds(self) -> np.ndarray:
@@ -54,7 +64,13 @@ class Region:
         if self.kind == "sphere":
             centre, radius = np.array(self.args[:3]), self.args[3]
             return np.column_stack([centre - radius, centre + radius])
-        axis, c1, c2, radius, lo, hi = self.args
+        if self.kind == "mesh":
+            return np.array(self.args[0].bounds)
+        if self.kind == "intersect":
+            parts = np.stack([part.bounds() for part in self.args])
+            return np.column_stack([parts[:, :, 0].max(axis=0), parts[:, :, 1].min(axis=0)])
+        axis, c1, c2, *radii, lo, hi = self.args
+        radius = max(radii)
         along = "xyz".index(axis)
         across = [i for i in range(3) if i != along]
         out = np.empty((3, 2))
@@ -64,10 +80,21 @@ class Region:
         return out
 
     def volume(self) -> float:
+        """In m^3; of an intersection, estimated from 20,000 points (seeded: always the same; a
+        standard error of 0.3 % for an intersection filling three quarters of its bounds)."""
         if self.kind == "block":
             return float(np.prod(np.diff(self.bounds(), axis=1)))
         if self.kind == "sphere":
             return 4.0 / 3.0 * math.pi * self.args[3] ** 3
+        if self.kind == "mesh":
+            return self.args[0].volume
+        if self.kind == "intersect":
+            box = self.bounds()
+            points = np.random.default_rng(0).uniform(box[:, 0], box[:, 1], (20_000, 3))
+            return float(np.prod(box[:, 1] - box[:, 0]) * np.mean(self.contains(points)))
+        if self.kind == "cone":
+            _, _, _, r1, r2, lo, hi = self.args
+            return math.pi * (hi - lo) * (r1 * r1 + r1 * r2 + r2 * r2) / 3
         _, _, _, radius, lo, hi = self.args
         return math.pi * radius**2 * (hi - lo)
 
@@ -82,15 +109,27 @@ class Region:
             )
         if self.kind == "sphere":
             return np.linalg.norm(points - np.array(self.args[:3]), axis=1) <= self.args[3] - margin
-        axis, c1, c2, radius, lo, hi = self.args
+        if self.kind == "mesh":
+            return self.args[0].contains(points, margin)
+        if self.kind == "intersect":
+            inside = np.ones(len(points), bool)
+            for part in self.args:
+                inside &= part.contains(points, margin)
+            return inside
+        axis, c1, c2, *radii, lo, hi = self.args
         along = "xyz".index(axis)
         across = [i for i in range(3) if i != along]
         r = np.hypot(points[:, across[0]] - c1, points[:, across[1]] - c2)
         z = points[:, along]
-        return (r <= radius - margin) & (z >= lo + margin) & (z <= hi - margin)
+        if self.kind == "cone":  # the distance to the slanted side is the radial gap times cos(slope)
+            r_lo, r_hi = radii
+            radius = r_lo + (r_hi - r_lo) * (z - lo) / (hi - lo)
+            slope = math.cos(math.atan2(abs(r_hi - r_lo), hi - lo))
+            return ((radius - r) * slope >= margin) & (z >= lo + margin) & (z <= hi - margin)
+        return (r <= radii[0] - margin) & (z >= lo + margin) & (z <= hi - margin)
 
 
-REGION_ARITY = {"block": 6, "cylinder": 6, "sphere": 4}
+REGION_ARITY = {"block": 6, "cylinder": 6, "cone": 7, "sphere": 4}
 
 
 def _face_flag(spec: SimulationSpec, axis: int, side: int) -> str:
@@ -152,14 +191,27 @@ def check_points_in_box(points: np.ndarray, spec: SimulationSpec, what: str) -> 
 
 
 def parse_region(value: Any, spec: SimulationSpec) -> Region:
-    """``('block', xlo, ...)`` and friends; ``None`` or ``'sim_box'`` is the whole box."""
+    """``('block', xlo, ...)`` and friends; ``None`` or ``'sim_box'`` is the whole box; a
+    closed surface, or ``('mesh', surface or the name of a mesh)``, is its inside;
+    ``('intersect', region, region, ...)`` the points inside all of them."""
     if value is None or isinstance(value, str) and value == "sim_box":
         return Region("block", tuple(v for pair in spec.domain.box for v in pair))
+    if isinstance(value, geometry.Surface):
+        value = ("mesh", value)
     if isinstance(value, str) or not isinstance(value, Sequence) or not value:
         raise ConfigError(
             f"region must be a tuple such as ('block', xlo, xhi, ylo, yhi, zlo, zhi): {value!r}"
         )
-    kind = one_of(value[0], "region type", list(REGION_ARITY))
+    kind = one_of(value[0], "region type", [*REGION_ARITY, "mesh", "intersect"])
+    if kind == "mesh":
+        return _mesh_region(value, spec)
+    if kind == "intersect":
+        if len(value) < 3:
+            raise ConfigError(f"an 'intersect' region needs two regions or more: {value!r}")
+        region = Region(kind, tuple(parse_region(part, spec) for part in value[1:]))
+        if np.any(np.diff(region.bounds()) <= 0):
+            raise ConfigError(f"the regions of {region} do not overlap: their intersection is empty")
+        return region
     args = tuple(value[1:])
     if len(args) == 1 and isinstance(args[0], str):  # PyGran 1.x: ('block', '-1e-3 1e-3 ...')
         args = tuple(float(word) if _is_number(word) else word for word in args[0].split())
@@ -173,11 +225,34 @@ def parse_region(value: Any, spec: SimulationSpec) -> Region:
         if numbers[2] <= 0 or numbers[3] >= numbers[4]:
             raise ConfigError(f"cylinder region needs radius > 0 and lo < hi: {value!r}")
         return Region(kind, (axis, *numbers))
+    if kind == "cone":
+        axis = one_of(args[0], "cone axis", ("x", "y", "z"))
+        numbers = tuple(finite_number(v, "cone region") for v in args[1:])
+        if min(numbers[2:4]) < 0 or max(numbers[2:4]) <= 0 or numbers[4] >= numbers[5]:
+            raise ConfigError(f"cone region needs radii >= 0 (one > 0) and lo < hi: {value!r}")
+        return Region(kind, (axis, *numbers))
     numbers = tuple(finite_number(v, f"{kind} region") for v in args)
     region = Region(kind, numbers)
     if kind == "sphere" and numbers[3] <= 0 or kind == "block" and np.any(np.diff(region.bounds()) <= 0):
         raise ConfigError(f"region {value!r} is empty")
     return region
+
+
+def _mesh_region(value: Sequence[Any], spec: SimulationSpec) -> Region:
+    """``('mesh', surface)``, ``('mesh', triangles)`` or ``('mesh', name)`` of a mesh of the
+    simulation: the inside of a closed surface."""
+    if len(value) != 2:
+        raise ConfigError(f"a 'mesh' region takes one surface or mesh name: {value!r}")
+    given = value[1]
+    if isinstance(given, str):
+        known = {mesh.name: mesh for mesh in spec.meshes}
+        if given not in known:
+            raise unknown_key("mesh of the region", given, list(known))
+        surface = geometry.Surface(known[given].triangles(), given)
+    else:
+        surface = geometry.as_surface(given, "of the region")
+    surface.require_closed("an insertion region")
+    return Region("mesh", (surface,))
 
 
 # -- species selection, velocities --------------------------------------------------------
@@ -691,7 +766,18 @@ def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> 
     the style's keyword holds the style's first arguments (PyGran 1.x's
     ``rotate=('origin', 0, 0, 0)``), the others follow as keywords (``axis=``, ``period=``)."""
     names = [m.name for m in spec.meshes]
+    drum = (
+        "a rotating drum is a mesh: mesh={'drum': {'triangles': simulation.geometry.drum(radius=..., "
+        "length=..., axis='y'), 'material': ...}}, then moveMesh('drum', rotate=...)"
+    )
+    if getattr(mesh, "kind", None) == "wall":  # a primitive wall's handle
+        raise ConfigError(
+            f"moveMesh moves mesh walls, and {mesh} is a primitive wall: primitive planes and cylinders "
+            f"are fixed, infinite surfaces on every engine (LIGGGHTS' primitives do not move); {drum}"
+        )
     if not isinstance(mesh, str) or mesh not in names:
+        if not names:
+            raise ConfigError(f"moveMesh({mesh!r}): this simulation has no mesh to move; {drum}")
         raise unknown_key("mesh", str(mesh), names)
     check_keys(
         "moveMesh keyword",

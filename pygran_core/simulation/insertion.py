@@ -26,6 +26,7 @@ from pygran_core.simulation import clumps
 from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
 from pygran_core.simulation.checkpoint import encode_text, state_entry, state_json
 from pygran_core.simulation.engine import Engine, Handle
+from pygran_core.simulation.geometry import triangle_distance
 from pygran_core.simulation.specs import SimulationSpec, given, positive_float, positive_int
 
 if TYPE_CHECKING:
@@ -54,37 +55,6 @@ class Obstacles:
             if near.any():  # the others are farther than any radius from every sphere
                 ok &= triangle_distance(centres, self.triangles[near]) >= radii
         return ok
-
-
-def triangle_distance(points: np.ndarray, triangles: np.ndarray, batch: int = 256) -> np.ndarray:
-    """Distance from each point (P, 3) to the nearest of the triangles (T, 3, 3)."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    ab, ac = b - a, c - a
-    best = np.full(len(points), np.inf)
-    for start in range(0, len(points), batch):
-        p = points[start : start + batch, None, :]
-        ap = p - a
-        d1, d2 = np.einsum("ptk,tk->pt", ap, ab), np.einsum("ptk,tk->pt", ap, ac)
-        bp, cp = p - b, p - c
-        d3, d4 = np.einsum("ptk,tk->pt", bp, ab), np.einsum("ptk,tk->pt", bp, ac)
-        d5, d6 = np.einsum("ptk,tk->pt", cp, ab), np.einsum("ptk,tk->pt", cp, ac)
-        va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            denom = va + vb + vc
-            v, w = vb / denom, vc / denom  # interior barycentric coordinates
-            s_ab = np.clip(d1 / (d1 - d3), 0, 1)
-            s_ac = np.clip(d2 / (d2 - d6), 0, 1)
-            s_bc = np.clip((d4 - d3) / ((d4 - d3) + (d5 - d6)), 0, 1)
-        inside = (va >= 0) & (vb >= 0) & (vc >= 0) & (denom > 0)
-        candidates = [
-            np.where(inside[..., None], a + v[..., None] * ab + w[..., None] * ac, np.nan),
-            a + np.nan_to_num(s_ab)[..., None] * ab,
-            a + np.nan_to_num(s_ac)[..., None] * ac,
-            b + np.nan_to_num(s_bc)[..., None] * (c - b),
-        ]
-        distances = np.stack([np.linalg.norm(p - q, axis=-1) for q in candidates])
-        best[start : start + batch] = np.nanmin(distances, axis=(0, 2))
-    return best
 
 
 def insertion_steps(first: int, freq: int | None, start: int, stop: int, end: int | None = None) -> list[int]:

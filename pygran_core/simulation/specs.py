@@ -25,6 +25,7 @@ import numpy as np
 from pygran_core import params as materials
 from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature, unknown_key
 from pygran_core.formats.stl import STLTrajectory
+from pygran_core.simulation import geometry
 from pygran_core.simulation.models.base import ContactModel
 
 Vector = tuple[float, float, float]
@@ -547,7 +548,18 @@ class MeshSpec:
         return points[cells[:, :3]] + np.asarray(self.translate)
 
 
-MESH_KEYS = ("file", "material", "mtype", "args", "import", "scale", "rotate", "translate", "move")
+MESH_KEYS = (
+    "file",
+    "triangles",
+    "material",
+    "mtype",
+    "args",
+    "import",
+    "scale",
+    "rotate",
+    "translate",
+    "move",
+)
 MESH_TYPES = ("mesh/surface", "mesh/surface/stress", "mesh/surface/stress/servo")
 #: The placement keywords of a mesh's ``args``, applied in the order written (LIGGGHTS'
 #: ``fix mesh/surface`` keywords): ``move dx dy dz``, ``scale s``, ``rotate axis ax ay az angle a``.
@@ -730,16 +742,42 @@ def parse_servo(values: Mapping[str, Any], name: str) -> ServoSpec:
     )
 
 
-def parse_mesh(name: str, value: Any, base: Path) -> MeshSpec:
-    """A mesh of ``mesh={name: value}``: ``file``, ``material``, ``mtype``, ``args`` (placement
-    and servo keywords, see :func:`parse_placement`) and ``import`` (``False``: not a wall
-    until ``setupWall(wtype='mesh', mesh=name)``); ``scale``, ``rotate``, ``move`` may also
-    stand beside ``args``, applied after it."""
+def check_mesh_file(path: Path, name: str) -> None:
+    """Refuse, saying which, a mesh ``file`` that is missing, a folder or not a regular file
+    (a device such as ``/dev/zero`` or a pipe, which would be read without end)."""
+    if not path.exists():
+        raise ConfigError(f"mesh {name!r}: file {path} does not exist")
+    if path.is_dir():
+        raise ConfigError(f"mesh {name!r}: {path} is a folder, not an STL file: name the file in it")
+    if not path.is_file():
+        raise ConfigError(
+            f"mesh {name!r}: {path} is not a regular file (a device, pipe or socket): give an STL file"
+        )
+
+
+def parse_mesh(name: str, value: Any, base: Path, output: Path | None = None) -> MeshSpec:
+    """A mesh of ``mesh={name: value}``: ``file`` (STL) or ``triangles`` (a
+    :class:`~pygran_core.simulation.geometry.Surface` or an ``(M, 3, 3)`` array in metres,
+    written to ``<output>/mesh-<name>.stl`` for the engines), ``material``, ``mtype``, ``args``
+    (placement and servo keywords, see :func:`parse_placement`) and ``import`` (``False``: not
+    a wall until ``setupWall(wtype='mesh', mesh=name)``); ``scale``, ``rotate``, ``move`` may
+    also stand beside ``args``, applied after it."""
     if not isinstance(value, Mapping):
         raise ConfigError(f"mesh {name!r} must be a dict with keys such as 'file' and 'material'")
     check_keys(f"mesh {name!r} keyword", value, MESH_KEYS)
-    if "file" not in value:
-        raise ConfigError(f"mesh {name!r} needs 'file' (an STL file)")
+    if ("file" in value) == ("triangles" in value):
+        raise ConfigError(
+            f"mesh {name!r} needs either 'file' (an STL file) or 'triangles' (a geometry surface or an "
+            "(M, 3, 3) array in metres), not both"
+            if "file" in value
+            else f"mesh {name!r} needs 'file' (an STL file) or 'triangles' (a geometry surface, such as "
+            "simulation.geometry.drum(...), or an (M, 3, 3) array in metres)"
+        )
+    if "triangles" in value:
+        surface = geometry.as_surface(value["triangles"], name)
+        folder = output if output is not None else base
+        folder.mkdir(parents=True, exist_ok=True)
+        value = {**value, "file": surface.write(folder / f"mesh-{name}.stl")}
     if not isinstance(value["file"], (str, os.PathLike)):
         raise ConfigError(f"mesh {name!r}: 'file' must be a path to an STL file, got {value['file']!r}")
     path = Path(value["file"])
@@ -1169,7 +1207,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type[Contact
         output=output,
         domain=Domain(parse_box(params["box"]), parse_boundary(params.get("boundary", ("f", "f", "f")))),
         species=tuple(parse_species(s, i) for i, s in enumerate(species_in, start=1)),
-        meshes=tuple(parse_mesh(name, m, cwd) for name, m in meshes_in.items()),
+        meshes=tuple(parse_mesh(name, m, cwd, output) for name, m in meshes_in.items()),
         gravity=None if params.get("gravity") is None else parse_gravity(params["gravity"]),
         dt=None if params.get("dt") is None else positive_float(params["dt"], "dt"),
         seed=int(seed),

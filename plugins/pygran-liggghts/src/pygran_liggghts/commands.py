@@ -428,7 +428,31 @@ class Commands:
 
     # -- calls -----------------------------------------------------------------------------
 
-    def region(self, region: Region) -> tuple[str, str]:
+    def region(self, region: Region) -> tuple[str, list[str]]:
+        """The id of ``region`` and the commands defining it (an intersection's parts first).
+        The inside of a mesh is the primitive region its geometry builder inscribed in it
+        (LIGGGHTS has no region inside a triangle mesh)."""
+        if region.kind == "mesh":
+            surface = region.args[0]
+            if surface.inscribed is None:
+                raise UnsupportedFeature(
+                    f"LIGGGHTS inserts into primitive regions only, and mesh {surface.name!r} has no "
+                    "primitive inscribed in it: build the mesh with simulation.geometry (drum, box, "
+                    "cylinder with caps), whose surfaces carry one, or place the particles with "
+                    "createParticles(species, 'random', count, region=...), which takes any closed mesh"
+                )
+            kind, *args = surface.inscribed
+            return self.region(Region(kind, tuple(args)))
+        lines: list[str] = []
+        if region.kind == "intersect":
+            ids = []
+            for part in region.args:
+                part_id, part_lines = self.region(part)
+                ids.append(part_id)
+                lines += part_lines
+            args = f"{len(ids)} {' '.join(ids)}"
+        else:
+            args = " ".join(a if isinstance(a, str) else fmt(a) for a in region.args)
         rid = self.new_id("region")
         args = " ".join(a if isinstance(a, str) else fmt(a) for a in region.args)
         return rid, f"region {rid} {region.kind} {args} units box volume_limit {fmt(VOLUME_LIMIT)}"
@@ -483,7 +507,7 @@ class Commands:
         every = self.insert_every(spec, dt)
         distribution, lines = self._templates(spec.species, spec.weights, spec.seed)
         rid, region = self.region(spec.region)
-        lines.append(region)
+        lines += region
         iid = self.new_id("insert")
         vel = spec.velocity
         velocity = " ".join(fmt(v) for v in (*vel.mean, *(vel.spread if vel.kind != "constant" else ())))
