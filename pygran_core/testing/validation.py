@@ -20,6 +20,12 @@ energy       27 spheres in a walled box, ``e = 1``, no friction, no gravity:    
 packing      the settle benchmark with 6 x 6 x 10 spheres: bulk packing fraction     0.55-0.62
 ===========  ======================================================================  =========
 
+The check ``thornton-ning`` runs ThorntonNing wall impacts: the restitution at each yield-to-impact
+speed ratio of Thornton's (1997) table (1, 0.5, 0.2, 0.1, 0.05, 0.01; e = 1, 0.931, 0.773,
+0.659, 0.557, 0.374) against his closed form and the JKR pull-off force ``3 pi Gamma R*``, each
+within 1 %; on an engine other than native, also an adhesive plastic impact's force at every
+step against native's, within 1e-6 of the peak force.
+
 A model or feature the engine lacks makes its rows ``unsupported`` (the engine raised
 :class:`~pygran_core.errors.UnsupportedFeature`), which is not a failure unless no row could
 run at all; any other PyGran error in a simulation is a failed row whose notes say what
@@ -500,10 +506,83 @@ def check_packing(engine: str, output: Path, material: Mapping[str, float] = SOF
     )
 
 
+#: Yield speed over impact speed of Thornton's (1997) restitution table (1, 0.931, 0.773, 0.659,
+#: 0.557 and 0.374 for a non-adhesive sphere hitting a wall).
+THORNTON_RATIOS = (1.0, 0.5, 0.2, 0.1, 0.05, 0.01)
+#: The adhesive ThorntonNing material of the trace: Gamma = 0.05 J/m^2, V_y = 0.01 m/s ...
+ADHESIVE: Mapping[str, float] = dict(IMPACT_MATERIALS[ThorntonNing], cohesionEnergyDensity=0.05)
+#: ... and of the pull-off force, kept elastic (V_y far above the impact speed), so that R_p = R.
+ELASTIC_ADHESIVE: Mapping[str, float] = dict(ADHESIVE, yieldPress=1e9)
+
+
+def impact_trace(
+    engine: str,
+    output: Path,
+    model: type[ContactModel],
+    material: Mapping[str, float],
+    radius: float = RADIUS,
+    speed: float = IMPACT_SPEED,
+) -> np.ndarray:
+    """The impact of :func:`wall_impact` step by step for twice the reference contact time:
+    ``(overlap, force on the sphere along z)`` after each step, shape ``(steps, 2)``."""
+    reference = model(material=dict(material, radius=radius)).contactTime(speed)
+    dt = reference / STEPS_PER_CONTACT
+    box = (-2 * radius, 2 * radius, -2 * radius, 2 * radius, -radius, 4 * radius)
+    trace = []
+    with one_species(engine, output, material, radius, model=model, box=box, dt=dt) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=0.0)
+        sim.createParticles(1, "single", 0.0, 0.0, radius + 0.5 * speed * dt, vel=(0.0, 0.0, -speed))
+        for _ in range(2 * STEPS_PER_CONTACT):
+            sim.run(1)
+            trace.append((radius - sim.extractCoords()[0, 2], sim.extractForces()[0, 2]))
+    return np.array(trace)
+
+
+def check_thornton_ning(engine: str, output: Path) -> list[CheckResult]:
+    """ThorntonNing: restitution against Thornton's (1997) closed form at each yield-to-impact
+    speed ratio of :data:`THORNTON_RATIOS`, the JKR pull-off force ``3 pi Gamma R*`` (the
+    strongest pull of an elastic adhesive impact) and, on engines other than native, an
+    adhesive plastic impact's force at every step against native's (the largest difference
+    over the peak force)."""
+    material = IMPACT_MATERIALS[ThorntonNing]
+    yield_speed = ThorntonNing(material=dict(material, radius=RADIUS)).yield_velocity
+    results = []
+    for ratio in THORNTON_RATIOS:
+        speed = yield_speed / ratio
+
+        def measure(speed: float = speed, folder: Path = output / f"V_y-over-V-{ratio:g}") -> tuple[float]:
+            return (wall_impact(engine, folder, ThorntonNing, material, speed=speed).restitution,)
+
+        expected = thornton_restitution(material, RADIUS, speed)
+        name = f"Thornton-Ning e at V_y/V = {ratio:g}"
+        results += _measure(measure, CheckResult(name, expected, None, 0.01, notes="Thornton (1997)"))
+
+    def pull_off() -> tuple[float]:
+        return (-impact_trace(engine, output / "pull-off", ThorntonNing, ELASTIC_ADHESIVE)[:, 1].min(),)
+
+    expected = 3 * math.pi * ELASTIC_ADHESIVE["cohesionEnergyDensity"] * RADIUS
+    row = CheckResult(
+        "JKR pull-off force", expected, None, 0.01, units="N", notes="3 pi Gamma R*, elastic impact"
+    )
+    results += _measure(pull_off, row)
+    if engine != "native":
+
+        def differ() -> tuple[float]:
+            trace = impact_trace(engine, output / "trace", ThorntonNing, ADHESIVE)
+            native = impact_trace("native", output / "trace-native", ThorntonNing, ADHESIVE)
+            return (np.abs(trace[:, 1] - native[:, 1]).max() / np.abs(native[:, 1]).max(),)
+
+        notes = "max |F - F_native| / max |F_native|, adhesive plastic impact"
+        row = CheckResult("Thornton-Ning trace vs native", 0.0, None, 1e-6, relative=False, notes=notes)
+        results += _measure(differ, row)
+    return results
+
+
 #: Check name -> function(engine, output directory) returning its rows, in table order.
 CHECKS: dict[str, Callable[[str, Path], list[CheckResult]]] = {
     "hertz": check_hertz,
     "restitution": check_restitution,
+    "thornton-ning": check_thornton_ning,
     "rolling": check_rolling,
     "energy": check_energy,
     "packing": check_packing,

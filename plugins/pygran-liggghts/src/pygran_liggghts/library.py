@@ -84,10 +84,17 @@ def _load_addon() -> str:
     if library is None:
         return f"no LIGGGHTS shared library (${LIBRARY_ENV} or the dynamic loader): {INSTALL}"
     try:
-        ctypes.CDLL(library, mode=ctypes.RTLD_GLOBAL)
+        liggghts = ctypes.CDLL(library, mode=ctypes.RTLD_GLOBAL)
         addon = ctypes.CDLL(str(found[0]), mode=ctypes.RTLD_GLOBAL)
     except OSError as exc:
         return f"the Thornton-Ning add-on {found[0].name} does not load ({exc}): {REINSTALL}"
+    addon.pygran_thornton_ning_liggghts.restype = ctypes.c_void_p
+    opener = getattr(liggghts, "lammps_open", None)
+    if opener is None or addon.pygran_thornton_ning_liggghts() != ctypes.cast(opener, ctypes.c_void_p).value:
+        return (
+            f"the Thornton-Ning add-on is linked to another libliggghts than {library}: build it "
+            f"against that library's headers and point the loader at it"
+        )
     addon.pygran_thornton_ning_model.restype = ctypes.c_char_p
     name = addon.pygran_thornton_ning_model().decode()
     if name != ADDON_MODEL:

@@ -6,12 +6,14 @@
    friction, or cdt, epsd, epsd2, epsd3; no cohesion model: the adhesion is the model's own)
    to its pair- and wall-style factories, as LIGGGHTS' RegisterGranularStyles does for its own.
    ``pygran_thornton_ning_model`` tells the Python side the model's name and that the
-   registration ran. */
+   registration ran; ``pygran_thornton_ning_liggghts`` where the add-on's LIGGGHTS is (the
+   address of ``lammps_open``), to be the library PyGran loaded. */
 
 #include "contact_models.h"
 #include "fix_wall_gran_base.h"
 #include "granular_pair_style.h"
 #include "granular_wall.h"
+#include "library.h"
 #include "normal_model_thornton_ning_pygran.h"
 #include "pair_gran_base.h"
 
@@ -62,4 +64,9 @@ const Registration registration;
 extern "C" const char* pygran_thornton_ning_model()
 {
     return MODEL_NAME;
+}
+
+extern "C" void* pygran_thornton_ning_liggghts()
+{
+    return reinterpret_cast<void*>(&lammps_open);
 }

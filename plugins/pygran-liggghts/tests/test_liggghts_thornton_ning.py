@@ -1,0 +1,185 @@
+"""ThorntonNing on LIGGGHTS through PyGran's compiled add-on (``gran model thornton_ning_pygran``):
+declared when the add-on loads and refused with the reason when it does not; Thornton's (1997)
+restitution, the JKR pull-off force and native's force at every step; under MPI and across a
+LIGGGHTS restart written in the middle of the impacts."""
+
+import re
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pygran_liggghts.library import ADDON_MODEL, find_library, load_addon
+
+from pygran_core import registry, simulation
+from pygran_core.errors import EngineError
+from pygran_core.simulation.models import ThorntonNing
+from pygran_core.testing import validation
+from pygran_core.testing.solvers import require_solver
+
+R = validation.RADIUS
+SPEED = validation.IMPACT_SPEED
+#: Thornton's (1997) restitution table: yield-to-impact speed ratio -> e (non-adhesive).
+THORNTON_TABLE = {1.0: 1.0, 0.5: 0.931, 0.2: 0.773, 0.1: 0.659, 0.05: 0.557, 0.01: 0.374}
+
+
+def locate_addon() -> str:
+    """The add-on's model name, or the EngineError saying why it is unavailable."""
+    addon = load_addon()
+    if not addon.loaded:
+        raise EngineError(addon.reason)
+    return ADDON_MODEL
+
+
+@pytest.fixture(autouse=True)
+def addon():
+    """LIGGGHTS and the add-on: a failure with CI=true, else a skip saying how to build it."""
+    require_solver(find_library)
+    require_solver(locate_addon)
+
+
+def test_the_engine_declares_thornton_ning():
+    assert "thornton-ning" in registry.get_engine("liggghts").capabilities
+
+
+def test_pygran_validate_thornton_ning_on_liggghts(tmp_path):
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pygran_core.cli",
+            "validate",
+            "--engine",
+            "liggghts",
+            "--check",
+            "thornton-ning",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    table = [re.split(r"\s{2,}", line) for line in done.stdout.splitlines()]
+    # check, expected, obtained (with units), tolerance, result, notes
+    rows = {
+        row[0]: (float(row[2].split()[0]), row[4])
+        for row in table
+        if len(row) >= 5 and row[4] in ("pass", "FAIL")
+    }
+    for ratio, restitution in THORNTON_TABLE.items():
+        obtained, status = rows[f"Thornton-Ning e at V_y/V = {ratio:g}"]
+        assert status == "pass" and obtained == pytest.approx(restitution, rel=0.01), (ratio, obtained)
+    pull_off, status = rows["JKR pull-off force"]
+    assert status == "pass" and pull_off == pytest.approx(3 * np.pi * 0.05 * R, rel=0.01)
+    difference, status = rows["Thornton-Ning trace vs native"]
+    assert status == "pass" and difference < 1e-6
+
+
+def test_the_adhesive_neck_lasts_to_the_reference_separation_overlap(tmp_path):
+    """An elastic adhesive sphere leaves a wall through a neck at negative overlap, pulled until
+    the overlap passes the reference model's separation overlap, step for step as on native."""
+    material = validation.ELASTIC_ADHESIVE
+    trace = validation.impact_trace("liggghts", tmp_path / "liggghts", ThorntonNing, material)
+    native = validation.impact_trace("native", tmp_path / "native", ThorntonNing, material)
+    overlap, force = trace.T
+    touching = np.nonzero(force)[0]
+    neck = touching[overlap[touching] < 0]
+    assert neck.size > 5 and force[neck].max() < 0  # pulled apart while not overlapping
+    model = ThorntonNing(material=dict(material, radius=R))
+    separation = model._separation_overlap(overlap.max())
+    assert separation < 0
+    assert overlap[touching[-1]] > separation > overlap[touching[-1] + 1]
+    assert -force.min() == pytest.approx(model.pull_off_force, rel=0.01)
+    assert np.abs(trace - native).max(axis=0) / np.abs(native).max(axis=0) == pytest.approx([0, 0], abs=1e-6)
+
+
+def test_without_the_addon_thornton_ning_is_refused_with_the_reason(tmp_path):
+    script = textwrap.dedent(
+        f"""
+        from pygran_core import simulation
+        from pygran_core.errors import UnsupportedFeature
+        from pygran_core.testing.validation import IMPACT_MATERIALS
+        from pygran_core.simulation.models import ThorntonNing
+
+        try:
+            simulation.DEM(engine="liggghts", model=ThorntonNing, output={str(tmp_path / "out")!r},
+                           box=(-0.01, 0.01, -0.01, 0.01, -0.01, 0.01),
+                           species=({{"material": IMPACT_MATERIALS[ThorntonNing], "radius": 1e-3}},))
+        except UnsupportedFeature as exc:
+            print("refused:", exc)
+        """
+    )
+    env = {"PYGRAN_LIGGGHTS_LIB": str(tmp_path / "missing.so"), "PATH": "/usr/bin:/bin"}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=60)
+    assert done.returncode == 0, done.stderr
+    reason = "no LIGGGHTS shared library ($PYGRAN_LIGGGHTS_LIB or the dynamic loader)"
+    assert "refused: The liggghts engine does not support the ThorntonNing contact model" in done.stdout
+    assert "capability 'thornton-ning'" in done.stdout and reason in done.stdout
+    assert f"ThorntonNing unavailable on LIGGGHTS: {reason}" in done.stderr  # logged on loading
+    assert reason in (tmp_path / "out" / "pygran.log").read_text()
+
+
+# -- MPI and restart ----------------------------------------------------------------------------------
+
+#: Two plastic adhesive spheres meeting head-on at x = 0, and an elastic adhesive one hitting
+#: the floor: species 1 and 2 (the floor has species 2's material).
+SPECIES = (
+    {"material": validation.ADHESIVE, "radius": R},
+    {"material": validation.ELASTIC_ADHESIVE, "radius": R},
+)
+DT = (
+    ThorntonNing(material=dict(validation.ADHESIVE, radius=R)).contactTime(SPEED)
+    / validation.STEPS_PER_CONTACT
+)
+#: The elastic sphere is in its neck (negative overlap, pulled) at this step.
+NECK_STEP = 410
+
+
+def impacts(output: Path, engine: str = "liggghts", **options) -> np.ndarray:
+    """Velocities by id after 3 x NECK_STEP steps (a box long in x: two ranks split it at x = 0)."""
+    start = R + 0.5 * SPEED * DT
+    with simulation.DEM(
+        engine=engine,
+        model=ThorntonNing,
+        box=(-8 * R, 8 * R, -2 * R, 2 * R, -R, 4 * R),
+        dt=DT,
+        output=str(output),
+        species=SPECIES,
+        traj={"pfile": None},
+        progress=False,
+        **options,
+    ) as sim:
+        sim.setupWall(species=2, plane="zplane", peq=0.0)
+        sim.createParticles(1, "single", -start, 0.0, 2 * R, vel=(SPEED, 0.0, 0.0))
+        sim.createParticles(1, "single", start, 0.0, 2 * R, vel=(-SPEED, 0.0, 0.0))
+        sim.createParticles(2, "single", 5 * R, 0.0, start, vel=(0.0, 0.0, -SPEED))
+        sim.run(3 * NECK_STEP)
+        return sim.extractVelocities()
+
+
+@pytest.fixture(scope="module")
+def on_native(tmp_path_factory):
+    return impacts(tmp_path_factory.mktemp("native"), engine="native")
+
+
+def test_two_ranks_give_native_impacts(tmp_path, on_native):
+    velocities = impacts(tmp_path, nprocs=2)
+    assert "2 by 1 by 1 MPI processor grid" in (tmp_path / "liggghts.log").read_text()
+    np.testing.assert_allclose(velocities, on_native, rtol=1e-9, atol=1e-12 * SPEED)
+    assert velocities[0, 0] < 0 < velocities[1, 0] and velocities[2, 2] > 0  # all three rebounded
+
+
+def test_a_restart_in_the_neck_continues_the_impacts(tmp_path, on_native):
+    straight = impacts(tmp_path / "straight", restart=(NECK_STEP, "restart", "restart.*.h5"))
+    np.testing.assert_allclose(straight, on_native, rtol=1e-9, atol=1e-12 * SPEED)
+    resumed = tmp_path / "resumed"
+    shutil.copytree(tmp_path / "straight", resumed)
+    again = impacts(resumed, restart=(NECK_STEP, "restart", "restart.*.h5", True, f"restart.{NECK_STEP}.h5"))
+    assert "resum" in (resumed / "pygran.log").read_text()
+    # the contact histories came back with LIGGGHTS' restart file: without them the neck
+    # would be gone and the plastic contact would reload as a virgin one
+    np.testing.assert_allclose(again, straight, rtol=1e-9, atol=1e-12 * SPEED)
