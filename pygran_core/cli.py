@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from importlib.metadata import version
@@ -15,6 +17,7 @@ from pygran_core import registry
 from pygran_core.apps import demo
 from pygran_core.errors import PyGranError
 from pygran_core.io import Trajectory, expand_paths, open_writer
+from pygran_core.simulation import geometry
 from pygran_core.simulation.dem import resolve_engine
 from pygran_core.testing import validation
 
@@ -86,6 +89,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         steps: list[int] = []
         columns: list[str] = []
         first: dict[str, Any] = {}
+        mesh: geometry.Surface | None = None
         read_header = getattr(trajectory, "read_header", None)  # dump: no need to parse atoms
         for index in _progress(range(len(trajectory)), len(trajectory), "reading"):
             if read_header is not None:
@@ -103,6 +107,7 @@ def cmd_info(args: argparse.Namespace) -> int:
                 if "points" in arrays:
                     size = len(arrays["points"])
                     cells.append(len(arrays.get("cells", ())))
+                    mesh = mesh if index else _surface(arrays)
                 else:
                     size = len(next(iter(arrays.values()))) if arrays else 0
                 box, boundary, names, step = frame.box, frame.boundary, list(arrays), frame.timestep
@@ -125,7 +130,29 @@ def cmd_info(args: argparse.Namespace) -> int:
         print(f"box:        {_box_text(first.get('box'), first.get('boundary'))} (first frame)")
     if steps:
         print(f"timesteps:  {min(steps)} to {max(steps)}")
+    if mesh is not None:
+        _print_surface(mesh)
     return 0
+
+
+def _surface(arrays: dict[str, np.ndarray]) -> geometry.Surface | None:
+    """The triangles of a mesh frame whose cells are all triangles, else None."""
+    cells = np.asarray(arrays.get("cells", ()))
+    if cells.ndim != 2 or cells.shape[1] != 3 or len(cells) == 0:
+        return None
+    return geometry.Surface(np.asarray(arrays["points"], float)[cells])
+
+
+def _print_surface(surface: geometry.Surface) -> None:
+    """Bounds, triangle count and watertightness of a mesh's first frame."""
+    bounds = " x ".join(f"[{lo:g}, {hi:g}]" for lo, hi in surface.bounds)
+    print(f"triangles:  {len(surface)} (first frame)")
+    print(f"bounds:     {bounds} (first frame)")
+    if surface.closed:
+        print(f"closed:     yes (volume {surface.volume:.6g}, area {surface.area:.6g})")
+    else:
+        why = f"{surface.open_edges} open edges" if surface.open_edges else "inconsistently oriented"
+        print(f"closed:     no ({why}; area {surface.area:.6g})")
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
@@ -219,10 +246,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
     try:
-        return func(args)
+        status = func(args)
+        sys.stdout.flush()  # a closed pipe shows here, not at the interpreter's exit
+        return status
     except PyGranError as exc:
         print(f"pygran: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # the reader of our output left (`pygran info ... | head`): stop quietly, as C tools do;
+        # stdout goes to /dev/null so that the interpreter's final flush cannot fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 models (also here, as the original PyGran's scripts use them: ``simulation.ThorntonNing``) and
 parameter studies (:class:`~pygran_core.simulation.study.Study`)."""
 
-from pygran_core.simulation import models, study
+from pygran_core.simulation import geometry, models, study
 from pygran_core.simulation.dem import DEM
 from pygran_core.simulation.engine import Engine, Handle, Monitor
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot, ThorntonNing
@@ -17,6 +17,7 @@ __all__ = [
     "SpringDashpot",
     "Study",
     "ThorntonNing",
+    "geometry",
     "models",
     "study",
 ]
