@@ -17,6 +17,7 @@ Requires pytest.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import random
 import signal
@@ -31,6 +32,17 @@ import pytest
 
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, Trajectory, expand_paths, open_trajectory, open_writer
+from pygran_core.testing.solvers import in_ci
+
+
+def require_reader(module: str) -> None:
+    """Check that ``module``, a tool users open our files with (MDAnalysis, pyvista, meshio,
+    ovito), is installed (without importing it); if not, fail under CI, else skip naming the fix."""
+    if importlib.util.find_spec(module) is None:
+        message = f"{module} is not installed: pip install {module}"
+        if in_ci():
+            pytest.fail(f"CI=true and a reader is missing: {message}", pytrace=False)
+        pytest.skip(message)
 
 
 def particle_frames() -> list[Frame]:

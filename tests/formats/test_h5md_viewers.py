@@ -1,0 +1,234 @@
+"""H5MD trajectories where users look at them: MDAnalysis reads the H5MD file (each row one
+particle through the frames in which others leave and arrive), ParaView's XDMF reader (VTK's
+vtkXdmfReader, through pyvista) and meshio read the XDMF sidecar; every value, time and count
+equals PyGran's own read."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from pygran_core import analysis, params, simulation
+from pygran_core.io import Frame, open_trajectory, open_writer
+from pygran_core.simulation.models import HertzMindlin
+from pygran_core.testing.formats import particle_frames, require_reader
+
+ROOT = Path(__file__).resolve().parents[2]
+ARGS = (
+    "id",
+    "type",
+    "x",
+    "y",
+    "z",
+    "radius",
+    *("vx", "vy", "vz", "fx", "fy", "fz", "omegax", "omegay", "omegaz"),
+)
+VECTORS = {
+    "position": "x y z",
+    "velocity": "vx vy vz",
+    "force": "fx fy fz",
+    "angular_velocity": "omegax omegay omegaz",
+}
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> Path:
+    """A native run whose particle count varies: five spheres on a floor, three of them thrown
+    out through x+ (at 1, 1.5 and 2 m/s: they leave in three different frames), then three more
+    are created."""
+    folder = tmp_path_factory.mktemp("viewers")
+    with simulation.DEM(
+        engine="native",
+        model=HertzMindlin,
+        box=(0, 0.02, 0, 0.02, 0, 0.02),
+        gravity=(9.81, 0, 0, -1),
+        species=({"material": dict(params.organic), "radius": 1e-3},),
+        output=str(folder / "out"),
+        traj={"pfile": "traj.h5md", "freq": 100, "args": ARGS},
+        progress=False,
+        dt=1e-5,
+        threads=1,
+        seed=3,
+    ) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=0.0)
+        for k in range(3):
+            sim.createParticles(1, "single", 0.012, 0.004 + 0.005 * k, 0.0012, vel=(1.0 + 0.5 * k, 0, 0))
+        sim.createParticles(1, "single", 0.01, 0.015, 0.003)
+        sim.createParticles(1, "single", 0.005, 0.005, 0.0011, vel=(0.2, 0.1, 0))
+        sim.engine.expect_outflow("x+")
+        sim.run(800)
+        for k in range(3):
+            sim.createParticles(1, "single", 0.004, 0.004 + 0.005 * k, 0.004, vel=(0.1 * k, 0, 0))
+        sim.run(400)
+    return folder / "out" / "traj.h5md"
+
+
+@pytest.fixture(scope="module")
+def frames(run) -> list[Frame]:
+    with open_trajectory(run) as trajectory:
+        return list(trajectory)
+
+
+def test_the_run_has_particles_leaving_and_arriving(run, frames):
+    ids = [f.arrays["id"].tolist() for f in frames]
+    assert ids[0] == [1, 2, 3, 4, 5] and ids[-1] == [4, 5, 6, 7, 8]
+    assert [1, 2, 4, 5] in ids and [1, 4, 5] in ids  # the fastest leaves first
+    assert len(frames) == 13 and [f.timestep for f in frames] == list(range(0, 1300, 100))
+    assert any(np.abs(f.arrays["omegax"]).max() > 0 for f in frames)  # friction with the floor spins them
+    system = analysis.System(Particles=str(run))  # what analysis reads: the same frames
+    assert len(system) == len(frames)
+    for k, frame in enumerate(frames):
+        system.goto(k)
+        np.testing.assert_array_equal(system.Particles.id, frame.arrays["id"])
+        np.testing.assert_array_equal(system.Particles.x, frame.arrays["x"])
+
+
+def _docs_block(marker: str) -> str:
+    """The Python block of docs/formats.md that contains ``marker``."""
+    text = (ROOT / "docs" / "formats.md").read_text()
+    blocks = [b for b in re.findall(r"```python\n(.*?)```", text, re.S) if marker in b]
+    assert len(blocks) == 1, f"docs/formats.md must show one block with {marker!r}"
+    return blocks[0]
+
+
+def test_mdanalysis_loads_it_with_the_call_of_the_guide(run, frames, monkeypatch):
+    require_reader("MDAnalysis")
+    from MDAnalysis import units
+    from MDAnalysis.coordinates.H5MD import H5MDReader
+
+    # the guide's call teaches MDAnalysis the metre; undo it after the test
+    monkeypatch.setitem(units.lengthUnit_factor, "m", 1e-10)
+    monkeypatch.setitem(H5MDReader._unit_translation["length"], "m", "m")
+    monkeypatch.chdir(run.parent.parent)  # where the guide's out/traj.h5md is
+    namespace: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # MDAnalysis warns that the file has no topology
+        exec(_docs_block("mda.Universe("), namespace)
+    universe = namespace["u"]
+    with h5py.File(run) as f:
+        row_ids = f["particles/trajectory/id/value"][:]
+    # row i is one particle through every frame; rows of absent particles are marked with -1
+    assert universe.atoms.n_atoms == 8 and len(universe.trajectory) == len(frames)
+    for row in range(8):
+        held = set(row_ids[:, row][row_ids[:, row] >= 0].tolist())
+        assert held == {row + 1}, (row, held)
+    speed = units.get_conversion_factor("speed", "m/s", "Angstrom/ps")
+    force = units.get_conversion_factor("force", "N", "kJ/(mol*Angstrom)")
+    for k, ts in enumerate(universe.trajectory):
+        frame = frames[k]
+        assert ts.frame == k and ts.data["step"] == frame.timestep
+        assert ts.time == pytest.approx(frame.time * 1e12, rel=1e-12)  # ps
+        assert ts.data["trajectory/particle_number"] == len(frame.arrays["id"])
+        rows = frame.arrays["id"] - 1
+        absent = np.setdiff1d(np.arange(8), rows)
+        for name, factor, got in (
+            ("x y z", 1e10, ts.positions),
+            ("vx vy vz", speed, ts.velocities),
+            ("fx fy fz", force, ts.forces),
+        ):
+            want = np.column_stack([frame.arrays[c] for c in name.split()]) * factor
+            np.testing.assert_allclose(got[rows], want, rtol=2e-7, atol=1e-30 * factor, err_msg=name)
+            assert np.isnan(got[absent]).all()
+        np.testing.assert_allclose(ts.dimensions[:3], 0.02 * 1e10, rtol=1e-7)
+
+
+def _check_sidecar_frame(frame: Frame, time: float, points, point_data) -> None:
+    """One frame of the sidecar, as a reader gave it, against PyGran's read of the H5MD file."""
+    assert time == frame.time
+    n = len(frame.arrays["id"])
+    assert points.shape == (n, 3)
+    np.testing.assert_array_equal(points, np.column_stack([frame.arrays[c] for c in "xyz"]))
+    for name in ("id", "type", "radius"):
+        np.testing.assert_array_equal(np.ravel(point_data[name]), frame.arrays[name], err_msg=name)
+    for name, columns in VECTORS.items():
+        want = np.column_stack([frame.arrays[c] for c in columns.split()])
+        np.testing.assert_array_equal(point_data[name], want, err_msg=name)
+
+
+#: Reads an XDMF file with pyvista (VTK's vtkXdmfReader) in a process of its own, as ParaView
+#: does, and saves every frame's time, points, vertex count and point data to an .npz: in the
+#: test's process pygran-liggghts has loaded Debian's VTK libraries, which crash pip's VTK.
+PYVISTA_DUMP = """
+import sys
+import numpy as np
+import pyvista
+
+reader = pyvista.get_reader(sys.argv[1])
+assert isinstance(reader, pyvista.XdmfReader), type(reader)
+saved = {"times": np.array(reader.time_values)}
+for k, time in enumerate(reader.time_values):
+    reader.set_active_time_value(time)
+    mesh = reader.read()
+    saved[f"{k}/cells"] = np.array(mesh.n_cells)
+    saved[f"{k}/points"] = np.asarray(mesh.points)
+    for name in mesh.point_data.keys():
+        saved[f"{k}/{name}"] = np.asarray(mesh.point_data[name])
+np.savez(sys.argv[2], **saved)
+"""
+
+
+def _read_with_pyvista(xdmf: Path) -> dict[str, np.ndarray]:
+    require_reader("pyvista")
+    out = xdmf.with_suffix(".pyvista.npz")
+    done = subprocess.run(
+        [sys.executable, "-c", PYVISTA_DUMP, str(xdmf), str(out)], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    with np.load(out) as saved:
+        return dict(saved)
+
+
+def test_paraview_xdmf_reader_opens_the_sidecar(run, frames):
+    saved = _read_with_pyvista(run.with_suffix(".xdmf"))
+    assert saved["times"].tolist() == [f.time for f in frames]
+    for k, frame in enumerate(frames):
+        data = {name.split("/", 1)[1]: value for name, value in saved.items() if name.startswith(f"{k}/")}
+        assert data["cells"] == len(frame.arrays["id"])  # a vertex per particle
+        _check_sidecar_frame(frame, float(saved["times"][k]), data["points"], data)
+
+
+def test_meshio_reads_the_sidecar(run, frames):
+    require_reader("meshio")
+    import meshio
+
+    with meshio.xdmf.TimeSeriesReader(run.with_suffix(".xdmf")) as reader:
+        points, cells = reader.read_points_cells()  # meshio takes the first frame's points
+        assert cells[0].type == "vertex" and len(cells[0].data) == len(frames[0].arrays["id"])
+        assert reader.num_steps == len(frames)
+        for k, frame in enumerate(frames):
+            time, point_data, _ = reader.read_data(k)
+            _check_sidecar_frame(frame, time, point_data["position"], point_data)
+
+
+def test_sidecar_of_awkward_frames(tmp_path):
+    """Frames without a time (the step stands in), an empty frame, extreme values, a column
+    that is no LIGGGHTS keyword: VTK reads them all."""
+    frames = particle_frames()
+    with open_writer(tmp_path / "awkward.h5md") as out:
+        for frame in frames:
+            out.write_frame(frame)
+    saved = _read_with_pyvista(tmp_path / "awkward.xdmf")
+    assert saved["times"].tolist() == [float(f.timestep) for f in frames]
+    for k, frame in enumerate(frames):
+        n = len(frame.arrays["id"])
+        assert saved[f"{k}/points"].shape == (n, 3)
+        if n:
+            np.testing.assert_array_equal(saved[f"{k}/c_stress[2]"], frame.arrays["c_stress[2]"])
+            np.testing.assert_array_equal(saved[f"{k}/id"], frame.arrays["id"])
+            np.testing.assert_array_equal(saved[f"{k}/points"][:, 0], frame.arrays["x"])
+
+
+def test_no_sidecar_when_asked_or_without_positions(tmp_path):
+    frame = Frame({"id": np.array([1, 2]), "radius": np.array([1e-3, 2e-3])}, timestep=0)
+    with open_writer(tmp_path / "radii.h5md") as out:
+        out.write_frame(frame)
+    with open_writer(tmp_path / "plain.h5md", xdmf=False) as out:
+        out.write_frame(particle_frames()[0])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.h5md", "radii.h5md"]
