@@ -42,12 +42,19 @@ class Obstacles:
     plane_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     plane_normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     triangles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    #: Primitive cylinder walls (acting on both sides): ``(axis, (c1, c2), radius)``, the centre
+    #: in the two other axes' order, as :class:`~pygran_core.simulation.calls.WallSpec` has it.
+    cylinders: tuple[tuple[str, tuple[float, float], float], ...] = ()
 
     def clear(self, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """Which spheres overlap no plane and no triangle."""
+        """Which spheres overlap no plane, no cylinder and no triangle."""
         ok = np.ones(len(centres), bool)
         for point, normal in zip(self.plane_points, self.plane_normals):
             ok &= np.abs((centres - point) @ normal) >= radii
+        for axis, (c1, c2), radius in self.cylinders:
+            across = [i for i in range(3) if "xyz"[i] != axis]
+            distance = np.hypot(centres[:, across[0]] - c1, centres[:, across[1]] - c2)
+            ok &= np.abs(distance - radius) >= radii
         if len(self.triangles) and len(centres):
             reach = float(radii.max())
             lo, hi = centres.min(axis=0) - reach, centres.max(axis=0) + reach
@@ -348,6 +355,15 @@ class PlacingEngine(Engine):
     def _obstacles(self) -> Obstacles:
         """Walls new spheres must not overlap."""
 
+    def _all_obstacles(self) -> Obstacles:
+        """:meth:`_obstacles` with every primitive cylinder wall: no sphere is placed across one."""
+        cylinders = tuple(
+            (wall.axis, wall.centre, wall.radius)
+            for wall in self._wall_specs.values()
+            if wall.kind == "cylinder" and wall.axis and wall.centre and wall.radius
+        )
+        return replace(self._obstacles(), cylinders=cylinders)
+
     # -- drawing -----------------------------------------------------------------------
 
     def _radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -439,8 +455,9 @@ class PlacingEngine(Engine):
         ``orientation`` says, see :func:`.clumps.orientations`); returns how many did."""
         existing = (self._extract("x"), self._extract("radius"))
         kinds = sorted(self._templates)
+        obstacles = self._all_obstacles()
         if not np.isin(species, kinds).any():
-            index, centres = place_spheres(region, radii, rng, existing, self._obstacles(), all_in)
+            index, centres = place_spheres(region, radii, rng, existing, obstacles, all_in)
             if len(index):
                 self._add_spheres(species[index], centres, radii[index], velocities[index], omega)
             return len(index)
@@ -449,7 +466,7 @@ class PlacingEngine(Engine):
         shapes = [np.column_stack([shape[:, :3] - off, shape[:, 3]]) for shape, off in zip(shapes, offsets)]
         kind = np.array([kinds.index(s) if s in self._templates else -1 for s in species.tolist()])
         index, centres, turns = place_clumps(
-            region, shapes, kind, radii, rng, existing, self._obstacles(), all_in, orientation=orientation
+            region, shapes, kind, radii, rng, existing, obstacles, all_in, orientation=orientation
         )
         # the template's origin is its bounding sphere's centre less the turned offset
         for k, off in enumerate(offsets):
