@@ -7,6 +7,7 @@ section 4.2) into a frozen record that engines map onto their solver.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from numbers import Integral, Real
@@ -21,7 +22,9 @@ from pygran_core.simulation.specs import (
     SimulationSpec,
     Vector,
     check_keys,
+    check_radius,
     finite_number,
+    given,
     is_integer,
     is_real,
     number_tuple,
@@ -364,6 +367,52 @@ INSERT_KEYS = (
 )
 #: Random close packing of monodisperse spheres: a volume fraction above it cannot be reached.
 CLOSE_PACKING = 0.64
+#: Memory one particle takes in an engine (bytes), with its share of the neighbour lists and
+#: contact histories: what a request for particles is checked against before any is made.
+PARTICLE_BYTES = 1000
+
+
+def available_memory() -> int:
+    """Bytes of memory free for a new allocation now (Linux' MemAvailable), else the
+    machine's physical memory."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+def check_memory(count: float, call: str) -> None:
+    """Refuse ``count`` particles whose memory (:data:`PARTICLE_BYTES` each) is not free."""
+    need, free = count * PARTICLE_BYTES, available_memory()
+    if need > free:
+        raise ConfigError(
+            f"{call} asks for {count:.3g} particles, which need about {need / 1e9:.3g} GB of memory "
+            f"({PARTICLE_BYTES} bytes each), but {free / 1e9:.3g} GB are free: ask for fewer"
+        )
+
+
+def smallest_particle(species: Sequence[int], spec: SimulationSpec) -> float:
+    """The smallest volume (m^3) a particle of ``species`` can have: a sphere of the smallest
+    radius of its distribution (a multisphere body holds at least its largest sphere)."""
+    return min(4 / 3 * math.pi * spec.species[k - 1].radius.min ** 3 for k in species)
+
+
+def check_packing(amount: float, each: float, region: Region, call: str, unit: str) -> None:
+    """Refuse ``amount`` (in ``unit``, each unit ``each`` m^3 of solid at least) in
+    ``region`` beyond random close packing: no engine could place them, and trying would not end."""
+    volume = region.volume()
+    room = CLOSE_PACKING * volume
+    if amount * each > room:
+        raise ConfigError(
+            f"{call}: {amount:.6g} {unit} cannot fit in the region {region}: they fill at least "
+            f"{amount * each:.3g} m^3, above the {room:.3g} m^3 spheres can fill of its {volume:.3g} m^3 "
+            f"(random close packing, {CLOSE_PACKING}): ask for at most {room / each:.6g} {unit}, or "
+            "give a larger region"
+        )
 
 
 def _seed(value: Any, call: str) -> int:
@@ -461,6 +510,17 @@ def parse_insert(
             )
     if target == "particles_in_region" and value != int(value):
         raise ConfigError(f"insert particles_in_region needs a whole number of particles, got {value}")
+    region = _region_in_box(kwargs.get("region"), spec, "insert")
+    smallest = smallest_particle(species, spec)
+    density = max(spec.species[k - 1].density for k in species)
+    count = value if target.startswith("particle") else value / (density * smallest)  # at most
+    if target == "particles_in_region":
+        check_packing(value, smallest, region, "insert", "particles")
+    elif target == "mass_in_region":
+        check_packing(value, 1 / density, region, "insert", "kg")
+    duration = None if duration is None else positive_float(duration, "insert duration")
+    if mechanism == "by_pack" or duration is not None:
+        check_memory(count * (1 if duration is None else duration), "insert")
     freq = kwargs.get("freq", "once")
     orientation = kwargs.get("orientation", args.get("orientation"))
     return InsertSpec(
@@ -469,11 +529,11 @@ def parse_insert(
         value=value,
         species=species,
         weights=weights,
-        region=_region_in_box(kwargs.get("region"), spec, "insert"),
+        region=region,
         velocity=parse_velocity(kwargs.get("vel_type", "constant"), kwargs.get("vel", (0, 0, 0))),
         omega=_omega(kwargs.get("omega", (0, 0, 0))),
         freq=None if isinstance(freq, str) and freq == "once" else step_count(freq, "insert freq", notes),
-        duration=None if duration is None else positive_float(duration, "insert duration"),
+        duration=duration,
         all_in=_flag(kwargs.get("all_in", "yes"), "insert all_in"),
         seed=_seed(kwargs.get("seed", seed), "insert"),
         requested=value,
@@ -527,6 +587,8 @@ class CreateSpec:
 def lattice_sites(region: Region, spacing: float, radius: float) -> np.ndarray:
     """The sites of a simple cubic lattice of ``spacing`` in ``region`` where a sphere of
     ``radius`` lies wholly inside it: from each lower bound plus half a spacing, ``(N, 3)``."""
+    counts = [max(0.0, math.ceil((hi - lo - spacing / 2) / spacing)) for lo, hi in region.bounds()]
+    check_memory(math.prod(counts), f"createParticles lattice of spacing {spacing:g}")
     axes = [np.arange(lo + spacing / 2, hi, spacing) for lo, hi in region.bounds()]
     sites = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     return sites[region.contains(sites, radius)]
@@ -545,7 +607,7 @@ def parse_create(
         "style": style,
         "velocity": vector(kwargs.get("vel", (0, 0, 0)), "vel"),
         "omega": _omega(kwargs.get("omega", (0, 0, 0))),
-        "radius": None if kwargs.get("radius") is None else positive_float(kwargs["radius"], "radius"),
+        "radius": None if kwargs.get("radius") is None else check_radius(kwargs["radius"], "radius"),
         "seed": _seed(kwargs.get("seed", seed), "createParticles"),
     }
     if style == "single":
@@ -592,7 +654,11 @@ def parse_create(
         return CreateSpec(region=region, spacing=spacing, positions=sites, **common)
     if len(args) != 1:
         raise ConfigError("createParticles(species, 'random', count, region=...): give the count")
-    return CreateSpec(region=region, count=positive_int(args[0], "count"), **common)
+    count = positive_int(args[0], "count")
+    volume = 4 / 3 * math.pi * (common["radius"] or spec.species[chosen - 1].radius.min) ** 3
+    check_packing(count, volume, region, "createParticles", "particles")
+    check_memory(count, "createParticles")
+    return CreateSpec(region=region, count=count, **common)
 
 
 # -- walls, meshes -----------------------------------------------------------------------------
@@ -761,9 +827,56 @@ def positional_motion(args: Sequence[Any]) -> dict[str, Any]:
     return {style: " ".join(rest) if rest else True}
 
 
+#: The fastest a mesh may move (m/s): faster than sound in any solid, a mistake in units.
+MAX_MESH_SPEED = 1e4
+
+
+def peak_speed(motion: MotionSpec, spec: SimulationSpec) -> float:
+    """The largest speed (m/s) a point of the mesh reaches in ``motion``."""
+    if motion.kind == "linear":
+        return float(np.linalg.norm(given(motion.velocity, "a linear motion's velocity")))
+    if motion.kind == "wiggle":
+        amplitude = float(np.linalg.norm(given(motion.amplitude, "a wiggle's amplitude")))
+        return 2 * math.pi * amplitude / given(motion.period, "a wiggle's period")
+    if motion.kind == "rotate":
+        angular = abs(given(motion.omega, "a rotation's omega"))
+    else:
+        angular = sum(2 * math.pi * abs(a) / t for a, t in zip(motion.amplitudes, motion.periods))
+        if motion.kind == "viblin":
+            return angular
+    (mesh,) = [m for m in spec.meshes if m.name == motion.mesh]
+    points = mesh.triangles().reshape(-1, 3) - np.asarray(motion.origin)
+    axis = np.asarray(given(motion.axis, "the motion's axis"))
+    reach = float(np.max(np.linalg.norm(points - np.outer(points @ axis, axis), axis=1)))
+    return angular * reach
+
+
+def check_mesh_speed(motion: MotionSpec, spec: SimulationSpec) -> None:
+    """Refuse a motion faster than :data:`MAX_MESH_SPEED`, or, when the time step is known,
+    one that moves the mesh more than half the neighbour skin per step (the limit of
+    LIGGGHTS' servo walls: contacts with it would be missed)."""
+    speed = peak_speed(motion, spec)
+    limits = [(MAX_MESH_SPEED, "faster than sound in any solid: check the units")]
+    if spec.dt is not None and spec.skin > 0:
+        limits.append((spec.skin / (2 * spec.dt), "skin / (2 dt): half the neighbour skin per step"))
+    for limit, why in limits:
+        if not speed <= limit:
+            raise ConfigError(
+                f"moveMesh {motion.mesh!r} {motion.kind}: the mesh reaches {speed:.3g} m/s, above "
+                f"{limit:.3g} m/s ({why}); move it more slowly"
+            )
+
+
 def parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> MotionSpec:
-    """``moveMesh(name, ...)`` in LIGGGHTS' ``move/mesh`` terms (see :class:`MotionSpec`):
-    the style's keyword holds the style's first arguments (PyGran 1.x's
+    """``moveMesh(name, ...)`` in LIGGGHTS' ``move/mesh`` terms (see :class:`MotionSpec`),
+    no faster than :func:`check_mesh_speed` allows."""
+    motion = _parse_motion(mesh, kwargs, spec)
+    check_mesh_speed(motion, spec)
+    return motion
+
+
+def _parse_motion(mesh: Any, kwargs: Mapping[str, Any], spec: SimulationSpec) -> MotionSpec:
+    """The style's keyword holds the style's first arguments (PyGran 1.x's
     ``rotate=('origin', 0, 0, 0)``), the others follow as keywords (``axis=``, ``period=``)."""
     names = [m.name for m in spec.meshes]
     drum = (

@@ -15,19 +15,24 @@ from __future__ import annotations
 
 import abc
 import contextlib
+import ctypes
 import dataclasses
+import errno
+import fcntl
 import hashlib
 import itertools
 import logging
 import math
 import os
+import shutil
+import signal
 import sys
 import warnings
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
-from typing import Any, ClassVar
+from typing import IO, Any, ClassVar
 
 import numpy as np
 
@@ -54,6 +59,7 @@ from pygran_core.simulation.calls import (
     SetSpec,
     ViscousSpec,
     WallSpec,
+    available_memory,
 )
 from pygran_core.simulation.checkpoint import (
     Checkpoint,
@@ -93,6 +99,77 @@ SERVO_WATCH = 3
 SERVO_SWING = 0.05
 #: How deep (a fraction of the smaller radius) particles created at given positions may overlap.
 CREATE_OVERLAP_TOLERANCE = 1e-3
+#: The last step a simulation may reach: step counters are 64-bit integers.
+MAX_STEP = 2**63 - 1
+#: The fewest bytes a trajectory frame takes on disk (its header, with no particle).
+FRAME_BYTES = 100
+#: The memory a monitor value takes while kept (a Python float in a tuple), in bytes.
+SAMPLE_BYTES = 32
+#: A run's pieces are listed this many steps at a time (:meth:`Engine._run_chunks`).
+RUN_SEGMENT = 100_000
+
+
+#: The file in an output folder a live simulation holds locked (``flock``), with its process id.
+LOCK_NAME = ".pygran.lock"
+
+
+def claim_output(output: Path) -> IO[str]:
+    """Make the folder ``output`` and lock it for this simulation, before any file in it is
+    opened for writing; the lock lasts while the returned file is open (the process's end
+    releases it, however it ends). A folder that cannot be made or written, or that another
+    live simulation holds, is a :class:`ConfigError` saying which. Under an MPI launcher the
+    ranks of one run share its folder, so none locks it."""
+    try:
+        output.mkdir(parents=True, exist_ok=True)
+        if not os.access(output, os.W_OK | os.X_OK):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
+        ranks = os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1"))
+        lock = open(os.devnull if ranks != "1" else output / LOCK_NAME, "a+", encoding="utf-8")
+    except OSError as exc:
+        what = "a file is in its place or in a parent's" if exc.errno in (errno.EEXIST, errno.ENOTDIR) else ""
+        raise ConfigError(
+            f"output {str(output)!r} cannot be made or written: {what or exc.strerror or exc}; give a "
+            "folder you can write"
+        ) from None
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        lock.seek(0)
+        holder = lock.read().strip()
+        lock.close()
+        whose = "of this script, not closed yet" if holder == str(os.getpid()) else f"process {holder}"
+        raise ConfigError(
+            f"output {str(output)!r} is in use by another live simulation ({whose}), whose files this one "
+            "would overwrite: give another output folder, or close that simulation first"
+        ) from None
+    lock.truncate(0)
+    lock.write(str(os.getpid()))
+    lock.flush()
+    return lock
+
+
+#: ``prctl``'s option that has Linux signal a process when the thread that started it ends.
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(sig: int = signal.SIGKILL) -> Callable[[], None] | None:
+    """A ``preexec_fn`` for :class:`subprocess.Popen` by which Linux sends the child ``sig``
+    when this process ends, however it ends (``kill -9`` too), so that a solver's worker never
+    outlives the script; ``None`` where there is no ``prctl`` (not Linux). The signal comes
+    when the thread that started the child ends: start workers from a thread that lives as
+    long as the simulation (the main thread does)."""
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    parent = os.getpid()
+
+    def arm() -> None:
+        prctl(PR_SET_PDEATHSIG, int(sig))
+        if os.getppid() != parent:  # the parent ended before the signal was armed
+            os._exit(1)
+
+    return arm
 
 
 def before_resume(path: Path) -> Path:
@@ -205,7 +282,8 @@ class Engine(abc.ABC):
     def __init__(self, spec: SimulationSpec) -> None:
         self.spec = spec
         self.output = spec.output
-        self.output.mkdir(parents=True, exist_ok=True)
+        self._output_lock = claim_output(self.output)
+        self._run_span = (0, 0)  # the first and last step of the run in progress
         self.dt = spec.dt
         self.step = 0
         self.time = 0.0
@@ -579,6 +657,7 @@ class Engine(abc.ABC):
         """
         self._check_open()
         nsteps = positive_int(nsteps, "nsteps")
+        self._check_run_size(nsteps)
         if dt is not None:
             dt = positive_float(dt, "dt")
         run_dt = dt if dt is not None else self.dt
@@ -610,7 +689,7 @@ class Engine(abc.ABC):
         with tqdm(
             total=nsteps, initial=self.step - start, unit="step", disable=not show, desc=f"{self.name} run"
         ) as bar:
-            for chunk in self._chunks(end - self.step) if end > self.step else ():
+            for chunk in self._run_chunks(end):
                 try:
                     self._advance(chunk)
                 except EngineError:
@@ -840,17 +919,55 @@ class Engine(abc.ABC):
             freqs.append(self.spec.restart.freq)
         return freqs
 
+    def _check_run_size(self, nsteps: int) -> None:
+        """Refuse, before it starts, a run whose step count overflows the step counters, whose
+        trajectory frames cannot fit on the output's disk (at :data:`FRAME_BYTES` each, however
+        few the particles) or whose monitor samples cannot fit in memory."""
+        if self.step + nsteps > MAX_STEP:
+            raise ConfigError(
+                f"run nsteps={nsteps} would take the simulation past step {MAX_STEP}, the most the step "
+                "counters hold: run fewer steps"
+            )
+        traj = self.spec.traj
+        files = sum(path is not None for path in (traj.pfile, traj.mfile, traj.cfile))
+        frames = files * (nsteps // traj.freq)
+        free = shutil.disk_usage(self.output).free
+        if frames * FRAME_BYTES > free:
+            raise ConfigError(
+                f"run nsteps={nsteps} would write {frames:.3g} trajectory frames (traj freq {traj.freq}), at "
+                f"least {frames * FRAME_BYTES / 1e9:.3g} GB, but {free / 1e9:.3g} GB are free on the disk of "
+                f"{self.output}: run fewer steps or raise traj freq"
+            )
+        samples = sum(nsteps // m.spec.freq * (2 + len(m.spec.quantities)) for m in self._monitors.values())
+        memory = available_memory()
+        if samples * SAMPLE_BYTES > memory:
+            raise ConfigError(
+                f"run nsteps={nsteps} would keep {samples:.3g} monitor values in memory, about "
+                f"{samples * SAMPLE_BYTES / 1e9:.3g} GB, but {memory / 1e9:.3g} GB are free: run fewer "
+                "steps or raise the monitors' freq"
+            )
+
+    def _run_chunks(self, end: int) -> Iterator[int]:
+        """The pieces of :meth:`_chunks` from this step to ``end``, listed a segment of
+        :data:`RUN_SEGMENT` steps at a time (a run of 10**15 steps lists no step in advance)."""
+        self._run_span = (self.step, end)
+        while self.step < end:
+            yield from self._chunks(min(end - self.step, RUN_SEGMENT))
+
     def _chunks(self, nsteps: int) -> list[int]:
-        """Split a run at every event step, and into at most :attr:`max_run_chunks` pieces."""
+        """Split the next ``nsteps`` steps of a run at every event step, and the run (from
+        :meth:`_run_chunks`) into at most :attr:`max_run_chunks` pieces."""
         start, end = self.step, self.step + nsteps
+        first, last = self._run_span
         stops = {end}
         for freq in self._frequencies():
             stops.update(range((start // freq + 1) * freq, end, freq))
-        pieces = min(nsteps, self.max_run_chunks)
-        stops.update(start + (nsteps * k) // pieces for k in range(1, pieces))
-        if self._watched_servos() and nsteps > SERVO_WATCH:
-            stops.update(range(end - SERVO_WATCH, end))  # single steps, read by _watch_servos
-        ordered = sorted(s for s in stops if s > start)
+        total = last - first
+        pieces = min(total, self.max_run_chunks)
+        stops.update(first + (total * k) // pieces for k in range(1, pieces))
+        if self._watched_servos() and total > SERVO_WATCH:
+            stops.update(range(last - SERVO_WATCH, last))  # single steps, read by _watch_servos
+        ordered = sorted(s for s in stops if start < s <= end)
         return [b - a for a, b in zip([start, *ordered], ordered)]
 
     def _on_event(self) -> None:
@@ -1008,6 +1125,7 @@ class Engine(abc.ABC):
             self.closed = True
             self.log("%s engine closed at step %d", self.name, self.step)
             self._log_handler.close()
+            self._output_lock.close()
 
     def __enter__(self) -> Engine:
         return self

@@ -101,6 +101,9 @@ def finite_number(value: Any, name: str) -> float:
 
 
 def number_tuple(value: Any, name: str, size: int = 3) -> tuple[float, ...]:
+    """``size`` finite numbers from a sequence or a one-dimensional numpy array."""
+    if isinstance(value, np.ndarray) and value.ndim == 1:
+        value = value.tolist()
     if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != size:
         raise ConfigError(f"{name} must be a sequence of {size} numbers, got {value!r}")
     return tuple(finite_number(v, f"{name}[{i}]") for i, v in enumerate(value))
@@ -356,6 +359,34 @@ class RadiusDistribution:
         return location + spread * normal if self.kind == "normal" else location * np.exp(spread * normal)
 
 
+#: The radii (m) a particle may have: below a nanometre a particle is a handful of atoms, which
+#: DEM's contact laws do not describe (and whose mass underflows); above a kilometre, a
+#: mistake in units.
+RADIUS_RANGE = (1e-9, 1e3)
+
+
+def check_radius(value: Any, name: str) -> float:
+    """``value``, a positive radius within :data:`RADIUS_RANGE`, or a :class:`ConfigError`."""
+    lo, hi = RADIUS_RANGE
+    if not lo <= positive_float(value, name) <= hi:
+        raise ConfigError(f"{name} {value:g} m is outside the radii DEM describes, {lo:g} to {hi:g} m")
+    return float(value)
+
+
+def check_span(value: Any, smallest: float, largest: float, text: tuple[str, str] | None = None) -> None:
+    """Refuse a radius distribution ``value`` whose radii reach outside :data:`RADIUS_RANGE`;
+    ``text`` writes the two radii where a float cannot hold them."""
+    lo, hi = RADIUS_RANGE
+    if smallest == largest:
+        check_radius(smallest, f"radius {value!r}:")
+    if not lo <= smallest <= largest <= hi:
+        low, high = text or (f"{smallest:.3g}", f"{largest:.3g}")
+        raise ConfigError(
+            f"radius {value!r} spans radii from {low} to {high} m (a normal or lognormal distribution is "
+            f"cut at 3 sigma), but radii must lie between {lo:g} and {hi:g} m"
+        )
+
+
 def parse_radius(value: Any) -> RadiusDistribution:
     if is_real(value):
         value = ("constant", value)
@@ -376,11 +407,17 @@ def parse_radius(value: Any) -> RadiusDistribution:
         if min(radii) <= 0 or min(weights) < 0 or sum(weights) <= 0:
             raise ConfigError(f"radius ('poly', ...): radii must be > 0 and weights >= 0: {value!r}")
         total = sum(weights)
+        check_span(value, min(radii), max(radii))
         return RadiusDistribution(kind, radii, tuple(w / total for w in weights))
     numbers = tuple(finite_number(v, f"radius {kind}") for v in args)
+    if kind == "lognormal" and numbers[0] > 0 and numbers[1] >= 0:  # in logs: exp(3 sigma) may overflow
+        low, high = (math.log10(numbers[0]) + sign * 3 * numbers[1] / math.log(10) for sign in (-1, 1))
+        if low < -300 or high > 300:
+            check_span(value, 0.0, math.inf, (f"1e{low:.0f}", f"1e{high:.0f}"))
     dist = RadiusDistribution(kind, numbers)
     if numbers[0] <= 0 or (len(numbers) > 1 and numbers[1] < 0) or dist.min <= 0:
         raise ConfigError(f"radius {value!r} allows radii <= 0 (the distribution is cut at 3 sigma)")
+    check_span(value, dist.min, dist.max)
     return dist
 
 
@@ -439,6 +476,8 @@ def _multisphere(value: Mapping[str, Any], index: int, style: str) -> tuple[tupl
         clean = tuple(number_tuple(sphere, f"{where} sphere {k}", 4) for k, sphere in enumerate(spheres))
         if min(r for *_, r in clean) <= 0:
             raise ConfigError(f"{where}: every sphere of 'function' needs r > 0")
+        for k, (*_, r) in enumerate(clean):
+            check_radius(r, f"{where}: the radius of sphere {k}")
         return clean
     missing = [key for key in ("nspheres", "radius", "length") if key not in value]
     if missing:
@@ -449,7 +488,7 @@ def _multisphere(value: Mapping[str, Any], index: int, style: str) -> tuple[tupl
     count = value["nspheres"]
     if not is_integer(count) or not 2 <= count <= MAX_SPHERES:
         raise ConfigError(f"{where}: nspheres must be a whole number from 2 to {MAX_SPHERES}, got {count!r}")
-    radius = positive_float(value["radius"], f"{where} radius")
+    radius = check_radius(value["radius"], f"{where} radius")
     length = positive_float(value["length"], f"{where} length")
     if not 2 * radius < length <= 2 * radius * count:
         raise ConfigError(
@@ -780,10 +819,9 @@ def parse_mesh(name: str, value: Any, base: Path, output: Path | None = None) ->
         value = {**value, "file": surface.write(folder / f"mesh-{name}.stl")}
     if not isinstance(value["file"], (str, os.PathLike)):
         raise ConfigError(f"mesh {name!r}: 'file' must be a path to an STL file, got {value['file']!r}")
-    path = Path(value["file"])
+    path = Path(file_name(value["file"], f"mesh {name!r} file"))
     path = path if path.is_absolute() else base / path
-    if not path.is_file():
-        raise ConfigError(f"mesh {name!r}: file {path} does not exist")
+    check_mesh_file(path, name)
     mtype = one_of(value.get("mtype", "mesh/surface"), f"mesh {name!r} mtype", MESH_TYPES)
     servo = mtype.endswith("/servo")
     steps, servo_values = parse_placement(value.get("args", ()), name, servo)

@@ -96,6 +96,19 @@ def _set(**values):
     return lambda p: {**p, **values}
 
 
+def _output_in(place: str):
+    """A SETUP row's output folder where a file ``a-file`` beside the valid one stands:
+    ``place`` ``'at'`` the file itself, ``'under'`` a folder inside it."""
+
+    def apply(p):
+        blocker = Path(p["output"]).parent / "a-file"
+        blocker.parent.mkdir(parents=True, exist_ok=True)
+        blocker.touch()
+        return {**p, "output": str(blocker if place == "at" else blocker / "out")}
+
+    return apply
+
+
 #: (id, change to the valid params, error class, what the message must name)
 SETUP = [
     ("unknown keyword", _set(gravty=(9.81, 0, 0, -1)), ConfigError, "'gravity'"),
@@ -125,6 +138,18 @@ SETUP = [
     ),
     ("radii below zero", _species(lambda s: {**s, "radius": ("normal", R, R)}), ConfigError, "radius"),
     ("poly weights", _species(lambda s: {**s, "radius": ("poly", (R, R / 2), (1,))}), ConfigError, "radius"),
+    (
+        "radius of 1e-300 m",
+        _species(lambda s: {**s, "radius": 1e-300}),
+        ConfigError,
+        "1e-300 m is outside the radii DEM describes, 1e-09 to 1000 m",
+    ),
+    (
+        "lognormal radii over 600 orders of magnitude",
+        _species(lambda s: {**s, "radius": ("lognormal", R, 300)}),
+        ConfigError,
+        "spans radii from 1e-394 to 1e388 m",
+    ),
     ("nSim of 0", _set(nSim=0), ConfigError, "nSim"),
     ("two dimensions", _set(dim=2), ConfigError, "dim"),
     ("units", _set(units="cgs"), ConfigError, "units"),
@@ -149,6 +174,16 @@ SETUP = [
         "'file'",
     ),
     ("mesh file missing", lambda p: {**p, "mesh": {"plate": {"file": "none.stl"}}}, ConfigError, "none.stl"),
+    (
+        "mesh file a folder",
+        lambda p: _mesh(file=str(Path(p["output"]).parent))(p),
+        ConfigError,
+        "is a folder",
+    ),
+    ("mesh file a device", _mesh(file="/dev/zero"), ConfigError, "/dev/zero is not a regular file"),
+    ("output a file", _output_in("at"), ConfigError, "a file is in its place"),
+    ("output under a file", _output_in("under"), ConfigError, "a file is in its place or in a parent's"),
+    ("output with a line break", _set(output="out\nput"), ConfigError, "'out\\nput' holds the control"),
     ("mesh type", _mesh(mtype="mesh/surfac"), ConfigError, "mtype"),
     ("mesh keyword misspelt", _mesh(scael=1e-3), ConfigError, "'scael'"),
     ("mesh in millimetres", _mesh(), ConfigError, "'scale': 1e-3"),
@@ -350,6 +385,25 @@ CALL = [
         "not a handle",
     ),
     ("run no steps", lambda s: s.run(0), ConfigError, "nsteps"),
+    ("run past the last step", lambda s: s.run(2**63), ConfigError, "the most the step counters hold"),
+    (
+        "insert beyond close packing",
+        lambda s: s.insert(1, value=1e9, region=("block", 0, 0.006, 0, 0.006, 0, 0.006)),
+        ConfigError,
+        "1e+09 particles cannot fit",
+    ),
+    (
+        "createParticles beyond close packing",
+        lambda s: s.createParticles(1, "random", 10**12, region=("block", 0, 0.006, 0, 0.006, 0, 0.006)),
+        ConfigError,
+        "1e+12 particles cannot fit",
+    ),
+    (
+        "createParticles radius of 1e-300 m",
+        lambda s: s.createParticles(1, "single", 0.01, 0.01, 0.01, radius=1e-300),
+        ConfigError,
+        "radius 1e-300 m is outside the radii DEM describes",
+    ),
     ("run negative steps", lambda s: s.run(-5), ConfigError, "nsteps"),
     ("run negative dt", lambda s: s.run(10, -1e-5), ConfigError, "dt"),
     ("dt 8 times the contact time", lambda s: s.run(10, 8 * _contact(s)), ConfigError, "dt = "),

@@ -6,7 +6,9 @@ manual's mode: the whole script runs under ``mpirun``, one LIGGGHTS instance per
 ranks). :class:`WorkerSession` runs it in ``python -m pygran_liggghts.worker`` (under
 ``mpirun -np N`` for N > 1 ranks) and relays requests over a Unix socket, so that a LIGGGHTS
 error, which ends its process, becomes an :class:`EngineError` carrying LIGGGHTS' message.
-The worker starts in the background: the engine queues commands until it is :meth:`ready`.
+The worker starts in the background: the engine queues commands until it is :meth:`ready`,
+and ends with this process, however it ends (see
+:func:`~pygran_core.simulation.engine.die_with_parent`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from pygran_core.errors import EngineError
+from pygran_core.simulation.engine import die_with_parent
 from pygran_liggghts.worker import Session
 
 #: The end of a LIGGGHTS error message: its source line, ``(./src/input.cpp:327)``.
@@ -134,7 +137,13 @@ class WorkerSession:
         try:
             with stderr.open("w") as out:
                 self.process = subprocess.Popen(
-                    command, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=worker_env()
+                    command,
+                    stdout=out,
+                    stderr=subprocess.STDOUT,
+                    stdin=subprocess.DEVNULL,
+                    env=worker_env(),
+                    # mpirun takes its ranks down on SIGTERM; a lone worker is killed
+                    preexec_fn=die_with_parent(signal.SIGTERM if nprocs > 1 else signal.SIGKILL),
                 )
         except BaseException:
             self._cleanup()

@@ -353,7 +353,8 @@ def _assemble(
         types = [int(t) for t in cell_types]
     for c in cells:
         if len(c) and (c.min() < 0 or c.max() >= len(points)):
-            raise cur.fail(f"a cell refers to point {int(c.max())} but there are {len(points)} points")
+            bad, last = int(c.min()) if c.min() < 0 else int(c.max()), len(points) - 1
+            raise cur.fail(f"a cell refers to point {bad}, but the points are numbered 0 to {last}")
     for name, values in point_data.items():
         if len(values) != len(points):
             raise cur.fail(f"point data {name!r} has {len(values)} values for {len(points)} points")

@@ -2,8 +2,9 @@
 
 YADE runs in its own process (:mod:`pygran_yade.worker`, under the interpreter named by
 the launcher), so a YADE crash ends that process and raises :class:`EngineError` here,
-never taking the user's session with it. The worker is killed by :meth:`Worker.close`, or
-at interpreter exit if the user forgot.
+never taking the user's session with it. The worker is killed by :meth:`Worker.close`, at
+interpreter exit if the user forgot, and by Linux when this process ends however it ends
+(see :func:`~pygran_core.simulation.engine.die_with_parent`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from pygran_core.errors import EngineError
+from pygran_core.simulation.engine import die_with_parent
 from pygran_yade import worker as worker_module
 from pygran_yade.launcher import find_launcher, interpreter
 from pygran_yade.worker import read_message, write_message
@@ -59,6 +61,7 @@ class Worker:
                 pass_fds=(requests_read, answers_write),
                 env=env,
                 cwd=log.parent,
+                preexec_fn=die_with_parent(),
             )
         os.close(requests_read)
         os.close(answers_write)
