@@ -15,7 +15,7 @@ import pytest
 from pygran_liggghts.library import ADDON_MODEL, find_library, load_addon
 
 from pygran_core import registry, simulation
-from pygran_core.errors import EngineError
+from pygran_core.errors import EngineError, UnsupportedFeature
 from pygran_core.simulation.models import ThorntonNing
 from pygran_core.testing import validation
 from pygran_core.testing.solvers import require_solver
@@ -183,3 +183,53 @@ def test_a_restart_in_the_neck_continues_the_impacts(tmp_path, on_native):
     # the contact histories came back with LIGGGHTS' restart file: without them the neck
     # would be gone and the plastic contact would reload as a virgin one
     np.testing.assert_allclose(again, straight, rtol=1e-9, atol=1e-12 * SPEED)
+
+
+# -- friction ------------------------------------------------------------------------------------------
+
+
+def oblique(output: Path, engine: str, material, rolling: str | None = None) -> np.ndarray:
+    """A sphere hitting the floor at 60 degrees and two spheres meeting off-centre, with
+    friction: velocities and angular velocities by id after the contacts have ended."""
+    start = R + 0.5 * SPEED * DT
+    model = ThorntonNing if rolling is None else type("Rolling", (ThorntonNing,), {"rolling": rolling})
+    with simulation.DEM(
+        engine=engine,
+        model=model,
+        box=(-8 * R, 8 * R, -2 * R, 2 * R, -R, 4 * R),
+        dt=DT,
+        output=str(output),
+        species=({"material": material, "radius": R},),
+        traj={"pfile": None},
+        progress=False,
+    ) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=0.0)
+        sim.createParticles(1, "single", 0.0, 0.0, start, vel=(0.5 * SPEED, 0.0, -SPEED))
+        sim.createParticles(1, "single", -4 * R, 0.0, 2 * R, vel=(SPEED, 0.0, 0.0))
+        sim.createParticles(1, "single", -2 * R + 0.5 * SPEED * DT, 0.3 * R, 2 * R, vel=(-SPEED, 0.0, 0.0))
+        sim.run(3 * NECK_STEP)
+        return np.hstack([sim.extractVelocities(), sim.extractOmegas()])
+
+
+@pytest.mark.parametrize(
+    "material",
+    [validation.IMPACT_MATERIALS[ThorntonNing], validation.ADHESIVE, validation.ELASTIC_ADHESIVE],
+    ids=["plastic", "plastic-adhesive", "elastic-adhesive-neck"],
+)
+def test_oblique_impacts_spin_as_on_native(tmp_path, material):
+    """Friction while loading, unloading, in an adhesive neck apart and after a plastic contact
+    has parted while the bodies still overlap: the same spins and velocities as native's."""
+    on_liggghts = oblique(tmp_path / "liggghts", "liggghts", material)
+    on_native = oblique(tmp_path / "native", "native", material)
+    assert np.abs(on_native[:, 3:]).max() > 1.0  # the contacts spun the spheres (rad/s)
+    np.testing.assert_allclose(on_liggghts, on_native, rtol=1e-9, atol=1e-9 * np.abs(on_native).max())
+
+
+def test_rolling_friction_with_adhesion_is_refused(tmp_path):
+    material = dict(validation.ADHESIVE, coefficientRollingFriction=0.3)
+    with pytest.raises(UnsupportedFeature, match="adhesion .* and rolling friction together"):
+        oblique(tmp_path, "liggghts", material)
+    dry = dict(validation.IMPACT_MATERIALS[ThorntonNing], coefficientRollingFriction=0.3)
+    on_liggghts = oblique(tmp_path / "liggghts", "liggghts", dry, rolling="cdt")
+    on_native = oblique(tmp_path / "native", "native", dry, rolling="cdt")
+    np.testing.assert_allclose(on_liggghts, on_native, rtol=1e-9, atol=1e-9 * np.abs(on_native).max())

@@ -159,6 +159,12 @@ class Commands:
                 f"LIGGGHTS' rolling_friction {self.rolling_model} needs coeffRollingStiffness, which "
                 "PyGran's materials do not carry; use rolling='epsd' (its stiffness prefactor is 2.25)"
             )
+        if self.model == ADDON_MODEL and self.rolling and self.cohesion:
+            raise UnsupportedFeature(
+                "ThorntonNing with adhesion (cohesionEnergyDensity) and rolling friction together on "
+                "LIGGGHTS: its rolling_friction models act only while the bodies overlap, and the adhesive "
+                "neck pulls on them after they have parted; drop one of the two, or run on the native engine"
+            )
 
     def new_id(self, kind: str) -> str:
         return f"pg_{kind}{next(self._counter)}"

@@ -7,8 +7,11 @@
 
    Per-contact history (saved in LIGGGHTS restart files with every other history value):
    the largest overlap (negated while the contact is broken but the bodies still overlap, the
-   plastic offset then being kept until they part), the unloading curvature radius R_p and the
-   plastic offset delta_p. Material tables: Yeff and Geff (LIGGGHTS' own), the per-pair
+   plastic offset then being kept until they part), the unloading curvature radius R_p, the
+   plastic offset delta_p, and while a neck holds the bodies apart, the tangential spring.
+   LIGGGHTS calls only this model's surfacesClose for a neck and its tangential history model
+   clears its own spring there, so the neck's friction is computed here, with the spring kept
+   in this model's history and handed back when the bodies overlap again. Material tables: Yeff and Geff (LIGGGHTS' own), the per-pair
    yield pressure ``yieldPress`` and surface energy ``cohesionEnergyDensity`` (Gamma of each
    surface; pull-off force 3 pi Gamma R*). No viscous damping: plasticity and adhesion
    hysteresis dissipate. */
@@ -38,7 +41,7 @@ namespace ThorntonNingPyGran {
    a neck that would persist further stops the run with an error rather than break early. */
 const double CONTACT_DISTANCE_FACTOR = 1.05;
 
-enum History { DELTA_MAX = 0, RADIUS_P = 1, OFFSET_P = 2, COUNT = 3 };
+enum History { DELTA_MAX = 0, RADIUS_P = 1, OFFSET_P = 2, NECK = 3, SPRING = 4, COUNT = 7 };
 enum State { NO_CONTACT = 0, IN_CONTACT = 1, MEMORY = 2 };
 
 struct Pair {
@@ -155,13 +158,17 @@ class NormalModel<THORNTON_NING_PYGRAN> : public NormalModelBase
 public:
     NormalModel(LAMMPS* lmp, IContactHistorySetup* hsetup, class ContactModelBase* cmb)
         : NormalModelBase(lmp, hsetup, cmb), Yeff(NULL), Geff(NULL), yieldPress(NULL),
-          surfaceEnergy(NULL), limitForce(false)
+          surfaceEnergy(NULL), coeffFrict(NULL), limitForce(false)
     {
         history_offset = hsetup->add_history_value("tn_pygran_delta_max", "0");
         hsetup->add_history_value("tn_pygran_radius_p", "0");
         hsetup->add_history_value("tn_pygran_offset_p", "0");
+        hsetup->add_history_value("tn_pygran_neck", "0");
+        hsetup->add_history_value("tn_pygran_springx", "1");
+        hsetup->add_history_value("tn_pygran_springy", "1");
+        hsetup->add_history_value("tn_pygran_springz", "1");
         /* The tangential history model is constructed next (no cohesion model is combined with
-           this one), so its spring follows these three values. */
+           this one), so its spring follows these values. */
         shear_offset = history_offset + ThorntonNingPyGran::COUNT;
     }
 
@@ -178,10 +185,12 @@ public:
         registry.registerProperty("Geff", &MODEL_PARAMS::createGeff);
         registry.registerProperty("yieldPress", &createYieldPressure);
         registry.registerProperty("cohesionEnergyDensity", &MODEL_PARAMS::createCohesionEnergyDensity);
+        registry.registerProperty("coeffFrict", &MODEL_PARAMS::createCoeffFrict);
         registry.connect("Yeff", Yeff, "model thornton_ning_pygran");
         registry.connect("Geff", Geff, "model thornton_ning_pygran");
         registry.connect("yieldPress", yieldPress, "model thornton_ning_pygran");
         registry.connect("cohesionEnergyDensity", surfaceEnergy, "model thornton_ning_pygran");
+        registry.connect("coeffFrict", coeffFrict, "model thornton_ning_pygran");
         if (limitForce) {
             for (int i = 1; i <= atom->ntypes; ++i)
                 for (int j = 1; j <= atom->ntypes; ++j)
@@ -198,7 +207,7 @@ public:
     {
         if (sidata.contact_flags)
             *sidata.contact_flags |= CONTACT_NORMAL_MODEL;
-        contact(sidata, sidata.deltan, i_forces, j_forces);
+        contact(sidata, sidata.deltan, false, i_forces, j_forces);
     }
 
     /* Apart but within the contact distance: an adhesive neck still pulls, else the contact ends. */
@@ -221,7 +230,7 @@ public:
                 sidata.en[k] = sidata.delta[k] * sidata.rinv;
             sidata.deltan = sidata.radsum - sidata.r;
         }
-        if (contact(sidata, sidata.deltan, i_forces, j_forces)) {
+        if (contact(sidata, sidata.deltan, true, i_forces, j_forces)) {
             if (scdata.contact_flags)
                 *scdata.contact_flags |= CONTACT_NORMAL_MODEL;
             scdata.has_force_update = true;
@@ -239,8 +248,9 @@ public:
     }
 
 private:
-    /* The force of this step at overlap delta; false when the bodies are out of contact. */
-    bool contact(SurfacesIntersectData& sidata, double delta, ForceData& i_forces, ForceData& j_forces)
+    /* The force of this step at overlap delta (``apart``: a neck, from surfacesClose); false
+       when the bodies are out of contact. */
+    bool contact(SurfacesIntersectData& sidata, double delta, bool apart, ForceData& i_forces, ForceData& j_forces)
     {
         const int it = sidata.itype, jt = sidata.jtype;
         const Pair c = {Yeff[it][jt], Geff[it][jt], yieldPress[it][jt], surfaceEnergy[it][jt]};
@@ -251,13 +261,27 @@ private:
         double fn = 0.0, a = 0.0;
         const int state = ThorntonNingPyGran::normal(c, delta, Rs, h, update, fn, a);
         const bool touching = state == ThorntonNingPyGran::IN_CONTACT;
-        if (update && (!touching || reforms))  // the spring starts afresh, as on a first touch
+        double* const spring = &sidata.contact_history[shear_offset];
+        double* const neck_spring = &h[ThorntonNingPyGran::SPRING];
+        if (update && (!touching || reforms)) {  // the spring starts afresh, as on a first touch
             for (int k = 0; k < 3; ++k)
-                sidata.contact_history[shear_offset + k] = 0.0;
+                spring[k] = neck_spring[k] = 0.0;
+            h[ThorntonNingPyGran::NECK] = 0.0;
+        }
         if (state == ThorntonNingPyGran::NO_CONTACT) {
             for (int k = 0; k < ThorntonNingPyGran::COUNT; ++k)
                 h[k] = 0.0;
             return false;
+        }
+        if (touching && update && apart != (h[ThorntonNingPyGran::NECK] != 0.0)) {
+            /* into a neck: the spring the tangential model left; out of it: back to that model */
+            for (int k = 0; k < 3; ++k) {
+                if (apart)
+                    neck_spring[k] = spring[k];
+                else
+                    spring[k] = neck_spring[k];
+            }
+            h[ThorntonNingPyGran::NECK] = apart ? 1.0 : 0.0;
         }
         if (touching && update && h[ThorntonNingPyGran::DELTA_MAX] == delta)
             check_reach(sidata, c);
@@ -272,7 +296,62 @@ private:
             if (!sidata.is_wall)
                 j_forces.delta_F[k] -= fn * sidata.en[k];
         }
+        if (touching && apart)
+            neck_friction(sidata, neck_spring, update, i_forces, j_forces);
         return touching;
+    }
+
+    /* Friction in a neck, as LIGGGHTS' surface model default and tangential model history
+       compute it in contact: the spring on the tangential displacement at the contact point
+       (levers r - delta/2), limited by mu |Fn|, without damping (Thornton-Ning has none). */
+    void neck_friction(SurfacesIntersectData& sidata, double* spring, bool advance, ForceData& i_forces,
+                       ForceData& j_forces)
+    {
+        const double* const en = sidata.en;
+        const double* const wi = atom->omega[sidata.i];
+        const double* const wj = sidata.is_wall ? wi : atom->omega[sidata.j];  // wall: unused
+        const double cri = sidata.radi - 0.5 * sidata.deltan;
+        const double crj = sidata.is_wall ? 0.0 : sidata.radj - 0.5 * sidata.deltan;
+        double vr[3], wr[3], vtr[3];
+        for (int k = 0; k < 3; ++k) {
+            vr[k] = sidata.v_i[k] - sidata.v_j[k];
+            wr[k] = (cri * wi[k] + crj * wj[k]) * sidata.rinv;
+        }
+        const double vn = vr[0] * en[0] + vr[1] * en[1] + vr[2] * en[2];
+        const double* const d = sidata.delta;
+        vtr[0] = vr[0] - vn * en[0] - (d[2] * wr[1] - d[1] * wr[2]);
+        vtr[1] = vr[1] - vn * en[1] - (d[0] * wr[2] - d[2] * wr[0]);
+        vtr[2] = vr[2] - vn * en[2] - (d[1] * wr[0] - d[0] * wr[1]);
+        if (advance) {
+            for (int k = 0; k < 3; ++k)
+                spring[k] += vtr[k] * update->dt;
+            const double normal = spring[0] * en[0] + spring[1] * en[1] + spring[2] * en[2];
+            for (int k = 0; k < 3; ++k)
+                spring[k] -= normal * en[k];
+        }
+        const double kt = sidata.kt;
+        const double length = std::sqrt(spring[0] * spring[0] + spring[1] * spring[1] + spring[2] * spring[2]);
+        const double limit = coeffFrict[sidata.itype][sidata.jtype] * std::fabs(sidata.Fn);
+        double Ft[3] = {-kt * spring[0], -kt * spring[1], -kt * spring[2]};
+        if (kt * length > limit) {  // sliding: the spring shortened to the Coulomb limit
+            const double ratio = length != 0.0 ? limit / (kt * length) : 0.0;
+            for (int k = 0; k < 3; ++k) {
+                Ft[k] *= ratio;
+                if (advance)
+                    spring[k] = -Ft[k] / kt;
+            }
+        }
+        const double tor[3] = {en[1] * Ft[2] - en[2] * Ft[1], en[2] * Ft[0] - en[0] * Ft[2],
+                               en[0] * Ft[1] - en[1] * Ft[0]};
+        const double scale = sidata.is_wall ? sidata.area_ratio : 1.0;
+        for (int k = 0; k < 3; ++k) {
+            i_forces.delta_F[k] += Ft[k] * scale;
+            i_forces.delta_torque[k] -= cri * tor[k] * scale;
+            if (!sidata.is_wall) {
+                j_forces.delta_F[k] -= Ft[k];
+                j_forces.delta_torque[k] -= crj * tor[k];
+            }
+        }
     }
 
     /* A neck must part within the distance LIGGGHTS calls the model at. */
@@ -302,6 +381,7 @@ private:
     double** Geff;
     double** yieldPress;
     double** surfaceEnergy;
+    double** coeffFrict;
     bool limitForce;
     int history_offset;
     int shear_offset;
