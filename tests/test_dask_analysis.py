@@ -129,6 +129,28 @@ def test_a_selection_of_frames_in_the_order_asked(trajectory: Path, client: obje
     assert tail == list(COUNTS[2:])
 
 
+def test_a_liggghts_run_with_its_walls(hopper: Path, client: object) -> None:
+    """Real LIGGGHTS output: dump frames of a discharging hopper and the VTK frames of its walls."""
+
+    def outflow(system: analysis.System) -> tuple[int, int, float, float]:
+        particles, walls = system.Particles, system.Mesh
+        return (
+            system.timestep,
+            len(particles),
+            float(particles.z.max(initial=0.0)),
+            float(walls.computeAreas().sum()),
+        )
+
+    with analysis.System(Particles=str(hopper / "particles*.dump"), Mesh=str(hopper / "mesh*.vtk")) as system:
+        there = system.map(outflow, client=client)
+        here = system.map(outflow, client="serial")
+        counts = [len(system.Particles) for _ in system.frames()]
+    assert there == here
+    assert [n for _, n, _, _ in there] == counts and len(there) == 31
+    assert [step for step, *_ in there] == sorted(step for step, *_ in there)
+    assert max(counts) > min(counts)  # particles come and go: variable N
+
+
 class Beads(analysis.Particles):
     """A user's SubSystem class with a method of its own."""
 

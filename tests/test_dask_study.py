@@ -194,6 +194,11 @@ def test_serial_studies_need_no_dask(tmp_path: Path, monkeypatch: pytest.MonkeyP
     assert [row["e"] for row in table] == pytest.approx([0.5, 0.8], rel=0.01)
     with pytest.raises(UnsupportedFeature, match=r"pip install pygran-core\[dask\]"):
         Study(script, parameters=rows, output=tmp_path / "local").run()
+    slow = [{"restitution": 0.5, "slow": True}]  # waits for a gate that never opens
+    with pytest.warns(PyGranWarning, match="timed out after 1 s"):
+        (row,) = Study(script, parameters=slow, output=tmp_path / "slow", client="serial", timeout=1).run()
+    assert row["status"] == "failed" and row["attempts"] == 2 and row["seconds"] < 2
+    assert _gone(int((tmp_path / "slow" / "run0" / "pid").read_text()))
 
 
 def test_mistakes_are_refused_before_anything_runs(tmp_path: Path) -> None:
