@@ -284,7 +284,7 @@ class H5MDWriter(TrajectoryWriter):
         )["value"]
         self._columns = columns
         if self.xdmf and "position" in dict(self._elements):
-            self._sidecar = XdmfSidecar(self.path)
+            self._sidecar = XdmfSidecar(self.path, self.compression)
 
     def _element(
         self, parent: Any, name: str, shape: tuple[int, ...], dtype: Any, fill: Any, clock: Any

@@ -6,7 +6,7 @@ A file from elsewhere can name other files: an external link, external raw stora
 virtual dataset makes HDF5 read ``/etc/passwd`` as if it were the file's own data. Every such
 file is refused with a :class:`ReadError` before anything in it is read.
 
-A writer claims its file (a POSIX record lock, which HDF5's own ``flock`` does not touch)
+A writer claims its file (a ``fcntl`` lock, which HDF5's own ``flock`` does not touch)
 before truncating it, so a second writer fails without destroying the first one's file, and
 checks that the disk has room for a frame before HDF5 writes it: HDF5 running out of space in
 the middle of a metadata write leaves a file it cannot reopen, and a library state that crashes
@@ -20,8 +20,9 @@ import errno
 import fcntl
 import functools
 import os
+import struct
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from pygran_core.errors import PyGranError, ReadError
 
@@ -136,27 +137,50 @@ def stored_elements(dataset: Any) -> int:
     return int(dataset.id.get_storage_size()) // max(dataset.dtype.itemsize, 1)
 
 
+def _lock(fd: int) -> None:
+    """Take an exclusive lock on the whole file open as ``fd``, or raise OSError if another
+    holds one. Linux: an open-file-description lock, held by this descriptor alone whatever else
+    opens and closes the file (HDF5 does); elsewhere a POSIX record lock (per process, which
+    lapses when the process closes any descriptor of the file)."""
+    if hasattr(fcntl, "F_OFD_SETLK"):
+        fcntl.fcntl(fd, fcntl.F_OFD_SETLK, struct.pack("hhqqi4x", fcntl.F_WRLCK, os.SEEK_SET, 0, 0, 0))
+    else:
+        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+
+
 class Claim:
     """A file this process writes: created if missing, never truncated before it is held.
 
-    The claim is a POSIX record lock on an open descriptor, kept until :meth:`release`;
-    :meth:`reserve` makes the disk space for the next writes exist before HDF5 needs it.
+    The claim is a lock on an open descriptor (:func:`_lock`), kept until :meth:`release`, and an
+    entry in this process's own table, for platforms whose locks do not exclude the process that
+    holds them. Neither HDF5's own lock (``flock``) nor its readers are hindered by it.
+    :meth:`reserve` checks that the disk has room for the next writes before HDF5 makes them.
     """
+
+    #: (device, inode) of the files this process holds.
+    _held: ClassVar[set[tuple[int, int]]] = set()
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        self._key: tuple[int, int] | None = None
         try:
             self._fd: int | None = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
         except OSError as exc:
             raise WriteError(f"{path}: cannot be created for writing: {exc.strerror}") from None
+        status = os.fstat(self._fd)
+        key = (status.st_dev, status.st_ino)
         try:
-            fcntl.lockf(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            if key in self._held:
+                raise OSError(errno.EAGAIN, "held")
+            _lock(self._fd)
         except OSError:
             self.release()
             raise WriteError(
-                f"{path} is being written by another process; give this one another file name "
+                f"{path} is being written by another writer; give this one another file name "
                 "or output folder, or wait for the other to finish"
             ) from None
+        self._key = key
+        self._held.add(key)
 
     def truncate(self) -> None:
         """Empty the file (held, so no other writer's file is lost)."""
@@ -179,6 +203,9 @@ class Claim:
             os.ftruncate(self._fd, end)
 
     def release(self) -> None:
+        if self._key is not None:
+            self._held.discard(self._key)
+            self._key = None
         if self._fd is not None:
             os.close(self._fd)  # closing the descriptor drops the lock
             self._fd = None

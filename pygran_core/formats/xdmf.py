@@ -53,10 +53,11 @@ def _item(data: np.ndarray, where: str) -> str:
 class XdmfSidecar:
     """Writes the sidecar of one H5MD trajectory; :meth:`add` appends a frame."""
 
-    def __init__(self, trajectory: Path) -> None:
-        self.xdmf, self.data = sidecar_paths(trajectory)
+    def __init__(self, trajectory: Path, compression: int = 4) -> None:
         import h5py
 
+        self.xdmf, self.data = sidecar_paths(trajectory)
+        self.compression = compression
         self._claims = [Claim(self.xdmf), Claim(self.data)]
         for claim in self._claims:
             claim.truncate()
@@ -78,8 +79,9 @@ class XdmfSidecar:
         try:
             with h5py.File(self.data, "a") as f:
                 frame = f.require_group(f"frames/{index}")
+                packed = {"compression": "gzip", "compression_opts": self.compression, "shuffle": True}
                 for j, (name, values) in enumerate(groups):
-                    frame.create_dataset(str(j), data=values)
+                    frame.create_dataset(str(j), data=values, **(packed if n and self.compression else {}))
                     items.append((name, values, f"{self.data.name}:/frames/{index}/{j}"))
                 if self._connectivity is None or self._connectivity[0] != n:
                     frame.create_dataset("vertices", data=np.arange(n, dtype=np.int64))
