@@ -85,7 +85,8 @@ TRAJ_VECTORS = {
     "torque": ("tqx", "tqy", "tqz"),
 }
 TRAJ_SCALARS = ("id", "type", "radius", "mass")
-TRAJ_COLUMNS = frozenset(TRAJ_SCALARS).union(*TRAJ_VECTORS.values())
+#: ``density``: the true density of each particle's species, as LIGGGHTS' dump gives it.
+TRAJ_COLUMNS = frozenset({*TRAJ_SCALARS, "density"}).union(*TRAJ_VECTORS.values())
 #: The faces of the domain, as lost particles and :meth:`Engine.expect_outflow` name them.
 FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
 #: Lost particles faster than this many times what the simulation explains (the
@@ -980,6 +981,9 @@ class Engine(abc.ABC):
                 self._write("meshes", traj.mfile, self._mesh_frame)
             if traj.cfile is not None:
                 self._write("contacts", traj.cfile, self._contacts_frame)
+            if traj.pfile is not None or traj.mfile is not None or traj.cfile is not None:
+                # a dump stores the step only, as LIGGGHTS writes it: the log keeps each frame's time
+                self._to_file(logging.INFO, f"trajectory frame at step {self.step}, time {self.time!r} s")
         for monitor in self._monitors.values():
             if self.step % monitor.spec.freq == 0:
                 species = monitor.spec.species
@@ -1211,6 +1215,9 @@ class Engine(abc.ABC):
         for name in TRAJ_SCALARS:
             if name in traj.args:
                 arrays[name] = self._extract(name)
+        if "density" in traj.args:
+            densities = np.array([0.0, *(species.density for species in self.spec.species)])
+            arrays["density"] = densities[self._extract("type")]
         chosen = slice(None) if traj.sel == "all" else self._extract("type") == traj.sel
         box, boundary = self._bounds()
         return Frame(

@@ -545,7 +545,11 @@ def _mesh_chunks(frame: Frame, binary: bool) -> Iterator[bytes]:
     yield from _points_chunks(arrays["points"], binary)
     section = "POLYGONS" if polydata else "CELLS"
     yield f"{section} {len(cells)} {len(connectivity)}\n".encode("ascii")
-    yield _numbers(connectivity, binary, len(connectivity) or 1, integer=">i4")
+    if binary:
+        yield _numbers(connectivity, binary, 1, integer=">i4")
+    else:  # a cell per line, as OVITO's reader needs
+        rows = zip(sizes.tolist(), cells.tolist())
+        yield "".join(f"{n} {' '.join(map(str, row[:n]))}\n" for n, row in rows).encode("ascii")
     if not polydata:
         yield f"CELL_TYPES {len(cells)}\n".encode("ascii")
         yield _numbers(types.astype(np.int64), binary, 1, integer=">i4")
