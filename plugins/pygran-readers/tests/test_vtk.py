@@ -285,7 +285,24 @@ class TestWriterMeshesVTP(TestWriterMeshes):
     options: dict = {}
 
     def make_sample(self, tmp_path):
-        return TestWriterParticlesVTP.make_sample(self, tmp_path)
+        frames = self.sample_frames()
+        with open_writer(tmp_path / f"m*{self.suffix}") as out:
+            for frame in frames:
+                out.write_frame(frame)
+        return str(tmp_path / f"m*{self.suffix}"), frames
+
+
+class TestWriterParticlesVTU(TestWriterParticlesVTP):
+    """The XML unstructured-grid writer: particles as vertex cells, every value exact."""
+
+    writer, suffix = "vtu", ".vtu"
+
+    def make_sample(self, tmp_path):
+        return TestWriterMeshesVTP.make_sample(self, tmp_path)
+
+
+class TestWriterMeshesVTU(TestWriterMeshesVTP):
+    writer, suffix = "vtu", ".vtu"
 
 
 class TestPVDSeries(TestWriterMeshes):

@@ -8,7 +8,7 @@ module is imported at plugin discovery; vtk is imported inside the functions tha
 from __future__ import annotations
 
 from pygran_core.hookspecs import ReaderSpec, WriterSpec, hookimpl
-from pygran_readers import series, vtk, vtp, yade
+from pygran_readers import series, vtk, xmlwriter, yade
 
 
 @hookimpl
@@ -53,15 +53,23 @@ def pygran_writers():
     yield WriterSpec(
         name="vtp",
         extensions=(".vtp",),
-        open=vtp.VTPWriter,
+        open=xmlwriter.VTPWriter,
         kinds=frozenset({"mesh", "particles"}),
         description="VTK XML polydata, a file per frame ('*' in the name is the step), indexed in a .pvd",
         options={"index": None},
     )
     yield WriterSpec(
+        name="vtu",
+        extensions=(".vtu",),
+        open=xmlwriter.VTUWriter,
+        kinds=frozenset({"mesh", "particles"}),
+        description="VTK XML unstructured grid, a file per frame ('*' is the step), indexed in a .pvd",
+        options={"index": None},
+    )
+    yield WriterSpec(
         name="pvd",
         extensions=(".pvd",),
-        open=vtp.PVDWriter,
+        open=xmlwriter.PVDWriter,
         kinds=frozenset({"mesh", "particles"}),
         description="ParaView series: out.pvd indexing out_<step>.vtp, one per frame",
     )
