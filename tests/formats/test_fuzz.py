@@ -1,12 +1,14 @@
 """Damaged files never crash or hang a reader: each of the core's formats (dump, .dump.gz,
 H5MD, STL), damaged at random 320 times from a fixed seed, read in a child process with a
-time limit; every read gives a clean result or a ReadError. Checkpoints are fuzzed in
-test_checkpoint.py, VTK formats in the pygran-readers tests."""
+time limit; every read gives a clean result or a ReadError. So do hostile values (counts
+beyond every integer type, NaN, 1e308) put in place of each number of a header. Checkpoints
+are fuzzed in test_checkpoint.py, VTK formats in the pygran-readers tests."""
 
 from __future__ import annotations
 
 import gzip
 import os
+import re
 from pathlib import Path
 
 import h5py
@@ -19,6 +21,7 @@ from pygran_core.testing.formats import (
     BYTES,
     damaged_copies,
     fuzz_check,
+    fuzz_read,
     particle_frames,
     read_every_frame,
 )
@@ -93,3 +96,43 @@ def test_stl(tmp_path, data_dir):
         read_every_frame,
         data_dir / "meshes" / "square.stl",
     )
+
+
+#: Numbers an outsider's file may hold where a count, a step, a bound or a coordinate stands:
+#: beyond every integer type, negative, beyond the float range, not a number.
+HOSTILE = (b"10000000000000000000", b"9223372036854775808", b"18446744073709551616", b"4294967295")
+HOSTILE += (b"-1", b"1e308", b"-1e400", b"nan", b"inf", b"9" * 40)
+NUMBER = re.compile(rb"(?<![\w.+-])[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?(?![\w.])")
+
+
+def hostile_copies(directory: Path, name: str, original: bytes, upto: int) -> dict[Path, int]:
+    """The mutation kind of hostile values: each number before byte ``upto`` of ``original``
+    (counts, steps, box bounds, coordinates) replaced by each of :data:`HOSTILE`; the files,
+    with where the number stood."""
+    paths = {}
+    for k, found in enumerate(m for m in NUMBER.finditer(original) if m.start() < upto):
+        for j, value in enumerate(HOSTILE):
+            path = directory / f"{name}-{k}-{j}{Path(name).suffix}"
+            path.write_bytes(original[: found.start()] + value + original[found.end() :])
+            paths[path] = found.start()
+    return paths
+
+
+def test_hostile_values(tmp_path, data_dir):
+    """The audit's 10^19 atoms (an OverflowError before), and the same lies in every other
+    number of a dump's header and of an STL file's first facet: a ReadError or a clean read,
+    in a child with a time and a memory limit, never a crash. Every lie about the atom count
+    and a binary STL declaring 2^32 - 1 triangles are ReadErrors."""
+    dump = dump_bytes()
+    ascii_stl, binary_stl = (base for _, base, _ in stl_files(data_dir))
+    header = dump.index(b"ITEM: ATOMS")
+    paths = hostile_copies(tmp_path, "hostile.dump", dump, header)
+    atoms = [p for p, at in paths.items() if at == dump.index(b"ITEM: NUMBER OF ATOMS\n") + 22]
+    paths |= hostile_copies(tmp_path, "hostile.stl", ascii_stl, ascii_stl.index(b"endloop"))
+    count = tmp_path / "hostile-count.stl"
+    count.write_bytes(binary_stl[:80] + np.uint32(2**32 - 1).tobytes() + binary_stl[84:])
+    report = fuzz_read(read_every_frame, [*paths, count])
+    print(f"\nhostile values: {report.summary()}")
+    shown = "\n".join(f"{p.name}: {why}" for p, why in list(report.failures.items())[:10])
+    assert not report.failures, f"{len(report.failures)} of {len(paths) + 1} files:\n{shown}"
+    assert len(atoms) == len(HOSTILE) and set(atoms) | {count} <= set(report.read_errors)
