@@ -20,10 +20,10 @@ from typing import Any
 
 import pytest
 
-from pygran_core import params, simulation
+from pygran_core import params, registry, simulation
 from pygran_core.errors import ConfigError, PyGranWarning, UnsupportedFeature
 from pygran_core.simulation.study import Study, current, grid
-from pygran_core.testing.solvers import in_ci
+from pygran_core.testing.solvers import in_ci, require_solver
 
 try:
     import cloudpickle
@@ -42,7 +42,7 @@ SCRIPT = """
 import os
 import time
 
-from pygran_core import params, simulation
+from pygran_core import params, registry, simulation
 from pygran_core.simulation import study
 
 run = study.current()
@@ -93,9 +93,12 @@ def client() -> Iterator[Any]:
         yield dask_client
 
 
-def test_four_runs_one_failing(tmp_path: Path, client: Any) -> None:
+def test_four_runs_one_failing(tmp_path: Path, client: Any, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.warns(PyGranWarning, match=r"1 of 4 runs failed after 2 attempts: run 2 \(ConfigError"):
-        table = Study(impact, parameters=ROWS, output=tmp_path / "study", client=client, retries=1).run()
+        study = Study(impact, parameters=ROWS, output=tmp_path / "study", client=client, progress=True)
+        table = study.run()
+    progress = capsys.readouterr().err.replace("\r", "\n").splitlines()[-1]
+    assert progress.startswith("study: 100%") and "4/4" in progress and "failed 1" in progress
     assert [row["run"] for row in table] == [0, 1, 2, 3]
     assert [row["status"] for row in table] == ["done", "done", "failed", "done"]
     assert [row["attempts"] for row in table] == [1, 1, 2, 1]
@@ -112,6 +115,42 @@ def test_four_runs_one_failing(tmp_path: Path, client: Any) -> None:
     assert [float(r["e"]) if r["e"] else None for r in written] == [row.get("e") for row in table]
     log = (tmp_path / "study" / "run2" / "study.log").read_text()
     assert log.count("--- study run 2, started") == 2 and "coefficientRestitution" in log
+
+
+def liggghts_impact(output: Path, restitution: float) -> dict[str, Any]:
+    """The same impact on LIGGGHTS, on two MPI ranks of its own."""
+    glass = dict(params.glass, coefficientRestitution=restitution)
+    dt = simulation.models.HertzMindlin(material=dict(glass, radius=1e-3)).contactTime(SPEED) / 200
+    with simulation.DEM(
+        engine="liggghts",
+        nprocs=2,
+        box=(-2e-3, 2e-3, -2e-3, 2e-3, -1e-3, 4e-3),
+        boundary=("f", "f", "f"),
+        gravity=(0, 0, 0, -1),
+        dt=dt,
+        output=output,
+        species=({"material": glass, "radius": 1e-3},),
+    ) as sim:
+        sim.setupWall(species=1, wtype="primitive", plane="zplane", peq=0.0)
+        sim.createParticles(1, "single", 0.0, 0.0, 1e-3 + 0.5 * SPEED * dt, vel=(0, 0, -SPEED))
+        sim.run(600)
+        return {"e": sim.extractVelocities()[0, 2] / SPEED}
+
+
+def test_liggghts_runs_on_their_own_ranks(tmp_path: Path, client: Any) -> None:
+    engines = registry.available("engine")
+    if "liggghts" not in engines:
+        if in_ci():
+            pytest.fail("CI=true and the liggghts engine is not installed")
+        pytest.skip("the liggghts engine is not installed: pip install ./plugins/pygran-liggghts")
+    require_solver(engines["liggghts"].spec.locate_solver)
+    rows = grid(restitution=[0.4, 0.8])
+    table = Study(liggghts_impact, parameters=rows, output=tmp_path / "study", client=client).run()
+    assert [row["e"] for row in table] == pytest.approx([0.4, 0.8], rel=0.01)
+    for i in range(2):
+        assert (
+            "1 by 1 by 2 MPI processor grid" in (tmp_path / "study" / f"run{i}" / "liggghts.log").read_text()
+        )
 
 
 def test_a_killed_study_resumes_from_its_journal(tmp_path: Path, client: Any) -> None:
@@ -195,9 +234,11 @@ def test_serial_studies_need_no_dask(tmp_path: Path, monkeypatch: pytest.MonkeyP
     with pytest.raises(UnsupportedFeature, match=r"pip install pygran-core\[dask\]"):
         Study(script, parameters=rows, output=tmp_path / "local").run()
     slow = [{"restitution": 0.5, "slow": True}]  # waits for a gate that never opens
-    with pytest.warns(PyGranWarning, match="timed out after 1 s"):
-        (row,) = Study(script, parameters=slow, output=tmp_path / "slow", client="serial", timeout=1).run()
-    assert row["status"] == "failed" and row["attempts"] == 2 and row["seconds"] < 2
+    with pytest.warns(PyGranWarning, match=r"after 1 attempt: run 0 \(timed out after 4 s"):
+        (row,) = Study(
+            script, parameters=slow, output=tmp_path / "slow", client="serial", timeout=4, retries=0
+        ).run()
+    assert row["status"] == "failed" and row["attempts"] == 1 and 4 <= row["seconds"] < 6
     assert _gone(int((tmp_path / "slow" / "run0" / "pid").read_text()))
 
 

@@ -391,8 +391,9 @@ class Study:
         table = self.table()
         failed = [f"run {row['run']} ({row['error']})" for row in table if row["status"] == "failed"]
         if failed:
+            attempts = "1 attempt" if self.retries == 0 else f"{self.retries + 1} attempts"
             warnings.warn(
-                f"Study: {len(failed)} of {len(table)} runs failed after {self.retries + 1} attempts: "
+                f"Study: {len(failed)} of {len(table)} runs failed after {attempts}: "
                 f"{'; '.join(failed)}. Their logs: {self.output}/run<i>/{LOG}; the table: "
                 f"{self.output / TABLE}",
                 PyGranWarning,
