@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from pygran_liggghts.library import ADDON_MODEL, find_library, load_addon
+from pygran_liggghts.session import mpirun_prefix
 
 from pygran_core import registry, simulation
 from pygran_core.errors import EngineError, UnsupportedFeature
@@ -173,6 +174,33 @@ def test_two_ranks_give_native_impacts(tmp_path, on_native):
     assert velocities[0, 0] < 0 < velocities[1, 0] and velocities[2, 2] > 0  # all three rebounded
 
 
+def test_under_mpirun_each_rank_loads_the_addon(tmp_path, on_native):
+    """A script started with ``mpirun -np 2`` runs LIGGGHTS in both ranks, each with the add-on."""
+    script = tmp_path / "impacts.py"
+    script.write_text(
+        textwrap.dedent(
+            f"""
+            import sys
+            from pathlib import Path
+            from mpi4py import MPI
+            sys.path.insert(0, {str(Path(__file__).parent)!r})
+            from test_liggghts_thornton_ning import impacts
+
+            velocities = impacts(Path({str(tmp_path / "out")!r}))
+            if MPI.COMM_WORLD.rank == 0:
+                print(repr(velocities.tolist()))
+            """
+        )
+    )
+    done = subprocess.run(
+        [*mpirun_prefix(2), sys.executable, str(script)], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "2 by 1 by 1 MPI processor grid" in (tmp_path / "out" / "liggghts.log").read_text()
+    velocities = np.array(eval(done.stdout.strip().splitlines()[-1]))
+    np.testing.assert_allclose(velocities, on_native, rtol=1e-9, atol=1e-12 * SPEED)
+
+
 def test_a_restart_in_the_neck_continues_the_impacts(tmp_path, on_native):
     straight = impacts(tmp_path / "straight", restart=(NECK_STEP, "restart", "restart.*.h5"))
     np.testing.assert_allclose(straight, on_native, rtol=1e-9, atol=1e-12 * SPEED)
@@ -233,3 +261,53 @@ def test_rolling_friction_with_adhesion_is_refused(tmp_path):
     on_liggghts = oblique(tmp_path / "liggghts", "liggghts", dry, rolling="cdt")
     on_native = oblique(tmp_path / "native", "native", dry, rolling="cdt")
     np.testing.assert_allclose(on_liggghts, on_native, rtol=1e-9, atol=1e-9 * np.abs(on_native).max())
+
+
+# -- mesh walls -----------------------------------------------------------------------------------------
+
+#: A point inside one of the triangles of ``square.stl`` (a plate at z = 3 mm), far from its edges.
+ON_PLATE = (0.65e-3, -0.31e-3)
+
+
+def on_plate(
+    output: Path, engine: str, material, plate: Path | None, velocity: tuple[float, float, float]
+) -> np.ndarray:
+    """A sphere hitting the mesh ``plate`` (``square.stl``), or without one the plane z = 3 mm,
+    at ``velocity``: its velocity and angular velocity after 3 x NECK_STEP steps."""
+    mesh = {"plate": {"file": str(plate), "args": ("scale 1e-3",), "material": material}}
+    with simulation.DEM(
+        engine=engine,
+        model=ThorntonNing,
+        box=(-3 * R, 3 * R, -3 * R, 3 * R, 0.0, 6 * R),
+        dt=DT,
+        output=str(output),
+        species=({"material": material, "radius": R},),
+        mesh=mesh if plate is not None else None,
+        traj={"pfile": None},
+        progress=False,
+    ) as sim:
+        if plate is not None:
+            sim.setupWall(wtype="mesh", mesh="plate", species=1)
+        else:
+            sim.setupWall(species=1, plane="zplane", peq=3e-3)
+        sim.createParticles(1, "single", *ON_PLATE, 3e-3 + R + 0.5 * SPEED * DT, vel=velocity)
+        sim.run(3 * NECK_STEP)
+        return np.hstack([sim.extractVelocities(), sim.extractOmegas()])[0]
+
+
+def test_mesh_walls_have_the_same_law(tmp_path, data_dir):
+    """An adhesive neck on a triangle mesh pulls and rubs as on native; a plastic impact on it
+    rebounds as on a plane wall, with Thornton's restitution."""
+    plate = data_dir / "meshes" / "square.stl"
+    oblique_velocity = (0.3 * SPEED, 0.0, -SPEED)
+    material = validation.ELASTIC_ADHESIVE
+    on_mesh = on_plate(tmp_path / "neck", "liggghts", material, plate, oblique_velocity)
+    on_native = on_plate(tmp_path / "neck-native", "native", material, plate, oblique_velocity)
+    assert abs(on_native[4]) > 1.0  # spun by friction (rad/s)
+    np.testing.assert_allclose(on_mesh, on_native, rtol=1e-9, atol=1e-9 * np.abs(on_native).max())
+    dry = validation.IMPACT_MATERIALS[ThorntonNing]
+    head_on = (0.0, 0.0, -SPEED)
+    mesh = on_plate(tmp_path / "plastic", "liggghts", dry, plate, head_on)
+    plane = on_plate(tmp_path / "plastic-plane", "liggghts", dry, None, head_on)
+    np.testing.assert_allclose(mesh, plane, rtol=1e-9, atol=1e-12 * SPEED)
+    assert mesh[2] / SPEED == pytest.approx(validation.thornton_restitution(dry, R, SPEED), rel=0.01)
