@@ -24,15 +24,19 @@ def main(argv: list[str]) -> dict:
     meshes = argv[1] if len(argv) > 1 else str(HOPPER / "mesh*.vtk")
     Granular = analysis.System(Particles=particles, Mesh=meshes, units="si")
 
-    # The System is iterable: each step loads the next frame into Granular.Particles / .Mesh
-    # and yields its timestep; Granular.frame is the frame's index
-    counts = []
-    for ts in Granular:
-        counts.append(Granular.Particles.natoms)
+    # Frame 0 is read on construction; the loop (the original's) rewinds, then loads each
+    # following frame into Granular.Particles / .Mesh and yields its number
+    def describe() -> int:
+        count = Granular.Particles.natoms
         print(
-            f"frame {Granular.frame}: timestep {ts}, {counts[-1]} particles, "
+            f"frame {Granular.frame}: timestep {Granular.timestep}, {count} particles, "
             f"{Granular.Mesh.nCells()} wall cells"
         )
+        return count
+
+    counts = [describe()]
+    for _frame in Granular:
+        counts.append(describe())
 
     Granular.goto(-1)  # the last frame
     Particles = Granular.Particles

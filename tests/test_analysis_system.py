@@ -49,12 +49,12 @@ def test_frames_counts_and_cursor(traj):
     np.testing.assert_array_equal(system.Particles.x, frame(0, 3).arrays["x"])
 
 
-def test_iteration_visits_every_frame_from_the_first_and_repeats(traj):
+def test_iteration_rewinds_then_visits_each_following_frame_and_repeats(traj):
     system = System(Particles=str(traj / "traj*.dump"))
     system.goto(2)
-    first = [(ts, system.frame, len(system.Particles)) for ts in system]
-    second = [(ts, system.frame, len(system.Particles)) for ts in system]
-    assert first == second == [(100 * k, k, n) for k, n in enumerate(COUNTS)]
+    first = [(frame, system.frame, len(system.Particles)) for frame in system]
+    second = [(frame, system.frame, len(system.Particles)) for frame in system]
+    assert first == second == [(k, k, n) for k, n in enumerate(COUNTS)][1:]  # frame 0 read before
     assert system.frame == 0
     assert [(k, system.timestep) for k in system.frames()] == [(k, 100 * k) for k in range(4)]
 
@@ -73,7 +73,7 @@ def test_sources_list_tuple_and_object(traj):
     assert len(by_list) == len(by_tuple) == 4
     built = Particles(x=[0.0], y=[0.0], z=[0.0], radius=[1.0])
     alone = System(Particles=built)
-    assert len(alone) == 1 and alone.Particles is built and list(alone) == [0]
+    assert len(alone) == 1 and alone.Particles is built and list(alone) == [] and list(alone.frames()) == [0]
     holder = _module_with("Fixed")
     fixed = holder.Fixed(Particles=built)
     mixed = System(Particles=str(traj / "traj*.dump"), Fixed=fixed, module=holder)
@@ -174,9 +174,9 @@ def hopper_counts():
 def test_hopper_frames_and_particle_counts(hopper):
     system = System(Particles=str(hopper / "particles*.dump"), Mesh=str(hopper / "mesh*.vtk"))
     assert len(system) == 31
-    counts = [len(system.Particles) for _ in system]
+    counts = [len(system.Particles) for _ in system.frames()]
     assert counts == hopper_counts() and max(counts) == 571 and counts[0] == 0
-    assert [system.Particles.timestep for _ in system] == list(range(0, 31000, 1000))
+    assert [system.Particles.timestep for _ in system.frames()] == list(range(0, 31000, 1000))
     assert system.goto(-1) == 30 and system.Particles.timestep == 30000 and len(system.Particles) == 423
     assert isinstance(system.Mesh, Mesh) and system.Mesh.nCells() == 320 and system.Mesh.nPoints() == 960
     np.testing.assert_array_equal(system.Mesh.cells.shape, (320, 3))
@@ -211,6 +211,7 @@ def test_analysis_exports():
         "dynamics",
         "imaging",
         "mixing",
+        "plot",
         "drum",
         "Contacts",
         "coarse_grain",
@@ -242,7 +243,7 @@ def test_a_trajectory_without_frames_is_a_read_error_and_contacts_without_frames
         for k in range(3):
             writer.write_frame(frame(k, 4))
     with System(Particles=str(path)) as system:  # contacts laid out, none written: no Contacts
-        assert len(system) == 3 and [len(system.Particles) for _ in system] == [4, 4, 4]
+        assert len(system) == 3 and [len(system.Particles) for _ in system.frames()] == [4, 4, 4]
         assert not hasattr(system, "Contacts")
     _emptied(path)
     with pytest.raises(ReadError, match=r"traj\.h5'? holds no frames"):

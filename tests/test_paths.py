@@ -76,7 +76,7 @@ def test_awkward_folder_names(tmp_path, engine, name, pfile):
     drop = START[:, 2] - x[:, 2]
     assert drop == pytest.approx(np.full(3, 0.5 * G * (STEPS * DT) ** 2), rel=1e-2)
     with analysis.System(Particles=str(output / pfile)) as system:
-        assert [system.timestep for _ in system] == [0, 100, 200, 300]
+        assert [system.timestep for _ in system.frames()] == [0, 100, 200, 300]
         system.goto(-1)
         particles = system.Particles
         assert len(particles) == 3

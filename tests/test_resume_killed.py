@@ -199,7 +199,7 @@ for path in sys.argv[1:]:
             results[path] = ["ok", read_checkpoint(path).step]
         else:
             with analysis.System(Particles=path) as system:
-                counts = [len(system.Particles) for _ in system]
+                counts = [len(system.Particles) for _ in system.frames()]
             results[path] = ["ok", len(counts)]
     except ReadError as exc:
         results[path] = ["ReadError", str(exc)]

@@ -7,13 +7,44 @@ each method visits the frames in order and leaves the System on the frame it was
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from pygran_core.analysis import plot
 from pygran_core.analysis.particles import Particles
 from pygran_core.analysis.system import System
 from pygran_core.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class TimeSeries:
+    """A quantity over the frames of a trajectory: ``time`` (one per frame) and ``value`` (one
+    entry per frame: an array with a row per frame, or a list when the shapes differ).
+    Unpacks as ``time, value = temporal.timeseries(...)``."""
+
+    time: np.ndarray
+    value: np.ndarray | list[Any]
+    name: str = "value"
+
+    def __iter__(self) -> Iterator[Any]:
+        yield self.time
+        yield self.value
+
+    def table(self) -> np.ndarray:
+        """One row per frame: the time, then the value (a scalar, or a vector's entries)."""
+        values = np.asarray(self.value, dtype=float)
+        if values.ndim > 2 or len(values) != len(self.time):
+            raise ConfigError(
+                f"TimeSeries.table: {self.name} is not one number or one vector per frame "
+                f"(shape {values.shape}); index it first"
+            )
+        return np.column_stack([self.time, values.reshape(len(self.time), -1)])
+
+    def plot(self, ax: Any = None, label: str | None = None, unit: str = "", units: str = "si") -> Any:
+        """Plot the value against time (see :func:`pygran_core.analysis.plot.time_series`)."""
+        return plot.time_series(self, label=label or self.name, unit=unit, units=units, ax=ax)
 
 
 class Temporal:
@@ -34,20 +65,33 @@ class Temporal:
         finally:
             self.system.goto(start)
 
-    def series(self, attr: str | Callable[[Any], Any]) -> np.ndarray | list[Any]:
+    def series(self, attr: str | Callable[..., Any], *args: Any, **kwargs: Any) -> np.ndarray | list[Any]:
         """``attr`` in every frame: an attribute name (``'x'``, ``'timestep'``), a method name
-        called without arguments (``'computeROG'``) or a function of the SubSystem.
+        (``'computeROG'``) or a function of the SubSystem, called with ``args`` and ``kwargs``
+        (``series(mixing.lacey, resol=3e-3, species=1)``).
 
         Returns an array with one row per frame when the values have the same shape in every
-        frame, else a list.
+        frame, else a list. :meth:`timeseries` pairs them with the frames' times.
         """
+        current = getattr(self.system, self.subsystem)
+        if (args or kwargs) and not callable(attr) and not callable(getattr(current, attr)):
+            raise ConfigError(f"Temporal.series: {attr!r} is an attribute, it takes no arguments")
         values = []
         for obj in self._frames():
-            value = attr(obj) if callable(attr) else getattr(obj, attr)
-            values.append(value() if callable(value) else value)
+            value = attr(obj, *args, **kwargs) if callable(attr) else getattr(obj, attr)
+            values.append(value(*args, **kwargs) if callable(value) else value)
         if len({np.shape(v) for v in values}) <= 1:
             return np.array(values)
         return values
+
+    def timeseries(
+        self, attr: str | Callable[..., Any], *args: Any, dt: float | None = None, **kwargs: Any
+    ) -> TimeSeries:
+        """:meth:`series` with each frame's time: a :class:`TimeSeries` ``(time, value)``, ready
+        to tabulate (:meth:`TimeSeries.table`) or plot (:meth:`TimeSeries.plot`). Times are the
+        frames' own, or ``timestep * dt`` when ``dt`` (the simulation's time step) is given."""
+        name = attr if isinstance(attr, str) else getattr(attr, "__name__", "value")
+        return TimeSeries(self._times(dt), self.series(attr, *args, **kwargs), name)
 
     def _times(self, dt: float | None) -> np.ndarray:
         """Time of each frame: ``timestep * dt`` when ``dt`` is given, else the frames' ``time``."""

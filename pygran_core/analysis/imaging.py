@@ -58,8 +58,8 @@ def slice(
     zmin: float,
     zmax: float,
     axis: str,
-    resol: float | None = None,
-    size: tuple[int, int] | None = None,
+    resol: float | tuple[int, int] | None = None,
+    size: tuple[int, int] | float | None = None,
     output: str | os.PathLike[str] | None = None,
     imgShow: bool = False,
     *,
@@ -79,9 +79,14 @@ def slice(
     with it the image as a uint8 array ``[i, j]``, also written to ``output`` if given and
     shown if ``imgShow``. Several species of one configuration give aligned images when they
     share ``origin`` and ``size``.
+
+    ``resol`` and ``size`` may come in either order, as in the original's versions
+    (``slice(P, zmin, zmax, 'z', size, resol, output)``): a pair is the size, a number the
+    resolution.
     """
     if axis not in _AXES:
         raise ConfigError(f"slice: axis must be 'x', 'y' or 'z', not {axis!r}")
+    resol, size = _resolution_and_size(resol, size)
     if not zmax >= zmin:
         raise ConfigError(f"slice: zmax ({zmax}) must not be below zmin ({zmin})")
     depth, wide, high = _AXES[axis]
@@ -121,6 +126,23 @@ def slice(
         if imgShow:
             picture.show()
     return image
+
+
+def _resolution_and_size(first: Any, second: Any) -> tuple[float | None, tuple[int, int] | None]:
+    """``(resol, size)`` from :func:`slice`'s two arguments in either order: a pair of pixel
+    counts is the size, a number the length per pixel."""
+
+    def is_pair(value: Any) -> bool:
+        return isinstance(value, (Sequence, np.ndarray)) and not isinstance(value, (str, bytes))
+
+    if is_pair(first) and not is_pair(second):
+        first, second = second, first
+    if is_pair(first) or (second is not None and (not is_pair(second) or len(second) != 2)):
+        raise ConfigError(
+            f"slice: give one length per pixel (a number) and one size (width, height) in pixels, in "
+            f"either order; got {first!r} and {second!r}"
+        )
+    return first, None if second is None else (int(second[0]), int(second[1]))
 
 
 def _numbers(path: str) -> list[Any]:

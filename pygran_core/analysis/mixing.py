@@ -4,8 +4,8 @@ Every statistic samples the particles with the cells of a cubic grid of side ``r
 (default three mean diameters), anchored at the lowest particle centre; a particle belongs
 to the cell holding its centre and only cells holding particles count. ``species`` is the
 particle type whose share is measured (required unless there are exactly two types).
-Works on any frame: ``lacey(system.Particles)`` inside a ``for ts in system`` loop gives the
-mixing index over time.
+Works on any frame: ``Temporal(system).timeseries(mixing.lacey, resol=...)`` gives the mixing
+index over time. How the index depends on ``resol``, and how to choose it: :func:`lacey`.
 """
 
 from __future__ import annotations
@@ -92,6 +92,15 @@ def lacey(particles: SubSystem, resol: float | None = None, species: int | None 
     With this weighting a segregated mixture whose cells are pure gives exactly 0, and a
     random mixture 1 on average; an ordered mixture (every cell at ``p``) gives
     ``n / (n - 1)``.
+
+    The cell side ``resol`` is part of the measurement. Default: three mean particle
+    diameters (cells of about 10 to 15 particles in a packed bed). The index depends on it:
+    larger cells average away segregation on scales below the cell (a bed segregated into
+    layers thinner than ``resol`` reads as mixed, so ``M`` rises towards 1 as ``resol`` grows),
+    while cells of only a few particles make ``s^2`` and ``sr^2`` noisy, so that ``M`` scatters
+    from frame to frame (below one particle per cell it is undefined). Choose cells several
+    particles across and smaller than the pattern you look for (such as a tenth of the bed),
+    give ``resol`` explicitly, and compare indices only at the same ``resol`` (report it).
     """
     sample = cells(particles, resol, species)
     n_total = sample.count.sum()

@@ -17,9 +17,11 @@ script counts when its file is ``coarseGrained.py``, and ``coarseGrained.py`` in
 directory is found too), or the path of a ``.py`` file. Loading a file never changes
 ``sys.path`` or ``sys.modules``.
 
-The original PyGran's System calls work unchanged: ``for ts in system`` (the timestep of
-each frame), ``system.skip()``, ``system.goto(-1)``, ``system.frame``, ``len(system)`` (the
-number of frames) and ``system.units("micro")``.
+The original PyGran's System calls work unchanged: ``for frame in system`` (rewinds, then
+moves to each following frame and yields its number: 1, 2, ..., N - 1; frame 0 is the one
+read on construction), ``system.skip()``, ``system.goto(-1)``, ``system.frame``,
+``len(system)`` (the number of frames) and ``system.units("micro")``. ``system.time`` is the
+current frame's simulated time.
 """
 
 from __future__ import annotations
@@ -161,10 +163,11 @@ class System:
     """A DEM system: one or more SubSystems read from trajectories, moved frame by frame.
 
     ``len(system)`` is the number of frames and :attr:`frame` the current one (0 after
-    construction). ``for ts in system`` visits every frame in order from the first (the
+    construction). ``for frame in system`` is the original's loop: it rewinds to frame 0 (the
+    one a script reads before its loop), then moves to each following frame in order (the
     trajectory's files sorted by their numbers: ``particles1000.dump`` after
-    ``particles900.dump``), yields the frame's timestep (its index when the frame has
-    none) and rewinds at the end; :meth:`frames` yields the indices instead. :meth:`goto`
+    ``particles900.dump``) and yields its number, 1 to N - 1, and rewinds at the end;
+    :meth:`frames` visits every frame from 0, yielding its index. :meth:`goto`
     jumps anywhere (negative counts from the end), :meth:`skip` to the first frame with
     elements. ``system.Particles`` (or any given class name) is the SubSystem of the
     current frame, read when first used. Trajectories of one frame and ready-made objects
@@ -288,6 +291,21 @@ class System:
                 return int(step)
         return self._frame
 
+    @property
+    def time(self) -> float:
+        """Simulated time of the current frame (in the System's units): the first SubSystem's
+        that has one. A :class:`ConfigError` when the files hold none (a LIGGGHTS dump written
+        without ``ITEM: TIME``), naming the remedy."""
+        for name in self._sources:
+            time = getattr(self, name).meta.get("time")
+            if time is not None:
+                return float(time)
+        raise ConfigError(
+            f"frame {self._frame} of this System carries no time (its files hold timesteps only, "
+            f"{self.timestep} here): multiply system.timestep by the simulation's time step, or pass "
+            "dt= to the analysis (Temporal(system).timeseries(..., dt=...))"
+        )
+
     def frames(self) -> Iterator[int]:
         """Visit every frame from the first, yielding its index; rewinds at the end."""
         for frame in range(self._n_frames):
@@ -296,8 +314,9 @@ class System:
         self.rewind()
 
     def __iter__(self) -> Iterator[int]:
-        for _ in self.frames():
-            yield self.timestep
+        frames = self.frames()
+        next(frames)  # frame 0, which a script reads before its loop
+        yield from frames
 
     def __repr__(self) -> str:
         where = f"frame {self._frame} of {self._n_frames}, units={self._units!r}"

@@ -220,7 +220,7 @@ def analyse(study: HopperStudy, output: Path, engine: str, opened: int) -> Summa
     peak = float(rdf.r[np.argmax(rdf.g)] / (2 * study.radius))
 
     mass = study.density * 4 / 3 * math.pi * study.radius**3
-    in_hopper = np.array([np.count_nonzero(system.Particles.z > 0) for _ in system], float) * mass
+    in_hopper = np.array([np.count_nonzero(system.Particles.z > 0) for _ in system.frames()], float) * mass
     times = (steps - opened) * study.dt
     after = times >= 0
     discharged = in_hopper[after][0] - in_hopper[after]

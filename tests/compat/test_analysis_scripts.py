@@ -39,22 +39,26 @@ def contacts(rows):
     return i, j, (reach - distance)[i, j]
 
 
-def test_looping_over_a_trajectory_yields_every_frame_in_order(hopper):
-    # Manual chapter 5: "for frame in System(...)" loops over every stored frame.
+def test_looping_over_a_trajectory_yields_each_following_frame_in_order(hopper):
+    # Manual chapter 5 and the original: frame 0 is read on construction; "for frame in
+    # System(...)" rewinds, then moves to each following frame and yields its number.
     expected = [read_dump(hopper / f"particles{1000 * k}.dump") for k in range(31)]
     assert [n for _, n, _, _ in expected] == COUNTS
 
     Gran = analysis.System(Particles=str(hopper / "particles*.dump"), Mesh=str(hopper / "mesh*.vtk"))
     assert Gran.frame == 0 and len(Gran) == 31  # frame 0 is read on construction
-    steps, counts, cells = [], [], []
-    for ts in Gran:
-        steps.append(ts)
+    assert Gran.Particles.natoms == COUNTS[0]
+    frames, steps, counts, cells = [], [], [], []
+    for frame in Gran:
+        frames.append(frame)
+        steps.append(Gran.Particles.timestep)
         counts.append(Gran.Particles.natoms)
         cells.append(Gran.Mesh.nCells())
-    assert steps == [t for t, _, _, _ in expected] == list(range(0, 31000, 1000))
-    assert counts == COUNTS and cells == [320] * 31
+    assert frames == list(range(1, 31))
+    assert steps == [t for t, _, _, _ in expected][1:] == list(range(1000, 31000, 1000))
+    assert counts == COUNTS[1:] and cells == [320] * 30
     assert Gran.frame == 0  # rewound, ready for the next loop
-    assert [Gran.Particles.natoms for _ in Gran] == COUNTS
+    assert [Gran.Particles.natoms for _ in Gran] == COUNTS[1:]
 
 
 def test_original_system_test_skip_next_and_last_frame(hopper):
@@ -339,6 +343,7 @@ def test_lacey_index_over_a_mixing_trajectory(tmp_path):
         )
         bed.write(str(tmp_path / f"bed{1000 * k}.dump"))
     Mix = analysis.System(Particles=str(tmp_path / "bed*.dump"))
-    index = [analysis.mixing.lacey(Mix.Particles, resol=3.0) for ts in Mix]
+    index = [analysis.mixing.lacey(Mix.Particles, resol=3.0)]  # frame 0, read on construction
+    index += [analysis.mixing.lacey(Mix.Particles, resol=3.0) for ts in Mix]
     assert index[0] == 0.0  # every 3 x 3 x 3 cell is pure
     assert index[1] == pytest.approx(1, abs=0.05) and index[2] == pytest.approx(1, abs=0.05)

@@ -189,7 +189,7 @@ def test_a_vibrating_plate_is_honoured_or_refused(engine, tmp_path):
         sim.moveMesh(name="wall", **tap)
         sim.run(period / params["dt"])
     system = analysis.System(Mesh=str(tmp_path / "out" / "wall*.vtk"))
-    z = [float(np.mean(system.Mesh.points[:, 2])) for _ in system]
+    z = [float(np.mean(system.Mesh.points[:, 2])) for _ in system.frames()]
     # LIGGGHTS' viblin: z(t) - z(0) = A (cos(w t + phase) - cos(phase)) at t = 0, T/4, T/2, 3T/4, T
     base = 3 * 2.5e-4 - 8e-4  # square.stl lies at z = 3: scaled, then moved
     expected = [base + 12.5e-6 * (math.cos(2 * math.pi * k / 4) - 1) for k in range(5)]
@@ -293,7 +293,7 @@ def test_a_mesh_turns_about_the_origin_given(engine, tmp_path):
         sim.moveMesh("plate", rotate=("origin", 1e-3, 0, 0), axis=(0, 0, 1), period=4e-2)
         sim.run(1e3)
     system = analysis.System(Mesh=str(tmp_path / "out" / "plate*.vtk"))
-    frames = [np.array(system.Mesh.points) for _ in system]
+    frames = [np.array(system.Mesh.points) for _ in system.frames()]
     system.close()
     start, turned = frames[0], frames[-1]
     quarter = (start - [1e-3, 0, 0]) @ np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]]).T + [1e-3, 0, 0]
