@@ -311,3 +311,13 @@ def test_mesh_walls_have_the_same_law(tmp_path, data_dir):
     plane = on_plate(tmp_path / "plastic-plane", "liggghts", dry, None, head_on)
     np.testing.assert_allclose(mesh, plane, rtol=1e-9, atol=1e-12 * SPEED)
     assert mesh[2] / SPEED == pytest.approx(validation.thornton_restitution(dry, R, SPEED), rel=0.01)
+
+
+def test_a_neck_beyond_the_contact_distance_stops_the_run_saying_so(tmp_path):
+    """Gamma = 50 J/m^2 would hold a 1 mm sphere to a wall until 16 % of its radius apart, beyond
+    the 5 % LIGGGHTS looks: the run stops with that reason rather than break the neck early."""
+    material = dict(validation.ELASTIC_ADHESIVE, cohesionEnergyDensity=50.0)
+    separation = ThorntonNing(material=dict(material, radius=R))._separation_overlap(0.0)
+    assert separation < -0.05 * R
+    with pytest.raises(EngineError, match="adhesive neck would persist beyond the contact distance"):
+        validation.wall_impact("liggghts", tmp_path, ThorntonNing, material, speed=1.0)
