@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import sys
@@ -15,8 +16,8 @@ import numpy as np
 
 from pygran_core import registry
 from pygran_core.apps import demo
-from pygran_core.errors import PyGranError
-from pygran_core.io import Trajectory, expand_paths, open_writer
+from pygran_core.errors import ConfigError, PyGranError
+from pygran_core.io import Trajectory, expand_paths
 from pygran_core.simulation import geometry
 from pygran_core.simulation.dem import resolve_engine
 from pygran_core.testing import validation
@@ -155,17 +156,44 @@ def _print_surface(surface: geometry.Surface) -> None:
         print(f"closed:     no ({why}; area {surface.area:.6g})")
 
 
+def _writer_options(pairs: Sequence[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` words as writer options: true/false, none, integers, numbers, else text."""
+    options: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"--option {pair!r}: give KEY=VALUE, such as binary=true")
+        words: dict[str, Any] = {"true": True, "false": False, "none": None}
+        options[key] = words.get(text.lower(), text)
+        for kind in (float, int):  # an integer wins over a float
+            with contextlib.suppress(ValueError):
+                options[key] = kind(text)
+    return options
+
+
 def cmd_convert(args: argparse.Namespace) -> int:
-    """Read every frame of IN and write it to OUT, in the formats their names (or flags) say."""
+    """Read every frame of IN and write it to OUT, in the formats their names (or flags) say.
+    ``OUT.xdmf`` writes the H5MD file ``OUT.h5`` with that XDMF sidecar."""
     trajectory, name, _ = _open(args.input, args.input_format)
-    options = {"units": args.units} if args.units else {}
-    with trajectory, open_writer(args.output, format=args.output_format, **options) as out:
+    output, writer = Path(args.output), args.output_format
+    if writer is None and output.suffix.lower() == ".xdmf":  # the sidecar of an H5MD file
+        output, writer = output.with_suffix(".h5"), "h5md"
+    spec = registry.writer_for(output, writer)
+    options = ({"units": args.units} if args.units else {}) | _writer_options(args.option or ())
+    unknown = sorted(set(options) - set(spec.options))
+    if unknown:
+        takes = ", ".join(f"{k} (default {v!r})" for k, v in spec.options.items()) or "none"
+        raise ConfigError(f"The {spec.name} writer takes no option {unknown}; its options: {takes}")
+    if args.dt is not None and not (np.isfinite(args.dt) and args.dt > 0):
+        raise ConfigError(f"--dt {args.dt!r}: give the time step in seconds, a number > 0")
+    with trajectory, spec.open(output, **options) as out:
         count = 0
         for frame in _progress(trajectory, len(trajectory), "converting"):
+            if args.dt is not None and frame.time is None and frame.timestep is not None:
+                frame.time = frame.timestep * args.dt
             out.write_frame(frame)
             count += 1
-    target = registry.writer_for(Path(args.output), args.output_format).name
-    print(f"converted {count} frames from {args.input} ({name}) to {args.output} ({target})")
+    print(f"converted {count} frames from {args.input} ({name}) to {output} ({spec.name})")
     return 0
 
 
@@ -219,6 +247,12 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--from", dest="input_format", help="reader name (default: detected)")
     convert.add_argument("--to", dest="output_format", help="writer name (default: from the extension)")
     convert.add_argument("--units", help="unit system written into the output (H5MD: si)")
+    convert.add_argument(
+        "--dt", type=float, help="time step (s): frames without a time (dumps) get step x dt as their time"
+    )
+    convert.add_argument(
+        "--option", action="append", metavar="KEY=VALUE", help="writer option, e.g. binary=true (repeatable)"
+    )
     convert.set_defaults(func=cmd_convert)
     demo = commands.add_parser("demo", help="run the hopper discharge study and analyse it")
     demo.add_argument("--engine", default="native", help="engine to run on (default: native)")

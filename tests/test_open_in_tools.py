@@ -309,18 +309,65 @@ def test_particle_series_opens_in_paraview_and_ovito_with_time(dumps, series, tm
         np.testing.assert_allclose(got["Radius"][...], arrays["radius"], rtol=F32, atol=0)  # float32
 
 
-def test_convert_writes_a_paraview_series_and_refuses_with_the_writers(dumps, tmp_path, capsys):
-    assert cli.main(["convert", str(dumps / "traj*.dump"), str(tmp_path / "out.pvd")]) == 0
+@pytest.mark.parametrize(
+    ("target", "reread"),
+    [
+        ("out.dump", "out.dump"),
+        ("out*.dump", "out*.dump"),
+        ("out.h5", "out.h5"),
+        ("out.xdmf", "out.h5"),  # H5MD with its XDMF sidecar
+        ("out*.vtk", "out.pvd"),
+        ("out*.vtp", "out.pvd"),
+        ("out*.vtu", "out.pvd"),
+        ("out.pvd", "out.pvd"),
+    ],
+)
+def test_convert_writes_every_format(dumps, tmp_path, target, reread):
+    """``pygran convert`` from the dumps to each writer's format; read back, every frame's
+    step, count and values are the dumps' (and its time step x dt, given --dt)."""
+    assert cli.main(["convert", str(dumps / "traj*.dump"), str(tmp_path / target), "--dt", str(DT)]) == 0
     frames = ours(dumps / "traj*.dump")
-    times, datasets = paraview(tmp_path / "out.pvd", tmp_path)
-    assert times == [float(f.timestep) for f in frames]  # a dump stores no time: the step stands in
-    for frame, points in zip(frames, datasets):
-        np.testing.assert_array_equal(points["id"], frame.arrays["id"])
-        np.testing.assert_array_equal(points["points"], np.column_stack([frame.arrays[a] for a in "xyz"]))
-    assert cli.main(["convert", str(dumps / "traj0.dump"), str(tmp_path / "out.xyz")]) == 1
-    error = capsys.readouterr().err
-    for writer in ("dump", "h5md", "vtk", "vtp", "pvd"):
-        assert writer in error
+    back = ours(tmp_path / reread)
+    assert [f.timestep for f in back] == STEPS
+    if not target.endswith(".dump"):  # a dump keeps no time unless asked (--option time=true)
+        assert [f.time for f in back] == [step * DT for step in STEPS]
+    for mine, dumped in zip(back, frames):
+        assert len(mine.arrays["x"]) == len(dumped.arrays["id"])
+        order, want = np.argsort(mine.arrays["id"]), np.argsort(dumped.arrays["id"])
+        for name, values in dumped.arrays.items():
+            np.testing.assert_array_equal(mine.arrays[name][order], values[want], err_msg=name)
+    if target == "out.xdmf":
+        assert (tmp_path / "out.xdmf").is_file()
+
+
+def test_convert_a_mesh_and_a_series_back_to_a_dump(dumps, tmp_path):
+    assert cli.main(["convert", str(dumps / "ramp.stl"), str(tmp_path / "ramp.pvd")]) == 0
+    (stl,) = ours(dumps / "ramp.stl")
+    (mesh,) = ours(tmp_path / "ramp.pvd")
+    np.testing.assert_array_equal(mesh.arrays["points"], stl.arrays["points"])
+    np.testing.assert_array_equal(mesh.arrays["cells"], stl.arrays["cells"])
+    assert cli.main(["convert", str(dumps / "walls.pvd"), str(tmp_path / "walls*.vtu")]) == 0
+    assert [f.time for f in ours(tmp_path / "walls.pvd")] == [step * DT for step in STEPS]
+    assert len(list(tmp_path.glob("walls*.vtu"))) == 4  # the ramp stands, then moves 3 frames
+    assert cli.main(["convert", str(dumps / "traj*.dump"), str(tmp_path / "p.pvd")]) == 0
+    assert cli.main(["convert", str(tmp_path / "p.pvd"), str(tmp_path / "t.dump")]) == 0
+    for mine, dumped in zip(ours(tmp_path / "t.dump"), ours(dumps / "traj*.dump")):
+        assert mine.timestep == dumped.timestep and mine.time is None  # a dump as LIGGGHTS writes it
+        for name, values in dumped.arrays.items():
+            np.testing.assert_array_equal(mine.arrays[name], values, err_msg=name)
+
+
+def test_convert_refuses_what_it_cannot_write(dumps, tmp_path, capsys):
+    for target, extra, says in (
+        ("out.xyz", [], ("dump", "h5md", "vtk", "vtp", "vtu", "pvd")),
+        ("out.stl", [], ("dump", "h5md", "vtk", "vtp", "vtu", "pvd")),
+        ("out.vtk", ["--option", "colour=red"], ("binary", "index")),
+        ("out.vtk", ["--dt", "-1"], ("--dt",)),
+    ):
+        assert cli.main(["convert", str(dumps / "traj0.dump"), str(tmp_path / target), *extra]) == 1
+        error = capsys.readouterr().err
+        assert all(word in error for word in says), error
+    assert not list(tmp_path.iterdir())
 
 
 if __name__ == "__main__":

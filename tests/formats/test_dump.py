@@ -10,7 +10,7 @@ import types
 import numpy as np
 import pytest
 
-from pygran_core.errors import ReadError
+from pygran_core.errors import ReadError, UnsupportedFeature
 from pygran_core.formats import dump
 from pygran_core.formats.dump import DumpTrajectory, format_frame
 from pygran_core.io import Frame, open_trajectory, open_writer
@@ -439,3 +439,23 @@ def test_a_gzip_dump_read_in_a_forked_process(table_parser, tmp_path, monkeypatc
     forked.set()
     assert os.waitpid(pid, 0)[1] == 0
     assert [len(frame.arrays["id"]) for frame in trajectory] == [3000, 0, 2500, 4000, 1000]
+
+
+def test_time_is_written_only_when_asked(tmp_path):
+    """By default a dump is laid out as LIGGGHTS writes it, without ``ITEM: TIME`` (which
+    MDAnalysis' dump reader does not take); ``time=True`` writes it first, as LAMMPS'
+    ``dump_modify time yes`` does, and it reads back."""
+    frames = particle_frames()
+    for frame in frames:
+        frame.time = 0.25 * (frame.timestep or 0)
+    for time, path in ((False, tmp_path / "plain.dump"), (True, tmp_path / "timed.dump")):
+        with open_writer(path, time=time) as out:
+            for frame in frames:
+                out.write_frame(frame)
+        text = path.read_text()
+        assert text.startswith("ITEM: TIME\n" if time else "ITEM: TIMESTEP\n")
+        assert text.count("ITEM: TIME\n") == (len(frames) if time else 0)
+        back = open_trajectory(path)
+        assert [f.time for f in back] == [f.time if time else None for f in frames]
+    with pytest.raises(UnsupportedFeature, match="one option, time=True"):
+        open_writer(tmp_path / "x.dump", colour="red")
