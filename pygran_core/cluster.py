@@ -4,9 +4,9 @@
 
 Both take ``client``: a ``dask.distributed.Client`` (used as it is and left open), the
 address of a running scheduler (``"tcp://head-node:8786"``; PyGran connects and disconnects),
-or None: a ``LocalCluster`` of ``workers`` processes with one thread each (default: one per
-core), started for the call and shut down after it. Dask is optional: ``pip install
-pygran-core[dask]``.
+None: a ``LocalCluster`` of ``workers`` processes with one thread each (default: one per
+core), started for the call and shut down after it, or ``"serial"``: no cluster, one call after
+the other in this process. Dask is optional: ``pip install pygran-core[dask]``.
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ from typing import Any
 from pygran_core.errors import ConfigError, UnsupportedFeature
 
 INSTALL = "pip install pygran-core[dask]"
+#: The ``client`` that runs one call after the other in this process, with no cluster.
+SERIAL = "serial"
 
 
 def distributed(feature: str) -> Any:
@@ -35,28 +37,34 @@ def default_workers() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def check_workers(workers: int | None) -> int:
-    """``workers`` as a count of worker processes (None: :func:`default_workers`)."""
+def is_serial(client: Any) -> bool:
+    """Whether ``client`` asks for no cluster: ``"serial"``, one call after the other here."""
+    return isinstance(client, str) and client == SERIAL
+
+
+def check(client: Any, workers: int | None, feature: str) -> None:
+    """Refuse, before anything runs, a ``workers`` count that is not one or that cannot apply:
+    it sizes the local cluster of ``client=None`` only."""
     if workers is None:
-        return default_workers()
+        return
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError(f"workers={workers!r}: give a number of worker processes (1 or more), or None")
-    return workers
+        raise ConfigError(f"{feature}: workers={workers!r}: give a number of worker processes (1 or more)")
+    if client is not None:
+        where = "runs here, one call after the other" if is_serial(client) else "has workers of its own"
+        raise ConfigError(
+            f"{feature}: workers={workers} sizes the local cluster of client=None, but "
+            f"client={client!r} {where}"
+        )
 
 
 @contextmanager
 def connect(client: Any, workers: int | None, feature: str) -> Iterator[Any]:
     """The Dask client ``client`` names (see the module docstring); closes what it opened."""
+    check(client, workers, feature)
     dd = distributed(feature)
     if isinstance(client, dd.Client):
-        if workers is not None:
-            raise ConfigError(
-                f"{feature}: workers={workers} sizes a local cluster; the client given has its own"
-            )
         yield client
-    elif isinstance(client, str):
-        if workers is not None:
-            raise ConfigError(f"{feature}: workers={workers} sizes a local cluster, not the one at {client}")
+    elif isinstance(client, str) and not is_serial(client):
         try:
             remote = dd.Client(client)  # waits as long as Dask's distributed.comm.timeouts.connect
         except OSError as exc:
@@ -67,7 +75,7 @@ def connect(client: Any, workers: int | None, feature: str) -> Iterator[Any]:
         with remote:
             yield remote
     elif client is None:
-        count = check_workers(workers)
+        count = default_workers() if workers is None else workers
         # processes of one thread each: the analysis kernels and solvers release the GIL only in
         # parts, and a crashing solver takes only its own worker down
         with (
@@ -80,7 +88,7 @@ def connect(client: Any, workers: int | None, feature: str) -> Iterator[Any]:
     else:
         raise ConfigError(
             f"{feature}: client={client!r}: give a dask.distributed.Client, a scheduler address such as "
-            "'tcp://head-node:8786', or None for a local cluster"
+            "'tcp://head-node:8786', None for a local cluster, or 'serial' to run here"
         )
 
 

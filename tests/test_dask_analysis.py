@@ -195,6 +195,8 @@ def test_mistakes_are_named(trajectory: Path) -> None:
             system.map("rdf", client="serial")  # type: ignore[arg-type]
         with pytest.raises(ConfigError, match="client="):
             system.map(summary, client=3)
+        with pytest.raises(ConfigError, match="workers=2 sizes the local cluster"):
+            system.map(summary, client="serial", workers=2)
         with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
             with pytest.raises(ConfigError, match="no Dask scheduler answers"):
                 system.map(summary, client="tcp://127.0.0.1:9")

@@ -174,6 +174,8 @@ def test_a_killed_study_resumes_from_its_journal(tmp_path: Path, client: Any) ->
             time.sleep(0.05)
         assert _finished(folder, 3), "the study did not get through its first three runs"
         slow = int(_wait_for(folder / "run3" / "pid"))
+        with pytest.raises(ConfigError, match="another study is running"):
+            Study(script, parameters=rows, output=folder, client="serial", resume=True).run()
     finally:
         os.killpg(study.pid, signal.SIGKILL)  # the driver, its scheduler and its workers
         study.wait()
@@ -240,6 +242,11 @@ def test_serial_studies_need_no_dask(tmp_path: Path, monkeypatch: pytest.MonkeyP
         ).run()
     assert row["status"] == "failed" and row["attempts"] == 1 and 4 <= row["seconds"] < 6
     assert _gone(int((tmp_path / "slow" / "run0" / "pid").read_text()))
+    (tmp_path / "blocked").mkdir()
+    (tmp_path / "blocked" / "run0").write_text("a file where the run's folder goes")
+    with pytest.warns(PyGranWarning, match="could not start"):
+        (row,) = Study(script, parameters=slow, output=tmp_path / "blocked", client="serial", retries=0).run()
+    assert row["status"] == "failed" and "File exists" in row["error"]
 
 
 def test_mistakes_are_refused_before_anything_runs(tmp_path: Path) -> None:
@@ -254,6 +261,8 @@ def test_mistakes_are_refused_before_anything_runs(tmp_path: Path) -> None:
         Study(impact, parameters=[{"restitution": object()}], output=out, client="serial")
     with pytest.raises(ConfigError, match="not a Python script"):
         Study(tmp_path / "missing.py", parameters=ROWS, output=out, client="serial")
+    with pytest.raises(ConfigError, match="runs here"):
+        Study(impact, parameters=ROWS, output=out, client="serial", workers=2)
     with pytest.raises(ConfigError, match="retries"):
         Study(impact, parameters=ROWS, output=out, client="serial", retries=-1)
     with pytest.raises(ConfigError, match="not running inside a Study"):

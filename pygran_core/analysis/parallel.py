@@ -108,6 +108,7 @@ def map_frames(
     """:meth:`System.map <pygran_core.analysis.system.System.map>`; ``source`` is None on the serial path."""
     if not callable(func):
         raise ConfigError(f"System.map needs a function of the System, not {func!r}")
+    cluster.check(client, workers, "System.map")
     chosen = frame_indices(frames, len(system))
     if source is None:
         here = system.frame

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from pygran_core import cluster
 from pygran_core import units as _units
 from pygran_core.analysis import parallel
 from pygran_core.analysis.contacts import Contacts
@@ -345,8 +346,8 @@ class System:
         file names and read only their frames (at most two at a time each); see
         :mod:`pygran_core.analysis.parallel`.
         """
-        if isinstance(client, str) and client == "serial":
-            return parallel.map_frames(self, None, func, frames, None, workers)
+        if cluster.is_serial(client):
+            return parallel.map_frames(self, None, func, frames, client, workers)
         classes = {name: source.cls for name, source in self._sources.items()}
         source = parallel.recipe(type(self), classes, self._given, self._options, self._units)
         return parallel.map_frames(self, source, func, frames, client, workers)

@@ -50,7 +50,7 @@ from pygran_core.errors import ConfigError, PyGranWarning, UnsupportedFeature
 PathLike = str | os.PathLike[str]
 #: The environment variable that tells a script which run it is (its folder).
 RUN_VARIABLE = "PYGRAN_STUDY_RUN"
-JOURNAL, TABLE, LOG = "study.json", "results.csv", "study.log"
+JOURNAL, TABLE, LOG, LOCK = "study.json", "results.csv", "study.log", "study.lock"
 #: Columns of the table besides the parameters and the results.
 RESERVED = ("run", "status", "attempts", "seconds", "error")
 _PARAMETERS, _RESULTS, _FAILURE, _FUNCTION = "parameters.json", "results.json", "error.txt", "function.pkl"
@@ -214,33 +214,19 @@ def execute(
     """One attempt of run ``index`` on ``parameters`` in ``folder`` (a Dask task, or called
     here): start its process, wait for it, and read what it left."""
     path = Path(folder)
-    path.mkdir(parents=True, exist_ok=True)
-    for stale in (_RESULTS, _FAILURE):
-        (path / stale).unlink(missing_ok=True)
-    _write_json(path / _PARAMETERS, parameters)
-    if function is not None:
-        (path / _FUNCTION).write_bytes(function)
-    launch = [sys.executable, "-c", _LAUNCHER, str(os.getpid())] if sys.platform.startswith("linux") else []
     start = time.monotonic()
-    with open(path / LOG, "ab") as log:
-        log.write(f"--- study run {index}, started {time.strftime('%Y-%m-%d %H:%M:%S')}\n".encode())
-        log.flush()
-        process = subprocess.Popen(
-            [*launch, *command],
-            stdin=subprocess.DEVNULL,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            env={**os.environ, RUN_VARIABLE: str(path)},
-            start_new_session=True,  # its own process group: ending it ends the MPI ranks it started
-        )
-        try:
-            code = process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            _end(process)
-            return Outcome(index, False, time.monotonic() - start, error=f"timed out after {timeout:g} s")
-        except BaseException:  # an interrupted study ends its runs
-            _end(process)
-            raise
+    try:
+        process = _start(index, path, parameters, command, function)
+    except OSError as exc:  # a folder that cannot be written, a full disk
+        return Outcome(index, False, time.monotonic() - start, error=f"could not start in {path}: {exc}")
+    try:
+        code = process.wait(timeout)
+    except subprocess.TimeoutExpired:
+        _end(process)
+        return Outcome(index, False, time.monotonic() - start, error=f"timed out after {timeout:g} s")
+    except BaseException:  # an interrupted study ends its runs
+        _end(process)
+        raise
     seconds = time.monotonic() - start
     if (path / _FAILURE).is_file():
         return Outcome(index, False, seconds, error=(path / _FAILURE).read_text().split("\n\n")[0])
@@ -251,6 +237,46 @@ def execute(
         return Outcome(index, False, seconds, error=f"its process {cause}{last}; see {path / LOG}")
     results = json.loads((path / _RESULTS).read_text()) if (path / _RESULTS).is_file() else {}
     return Outcome(index, True, seconds, results)
+
+
+def _start(
+    index: int, path: Path, parameters: dict[str, Any], command: Sequence[str], function: bytes | None
+) -> subprocess.Popen[bytes]:
+    """Lay out the run's folder and start its process, its output appended to its log."""
+    path.mkdir(parents=True, exist_ok=True)
+    for stale in (_RESULTS, _FAILURE):
+        (path / stale).unlink(missing_ok=True)
+    _write_json(path / _PARAMETERS, parameters)
+    if function is not None:
+        (path / _FUNCTION).write_bytes(function)
+    launch = [sys.executable, "-c", _LAUNCHER, str(os.getpid())] if sys.platform.startswith("linux") else []
+    with open(path / LOG, "ab") as log:
+        log.write(f"--- study run {index}, started {time.strftime('%Y-%m-%d %H:%M:%S')}\n".encode())
+        log.flush()
+        return subprocess.Popen(
+            [*launch, *command],
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            env={**os.environ, RUN_VARIABLE: str(path)},
+            start_new_session=True,  # its own process group: ending it ends the MPI ranks it started
+        )
+
+
+@contextlib.contextmanager
+def _exclusive(path: Path) -> Iterator[None]:
+    """Hold the lock file ``path`` (released when its process ends, however it ends)."""
+    import fcntl
+
+    with open(path, "a") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ConfigError(
+                f"Study: another study is running in {path.parent} (it holds {path.name}); wait for it "
+                "to end, or choose another output folder"
+            ) from None
+        yield
 
 
 def _end(process: subprocess.Popen[bytes]) -> None:
@@ -296,8 +322,7 @@ class Study:
         if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
             raise ConfigError(f"timeout={timeout!r}: give a run's longest duration in seconds, or None")
         self.retries, self.timeout = retries, timeout
-        if not (isinstance(client, str) and client == "serial"):
-            cluster.check_workers(workers)
+        cluster.check(client, workers, "Study")
         self._command, self._function = self._program(run)
         self.journal = self._open_journal(resume)
 
@@ -325,9 +350,8 @@ class Study:
                 if signature is not None:
                     signature.bind(self.output, **row)
             except TypeError as exc:
-                raise ConfigError(
-                    f"Study: {run.__name__}(output, **row {index}) does not fit: {exc}"
-                ) from None
+                name = getattr(run, "__name__", "run")
+                raise ConfigError(f"Study: {name}(output, **row {index}) does not fit: {exc}") from None
         try:
             import cloudpickle
         except ImportError as exc:
@@ -368,6 +392,10 @@ class Study:
     def run(self) -> list[dict[str, Any]]:
         """Run every row not finished yet; return the table's rows (also in ``results.csv``)."""
         self.output.mkdir(parents=True, exist_ok=True)
+        with _exclusive(self.output / LOCK):
+            return self._run()
+
+    def _run(self) -> list[dict[str, Any]]:
         runs: dict[str, Any] = self.journal["runs"]
         pending = [i for i in range(len(self.rows)) if runs.get(str(i), {}).get("status") != "done"]
         for i in pending:
@@ -397,14 +425,14 @@ class Study:
                 f"{'; '.join(failed)}. Their logs: {self.output}/run<i>/{LOG}; the table: "
                 f"{self.output / TABLE}",
                 PyGranWarning,
-                stacklevel=2,
+                stacklevel=3,
             )
         return table
 
     def _outcomes(self, pending: list[int]) -> Iterator[Outcome]:
         """Each attempt's outcome as it comes, failed runs submitted again while tries remain."""
         tries = self.retries + 1
-        if isinstance(self.client, str) and self.client == "serial":
+        if cluster.is_serial(self.client):
             for i in pending:
                 for _ in range(tries):
                     outcome = self._attempt(i)
@@ -415,13 +443,19 @@ class Study:
         with cluster.connect(self.client, self.workers, "Study") as client:
             dd = cluster.distributed("Study")
             attempts = {i: 1 for i in pending}
-            queue = dd.as_completed([self._submit(client, i, 1) for i in pending])
+            runs = {self._submit(client, i, 1): i for i in pending}
+            queue = dd.as_completed(runs)
             for future in queue:
-                outcome = future.result()
+                try:
+                    outcome = future.result()
+                except Exception as exc:  # noqa: BLE001 - a lost worker fails its run, not the study
+                    outcome = Outcome(runs[future], False, 0.0, error=f"its Dask task failed: {exc!r}")
                 yield outcome
                 if not outcome.ok and attempts[outcome.index] < tries:
                     attempts[outcome.index] += 1
-                    queue.add(self._submit(client, outcome.index, attempts[outcome.index]))
+                    again = self._submit(client, outcome.index, attempts[outcome.index])
+                    runs[again] = outcome.index
+                    queue.add(again)
 
     def _attempt(self, index: int) -> Outcome:
         folder = str(self.folder(index))
