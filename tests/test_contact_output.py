@@ -103,16 +103,31 @@ def test_resume_cuts_the_contacts_back(tmp_path):
         params = {"traj": {**TRAJ, **traj}, "restart": {"freq": 1000}}
         with ContactEngine(out, crash_at=1700, **params) as engine, pytest.raises(EngineError):
             engine.run(3000)
-        with ContactEngine(out, **params, resume=True) as engine:
+        with ContactEngine(out, **params | {"restart": {"freq": 1000, "resume": True}}) as engine:
             engine.run(3000)
         with System(Particles=str(out / traj["pfile"]), Contacts=str(out / traj["cfile"])) as system:
             check_in_step(system, list(range(0, 3001, 500)))
 
 
+def test_resume_keeps_the_frames_a_series_index_lists(tmp_path):
+    """Particles as a .vtk series: after a resume at 1000 the .pvd index lists every frame
+    once, in order, at its step and time (the frames up to 1000 from the first run)."""
+    params = {"traj": {**TRAJ, "pfile": "p*.vtk"}, "restart": {"freq": 1000}}
+    with ContactEngine(tmp_path, crash_at=1700, **params) as engine, pytest.raises(EngineError):
+        engine.run(3000)
+    with ContactEngine(tmp_path, **params | {"restart": {"freq": 1000, "resume": True}}) as engine:
+        engine.run(3000)
+    with System(Particles=str(tmp_path / "p.pvd")) as system:
+        assert [system.Particles.timestep for _ in system.frames()] == list(range(0, 3001, 500))
+        assert [system.Particles.time for _ in system.frames()] == [
+            step * 1e-5 for step in range(0, 3001, 500)
+        ]
+
+
 def test_refused_without_the_capability(tmp_path):
     with pytest.raises(UnsupportedFeature, match="contact output.*'contact-output'"):
-        PlainEngine(tmp_path, traj={"cfile": "contacts.dump"})
-    with PlainEngine(tmp_path) as engine:  # nothing asked: nothing refused
+        PlainEngine(tmp_path / "asked", traj={"cfile": "contacts.dump"})
+    with PlainEngine(tmp_path / "plain") as engine:  # nothing asked: nothing refused
         engine.run(10)
 
 

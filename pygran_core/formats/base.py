@@ -110,6 +110,12 @@ class TrajectoryWriter(abc.ABC):
     def write_frame(self, frame: Frame) -> None:
         """Append and flush one frame."""
 
+    def resume(self, step: int) -> None:
+        """Continue what an earlier run wrote here up to ``step`` (a simulation resumed from
+        a checkpoint there): a writer of a file per frame with an index keeps the index's
+        frames up to ``step``. The default keeps nothing: a single file is cut back by the
+        engine, files of later frames are overwritten as they come."""
+
     def close(self) -> None:
         """Finish the file; the default holds nothing open."""
 

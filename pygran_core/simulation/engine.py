@@ -1055,6 +1055,10 @@ class Engine(abc.ABC):
                 continue  # in the particle file: cut with it
             if path is not None and (path.is_file() or before_resume(path).is_file()):
                 self._cut_trajectory(key, path)
+            elif path is not None and (key != "meshes" or self.spec.meshes):  # a file per frame
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self._writers[key] = self._open_writer(key, path)
+                self._writers[key].resume(self.step)
         self.log("resumed from %s at step %d", self._resume_path, self.step)
 
     def _cut_trajectory(self, key: str, path: Any) -> None:

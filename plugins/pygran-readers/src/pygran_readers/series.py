@@ -90,6 +90,20 @@ class SeriesWriter(TrajectoryWriter):
             return self.path.with_name(name.replace("*", str(step)))
         return self.path.with_name(f"{self.path.stem}{step}{self.path.suffix}")
 
+    def resume(self, step: int) -> None:
+        """Keep the entries of the index an earlier run wrote for the frames up to ``step``."""
+        if not self.index.is_file():
+            return
+        for entry in read_index(self.index):
+            if "cycle" not in entry or int(entry["cycle"]) > step:
+                break
+            time, name = float(entry["timestep"]), entry["file"]
+            self._entries.append(
+                f'<DataSet timestep="{time!r}" cycle="{entry["cycle"]}" part="0" file={quoteattr(name)}/>\n'
+            )
+        self.count = len(self._entries)
+        write_atomically(self.index, (PVD_HEAD + "".join(self._entries) + PVD_TAIL).encode("utf-8"))
+
     def write_frame(self, frame: Frame) -> None:
         step = int(frame.timestep) if frame.timestep is not None else self.count
         time = float(frame.time) if frame.time is not None else float(step)
