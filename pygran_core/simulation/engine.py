@@ -68,6 +68,7 @@ from pygran_core.simulation.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
+from pygran_core.simulation.progress import Progress
 from pygran_core.simulation.specs import SimulationSpec, TrajectorySpec, positive_float, positive_int
 from pygran_core.simulation.timestep import Assessment, Body, Limits, characteristic_speed, limits
 
@@ -292,6 +293,8 @@ class Engine(abc.ABC):
         self._clock = (0, 0.0)
         self.closed = False
         self._engine_id = next(Engine._ids)
+        self._progress = Progress(spec.progress, self._progress_line)
+        self._progress_to_stderr = False
         self._handles: dict[int, Handle] = {}
         self._handle_ids = itertools.count(1)
         self._monitors: dict[int, Monitor] = {}
@@ -409,6 +412,12 @@ class Engine(abc.ABC):
         self._log_handler.handle(record)
         if self._logger.isEnabledFor(level):
             self._logger.handle(record)
+
+    def _progress_line(self, text: str, stderr: bool = True) -> None:
+        """A progress line into ``pygran.log``, and on stderr off a terminal (see :meth:`run`)."""
+        self.log("%s", text)
+        if stderr and self._progress_to_stderr:
+            print(f"{self.name}: {text}", file=sys.stderr, flush=True)
 
     def _to_file(self, level: int, message: str) -> None:
         """Record ``message`` in ``pygran.log`` only: what is also raised or warned, so that it
@@ -652,7 +661,9 @@ class Engine(abc.ABC):
         them poorly, a :class:`ConfigError` if it cannot resolve them at all, unless
         ``check_dt=False``. Trajectory frames, monitor samples and checkpoints are taken at
         their frequencies (in absolute steps); the solver runs uninterrupted between them and
-        between the progress bar's updates, shown on a terminal unless ``progress=False``.
+        between the progress updates: by default a bar on a terminal, elsewhere a line on
+        stderr every ``progress={'every': seconds}`` (30 s by default; always also in
+        ``pygran.log``); ``progress=True`` asks for the bar, ``False`` for neither.
         Particles lost during the run are reported (see :meth:`expect_outflow`), counted in
         :attr:`lost` and described in :attr:`last_lost`.
         """
@@ -669,9 +680,13 @@ class Engine(abc.ABC):
         if run_dt != self.dt:
             self._clock, self.dt = (self.step, self.time), run_dt
         self.log("run %d steps of dt=%g from step %d", nsteps, self.dt, self.step)
-        show = progress if progress is not None else self.spec.progress
-        if show is None:
-            show = sys.stderr.isatty()
+        terminal = sys.stderr.isatty()
+        chosen = progress if progress is not None else self.spec.progress.show
+        # by default progress shows as a bar on a terminal, as lines on stderr elsewhere (a
+        # file, a batch job's log); True asks for the bar, False for neither; the lines always
+        # go to pygran.log
+        show = terminal if chosen is None else chosen
+        self._progress_to_stderr = chosen is None and not terminal
         from tqdm import tqdm
 
         start, end = self.step, self.step + nsteps
@@ -687,8 +702,13 @@ class Engine(abc.ABC):
         watch = _Watch(self) if counted is None else None
         lost = counted or LostParticles()
         servos: dict[str, list[float]] = {name: [] for name in self._watched_servos()}
+        self._progress.begin(self.step, end)
         with tqdm(
-            total=nsteps, initial=self.step - start, unit="step", disable=not show, desc=f"{self.name} run"
+            total=nsteps,
+            initial=self.step - start,
+            unit="step",
+            disable=not show,
+            desc=f"{self.name} run",
         ) as bar:
             for chunk in self._run_chunks(end):
                 try:
@@ -698,6 +718,7 @@ class Engine(abc.ABC):
                     raise
                 self._set_step(self.step + chunk, run_dt)
                 bar.update(chunk)
+                self._progress.update(self.step, self.time, lambda: len(self._extract("id")))
                 self._on_event()
                 if watch is None:
                     lost += self._lost_since_last() or LostParticles()
@@ -705,6 +726,7 @@ class Engine(abc.ABC):
                     for name, errors in servos.items():
                         errors.append(self._servo_error(name))
         assert self.step == end
+        self._progress_line(self._progress.end(self.step), stderr=bool(self._progress.lines))
         self._placed = None  # the particles have moved
         if watch is not None:
             lost = watch.finish()

@@ -1028,6 +1028,34 @@ def parse_restart(value: Any, output: Path, notes: list[str] | None = None) -> R
 
 
 @dataclass(frozen=True)
+class ProgressSpec:
+    """How runs report their progress: ``show`` a bar on a terminal (None: when stderr is
+    one); a line every ``every`` seconds of a run in ``pygran.log``, and on stderr off a
+    terminal; ``steps``, the script's steps over all its runs, gives one ETA for the script."""
+
+    show: bool | None = None
+    every: float = 30.0
+    steps: int | None = None
+
+
+PROGRESS_KEYS = ("show", "every", "steps")
+
+
+def parse_progress(value: Any) -> ProgressSpec:
+    """``progress=True``, ``False``, ``None`` (a bar on a terminal), or a dict such as
+    ``{'every': 10, 'steps': 60000}`` (see :class:`ProgressSpec`)."""
+    if not isinstance(value, Mapping):
+        return ProgressSpec(show=optional_bool(value, "progress"))
+    check_keys("progress keyword", value, PROGRESS_KEYS)
+    steps = value.get("steps")
+    return ProgressSpec(
+        show=optional_bool(value.get("show"), "progress show"),
+        every=positive_float(value.get("every", ProgressSpec.every), "progress every (seconds)"),
+        steps=None if steps is None else positive_int(steps, "progress steps (the script's total)"),
+    )
+
+
+@dataclass(frozen=True)
 class SimulationSpec:
     """Everything ``simulation.DEM(**params)`` was given, validated."""
 
@@ -1048,7 +1076,7 @@ class SimulationSpec:
     nsim: int = 1
     threads: int | None = None
     nprocs: int | None = None
-    progress: bool | None = None
+    progress: ProgressSpec = field(default_factory=lambda: ProgressSpec())
     #: With ``nSim=k > 1``: the k runs, each with its own parameters and output directory.
     runs: tuple[SimulationSpec, ...] = ()
     #: The script's own keys (not simulation keywords), kept by ``DEM`` and named in the log.
@@ -1257,7 +1285,7 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type[Contact
         nsim=positive_int(params.get("nSim", 1), "nSim"),
         threads=None if threads is None else positive_int(threads, "threads"),
         nprocs=None if nprocs is None else positive_int(nprocs, "nprocs"),
-        progress=optional_bool(params.get("progress"), "progress"),
+        progress=parse_progress(params.get("progress")),
         user_keys=user_keys,
         notes=tuple(notes),
     )

@@ -1,0 +1,94 @@
+"""Progress off a terminal (issue 44, item 4): a script run with its output redirected to a file
+gets periodic lines (step, simulated time, particle-steps per second, ETA of the run and of the
+script's declared steps) on stderr and in pygran.log; none on stderr when not shown."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from pygran_core.errors import ConfigError
+from pygran_core.simulation.progress import Progress, duration
+from pygran_core.simulation.specs import ProgressSpec, parse_progress
+
+SCRIPT = textwrap.dedent(
+    """
+    from pygran_core import params, simulation
+
+    with simulation.DEM(
+        engine="native",
+        box=(0, 0.01, 0, 0.01, 0, 0.01),
+        gravity=(9.81, 0, 0, -1),
+        dt=5e-6,
+        output="out",
+        species=({"material": params.organic, "radius": ("constant", 5e-4)},),
+        progress={PROGRESS},
+    ) as sim:
+        sim.insert(species=1, value=50, region=("block", 0, 0.01, 0, 0.01, 0, 0.01))
+        sim.run(1000)
+        sim.run(500)
+    """
+)
+LINE = re.compile(
+    r"native: progress: step (\d+), run (\d+) of (\d+) \(\d+ %\), t = ([0-9.e+-]+) s, "
+    r"([0-9.e+]+) particle-steps/s, run ETA \d+:\d\d:\d\d; script (\d+) of 1500 steps \(\d+ %\), "
+    r"ETA \d+:\d\d:\d\d$"
+)
+
+
+def run_script(folder: Path, progress: str) -> tuple[str, str]:
+    """Run the script with stdout and stderr redirected to files; returns (stderr, pygran.log)."""
+    (folder / "study.py").write_text(SCRIPT.replace("{PROGRESS}", progress))
+    with (folder / "stdout.txt").open("w") as out, (folder / "stderr.txt").open("w") as err:
+        subprocess.run(
+            [sys.executable, "study.py"], cwd=folder, stdout=out, stderr=err, check=True, timeout=120
+        )
+    return (folder / "stderr.txt").read_text(), (folder / "out" / "pygran.log").read_text()
+
+
+def test_lines_on_stderr_and_in_the_log_when_output_goes_to_a_file(tmp_path: Path) -> None:
+    # every 1 ns: a line after each piece of a run (a run goes in up to 100 pieces)
+    stderr, log = run_script(tmp_path, "{'every': 1e-9, 'steps': 1500}")
+    lines = [LINE.match(line) for line in stderr.splitlines() if "progress:" in line]
+    assert len(lines) >= 4 and all(lines)
+    values = [(int(m[1]), int(m[2]), int(m[3]), float(m[4]), float(m[5]), int(m[6])) for m in lines if m]
+    steps = [v[0] for v in values]
+    assert steps == sorted(steps) and steps[-1] == 1500
+    for step, ran, total, time, speed, script in values:
+        assert total == (1000 if step <= 1000 else 500)
+        assert ran == (step if step <= 1000 else step - 1000)
+        assert time == pytest.approx(step * 5e-6, rel=1e-6)
+        assert speed > 0 and script == step  # the script's steps count over both runs
+    assert stderr.count("native: run of ") == 2  # a summary after each run that had lines
+    assert "\x1b" not in stderr and "\r" not in stderr  # no progress bar, no terminal codes
+    assert log.count("progress: step ") == len(lines)
+
+
+def test_no_lines_on_stderr_when_not_shown(tmp_path: Path) -> None:
+    stderr, log = run_script(tmp_path, "{'show': False, 'every': 1e-9}")
+    assert "progress" not in stderr and stderr.strip() == ""
+    assert "progress: step " in log  # pygran.log keeps them
+
+
+def test_progress_settings_and_durations() -> None:
+    assert parse_progress(None) == ProgressSpec()
+    assert parse_progress({"every": 5, "steps": 10}) == ProgressSpec(None, 5.0, 10)
+    with pytest.raises(ConfigError, match="every"):
+        parse_progress({"every": 0})
+    with pytest.raises(ConfigError, match="Unknown progress keyword 'total'"):
+        parse_progress({"total": 10})
+    assert duration(3725.4) == "1:02:05" and duration(float("nan")) == "?"
+    clock = iter([0.0, 10.0, 20.0])
+    written: list[str] = []
+    progress = Progress(ProgressSpec(every=5, steps=4000), written.append, clock=lambda: next(clock))
+    progress.begin(0, 2000)
+    progress.update(1000, 0.01, lambda: 100)  # 1000 steps in 10 s of 100 particles
+    assert written == [
+        "progress: step 1000, run 1000 of 2000 (50 %), t = 0.01 s, 1e+04 particle-steps/s, "
+        "run ETA 0:00:10; script 1000 of 4000 steps (25 %), ETA 0:00:30"
+    ]
