@@ -56,17 +56,8 @@ from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 from pygran_core.formats.hdf5 import HDF5_SIGNATURE, Claim, WriteError, no_space, open_hdf5, stored_elements
 from pygran_core.formats.sanity import particle_problem, step_problem
-from pygran_core.formats.xdmf import XdmfSidecar, frame_groups
+from pygran_core.formats.xdmf import VECTORS, XdmfSidecar, frame_groups
 
-#: H5MD vector elements and the dump columns they hold.
-VECTORS = {
-    "position": ("x", "y", "z"),
-    "velocity": ("vx", "vy", "vz"),
-    "force": ("fx", "fy", "fz"),
-    "image": ("ix", "iy", "iz"),
-    "angular_velocity": ("omegax", "omegay", "omegaz"),
-    "torque": ("tqx", "tqy", "tqz"),
-}
 #: H5MD scalar element names that differ from the dump column.
 RENAMED = {"type": "species"}
 #: Elements whose values are integers.
@@ -456,7 +447,7 @@ class H5MDWriter(TrajectoryWriter):
         self._last_step = step
         if self._sidecar is not None:
             time = float(step) if frame.time is None or np.isnan(frame.time) else float(frame.time)
-            self._sidecar.add(k, time, frame_groups(frame.arrays, self._elements))
+            self._sidecar.add(k, step, time, frame_groups(frame.arrays, self._elements))
 
     def close(self) -> None:
         if self._file is None and self._pending and self._failed is None:

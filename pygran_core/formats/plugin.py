@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from pygran_core.formats import dump, h5md, stl
+from pygran_core.formats import dump, h5md, stl, xdmf
 from pygran_core.hookspecs import ReaderSpec, WriterSpec, hookimpl
 
 
@@ -32,6 +32,13 @@ def pygran_readers() -> Iterator[ReaderSpec]:
         can_open=h5md.can_open,
         kinds=frozenset({"particles", "contacts"}),
         description="HDF5 in the H5MD layout (particles, contacts)",
+    )
+    yield ReaderSpec(
+        name="xdmf",
+        extensions=(".xdmf",),
+        open=xdmf.XdmfTrajectory,
+        kinds=frozenset({"particles"}),
+        description="the XDMF sidecar of an H5MD trajectory (ParaView's view of it), read back",
     )
 
 

@@ -22,17 +22,30 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+from xml.etree import ElementTree
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from pygran_core.formats.hdf5 import Claim, WriteError, no_space
+from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.formats.base import Frame, PathLike, Trajectory
+from pygran_core.formats.hdf5 import Claim, WriteError, no_space, open_hdf5
+from pygran_core.formats.sanity import particle_problem, step_problem
 
 _HEAD = (
     '<?xml version="1.0" ?>\n<Xdmf Version="3.0">\n <Domain>\n'
     '  <Grid Name="particles" GridType="Collection" CollectionType="Temporal">\n'
 )
 _TAIL = "  </Grid>\n </Domain>\n</Xdmf>\n"
+#: The vector elements of H5MD (and point data of the sidecar) and the LIGGGHTS columns they hold.
+VECTORS = {
+    "position": ("x", "y", "z"),
+    "velocity": ("vx", "vy", "vz"),
+    "force": ("fx", "fy", "fz"),
+    "image": ("ix", "iy", "iz"),
+    "angular_velocity": ("omegax", "omegay", "omegaz"),
+    "torque": ("tqx", "tqy", "tqz"),
+}
 
 
 def sidecar_paths(trajectory: Path) -> tuple[Path, Path]:
@@ -68,12 +81,13 @@ class XdmfSidecar:
         self._write_xml(_HEAD + _TAIL, at_end=False)
         self._connectivity: tuple[int, str] | None = None
 
-    def add(self, index: int, time: float, groups: Sequence[tuple[str, np.ndarray]]) -> None:
-        """Frame ``index`` at ``time``: ``groups`` are (name, (n,) or (n, 3) array), the first
-        one the positions."""
+    def add(self, index: int, step: int, time: float, groups: Sequence[tuple[str, np.ndarray]]) -> None:
+        """Frame ``index`` of ``step`` at ``time``: ``groups`` are (name, (n,) or (n, 3) array),
+        ``position`` among them."""
         import h5py
 
-        n = len(groups[0][1])
+        positions = dict(groups)["position"]
+        n = len(positions)
         self._claims[1].reserve(sum(a.nbytes for _, a in groups) + 8 * n)
         items: list[tuple[str, np.ndarray, str]] = []
         try:
@@ -89,13 +103,15 @@ class XdmfSidecar:
         except (OSError, RuntimeError) as exc:
             why = "no space left" if no_space(exc) else str(exc)
             raise WriteError(f"{self.data}: frame {index} could not be written: {why}") from None
+        stored = {name: place for name, _, place in items}
         vertices = np.empty(n, dtype=np.int64)
         lines = [
             f'   <Grid Name="frame {index}" GridType="Uniform">',
             f'    <Time Value="{time!r}"/>',
+            f'    <Information Name="step" Value="{step}"/>',
             f'    <Topology TopologyType="Polyvertex" NumberOfElements="{n}" NodesPerElement="1">'
             f"{_item(vertices, self._connectivity[1])}</Topology>",
-            f'    <Geometry GeometryType="XYZ">{_item(items[0][1], items[0][2])}</Geometry>',
+            f'    <Geometry GeometryType="XYZ">{_item(positions, stored["position"])}</Geometry>',
         ]
         for name, values, where in items:
             kind = "Vector" if values.ndim == 2 else "Scalar"
@@ -128,13 +144,87 @@ def frame_groups(
     arrays: dict[str, Any], elements: Sequence[tuple[str, tuple[str, ...]]]
 ) -> list[tuple[str, np.ndarray]]:
     """The sidecar's point data of a frame: ``elements`` (H5MD name, columns), vectors as
-    (n, 3) arrays named by their element, other columns as (n,) arrays under their own name;
-    positions first."""
-    groups = [
+    (n, 3) arrays named by their element, other columns as (n,) arrays under their own name."""
+    return [
         (name, np.column_stack([arrays[c] for c in cols]))
         if len(cols) == 3
         else (cols[0], np.asarray(arrays[cols[0]]))
         for name, cols in elements
     ]
-    groups.sort(key=lambda item: item[0] != "position")
-    return groups
+
+
+class XdmfTrajectory(Trajectory):
+    """The particle frames of an XDMF sidecar this module wrote, read back: one frame per grid,
+    its columns from the point data, its time and step from the grid.
+
+    Only data in a plain file next to the XDMF file is read (an HDF5 file opened as every HDF5
+    file is, refusing one that reaches outside itself); anything else is a :class:`ReadError`.
+    """
+
+    def __init__(self, paths: Sequence[PathLike]) -> None:
+        if len(paths) != 1:
+            raise UnsupportedFeature(f"XDMF reads one file at a time, got {len(paths)}")
+        self.path = Path(paths[0])
+        try:
+            root = ElementTree.parse(self.path).getroot()
+        except (ElementTree.ParseError, OSError) as exc:
+            raise ReadError(f"{self.path}: not a readable XDMF file: {exc}") from None
+        self._grids = [g for g in root.iter("Grid") if g.get("GridType") == "Uniform"]
+        if root.tag != "Xdmf" or root.find("Domain/Grid[@CollectionType='Temporal']") is None:
+            raise ReadError(f"{self.path}: not an XDMF time series (no temporal collection of grids)")
+        self._data: Any = None
+
+    @property
+    def n_frames(self) -> int:
+        return len(self._grids)
+
+    def _dataset(self, item: ElementTree.Element | None) -> np.ndarray:
+        if item is None or item.get("Format") != "HDF" or ":" not in (item.text or ""):
+            raise ReadError(f"{self.path}: a data item that is not HDF5 data (file:/path)")
+        name, where = (item.text or "").strip().split(":", 1)
+        if Path(name).name != name or name in ("", ".", ".."):
+            raise ReadError(f"{self.path}: data in {name!r}: only a file next to the XDMF file is read")
+        if self._data is None:
+            self._data = open_hdf5(self.path.parent / name)
+        try:
+            values = np.asarray(self._data[where][()])
+        except (KeyError, OSError, RuntimeError, ValueError, TypeError) as exc:
+            raise ReadError(f"{self.path}: data {where!r}: {exc}") from None
+        if values.dtype.kind not in "biuf" or values.ndim not in (1, 2):
+            raise ReadError(f"{self.path}: data {where!r} has shape {values.shape} and type {values.dtype}")
+        return values
+
+    def _read_frame(self, index: int) -> Frame:
+        grid = self._grids[index]
+        arrays: dict[str, np.ndarray] = {}
+        for attribute in grid.iter("Attribute"):
+            name, values = attribute.get("Name", ""), self._dataset(attribute.find("DataItem"))
+            values = values.astype(np.int64 if values.dtype.kind in "biu" else np.float64)
+            if values.ndim == 2 and name in VECTORS and values.shape[1] == 3:
+                arrays.update({c: np.ascontiguousarray(values[:, j]) for j, c in enumerate(VECTORS[name])})
+            elif values.ndim == 1:
+                arrays[name] = values
+            else:
+                raise ReadError(f"{self.path}: frame {index}: point data {name!r} has shape {values.shape}")
+        if len({len(v) for v in arrays.values()}) > 1:
+            raise ReadError(f"{self.path}: frame {index}: the point data hold different particle counts")
+        problem = particle_problem(arrays)
+        if problem:
+            raise ReadError(f"{self.path}: frame {index}: {problem}")
+        try:
+            time = float(grid.find("Time").get("Value", ""))  # type: ignore[union-attr]
+            step = grid.find("Information[@Name='step']")
+            timestep = None if step is None else int(step.get("Value", ""))
+        except (AttributeError, ValueError) as exc:
+            raise ReadError(f"{self.path}: frame {index}: no readable time or step ({exc})") from None
+        if index and timestep is not None:
+            previous = self._grids[index - 1].find("Information[@Name='step']")
+            problem = step_problem(int(previous.get("Value", "")) if previous is not None else None, timestep)
+            if problem:
+                raise ReadError(f"{self.path}: frame {index}: {problem}")
+        return Frame(arrays, timestep=timestep, time=time)
+
+    def close(self) -> None:
+        if self._data is not None:
+            self._data.close()
+            self._data = None

@@ -32,6 +32,7 @@ import pytest
 
 from pygran_core.errors import ReadError
 from pygran_core.io import Frame, Trajectory, expand_paths, open_trajectory, open_writer
+from pygran_core.registry import lookup
 from pygran_core.testing.solvers import in_ci
 
 
@@ -67,6 +68,34 @@ def particle_frames() -> list[Frame]:
             )
         )
     return frames
+
+
+def insane_samples() -> dict[str, list[Frame]]:
+    """:func:`particle_frames` made physically impossible in one way each, by name."""
+
+    def changed(change) -> list[Frame]:
+        frames = particle_frames()
+        change(frames)
+        return frames
+
+    def duplicate(frames: list[Frame]) -> None:
+        frames[2].arrays["id"][1] = frames[2].arrays["id"][0]
+
+    def zero_radius(frames: list[Frame]) -> None:
+        frames[0].arrays["radius"][0] = 0.0
+
+    def negative_radius(frames: list[Frame]) -> None:
+        frames[3].arrays["radius"][1] *= -1
+
+    def step_back(frames: list[Frame]) -> None:
+        frames[2].timestep = 500
+
+    return {
+        "duplicate ids": changed(duplicate),
+        "zero radius": changed(zero_radius),
+        "negative radius": changed(negative_radius),
+        "step back": changed(step_back),
+    }
 
 
 def assert_frames_equal(
@@ -307,6 +336,10 @@ class FormatConformance:
     exact: ClassVar[bool] = True  # floats read back bitwise
     #: Frame metadata the format keeps; a read-only format's samples keep none.
     metadata: ClassVar[tuple[str, ...]] = ("timestep", "boundary", "box")
+    #: Whether the reader refuses physically impossible frames (:func:`insane_samples`) with a
+    #: ReadError, as every particle reader should (:mod:`pygran_core.formats.sanity`); False
+    #: marks the known gap: the test is an expected failure, shown as such in every run.
+    physical_checks: ClassVar[bool] = False
     # A format that cannot hold an empty frame sets ``test_empty_frame = None``.
 
     # -- what a subclass provides ----------------------------------------------------------
@@ -331,6 +364,17 @@ class FormatConformance:
 
     def open(self, pattern: str | Path) -> Trajectory:
         return open_trajectory(pattern, format=self.reader)
+
+    def make_insane(self, tmp_path: Path, name: str, frames: list[Frame]) -> str | Path:
+        """A file holding ``frames``, physically impossible as they are (case ``name``); by
+        default written with the format's writer. A format whose writer refuses such frames
+        overrides this to put the values in place itself."""
+        assert self.writer is not None, "a read-only format overrides make_insane"
+        path = tmp_path / f"insane-{name.replace(' ', '-')}{self.suffix}"
+        with open_writer(path, format=self.writer) as out:
+            for frame in frames:
+                out.write_frame(frame)
+        return path
 
     # -- the tests ---------------------------------------------------------------------------
     def test_round_trip(self, tmp_path):
@@ -375,6 +419,22 @@ class FormatConformance:
     def test_missing_file(self, tmp_path):
         with pytest.raises(ReadError, match="not found"):
             self.open(tmp_path / f"missing{self.suffix}")
+
+    def test_physical_sanity(self, tmp_path):
+        """Duplicate ids, a zero or negative radius, steps that go back: a ReadError naming the
+        file, never frames handed to analysis."""
+        if "particles" not in lookup("reader", self.reader).spec.kinds:
+            pytest.skip(f"the {self.reader} reader reads no particles")
+        if not self.physical_checks:
+            pytest.xfail(f"the {self.reader} reader does not check physical sanity yet")
+        for name, frames in insane_samples().items():
+            pattern = self.make_insane(tmp_path, name, frames)
+            with pytest.raises(ReadError) as info:
+                with self.open(pattern) as trajectory:
+                    for _ in trajectory:
+                        pass
+            names = [p.name for p in expand_paths(pattern)]
+            assert any(n in str(info.value) for n in names), (name, str(info.value))
 
     def test_bad_input(self, tmp_path):
         for pattern, good in self.bad_files(tmp_path):

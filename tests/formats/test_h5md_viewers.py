@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 
 from pygran_core import analysis, params, simulation
+from pygran_core.errors import ReadError
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.simulation.models import HertzMindlin
-from pygran_core.testing.formats import particle_frames, require_reader
+from pygran_core.testing.formats import FormatConformance, particle_frames, require_reader
 
 ROOT = Path(__file__).resolve().parents[2]
 ARGS = (
@@ -232,3 +233,55 @@ def test_no_sidecar_when_asked_or_without_positions(tmp_path):
     with open_writer(tmp_path / "plain.h5md", xdmf=False) as out:
         out.write_frame(particle_frames()[0])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.h5md", "radii.h5md"]
+
+
+def test_pygran_reads_its_sidecar_back(run, frames):
+    with open_trajectory(run.with_suffix(".xdmf")) as sidecar:
+        assert len(sidecar) == len(frames)
+        for got, want in zip(sidecar, frames):
+            assert (got.timestep, got.time) == (want.timestep, want.time)
+            assert sorted(got.arrays) == sorted(want.arrays)
+            for name, values in want.arrays.items():
+                np.testing.assert_array_equal(got.arrays[name], values, err_msg=name)
+
+
+@pytest.mark.parametrize("elsewhere", ["/etc/passwd", "../traj.xdmf.h5", "sub/traj.xdmf.h5"])
+def test_a_sidecar_naming_data_elsewhere_is_refused(run, tmp_path, elsewhere):
+    text = run.with_suffix(".xdmf").read_text().replace("traj.xdmf.h5:", f"{elsewhere}:")
+    (tmp_path / "moved.xdmf").write_text(text)
+    with pytest.raises(ReadError, match=r"moved\.xdmf: data in .*: only a file next to the XDMF file"):
+        open_trajectory(tmp_path / "moved.xdmf")[0]
+
+
+class TestXdmfSidecar(FormatConformance):
+    """PyGran reads its sidecars back like any format (written through the H5MD writer)."""
+
+    reader = "xdmf"
+    suffix = ".xdmf"
+    physical_checks = True
+
+    def make_sample(self, tmp_path):
+        frames = particle_frames()
+        with open_writer(tmp_path / "sample.h5md") as out:
+            for frame in frames:
+                out.write_frame(frame)
+        return tmp_path / "sample.xdmf", frames
+
+    def make_insane(self, tmp_path, name, frames):
+        """Sane frames through the writer (which refuses insane ones), then the insane values
+        put in place in the sidecar: its data, and its step information."""
+        folder = tmp_path / name.replace(" ", "-")
+        folder.mkdir()
+        path, sane = self.make_sample(folder)
+        text = path.read_text()
+        with h5py.File(folder / "sample.xdmf.h5", "a") as f:
+            for k, (bad, good) in enumerate(zip(frames, sane)):
+                if bad.timestep != good.timestep:
+                    text = text.replace(
+                        f'Name="step" Value="{good.timestep}"', f'Name="step" Value="{bad.timestep}"'
+                    )
+                for j, column in enumerate(good.arrays):  # x y z are one group: radius is group 3
+                    if column in ("id", "radius"):
+                        f[f"frames/{k}/{j - 2 * (column == 'radius')}"][...] = bad.arrays[column]
+        path.write_text(text)
+        return path
