@@ -16,7 +16,7 @@ import numpy as np
 
 from pygran_core import registry
 from pygran_core.apps import demo
-from pygran_core.errors import ConfigError, PyGranError
+from pygran_core.errors import ConfigError, PluginNotFound, PyGranError
 from pygran_core.io import Trajectory, expand_paths
 from pygran_core.simulation import geometry
 from pygran_core.simulation.dem import resolve_engine
@@ -176,9 +176,13 @@ def cmd_convert(args: argparse.Namespace) -> int:
     ``OUT.xdmf`` writes the H5MD file ``OUT.h5`` with that XDMF sidecar."""
     trajectory, name, _ = _open(args.input, args.input_format)
     output, writer = Path(args.output), args.output_format
-    if writer is None and output.suffix.lower() == ".xdmf":  # the sidecar of an H5MD file
-        output, writer = output.with_suffix(".h5"), "h5md"
-    spec = registry.writer_for(output, writer)
+    try:
+        spec = registry.writer_for(output, writer)
+    except PluginNotFound:
+        if output.suffix.lower() != ".xdmf":
+            raise
+        output = output.with_suffix(".h5")  # an XDMF file is the sidecar of an H5MD one
+        spec = registry.writer_for(output, "h5md")
     options = ({"units": args.units} if args.units else {}) | _writer_options(args.option or ())
     unknown = sorted(set(options) - set(spec.options))
     if unknown:

@@ -2,7 +2,8 @@
 
 A conical hopper (generated as an STL file) is filled by insertion onto a stopper plane
 across its outlet, the particles settle, the stopper is removed and the hopper discharges.
-The trajectory is written as H5MD and the walls as VTK; the analysis then measures the
+The trajectory is written as H5MD (with its XDMF sidecar) and the walls as a VTK series
+indexed by ``walls.pvd`` (the hopper, standing still, is one file); the analysis measures the
 discharge rate (beside the Beverloo prediction), the settled packing fraction,
 coordination numbers and the radial distribution function, and saves PNG plots and a
 summary in the output directory. Any engine with mesh walls runs it.
