@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pygran_liggghts import library
 from pygran_liggghts.library import ADDON_MODEL, find_library, load_addon
 from pygran_liggghts.session import mpirun_prefix
 
@@ -321,3 +322,11 @@ def test_a_neck_beyond_the_contact_distance_stops_the_run_saying_so(tmp_path):
     assert separation < -0.05 * R
     with pytest.raises(EngineError, match="adhesive neck would persist beyond the contact distance"):
         validation.wall_impact("liggghts", tmp_path, ThorntonNing, material, speed=1.0)
+
+
+def test_an_addon_that_was_not_built_is_reported_with_the_fix(tmp_path, monkeypatch):
+    """pip installs the plugin without the add-on when LIGGGHTS' headers are missing; the reason
+    then names the package to install and the reinstall."""
+    monkeypatch.setattr(library, "__file__", str(tmp_path / "library.py"))
+    reason = library._load_addon()
+    assert "not built" in reason and "libliggghts-dev" in reason and "pip install" in reason
