@@ -12,6 +12,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -42,7 +43,7 @@ def trajectory(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("dask") / "traj.h5"
     rng = np.random.default_rng(7)
     box = np.array([[0.0, SIDE]] * 3)
-    with open_writer(path) as writer:
+    with open_writer(path, contacts=True) as writer:
         for k, n in enumerate(COUNTS):
             x = rng.uniform(0, SIDE, (n, 3))
             arrays = {
@@ -56,12 +57,29 @@ def trajectory(tmp_path_factory: pytest.TempPathFactory) -> Path:
                 "vy": rng.normal(0, 0.1, n),
                 "vz": rng.normal(0, 0.1, n),
             }
-            writer.write_frame(Frame(arrays, timestep=1000 * k, time=1e-3 * k, box=box, boundary=("pp",) * 3))
+            clock = {"timestep": 1000 * k, "time": 1e-3 * k, "box": box, "boundary": ("pp",) * 3}
+            writer.write_frame(Frame(arrays, **clock))
+            touching = np.arange(0, n, 3)  # every third particle presses on a wall below it
+            force = rng.normal(0, 1e-3, (len(touching), 3))
+            contacts = {
+                "id1": touching + 1,
+                "id2": np.full(len(touching), -1),
+                "fx": force[:, 0],
+                "fy": force[:, 1],
+                "fz": force[:, 2],
+                "cx": x[touching, 0],
+                "cy": x[touching, 1],
+                "cz": x[touching, 2] - RADIUS,
+                "bx": np.zeros(len(touching)),
+                "by": np.zeros(len(touching)),
+                "bz": np.full(len(touching), RADIUS),
+            }
+            writer.write_frame(Frame(contacts, attrs={"kind": "contacts"}, **clock))
     return path
 
 
 @pytest.fixture(scope="module")
-def client() -> Iterator[object]:
+def client() -> Iterator[Any]:
     with (
         distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
@@ -80,7 +98,10 @@ def summary(system: analysis.System) -> dict[str, object]:
     out["rdf"] = particles.computeRDF(dr=RADIUS / 2, rMax=4 * RADIUS).g
     out["coon"] = analysis.equilibrium.Neighbors(particles).coon
     grid = analysis.Grid1D(axis="z", bins=10)
-    out["density"] = analysis.CoarseGrain(system, grid=grid, width=RADIUS, density=2500.0).compute().density
+    fields = analysis.CoarseGrain(system, grid=grid, width=RADIUS, density=2500.0).compute()
+    out["density"], out["stress"] = fields.density, fields.contact_stress  # the file's contacts too
+    contacts = system.Contacts
+    out["fb"] = float(np.sum(contacts["fz"] * contacts["bz"]))
     out["pid"] = os.getpid()
     return out
 
@@ -99,8 +120,9 @@ def same(a: list[dict[str, object]], b: list[dict[str, object]]) -> None:
             np.testing.assert_array_equal(one[key], two[key], err_msg=key)
 
 
-def test_map_on_two_workers_equals_the_serial_path(trajectory: Path, client: object) -> None:
+def test_map_on_two_workers_equals_the_serial_path(trajectory: Path, client: Any) -> None:
     with analysis.System(Particles=str(trajectory)) as system:
+        assert system.names == ["Particles", "Contacts"]  # the file's contact records
         results = system.map(summary, client=client)
         assert system.frame == 0  # the caller's System did not move
     reference = serial(trajectory)
@@ -117,19 +139,23 @@ def test_map_on_two_workers_equals_the_serial_path(trajectory: Path, client: obj
         if n:
             mass = n * 2500.0 * 4 / 3 * np.pi * RADIUS**3
             assert np.sum(r["density"]) * SIDE**3 / 10 == pytest.approx(mass, rel=1e-9)
+            # and the contact stress integrates to sum f ⊗ b over the frame's contacts
+            assert np.sum(r["stress"][:, 2, 2]) * SIDE**3 / 10 == pytest.approx(r["fb"], rel=1e-9)
+            assert r["fb"] != 0
 
 
-def test_a_selection_of_frames_in_the_order_asked(trajectory: Path, client: object) -> None:
+def test_a_selection_of_frames_in_the_order_asked(trajectory: Path, client: Any) -> None:
     frames = [-1, 3, 0, 3]
     with analysis.System(Particles=str(trajectory)) as system:
         results = system.map(summary, frames=frames, client=client)
-        tail = system.map(lambda s: len(s.Particles), frames=slice(2, None), client=client)
+        address = client.scheduler.address  # as a real cluster is reached
+        tail = system.map(lambda s: len(s.Particles), frames=slice(2, None), client=address)
     assert [r["frame"] for r in results] == [5, 3, 0, 3]
     same(results, serial(trajectory, frames))
     assert tail == list(COUNTS[2:])
 
 
-def test_a_liggghts_run_with_its_walls(hopper: Path, client: object) -> None:
+def test_a_liggghts_run_with_its_walls(hopper: Path, client: Any) -> None:
     """Real LIGGGHTS output: dump frames of a discharging hopper and the VTK frames of its walls."""
 
     def outflow(system: analysis.System) -> tuple[int, int, float, float]:
@@ -158,7 +184,7 @@ class Beads(analysis.Particles):
         return float(self.x.max()) if len(self) else 0.0
 
 
-def test_units_and_user_subsystems_travel_to_the_workers(trajectory: Path, client: object) -> None:
+def test_units_and_user_subsystems_travel_to_the_workers(trajectory: Path, client: Any) -> None:
     with analysis.System(Beads=str(trajectory), units="micro", module=sys.modules[__name__]) as system:
         here = system.map(lambda s: s.Beads.widest(), client="serial")
         there = system.map(lambda s: s.Beads.widest(), client=client)
