@@ -28,6 +28,8 @@ HARDEST = {"native": NAMES[-1], "yade": NAMES[-1], "liggghts": "all # ' & of the
 
 def refused(engine: str, name: str) -> bool:
     return engine == "liggghts" and (any(c in name for c in "$*%") or ("'" in name and '"' in name))
+
+
 START = np.array([[-5e-4, 0, 3.2e-3], [5e-4, 0, 3.2e-3], [0, 5e-4, 3.5e-3]])
 G, DT, STEPS = 9.81, 1e-6, 300
 
