@@ -107,7 +107,7 @@ def test_mdanalysis_loads_it_with_the_call_of_the_guide(run, frames, monkeypatch
     # the guide's call teaches MDAnalysis the metre; undo it after the test
     monkeypatch.setitem(units.lengthUnit_factor, "m", 1e-10)
     monkeypatch.setitem(H5MDReader._unit_translation["length"], "m", "m")
-    monkeypatch.chdir(run.parent.parent)  # where the guide's out/traj.h5md is
+    monkeypatch.chdir(run.parent)  # where the guide's traj.h5md is
     namespace: dict = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # MDAnalysis warns that the file has no topology
