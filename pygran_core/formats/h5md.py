@@ -77,6 +77,8 @@ SI_UNITS = {
     "edges": "m",
     "pygran_bounds": "m",
     "pygran_tilt": "m",
+    "point": "m",  # contacts
+    "branch": "m",
 }
 #: What h5py raises on a damaged file (HDF5's own errors are OSError, RuntimeError, KeyError
 #: or ValueError; an object of the wrong kind gives TypeError or IndexError).

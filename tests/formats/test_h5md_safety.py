@@ -20,7 +20,7 @@ from pygran_core.errors import ReadError
 from pygran_core.formats.hdf5 import WriteError
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.simulation.checkpoint import read_checkpoint
-from pygran_core.testing.formats import fuzz_read, read_every_frame
+from pygran_core.testing.formats import damaged_copies, fuzz_check, fuzz_read, read_every_frame
 
 SECRET = b"root:x:0:0:root:/root:/bin/bash\n" * 8
 VALUE = "particles/trajectory/position/value"
@@ -321,3 +321,56 @@ def test_a_writer_in_another_process_keeps_its_file(tmp_path):
         proc.stdin.close()
         proc.stdout.close()
     assert [f.arrays["x"].tolist() for f in open_trajectory(path)] == [[0.5], [0.7]]
+
+
+def test_fuzz_damaged_xdmf_sidecars(tmp_path):
+    """The XDMF sidecar's bytes damaged at random: each read is clean or a ReadError."""
+    with open_writer(tmp_path / "good.h5md") as out:
+        for frame in _frames():
+            out.write_frame(frame)
+    good = tmp_path / "good.xdmf"
+    text = b"0123456789 .-+eE\n<>/=\"':abcdefghijklmnopqrstuvwxyz"
+    copies = damaged_copies(tmp_path, "xdmf", [(".xdmf", good.read_bytes(), text)])
+    fuzz_check("xdmf", copies, read_every_frame, good)
+
+
+RUN_UNTIL_FULL = textwrap.dedent("""
+    import resource, signal, sys, warnings
+    from pygran_core import params, simulation
+    from pygran_core.errors import PyGranError
+    from pygran_core.simulation.models import HertzMindlin
+
+    warnings.simplefilter("ignore")
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (3_000_000, 3_000_000))
+    try:
+        with simulation.DEM(
+            engine="native", model=HertzMindlin, box=(0, 0.02, 0, 0.02, 0, 0.02),
+            species=({"material": dict(params.organic), "radius": 4e-4},), output=sys.argv[1],
+            traj={"pfile": "traj.h5md", "freq": 10}, progress=False, dt=2e-6, threads=1, seed=1,
+        ) as sim:
+            sim.setupWall(species=1, plane="zplane", peq=0.0)
+            sim.insert(species=1, value=2000, region=("block", 0.001, 0.019, 0.001, 0.019, 0.001, 0.019))
+            sim.run(2000)
+    except PyGranError as exc:
+        print(type(exc).__name__, exc, flush=True)
+""")
+
+
+def test_a_simulation_filling_the_disk_stops_with_one_error_and_python_exits_cleanly(tmp_path):
+    """The native engine writing H5MD until the file-size limit (a full disk's stand-in): one
+    WriteError naming the file, a clean exit (once SIGBUS), every frame written readable."""
+    done = subprocess.run(
+        [sys.executable, "-c", RUN_UNTIL_FULL, str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    kind, message = done.stdout.strip().split(" ", 1)
+    assert kind == "WriteError" and "no space for the next frame (File too large)" in message
+    assert message.startswith((str(tmp_path / "out" / "traj.h5md"), str(tmp_path / "out" / "traj.xdmf.h5")))
+    frames = list(open_trajectory(tmp_path / "out" / "traj.h5md"))
+    assert len(frames) >= 5 and [f.timestep for f in frames] == list(range(0, 10 * len(frames), 10))
+    assert all(len(f.arrays["id"]) == 2000 for f in frames)
+    assert len(list(open_trajectory(tmp_path / "out" / "traj.xdmf"))) in (len(frames) - 1, len(frames))
