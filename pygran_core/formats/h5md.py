@@ -457,7 +457,7 @@ class H5MDWriter(TrajectoryWriter):
         for resource in (self._file, self._sidecar, self._claim):
             if resource is not None:
                 try:
-                    resource.close() if not isinstance(resource, Claim) else resource.release()
+                    resource.close()
                 except (OSError, RuntimeError, PyGranError):
                     pass  # the failure that stopped the writer was reported
         self._file = self._sidecar = self._claim = None

@@ -151,7 +151,7 @@ def _lock(fd: int) -> None:
 class Claim:
     """A file this process writes: created if missing, never truncated before it is held.
 
-    The claim is a lock on an open descriptor (:func:`_lock`), kept until :meth:`release`, and an
+    The claim is a lock on an open descriptor (:func:`_lock`), kept until :meth:`close`, and an
     entry in this process's own table, for platforms whose locks do not exclude the process that
     holds them. Neither HDF5's own lock (``flock``) nor its readers are hindered by it.
     :meth:`reserve` checks that the disk has room for the next writes before HDF5 makes them.
@@ -174,7 +174,7 @@ class Claim:
                 raise OSError(errno.EAGAIN, "held")
             _lock(self._fd)
         except OSError:
-            self.release()
+            self.close()
             raise WriteError(
                 f"{path} is being written by another writer; give this one another file name "
                 "or output folder, or wait for the other to finish"
@@ -202,7 +202,8 @@ class Claim:
         finally:
             os.ftruncate(self._fd, end)
 
-    def release(self) -> None:
+    def close(self) -> None:
+        """Give the file up: unlock it and close the descriptor."""
         if self._key is not None:
             self._held.discard(self._key)
             self._key = None

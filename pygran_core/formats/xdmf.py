@@ -137,7 +137,7 @@ class XdmfSidecar:
 
     def close(self) -> None:
         for claim in self._claims:
-            claim.release()
+            claim.close()
 
 
 def frame_groups(
