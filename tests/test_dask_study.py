@@ -22,7 +22,7 @@ import pytest
 
 from pygran_core import params, registry, simulation
 from pygran_core.errors import ConfigError, PyGranWarning, UnsupportedFeature
-from pygran_core.simulation.study import Study, current, grid
+from pygran_core.simulation.study import Study, current, grid, rows_of
 from pygran_core.testing.solvers import in_ci, require_solver
 
 try:
@@ -250,6 +250,11 @@ def test_serial_studies_need_no_dask(tmp_path: Path, monkeypatch: pytest.MonkeyP
 
 
 def test_mistakes_are_refused_before_anything_runs(tmp_path: Path) -> None:
+    columns = {"restitution": [0.3, 0.5], "material": [params.glass, params.steel]}
+    assert rows_of(columns) == [
+        {"restitution": 0.3, "material": params.glass},
+        {"restitution": 0.5, "material": params.steel},
+    ]
     out = tmp_path / "never"
     with pytest.raises(ConfigError, match="does not fit"):
         Study(impact, parameters=[{"restitution": 0.5, "radius": 1e-3}], output=out, client="serial")

@@ -69,10 +69,9 @@ def grid(**axes: Sequence[Any]) -> list[dict[str, Any]]:
 
 
 def rows_of(parameters: Any) -> list[dict[str, Any]]:
-    """The study's rows from ``parameters``: a list of mappings, a mapping of equal-length
-    columns, or a pandas DataFrame; every value must be representable in JSON."""
-    if hasattr(parameters, "to_dict") and not isinstance(parameters, Mapping):
-        parameters = parameters.to_dict("records")
+    """The study's rows from ``parameters``: a list of mappings (a pandas DataFrame's
+    ``to_dict("records")``) or a mapping of equal-length columns; every value must be
+    representable in JSON."""
     if isinstance(parameters, Mapping):
         lengths = {
             k: len(v) for k, v in parameters.items() if isinstance(v, Sequence) and not isinstance(v, str)
