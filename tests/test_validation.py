@@ -24,6 +24,8 @@ def test_every_check_passes_on_native(tmp_path):
         "restitution SpringDashpot",
         "restitution HertzMindlin",
         "restitution ThorntonNing",
+        *(f"Thornton-Ning e at V_y/V = {ratio:g}" for ratio in (1, 0.5, 0.2, 0.1, 0.05, 0.01)),
+        "JKR pull-off force",
         "rolling speed / v0 (mu=0.2)",
         "rolling speed / v0 (mu=0.8)",
         "energy change",
