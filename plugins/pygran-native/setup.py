@@ -24,8 +24,8 @@ extensions = [
         depends=sorted(glob("src/pygran_native/_*.pxi") + glob("src/pygran_native/*.h")),  # its include files
         include_dirs=[numpy.get_include()],
         define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],
-        extra_compile_args=["-O3", "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off", "-pthread"],
-        extra_link_args=["-pthread"],
+        extra_compile_args=["-O3", "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off", "-pthread", "-fopenmp"],
+        extra_link_args=["-pthread", "-fopenmp"],
     ),
 ]
 setup(ext_modules=cythonize(extensions, language_level=3))

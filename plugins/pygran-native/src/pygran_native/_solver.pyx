@@ -135,6 +135,8 @@ cdef extern from "team.h":
     void pg_wait_done(pg_team* t, int nblocks) noexcept nogil
     long long pg_moves(pg_team* t) noexcept nogil
 
+from cython.parallel cimport parallel, prange, threadid
+
 import numpy as np
 cimport numpy as cnp
 
@@ -251,9 +253,10 @@ cdef class Core:
     def nbody(self):
         return self.s.nbody
 
-    def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads):
+    def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads, bint openmp=False):
         cdef int d, a, b, c
         self.s.nthreads = threads
+        self.s.openmp = openmp
         self.s.skin = skin
         for d in range(3):
             self.s.lo[d] = lo[d]
@@ -709,7 +712,7 @@ cdef class Core:
         ``nthreads`` threads: this one runs the loop, the others (started at the first run,
         asleep between runs) take part in its parallel passes."""
         cdef int rc
-        if self.s.nthreads > 1:
+        if self.s.nthreads > 1 and not self.s.openmp:
             pg_start(self.s.team, team_task, <void*>&self.s)
         with nogil:
             rc = run_steps(&self.s, nsteps, dt)

@@ -63,6 +63,7 @@ cdef struct Tuner:
 cdef struct State:
     # The one copy of the solver's state: Core holds it, the kernels and the time-step loop
     # work on it (through a pointer, as the team's threads do).
+    int openmp         # the phases run on OpenMP's threads instead of the team's
     int n, cap, nthreads, hs, model, rolling, roff, ntypes, dirty
     int whs            # history values per wall-list entry: hs + 1 (see wall_row)
     int batched        # hertz without rolling resistance on any pair: the pair loop's batched path

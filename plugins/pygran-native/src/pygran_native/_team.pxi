@@ -22,6 +22,10 @@ cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
         for b in range(nblocks):
             run_block(sim, phase, b, nblocks, 0, 0)
         return
+    if sim.openmp:
+        for b in prange(nblocks, schedule="dynamic", chunksize=1, num_threads=sim.nthreads):
+            run_block(sim, phase, b, nblocks, threadid(), 0)
+        return
     pg_begin(sim.team, phase, nblocks, 0)
     take(sim, pg_epoch(sim.team), phase, nblocks, 0)
     pg_wait_done(sim.team, nblocks)
@@ -46,10 +50,32 @@ cdef void force_phase(State* sim) noexcept nogil:
         sim.cpu[2] += t1 - t0
         sim.cpu[3] += thread_cpu() - t1
         return
+    if sim.openmp:
+        omp_force_phase(sim)
+        return
     sim.turn = 0.0
     pg_begin(sim.team, P_FORCES, sim.nblocks, nparts)
     take(sim, pg_epoch(sim.team), P_FORCES, sim.nblocks + nparts, 0)
     pg_wait_done(sim.team, sim.nblocks + nparts)
+
+
+cdef void omp_force_phase(State* sim) noexcept nogil:
+    """The force phase on OpenMP: the pair loop's blocks, then the particle loop's parts, each
+    handed out one at a time (dynamic schedule), in one parallel region."""
+    cdef int b, p, tid, nparts = sim.nblocks * SPLIT
+    cdef double t0, t1
+    with parallel(num_threads=sim.nthreads):
+        tid = threadid()
+        t0 = thread_cpu()
+        for b in prange(sim.nblocks, schedule="dynamic", chunksize=1):
+            pair_block(sim, b)
+        t1 = thread_cpu()
+        sim.cpu[PAD * tid + 2] += t1 - t0
+        if tid == 0:
+            sim.turn = pg_now()
+        for p in prange(nparts, schedule="dynamic", chunksize=1):
+            particle_part(sim, p, threadid(), 0)
+        sim.cpu[PAD * tid + 3] += thread_cpu() - t1
 
 
 cdef inline void await_pair(State* sim, int b, unsigned int epoch, int tid) noexcept nogil:
