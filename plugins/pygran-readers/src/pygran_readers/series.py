@@ -15,6 +15,7 @@ time and step of each frame from the index, its data from the file it names.
 from __future__ import annotations
 
 import abc
+import hashlib
 import math
 import os
 from collections.abc import Sequence
@@ -51,16 +52,20 @@ def write_atomically(target: Path, data: bytes) -> None:
     os.replace(partial, target)
 
 
-def same_content(a: Frame, b: Frame) -> bool:
-    """Whether two frames hold the same data (time and step aside)."""
-    if a.arrays.keys() != b.arrays.keys() or a.attrs != b.attrs or a.boundary != b.boundary:
-        return False
-    if a.box is None or b.box is None:
-        if a.box is not b.box:
-            return False
-    elif not np.array_equal(a.box, b.box):
-        return False
-    return all(np.array_equal(a.arrays[k], b.arrays[k]) for k in a.arrays)
+def content_digest(frame: Frame) -> bytes:
+    """A SHA-256 digest of what a frame holds, its time and step aside: equal digests, equal
+    files (kept instead of a copy of the frame, which may be large)."""
+    digest = hashlib.sha256()
+    for name, values in frame.arrays.items():
+        array = np.ascontiguousarray(values)
+        digest.update(f"{name}:{array.dtype.str}:{array.shape};".encode())
+        digest.update(array.data)
+    box = None if frame.box is None else np.asarray(frame.box).tolist()
+    attrs = sorted(
+        (k, repr(np.asarray(v).tolist() if isinstance(v, np.ndarray) else v)) for k, v in frame.attrs.items()
+    )
+    digest.update(repr((box, frame.boundary, attrs)).encode())
+    return digest.digest()
 
 
 class SeriesWriter(TrajectoryWriter):
@@ -76,7 +81,7 @@ class SeriesWriter(TrajectoryWriter):
         self.index = Path(index) if index is not None else index_path(self.path)
         self.count = 0
         self._entries: list[str] = []
-        self._last: Frame | None = None
+        self._last: bytes | None = None  # the content digest of the last file written
         self._last_file = ""
 
     @abc.abstractmethod
@@ -109,15 +114,11 @@ class SeriesWriter(TrajectoryWriter):
         time = float(frame.time) if frame.time is not None else float(step)
         if not math.isfinite(time):
             raise UnsupportedFeature(f"A .pvd index needs a finite time; frame {self.count} has {time}")
-        if self._last is None or not same_content(frame, self._last):
+        content = content_digest(frame)
+        if content != self._last:
             target = self.file_for(step)
             write_atomically(target, self.encode(frame))
-            self._last = Frame(
-                {k: np.array(v, copy=True) for k, v in frame.arrays.items()},
-                box=None if frame.box is None else np.array(frame.box, copy=True),
-                boundary=frame.boundary,
-                attrs=dict(frame.attrs),
-            )
+            self._last = content
             self._last_file = Path(os.path.relpath(target, self.index.parent)).as_posix()
         self._entries.append(
             f'<DataSet timestep="{time!r}" cycle="{step}" part="0" file={quoteattr(self._last_file)}/>\n'
