@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from pygran_core import registry, simulation
-from pygran_core.errors import ConfigError, ReadError
+from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature
 from pygran_core.formats.dump import format_frame
 from pygran_core.io import open_trajectory
 from pygran_core.testing.formats import particle_frames
@@ -63,6 +63,26 @@ def test_a_folder_in_use_by_this_script_is_refused_until_closed(tmp_path):
     assert steps(output / "traj.dump") == [0, 1, 2, 3]  # not truncated by the refused one
     with dem(output, "native") as second:
         assert second.step == 0
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_refused_simulation_leaves_its_folder_free(tmp_path, engine):
+    """Refused while its engine is made (nothing to resume from; a setting the engine cannot
+    honour), with the error kept by the script: the folder is free for the next simulation."""
+    output = tmp_path / "out"
+    capabilities = registry.get_engine(engine).capabilities
+    resume = ConfigError if "restart" in capabilities else UnsupportedFeature
+    refusals = [(resume, {"restart": (10, "restart", "restart.h5", True)})]
+    if "thornton-ning" not in capabilities:
+        refusals.append((UnsupportedFeature, {"model": simulation.models.ThorntonNing}))
+    kept = []
+    for error, settings in refusals:
+        with pytest.raises(error) as refused:
+            dem(output, engine, **settings)
+        kept.append(refused)  # the traceback, and the half-made engine in it, stay alive
+    with dem(output, engine) as sim:
+        sim.run(1)
+        assert sim.step == 1 and len(kept) == len(refusals)
 
 
 def test_a_folder_in_use_by_another_process_is_refused_and_freed_by_its_death(tmp_path):

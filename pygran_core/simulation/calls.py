@@ -395,23 +395,41 @@ def check_memory(count: float, call: str) -> None:
         )
 
 
-def smallest_particle(species: Sequence[int], spec: SimulationSpec) -> float:
-    """The smallest volume (m^3) a particle of ``species`` can have: a sphere of the smallest
-    radius of its distribution (a multisphere body holds at least its largest sphere)."""
-    return min(4 / 3 * math.pi * spec.species[k - 1].radius.min ** 3 for k in species)
+def particle_sizes(species: Sequence[int], spec: SimulationSpec) -> tuple[float, float]:
+    """The smallest radius a particle of ``species`` can have (of a multisphere body: its
+    largest sphere, which it holds at least) and the farthest any reaches from its centre."""
+    smallest = min(spec.species[k - 1].radius.min for k in species)
+    reaches = [
+        max((math.hypot(*sphere[:3]) + sphere[3] for sphere in sp.spheres), default=sp.radius.max)
+        for sp in (spec.species[k - 1] for k in species)
+    ]
+    return smallest, max(reaches)
 
 
-def check_packing(amount: float, each: float, region: Region, call: str, unit: str) -> None:
-    """Refuse ``amount`` (in ``unit``, each unit ``each`` m^3 of solid at least) in
-    ``region`` beyond random close packing: no engine could place them, and trying would not end."""
-    volume = region.volume()
+def check_packing(
+    amount: float, each: float, region: Region, call: str, unit: str, sizes: tuple[float, float], all_in: bool
+) -> None:
+    """Refuse ``amount`` (in ``unit``, each unit ``each`` m^3 of solid at least; ``sizes``
+    from :func:`particle_sizes`) that no engine could place in ``region``, and trying would not
+    end. ``all_in`` (whole particles inside): a region thinner than the smallest particle, or
+    beyond random close packing of its volume; centres only inside: beyond random close
+    packing of its bounding box grown by the farthest reach (more room than they can fill)."""
+    smallest, reach = sizes
+    extents = np.diff(region.bounds(), axis=1).ravel()
+    if all_in and extents.min() < 2 * smallest:
+        raise ConfigError(
+            f"{call}: no particle fits wholly inside the region {region}: it is {extents.min():.3g} m "
+            f"across at its thinnest, less than the smallest particle's diameter {2 * smallest:.3g} m; "
+            "give a larger region" + (", or all_in='no' (centres inside)" if call == "insert" else "")
+        )
+    volume = region.volume() if all_in else float(np.prod(extents + 2 * reach))
     room = CLOSE_PACKING * volume
     if amount * each > room:
         raise ConfigError(
             f"{call}: {amount:.6g} {unit} cannot fit in the region {region}: they fill at least "
             f"{amount * each:.3g} m^3, above the {room:.3g} m^3 spheres can fill of its {volume:.3g} m^3 "
-            f"(random close packing, {CLOSE_PACKING}): ask for at most {room / each:.6g} {unit}, or "
-            "give a larger region"
+            f"{'' if all_in else 'reached by particles centred in it '}(random close packing, "
+            f"{CLOSE_PACKING}): ask for at most {room / each:.6g} {unit}, or give a larger region"
         )
 
 
@@ -511,13 +529,15 @@ def parse_insert(
     if target == "particles_in_region" and value != int(value):
         raise ConfigError(f"insert particles_in_region needs a whole number of particles, got {value}")
     region = _region_in_box(kwargs.get("region"), spec, "insert")
-    smallest = smallest_particle(species, spec)
+    all_in = _flag(kwargs.get("all_in", "yes"), "insert all_in")
+    sizes = particle_sizes(species, spec)
+    smallest = 4 / 3 * math.pi * sizes[0] ** 3
     density = max(spec.species[k - 1].density for k in species)
     count = value if target.startswith("particle") else value / (density * smallest)  # at most
     if target == "particles_in_region":
-        check_packing(value, smallest, region, "insert", "particles")
+        check_packing(value, smallest, region, "insert", "particles", sizes, all_in)
     elif target == "mass_in_region":
-        check_packing(value, 1 / density, region, "insert", "kg")
+        check_packing(value, 1 / density, region, "insert", "kg", sizes, all_in)
     duration = None if duration is None else positive_float(duration, "insert duration")
     if mechanism == "by_pack" or duration is not None:
         check_memory(count * (1 if duration is None else duration), "insert")
@@ -534,7 +554,7 @@ def parse_insert(
         omega=_omega(kwargs.get("omega", (0, 0, 0))),
         freq=None if isinstance(freq, str) and freq == "once" else step_count(freq, "insert freq", notes),
         duration=duration,
-        all_in=_flag(kwargs.get("all_in", "yes"), "insert all_in"),
+        all_in=all_in,
         seed=_seed(kwargs.get("seed", seed), "insert"),
         requested=value,
         orientation=None if orientation is None else parse_orientation(orientation, species, spec),
@@ -655,8 +675,9 @@ def parse_create(
     if len(args) != 1:
         raise ConfigError("createParticles(species, 'random', count, region=...): give the count")
     count = positive_int(args[0], "count")
-    volume = 4 / 3 * math.pi * (common["radius"] or spec.species[chosen - 1].radius.min) ** 3
-    check_packing(count, volume, region, "createParticles", "particles")
+    extent = (common["radius"], common["radius"]) if common["radius"] else particle_sizes((chosen,), spec)
+    volume = 4 / 3 * math.pi * extent[0] ** 3
+    check_packing(count, volume, region, "createParticles", "particles", extent, all_in=True)
     check_memory(count, "createParticles")
     return CreateSpec(region=region, count=count, **common)
 

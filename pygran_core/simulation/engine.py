@@ -321,15 +321,20 @@ class Engine(abc.ABC):
             self._check_spec(spec)
         except PyGranError as exc:
             self._to_file(logging.ERROR, f"refused: {exc}")
-            self._log_handler.close()
+            self._abandon()
             raise
         #: ``[call, result]`` for every call that changed the simulation, in order.
         self._calls: list[list[Any]] = []
         self._resume: Checkpoint | None = None
         if spec.restart is not None and spec.restart.resume:
-            self._resume_path = latest_checkpoint(spec.restart)
-            self._resume = read_checkpoint(self._resume_path)
+            try:
+                self._resume_path = latest_checkpoint(spec.restart)
+                self._resume = read_checkpoint(self._resume_path)
+            except BaseException:
+                self._abandon()
+                raise
             if self._resume.engine != self.name:
+                self._abandon()
                 raise ConfigError(
                     f"{self._resume_path} was written by the {self._resume.engine} engine; "
                     f"resume it with engine={self._resume.engine!r}"
@@ -1142,6 +1147,13 @@ class Engine(abc.ABC):
             path.parent.mkdir(parents=True, exist_ok=True)
             self._writers[key] = self._open_writer(key, path)
         self._writers[key].write_frame(make_frame())
+
+    def _abandon(self) -> None:
+        """Release the log and the output folder of an engine whose construction failed (its
+        subclass calls this on a failure after the base class's constructor)."""
+        self._log_handler.close()
+        self._output_lock.close()
+        self.closed = True
 
     def close(self) -> None:
         """Finish output files and release the solver; closing twice is harmless."""

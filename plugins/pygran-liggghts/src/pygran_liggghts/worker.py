@@ -127,6 +127,9 @@ def main(argv: list[str]) -> None:
         except OSError:  # the engine went away before the worker started
             client.close()
             gone = True
+        # connected or not, the socket's name is no longer needed: removed now, it is left
+        # behind by no end of the worker's (one by a signal when the script dies included)
+        remove_socket(address)
     while True:
         request = None
         if comm.rank == 0:
@@ -148,8 +151,6 @@ def main(argv: list[str]) -> None:
                 pass
         if name == "close":
             break
-    if gone:
-        remove_socket(address)
 
 
 def remove_socket(address: str) -> None:

@@ -64,28 +64,32 @@ class NativeEngine(PlacingEngine):
     def __init__(self, spec: SimulationSpec) -> None:
         spec = rank_run(spec)  # nSim: each MPI rank makes its own run, on its own threads
         super().__init__(spec)  # refuses a model whose kernel is not among the capabilities
-        self._law = SOLVER_LAW[given(spec.model.kernel, f"the {spec.model.__name__} model's kernel")]
-        gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
-        self.solver = Solver(
-            np.array(spec.domain.box).T, spec.domain.periodic, gravity, spec.skin, spec.threads, spec.seed
-        )
-        self._mesh_types = {m.name: len(spec.species) + i for i, m in enumerate(spec.meshes)}
-        materials = [s.material for s in spec.species] + [
-            m.material or spec.species[0].material for m in spec.meshes
-        ]
-        self.solver.set_contact_model(self._law, **self._material_arrays(materials))
-        self._walls: dict[str, int] = {}
-        #: Solver wall handle -> the wall's index in the order walls were set up (removed ones
-        #: kept): contact records name the wall by it (see :meth:`_contacts`)
-        self._wall_index: dict[int, int] = {}
-        self._planes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._mesh_walls: dict[str, int] = {}
-        self._motions: dict[str, str] = {}
-        self._drags: dict[str, ViscousSpec] = {}
-        self._labels = 0
-        self.log("native solver: %d threads, skin %g m", self.solver.threads, spec.skin)
-        if spec.dt is not None:
-            self.check_servo_speeds(spec.dt)
+        try:
+            self._law = SOLVER_LAW[given(spec.model.kernel, f"the {spec.model.__name__} model's kernel")]
+            gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
+            self.solver = Solver(
+                np.array(spec.domain.box).T, spec.domain.periodic, gravity, spec.skin, spec.threads, spec.seed
+            )
+            self._mesh_types = {m.name: len(spec.species) + i for i, m in enumerate(spec.meshes)}
+            materials = [s.material for s in spec.species] + [
+                m.material or spec.species[0].material for m in spec.meshes
+            ]
+            self.solver.set_contact_model(self._law, **self._material_arrays(materials))
+            self._walls: dict[str, int] = {}
+            #: Solver wall handle -> the wall's index in the order walls were set up (removed ones
+            #: kept): contact records name the wall by it (see :meth:`_contacts`)
+            self._wall_index: dict[int, int] = {}
+            self._planes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+            self._mesh_walls: dict[str, int] = {}
+            self._motions: dict[str, str] = {}
+            self._drags: dict[str, ViscousSpec] = {}
+            self._labels = 0
+            self.log("native solver: %d threads, skin %g m", self.solver.threads, spec.skin)
+            if spec.dt is not None:
+                self.check_servo_speeds(spec.dt)
+        except BaseException:
+            self._abandon()
+            raise
 
     def _material_arrays(self, materials: list[Any]) -> dict[str, Any]:
         kind = self._law

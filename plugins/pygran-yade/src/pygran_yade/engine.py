@@ -161,18 +161,25 @@ class YadeEngine(PlacingEngine):
         materials = [s.material for s in spec.species] * 2 + [m.material for m in spec.meshes if m.material]
         densities = [s.density for s in spec.species] * 2 + [1.0] * len(self._mesh_material)
         self._radius_of = {s.type: s.radius for s in spec.species}
-        self.worker = Worker(self.output / WORKER_LOG, spec.threads or 1)
-        self.log("YADE %s worker, pid %d", self.worker.version, self.worker.process.pid)
-        self.worker.call(
-            "setup",
-            model="hertz" if spec.model.kernel == "hertz-mindlin" else "linear",
-            materials=[self._yade_material(m, rho) for m, rho in zip(materials, densities)],
-            matches=self._pairs(materials, n),
-            gravity=spec.gravity.vector.tolist() if spec.gravity is not None else [0.0, 0.0, 0.0],
-            box=[[float(v) for v in b] for b in spec.domain.box],
-            periodic=[bool(p) for p in spec.domain.periodic],
-            dt=self.dt or 1.0,
-        )
+        worker = None
+        try:  # a failure here leaves no worker, and the output folder free
+            worker = self.worker = Worker(self.output / WORKER_LOG, spec.threads or 1)
+            self.log("YADE %s worker, pid %d", worker.version, worker.process.pid)
+            worker.call(
+                "setup",
+                model="hertz" if spec.model.kernel == "hertz-mindlin" else "linear",
+                materials=[self._yade_material(m, rho) for m, rho in zip(materials, densities)],
+                matches=self._pairs(materials, n),
+                gravity=spec.gravity.vector.tolist() if spec.gravity is not None else [0.0, 0.0, 0.0],
+                box=[[float(v) for v in b] for b in spec.domain.box],
+                periodic=[bool(p) for p in spec.domain.periodic],
+                dt=self.dt or 1.0,
+            )
+        except BaseException:
+            if worker is not None:
+                worker.close()
+            self._abandon()
+            raise
         self._labels = 0
         self._walls: dict[str, list[int]] = {}  # label -> facet ids
         self._obstacle: dict[
