@@ -13,21 +13,36 @@ thread counts three times and keeps the fastest run of each: on a shared host id
 vary by 15 %.
 
     .venv/bin/python benchmarks/native_solver.py --n 20000 --threads 2 --repeats 3
+
+``--runtimes team openmp`` compares threading runtimes at ``--threads`` threads instead, for
+each ``--n`` (several may be given), on the machine as it is and while a busy loop holds a
+core (``--busy``): every case in a fresh process, the runtimes taking turns (their order
+alternating per round) so that a drifting host slows each alike. Its phases are short:
+``--settle-steps`` from the lattice, and ``--bed-steps`` on a dense bed, the 20,000-particle
+lattice after the 8,000 settling steps (made once and kept in ``--bed``) tiled along x and y
+to N (its contact histories start afresh). Prints each round, then per case the median
+particle-steps/s of each runtime and the ratio of each to the first, then one JSON line.
+
+    .venv/bin/python benchmarks/native_solver.py --runtimes team openmp --n 20000 1000000 --busy
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import resource
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 from pygran_native.solver import Solver
-from scenario import SIZES, STEPS
+from scenario import SIZES, STEPS, busy_loop
 
 RADIUS, SPACING, DT = 1e-3, 2.2e-3, 1e-5
 
@@ -42,13 +57,136 @@ def lattice(n: int, seed: int = 12345) -> tuple[np.ndarray, np.ndarray]:
     return box, x
 
 
-def scenario(box: np.ndarray, x: np.ndarray, threads: int):
+def scenario(box: np.ndarray, x: np.ndarray, threads: int, runtime: str = "team", v=None, w=None):
     """The solver of the scenario: Hertz-Mindlin with history, periodic x and y, a floor."""
-    solver = Solver(box=box, periodic=(True, True, False), gravity=(0, 0, -9.81), skin=4e-4, threads=threads)
+    solver = Solver(
+        box=box,
+        periodic=(True, True, False),
+        gravity=(0, 0, -9.81),
+        skin=4e-4,
+        threads=threads,
+        runtime=runtime,
+    )
     solver.set_contact_model("hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5)
     solver.add_plane((0, 0, 0), (0, 0, 1), 0)
-    solver.add_particles(x, RADIUS, densities=2500)
+    solver.add_particles(x, RADIUS, densities=2500, velocities=v, omegas=w)
     return solver
+
+
+def settled_bed(path: Path) -> dict[str, np.ndarray]:
+    """The 20,000-particle lattice after the settling phase: positions, velocities, angular
+    velocities (made with 2 threads and kept in ``path`` on first use)."""
+    if not path.exists():
+        solver = scenario(*lattice(20000), threads=2)
+        solver.run(STEPS[0], DT)
+        np.savez(path, x=solver.positions, v=solver.velocities, w=solver.omegas)
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+def tiled_bed(n: int, bed: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Box and state of N particles: the settled bed repeated along the periodic x and y."""
+    tile = np.array(SIZES[20000][:2])
+    reps = np.array(SIZES[n][:2]) // tile
+    if SIZES[n][2] != SIZES[20000][2] or not np.array_equal(reps * tile, SIZES[n][:2]):
+        raise SystemExit(f"N = {n} is not a tiling of the 20,000-particle bed")
+    box, _ = lattice(n)
+    shifts = [
+        np.array([i, j, 0]) * SPACING
+        for i in range(0, reps[0] * tile[0], tile[0])
+        for j in range(0, reps[1] * tile[1], tile[1])
+    ]
+    return box, {
+        "x": np.concatenate([bed["x"] + shift for shift in shifts]),
+        "v": np.tile(bed["v"], (len(shifts), 1)),
+        "w": np.tile(bed["w"], (len(shifts), 1)),
+    }
+
+
+def measure_runtime(n: int, threads: int, runtime: str, steps: tuple[int, int], bed_path: Path) -> dict:
+    """Particle-steps/s of ``steps[0]`` settling steps from the lattice and ``steps[1]`` steps
+    of the tiled dense bed (each after a first call that builds the lists), on ``runtime``."""
+    solver = scenario(*lattice(n), threads=threads, runtime=runtime)
+    solver.run(0, DT)
+    settle = advance(solver, steps[0], steps[0])
+    box, state = tiled_bed(n, settled_bed(bed_path))
+    solver = scenario(box, state["x"], threads, runtime, state["v"], state["w"])
+    solver.run(1, DT)
+    bed = advance(solver, steps[1], steps[1])
+    return {
+        "N": n,
+        "runtime": runtime,
+        "settle_pss": n * steps[0] / settle["wall"],
+        "bed_pss": n * steps[1] / bed["wall"],
+        "solo_steps": settle["solo_steps"] + bed["solo_steps"],
+    }
+
+
+def run_case(args: argparse.Namespace, n: int, runtime: str) -> dict:
+    """:func:`measure_runtime` in a fresh process."""
+    command = [
+        sys.executable,
+        __file__,
+        "--one-runtime",
+        runtime,
+        "--n",
+        str(n),
+        "--threads",
+        str(args.threads),
+    ]
+    command += [
+        "--bed",
+        str(args.bed),
+        "--settle-steps",
+        str(args.settle_steps),
+        "--bed-steps",
+        str(args.bed_steps),
+    ]
+    out = subprocess.run(command, capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def compare_runtimes(args: argparse.Namespace) -> None:
+    """Each runtime in turn on each case (N, busy loop or not), ``--repeats`` rounds."""
+    settled_bed(args.bed)  # made before any timing
+    pss: dict[tuple[int, bool, str], dict[str, list[float]]] = {}
+    print(f"threads {args.threads}; load average before: {os.getloadavg()[0]:.2f}", flush=True)
+    for round_, n, busy in itertools.product(
+        range(args.repeats), args.n, (False, True) if args.busy else (False,)
+    ):
+        order = args.runtimes if round_ % 2 == 0 else args.runtimes[::-1]
+        loop = busy_loop() if busy else None
+        try:
+            time.sleep(0.5 if busy else 0)
+            for runtime in order:
+                res = run_case(args, n, runtime)
+                case = pss.setdefault((n, busy, runtime), {"settle": [], "bed": []})
+                case["settle"].append(res["settle_pss"])
+                case["bed"].append(res["bed_pss"])
+                print(
+                    f"  round {round_ + 1}, N={n}, {'busy' if busy else 'quiet'}, {runtime}: settle "
+                    f"{res['settle_pss'] / 1e6:.2f}, bed {res['bed_pss'] / 1e6:.2f} M particle-steps/s "
+                    f"(steps alone: {res['solo_steps']}; load {os.getloadavg()[0]:.2f})",
+                    flush=True,
+                )
+        finally:
+            if loop is not None:
+                loop.kill()
+                loop.wait()
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+    print(f"medians of {args.repeats} round(s), M particle-steps/s, ratio to {args.runtimes[0]}:")
+    table = []
+    for (n, busy, runtime), phases in pss.items():
+        for phase, values in phases.items():
+            median = statistics.median(values)
+            first = statistics.median(pss[n, busy, args.runtimes[0]][phase])
+            row = {"runtime": runtime, "N": n, "scenario": phase, "busy": busy, "pss": median}
+            table.append(row | {"ratio": median / first})
+            print(
+                f"  {runtime:8s} N={n:<8d} {phase:7s} {'busy' if busy else 'quiet':6s} "
+                f"{median / 1e6:7.3f} {median / first:6.3f}"
+            )
+    print(json.dumps(table))
 
 
 def rss_bytes() -> int:
@@ -119,12 +257,30 @@ def breakdown(timings: dict) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=20000, choices=sorted(SIZES))
+    parser.add_argument("--n", type=int, default=[20000], choices=sorted(SIZES), nargs="+")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--chunk", type=int, default=8000, help="most steps per Solver.run call")
     parser.add_argument("--one", action="store_true", help="run one measurement in this process")
     parser.add_argument("--repeats", type=int, default=1, help="alternating runs per thread count; best kept")
+    parser.add_argument(
+        "--runtimes", nargs="+", choices=("team", "openmp"), help="compare threading runtimes"
+    )
+    parser.add_argument("--busy", action="store_true", help="with --runtimes: also under a busy loop")
+    parser.add_argument("--settle-steps", type=int, default=2000, help="with --runtimes")
+    parser.add_argument("--bed-steps", type=int, default=1000, help="with --runtimes")
+    parser.add_argument(
+        "--bed", type=Path, default=Path(tempfile.gettempdir()) / "pygran_settled_bed_20000.npz"
+    )
+    parser.add_argument("--one-runtime", choices=("team", "openmp"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.one_runtime:
+        steps = (args.settle_steps, args.bed_steps)
+        print(json.dumps(measure_runtime(args.n[0], args.threads, args.one_runtime, steps, args.bed)))
+        return
+    if args.runtimes:
+        compare_runtimes(args)
+        return
+    (args.n,) = args.n
     if args.one:
         print(json.dumps(measure(args.n, args.threads, args.chunk)))
         return

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import re
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 #: N: the lattice's particles along x, y and z.
-SIZES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10)}
+SIZES = {5000: (25, 20, 10), 20000: (50, 40, 10), 100000: (100, 100, 10), 1000000: (500, 200, 10)}
 #: Steps of the settling phase and of the dense-bed phase.
 STEPS = (8000, 4000)
 
@@ -40,3 +42,9 @@ def loop_times(log: Path) -> list[tuple[int, float]]:
     """Steps and seconds of each run loop, from LIGGGHTS' screen output (``Loop time``)."""
     found = re.findall(r"^Loop time of (\S+) on \d+ procs for (\d+) steps", log.read_text(), re.M)
     return [(int(steps), float(seconds)) for seconds, steps in found]
+
+
+def busy_loop(cpu: int | None = None) -> subprocess.Popen:
+    """A process that keeps one core busy (on ``cpu`` when given) until killed."""
+    pin = f"import os; os.sched_setaffinity(0, {{{cpu}}})\n" if cpu is not None else ""
+    return subprocess.Popen([sys.executable, "-c", pin + "while True: pass\n"])

@@ -20,21 +20,13 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
-import sys
 import time
 
 from pygran_native.solver import default_threads
-from scenario import SIZES
+from scenario import SIZES, busy_loop
 from settle import run
 
 PHASES = ("settle_pss", "bed_pss")
-
-
-def busy_loop(cpu: int | None) -> subprocess.Popen:
-    """A process that keeps one core busy (on ``cpu`` when given) until killed."""
-    pin = f"import os; os.sched_setaffinity(0, {{{cpu}}})\n" if cpu is not None else ""
-    return subprocess.Popen([sys.executable, "-c", pin + "while True: pass\n"])
 
 
 def measure(n: int, reps: int, pin: bool) -> dict[tuple[bool, str], dict[str, list[float]]]:
