@@ -20,9 +20,9 @@ hopper = analysis.System(
 )
 print(f"{len(hopper)} frames")
 
-for step in hopper:  # loads each frame, yields its timestep
+for frame in hopper.frames():  # loads each frame from the first, yields its index
     P = hopper.Particles
-    print(f"frame {hopper.frame}: step {step}, {len(P)} particles, {hopper.Mesh.nCells()} wall cells")
+    print(f"frame {frame}: step {hopper.timestep}, {len(P)} particles, {hopper.Mesh.nCells()} wall cells")
 
 hopper.goto(-1)  # random access; negative counts from the end
 P = hopper.Particles
