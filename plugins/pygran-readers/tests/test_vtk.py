@@ -310,6 +310,7 @@ class TestPVDSeries(TestWriterMeshes):
 
     reader = writer = "pvd"
     suffix = ".pvd"
+    physical_checks = True
 
     def make_sample(self, tmp_path):
         return FormatConformance.make_sample(self, tmp_path)

@@ -9,7 +9,9 @@ indexed at every frame, and a wall's file is rewritten only when it moves or cha
 
 Each entry also carries ``cycle``, the frame's step number; ParaView, pyvista and OVITO ignore
 attributes they do not know. :class:`PVDTrajectory` reads an index back as a trajectory: the
-time and step of each frame from the index, its data from the file it names.
+time and step of each frame from the index, its data from the file it names; steps that do
+not increase, and particle frames with repeated ids or a radius, mass or density that is not
+positive, are a ``ReadError`` naming the index.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.formats.sanity import particle_problem, step_problem
 from pygran_core.io import Frame, PathLike, Trajectory, TrajectoryWriter
 
 #: What opens an index.
@@ -195,6 +198,10 @@ class PVDTrajectory(Trajectory):
                     raise ReadError(f"{where}: timestep or cycle is not a number") from None
                 if not math.isfinite(time):
                     raise ReadError(f"{where}: a DataSet has no finite timestep")
+                previous = self.entries[-1][2] if self.entries else None
+                problem = None if cycle is None else step_problem(previous, cycle)
+                if problem:
+                    raise ReadError(f"{where}: {problem}")
                 self.entries.append((index.parent / entry["file"], time, cycle, index))
         self._cached: tuple[Path, Any] | None = None
 
@@ -212,9 +219,10 @@ class PVDTrajectory(Trajectory):
             except ReadError as exc:
                 raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
         frame = self._vtk.mesh_frame(self._cached[1], self.kind)
-        frame.arrays = {
-            name: values.copy() for name, values in frame.arrays.items()
-        }  # the cache stays intact
+        problem = particle_problem(frame.arrays) if frame.attrs.get("kind") == "particles" else None
+        if problem:
+            raise ReadError(f"{source}: frame {index} ({path.name}): {problem}")
+        frame.arrays = {name: values.copy() for name, values in frame.arrays.items()}  # the cache stays
         frame.time = time
         if cycle is not None:
             frame.timestep = cycle
