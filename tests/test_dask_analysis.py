@@ -144,10 +144,14 @@ def test_map_on_two_workers_equals_the_serial_path(trajectory: Path, client: Any
             assert r["fb"] != 0
 
 
-def test_a_selection_of_frames_in_the_order_asked(trajectory: Path, client: Any) -> None:
+def test_a_selection_of_frames_in_the_order_asked(
+    trajectory: Path, client: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
     frames = [-1, 3, 0, 3]
     with analysis.System(Particles=str(trajectory)) as system:
-        results = system.map(summary, frames=frames, client=client)
+        results = system.map(summary, frames=frames, client=client, progress=True)
+        progress = capsys.readouterr().err.replace("\r", "\n").splitlines()[-1]
+        assert progress.startswith("System.map: 100%") and "4/4" in progress
         address = client.scheduler.address  # as a real cluster is reached
         tail = system.map(lambda s: len(s.Particles), frames=slice(2, None), client=address)
     assert [r["frame"] for r in results] == [5, 3, 0, 3]

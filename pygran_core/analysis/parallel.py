@@ -10,6 +10,7 @@ reads at most :data:`FRAMES_PER_WORKER` frames at a time, however many threads i
 
 from __future__ import annotations
 
+import sys
 import threading
 import types
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -104,26 +105,43 @@ def map_frames(
     frames: Frames,
     client: Any,
     workers: int | None,
+    progress: bool | None,
 ) -> list[Any]:
     """:meth:`System.map <pygran_core.analysis.system.System.map>`; ``source`` is None on the serial path."""
     if not callable(func):
         raise ConfigError(f"System.map needs a function of the System, not {func!r}")
     cluster.check(client, workers, "System.map")
     chosen = frame_indices(frames, len(system))
-    if source is None:
-        here = system.frame
-        try:
-            return [func(system) for _ in _visit(system, chosen)]
-        finally:
-            system.goto(here)
-    with cluster.connect(client, workers, "System.map") as dask_client:
-        parts = _split(chosen, TASKS_PER_THREAD * cluster.total_threads(dask_client))
-        futures = [dask_client.submit(run_frames, source, part, func, pure=False) for part in parts]
-        try:
-            done = dask_client.gather(futures)
-        finally:
-            dask_client.cancel(futures)
+    with _bar(len(chosen), progress) as bar:
+        if source is None:
+            here, results = system.frame, []
+            try:
+                for _ in _visit(system, chosen):
+                    results.append(func(system))
+                    bar.update(1)
+            finally:
+                system.goto(here)
+            return results
+        with cluster.connect(client, workers, "System.map") as dask_client:
+            dd = cluster.distributed("System.map")
+            parts = _split(chosen, TASKS_PER_THREAD * cluster.total_threads(dask_client))
+            futures = [dask_client.submit(run_frames, source, part, func, pure=False) for part in parts]
+            sizes = {future.key: len(part) for future, part in zip(futures, parts, strict=True)}
+            try:
+                for future in dd.as_completed(futures):
+                    bar.update(sizes[future.key])
+                done = dask_client.gather(futures)
+            finally:
+                dask_client.cancel(futures)
     return [result for part in done for result in part]
+
+
+def _bar(total: int, progress: bool | None) -> Any:
+    """The progress bar of a map: frames done, on a terminal unless ``progress`` says."""
+    from tqdm import tqdm
+
+    show = progress if progress is not None else sys.stderr.isatty()
+    return tqdm(total=total, unit="frame", desc="System.map", disable=not show)
 
 
 def _visit(system: Any, frames: list[int]) -> Iterator[int]:

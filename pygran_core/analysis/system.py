@@ -335,6 +335,7 @@ class System:
         frames: parallel.Frames = None,
         client: Any = None,
         workers: int | None = None,
+        progress: bool | None = None,
     ) -> list[Any]:
         """``[func(system) for each frame]`` in parallel on a Dask cluster, in frame order.
 
@@ -344,13 +345,14 @@ class System:
         ``LocalCluster`` of ``workers`` processes of one thread each (default: one per core),
         or ``"serial"`` to run here, frame after frame. Workers open the trajectories by their
         file names and read only their frames (at most two at a time each); see
-        :mod:`pygran_core.analysis.parallel`.
+        :mod:`pygran_core.analysis.parallel`. A progress bar counts the frames done, on a
+        terminal unless ``progress=False``.
         """
         if cluster.is_serial(client):
-            return parallel.map_frames(self, None, func, frames, client, workers)
+            return parallel.map_frames(self, None, func, frames, client, workers, progress)
         classes = {name: source.cls for name, source in self._sources.items()}
         source = parallel.recipe(type(self), classes, self._given, self._options, self._units)
-        return parallel.map_frames(self, source, func, frames, client, workers)
+        return parallel.map_frames(self, source, func, frames, client, workers, progress)
 
     def close(self) -> None:
         """Close the trajectories' files."""
