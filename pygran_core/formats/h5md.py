@@ -35,6 +35,10 @@ flushed after every frame, so a killed writer leaves every completed frame reada
 ``particle_number`` and ``contact_number`` are written last and set the frame counts. Next to
 the file, the XDMF sidecar (:mod:`~pygran_core.formats.xdmf`) shows the particles in ParaView.
 
+Reading gives SI values: an element whose ``unit`` is another (nm, ps, Angstrom,
+kJ mol-1 nm-1, as molecular codes write them) is converted (:mod:`~pygran_core.formats.h5md_units`),
+one whose unit is unknown or of the wrong dimension refused.
+
 Reading checks what a file from elsewhere may get wrong: it must be self-contained
 (:func:`~pygran_core.formats.hdf5.open_hdf5`), its elements must agree in frames and rows,
 vectors must have 3 components, ids and species must be integers, no element may be a sparse
@@ -54,6 +58,7 @@ import numpy as np
 from pygran_core.errors import PyGranError, ReadError, UnsupportedFeature
 from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
+from pygran_core.formats.h5md_units import to_si
 from pygran_core.formats.hdf5 import HDF5_SIGNATURE, Claim, WriteError, no_space, open_hdf5, stored_elements
 from pygran_core.formats.sanity import particle_problem, step_problem
 from pygran_core.formats.xdmf import VECTORS, XdmfSidecar, frame_groups
@@ -551,8 +556,24 @@ class _H5MDFile(Trajectory):
             raise self._fail(f"{found.name} has shape {found.shape} and type {found.dtype}")
         return found
 
+    def _si(self, name: str, dataset: Any) -> float:
+        """The factor that turns the values of ``dataset`` (of element ``name``) into SI, from
+        its ``unit`` attribute (none: SI); a unit that is unknown or wrong is a ReadError."""
+        unit = dataset.attrs.get("unit")
+        if unit is None or dataset.dtype.kind in "biu":
+            return 1.0
+        try:
+            return to_si(name, _text(unit))
+        except ValueError as exc:
+            raise self._fail(f"{dataset.name}: {exc}") from None
+
+    def _time_at(self, index: int) -> float | None:
+        time = float(self._time[index]) * self._time_factor
+        return None if np.isnan(time) else time
+
     def _check_clock(self) -> None:
         """Refuse steps that do not increase, or times that decrease, over the frames."""
+        self._time_factor = self._si("time", self._time)
         steps = self._step[: self._n]
         if self._step.dtype.kind not in "iu":
             raise self._fail(f"{self._step.name} holds {self._step.dtype}: steps must be integers")
@@ -594,7 +615,7 @@ class H5MDContacts(_H5MDFile):
         if not isinstance(top, h5py.Group) or not len(top):
             raise self._fail("no /contacts group: the file holds no contact records")
         root = self._root("contacts", group)
-        self._values: list[tuple[tuple[str, ...], Any]] = []
+        self._values: list[tuple[tuple[str, ...], Any, float]] = []  # columns, dataset, factor to SI
         for name in ("id1", "id2", *_contacts.VECTORS):
             element = root.get(name)
             if not isinstance(element, h5py.Group):
@@ -603,14 +624,14 @@ class H5MDContacts(_H5MDFile):
             value = self._dataset(element, "value", ndim, ndim)
             if ndim == 3 and value.shape[2] != 3:
                 raise self._fail(f"{value.name} has shape {value.shape}, not (frames, contacts, 3)")
-            self._values.append((_contacts.VECTORS.get(name, (name,)), value))
+            self._values.append((_contacts.VECTORS.get(name, (name,)), value, self._si(name, value)))
         clock = root["id1"]
         self._step, self._time = self._dataset(clock, "step", 1, 1), self._dataset(clock, "time", 1, 1)
         number = self._file.get(f"observables/{self.group}/contact_number")
         if not isinstance(number, h5py.Group):
             raise self._fail(f"/observables/{self.group}/contact_number is missing: the contacts per frame")
         self._number = self._dataset(number, "value", 1, 1)
-        lengths = [len(v) for _, v in self._values] + [len(self._step), len(self._time), len(self._number)]
+        lengths = [len(v) for _, v, _ in self._values] + [len(self._step), len(self._time), len(self._number)]
         self._n = min(lengths)
         self._check_clock()
         self._boundary = self._boundary_of(self._file.get(f"particles/{self.group}/box"))
@@ -618,23 +639,22 @@ class H5MDContacts(_H5MDFile):
     def _frame(self, index: int) -> Frame:
         count = int(self._number[index])
         arrays: dict[str, np.ndarray] = {}
-        for columns, value in self._values:
+        for columns, value, factor in self._values:
             if not 0 <= count <= value.shape[1]:
                 raise self._fail(f"frame {index}: {count} contacts, but {value.name} holds {value.shape[1]}")
             data = value[index, :count]
             kind = np.int64 if columns[0] in _contacts.INT_COLUMNS else np.float64
             if data.dtype.kind not in "biuf":
                 raise self._fail(f"frame {index}: {value.name} has type {data.dtype}")
-            data = data.astype(kind)
+            data = data.astype(kind) * factor if factor != 1 else data.astype(kind)
             if data.ndim == 2:
                 arrays.update({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(columns)})
             else:
                 arrays[columns[0]] = data
-        time = float(self._time[index])
         return Frame(
             {c: arrays[c] for c in _contacts.COLUMNS},
             timestep=int(self._step[index]),
-            time=None if np.isnan(time) else time,
+            time=self._time_at(index),
             boundary=self._boundary,
             attrs={"kind": _contacts.KIND},
         )
@@ -662,6 +682,7 @@ class H5MDTrajectory(_H5MDFile):
         self._order: Any = None
         self._rows: int | None = None  # particles per frame, and the element that says so
         self._rows_from = ""
+        self._factors: dict[str, float] = {}  # to SI, by element
         clock = None
         for name, obj in root.items():
             if name == "box":
@@ -675,6 +696,7 @@ class H5MDTrajectory(_H5MDFile):
                 self._order = dataset
             else:
                 self._elements.append((name, dataset, timed))
+                self._factors[name] = self._si(name, dataset)
         if clock is None:
             raise self._fail(f"particle group {self.group!r} has no time-dependent element")
         self._step, self._time = self._dataset(clock, "step", 1, 1), self._dataset(clock, "time", 1, 1)
@@ -690,6 +712,7 @@ class H5MDTrajectory(_H5MDFile):
             for part, dims in (("edges", (2, 3)), ("pygran_bounds", (3, 3)), ("pygran_tilt", (2, 2))):
                 if isinstance(box.get(part), h5py.Group):
                     self._box_parts[part] = self._dataset(box[part], "value", *dims)
+                    self._factors[part] = self._si(part, self._box_parts[part])
                     lengths.append(len(self._box_parts[part]))
         self._n = min(lengths)
         self._check_clock()
@@ -716,6 +739,10 @@ class H5MDTrajectory(_H5MDFile):
                 f"{dataset.name} declares {shape[0]} particles but stores data for fewer than one frame "
                 f"of them ({stored_elements(dataset)} of {declared} values): a sparse shell"
             )
+
+    def _box(self, part: str, index: int) -> np.ndarray:
+        values = np.asarray(self._box_parts[part][index], dtype=np.float64)
+        return values * self._factors[part] if self._factors[part] != 1 else values
 
     def contacts(self) -> Trajectory | None:
         """The contact records of this particle group stored in the same file, if any."""
@@ -752,6 +779,8 @@ class H5MDTrajectory(_H5MDFile):
         for name, dataset, timed in self._elements:
             data = (dataset[index, span] if timed else dataset[span])[rows - span.start]
             data = data.astype(np.int64 if data.dtype.kind in "biu" else np.float64)
+            if self._factors[name] != 1:
+                data = data * self._factors[name]
             if order is not None:
                 placed = np.empty_like(data)
                 placed[order] = data
@@ -769,20 +798,19 @@ class H5MDTrajectory(_H5MDFile):
             raise self._fail(f"frame {index}: {problem}")
         box, attrs = None, {}
         if "pygran_bounds" in self._box_parts:
-            box = np.asarray(self._box_parts["pygran_bounds"][index], dtype=np.float64).reshape(3, 2)
+            box = self._box("pygran_bounds", index).reshape(3, 2)
         elif "edges" in self._box_parts:
-            edges = np.asarray(self._box_parts["edges"][index], dtype=np.float64)
+            edges = self._box("edges", index)
             lengths = np.diag(edges.reshape(3, 3)) if edges.size == 9 else edges.reshape(3)
             box = np.column_stack([np.zeros(3), lengths])
         if box is not None and np.isnan(box).all():
             box = None
         if "pygran_tilt" in self._box_parts:
-            attrs["tilt"] = np.asarray(self._box_parts["pygran_tilt"][index], dtype=np.float64).reshape(3)
-        time = float(self._time[index])
+            attrs["tilt"] = self._box("pygran_tilt", index).reshape(3)
         return Frame(
             arrays,
             timestep=int(self._step[index]),
-            time=None if np.isnan(time) else time,
+            time=self._time_at(index),
             box=box,
             boundary=self._boundary,
             attrs=attrs,

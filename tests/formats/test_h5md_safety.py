@@ -135,6 +135,13 @@ def _poke(name: str, index, value) -> Callable[[h5py.File], None]:
     return change
 
 
+def _unit(name: str, unit: str) -> Callable[[h5py.File], None]:
+    def change(f: h5py.File) -> None:
+        f[name].attrs["unit"] = unit
+
+    return change
+
+
 P = "particles/trajectory"
 #: Files that lie, as an outside audit found them accepted: what is changed, and the refusal.
 LIES: dict[str, tuple[Callable[[h5py.File], None], str]] = {
@@ -178,6 +185,8 @@ LIES: dict[str, tuple[Callable[[h5py.File], None], str]] = {
         _poke("observables/trajectory/particle_number/value", 1, 3),
         "3 particles counted, but 4 rows have an id",
     ),
+    "positions in kilograms": (_unit(f"{P}/position/value", "kg"), r"unit 'kg' of position has dimension"),
+    "an unknown unit": (_unit(f"{P}/velocity/value", "furlong fortnight-1"), "unknown unit symbol 'furlong'"),
     "an order that is no permutation": (
         _poke(f"{P}/pygran_order/value", (0, 1), 0),
         "is not an order of its 4 particles",

@@ -140,6 +140,42 @@ def test_mdanalysis_loads_it_with_the_call_of_the_guide(run, frames, monkeypatch
         np.testing.assert_allclose(ts.dimensions[:3], 0.02 * 1e10, rtol=1e-7)
 
 
+def test_an_h5md_file_mdanalysis_wrote_reads_in_si(tmp_path):
+    """MDAnalysis writes angstrom, ps, angstrom/ps and kJ/(mol angstrom): PyGran reads metres,
+    seconds, m/s and newtons."""
+    require_reader("MDAnalysis")
+    import MDAnalysis as mda
+    from MDAnalysis.coordinates.memory import MemoryReader
+
+    rng = np.random.default_rng(2)
+    positions, velocities, forces = (rng.random((3, 4, 3)) * 10 for _ in range(3))
+    universe = mda.Universe.empty(4, trajectory=False)
+    box = np.array([[20.0, 20.0, 20.0, 90.0, 90.0, 90.0]] * 3)
+    universe.load_new(
+        positions, format=MemoryReader, velocities=velocities, forces=forces, dimensions=box, dt=2.0
+    )
+    universe.trajectory.units = {
+        "time": "ps",
+        "length": "Angstrom",
+        "velocity": "Angstrom/ps",
+        "force": "kJ/(mol*Angstrom)",
+    }
+    with mda.Writer(str(tmp_path / "mda.h5md"), n_atoms=4, velocities=True, forces=True) as writer:
+        for _ in universe.trajectory:
+            writer.write(universe)
+    per_mole = 1e3 / 6.02214076e23 / 1e-10  # kJ/(mol angstrom) in N
+    with open_trajectory(tmp_path / "mda.h5md") as trajectory:
+        assert len(trajectory) == 3
+        for k, frame in enumerate(trajectory):
+            assert frame.timestep == k and frame.time == pytest.approx(2e-12 * k, rel=1e-15)
+            np.testing.assert_array_equal(frame.box, [[0.0, 2e-9]] * 3)
+            for columns, values, factor in (("x y z", positions, 1e-10), ("vx vy vz", velocities, 100.0)):
+                got = np.column_stack([frame.arrays[c] for c in columns.split()])
+                np.testing.assert_allclose(got, values[k] * factor, rtol=1e-7)  # float32 in the file
+            got = np.column_stack([frame.arrays[c] for c in ("fx", "fy", "fz")])
+            np.testing.assert_allclose(got, forces[k] * per_mole, rtol=1e-7)
+
+
 def _check_sidecar_frame(frame: Frame, time: float, points, point_data) -> None:
     """One frame of the sidecar, as a reader gave it, against PyGran's read of the H5MD file."""
     assert time == frame.time
