@@ -13,7 +13,9 @@ column as scalars. ``position`` is point data too, for readers (meshio's time se
 the points of the first frame only.
 
 The XML is appended to frame by frame, so ParaView opens a running simulation's sidecar; the
-data file is closed after each frame, so a killed writer leaves every earlier frame readable.
+data file is closed after each frame, so a killed writer leaves every earlier frame readable,
+and opened without HDF5's own file lock (the writer holds a :class:`~pygran_core.formats.hdf5.Claim`),
+so a viewer that keeps it open does not stop the writer.
 """
 
 from __future__ import annotations
@@ -75,7 +77,7 @@ class XdmfSidecar:
         for claim in self._claims:
             claim.truncate()
         try:
-            h5py.File(self.data, "w").close()
+            h5py.File(self.data, "w", locking=False).close()
         except (OSError, RuntimeError) as exc:
             raise WriteError(f"{self.data}: cannot be created: {exc}") from None
         self._write_xml(_HEAD + _TAIL, at_end=False)
@@ -91,7 +93,7 @@ class XdmfSidecar:
         self._claims[1].reserve(sum(a.nbytes for _, a in groups) + 8 * n)
         items: list[tuple[str, np.ndarray, str]] = []
         try:
-            with h5py.File(self.data, "a") as f:
+            with h5py.File(self.data, "a", locking=False) as f:
                 frame = f.require_group(f"frames/{index}")
                 packed = {"compression": "gzip", "compression_opts": self.compression, "shuffle": True}
                 for j, (name, values) in enumerate(groups):

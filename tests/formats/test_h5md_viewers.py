@@ -321,3 +321,28 @@ class TestXdmfSidecar(FormatConformance):
                         f[f"frames/{k}/{j - 2 * (column == 'radius')}"][...] = bad.arrays[column]
         path.write_text(text)
         return path
+
+
+VIEWER = "import h5py, sys, time; f = h5py.File(sys.argv[1], 'r'); print('open', flush=True); time.sleep(60)"
+
+
+def test_a_viewer_holding_the_sidecar_open_does_not_stop_the_writer(tmp_path):
+    """ParaView keeps the sidecar's data open while the simulation runs: HDF5's own file lock
+    would refuse the writer's next frame; the writer holds its own lock instead."""
+    frames = particle_frames()
+    out = open_writer(tmp_path / "live.h5md")
+    out.write_frame(frames[0])
+    viewer = subprocess.Popen(
+        [sys.executable, "-c", VIEWER, str(tmp_path / "live.xdmf.h5")], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert viewer.stdout.readline().strip() == "open"
+        for frame in frames[1:]:
+            out.write_frame(frame)
+        out.close()
+    finally:
+        viewer.kill()
+        viewer.wait()
+        viewer.stdout.close()
+    with open_trajectory(tmp_path / "live.xdmf") as sidecar:
+        assert [len(f.arrays["id"]) for f in sidecar] == [len(f.arrays["id"]) for f in frames]
