@@ -128,7 +128,7 @@ COMMAND_CHARACTERS = frozenset("#$'\"&")
 
 
 def control_characters(text: str) -> list[str]:
-    """The control characters (line breaks, tabs, NUL, ...) in ``text``, as ``repr``s."""
+    """The control characters (line breaks, tabs, NUL, ...) in ``text``, each as its ``repr``."""
     return sorted({repr(c) for c in text if ord(c) < 32 or 127 <= ord(c) < 160})
 
 
