@@ -114,10 +114,11 @@ class Region:
             return np.linalg.norm(points - np.array(self.args[:3]), axis=1) <= self.args[3] - margin
         if self.kind == "mesh":
             return self.args[0].contains(points, margin)
-        if self.kind == "intersect":
+        if self.kind == "intersect":  # the meshes last, on the points the primitives keep
             inside = np.ones(len(points), bool)
-            for part in self.args:
-                inside &= part.contains(points, margin)
+            margins = np.broadcast_to(margin, (len(points),))
+            for part in sorted(self.args, key=lambda part: part.kind == "mesh"):
+                inside[inside] = part.contains(points[inside], margins[inside])
             return inside
         axis, c1, c2, *radii, lo, hi = self.args
         along = "xyz".index(axis)

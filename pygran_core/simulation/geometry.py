@@ -157,10 +157,13 @@ class Surface:
         near = np.all(
             (points >= box[:, 0] + margin[:, None]) & (points <= box[:, 1] - margin[:, None]), axis=1
         )
+        if self.inscribed is not None:  # a ball inside the inscribed primitive is inside the mesh
+            inside = near & _inside_primitive(self.inscribed, points, margin)
+            near &= ~inside
         chosen = np.flatnonzero(near)
         if len(chosen):
             inside[chosen] = winding_number(points[chosen], self.triangles) > 0.5
-        chosen = np.flatnonzero(inside & (margin > 0))
+        chosen = np.flatnonzero(inside & near & (margin > 0))
         if len(chosen):
             inside[chosen] = triangle_distance(points[chosen], self.triangles) >= margin[chosen]
         return inside
@@ -188,6 +191,21 @@ class Surface:
         body = "".join(facet % tuple(row) for row in rows)
         target.write_text(f"solid {self.name}\n{body}endsolid {self.name}\n")
         return target
+
+
+def _inside_primitive(region: tuple[object, ...], points: np.ndarray, margin: np.ndarray) -> np.ndarray:
+    """Which ``points`` lie ``margin`` inside a builder's inscribed block or cylinder."""
+    if region[0] == "block":
+        box = np.array(region[1:], float).reshape(3, 2)
+        return np.all(
+            (points >= box[:, 0] + margin[:, None]) & (points <= box[:, 1] - margin[:, None]), axis=1
+        )
+    axis = str(region[1])
+    c1, c2, radius, lo, hi = (float(v) for v in region[2:])  # type: ignore[arg-type]
+    across = [i for i in range(3) if AXES[i] != axis]
+    along = points[:, AXES.index(axis)]
+    r = np.hypot(points[:, across[0]] - c1, points[:, across[1]] - c2)
+    return (r <= radius - margin) & (along >= lo + margin) & (along <= hi - margin)
 
 
 def _shift_region(region: tuple[object, ...], shift: np.ndarray) -> tuple[object, ...]:
