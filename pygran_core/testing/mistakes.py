@@ -165,6 +165,12 @@ SETUP = [
     ("traj sel 0", _traj(sel=0), ConfigError, "traj sel"),
     ("unknown traj column", _traj(pfile="t.dump", args=("id", "x", "radiuss")), ConfigError, "'radiuss'"),
     ("traj args one string", _traj(pfile="t.dump", args="id type x y z velocity"), ConfigError, "traj args"),
+    (
+        "traj column smuggling a command",
+        _traj(pfile="t.dump", args=("id", "x\nshell touch X")),
+        ConfigError,
+        "traj args: 'x\\nshell touch X' holds '\\n'",
+    ),
     ("restart keyword misspelt", _set(restart={"frq": 100}), ConfigError, "'frq'"),
     ("mesh not a dict", lambda p: {**p, "mesh": [str(square_stl(p))]}, ConfigError, "mesh"),
     (
