@@ -202,7 +202,9 @@ class H5MDWriter(TrajectoryWriter):
 
         self._claim = Claim(self.path)
         self._claim.truncate()
-        self._file = f = h5py.File(self.path, "w", libver="latest", track_order=True)
+        # without HDF5's own file lock, which a reader in another process would hold against
+        # this writer; the claim excludes other writers
+        self._file = f = h5py.File(self.path, "w", libver="latest", track_order=True, locking=False)
         h5md = f.create_group("h5md")
         h5md.attrs["version"] = np.array([1, 1], dtype=np.int32)
         h5md.create_group("author").attrs["name"] = "PyGran"

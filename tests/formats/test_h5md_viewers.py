@@ -346,3 +346,21 @@ def test_a_viewer_holding_the_sidecar_open_does_not_stop_the_writer(tmp_path):
         viewer.stdout.close()
     with open_trajectory(tmp_path / "live.xdmf") as sidecar:
         assert [len(f.arrays["id"]) for f in sidecar] == [len(f.arrays["id"]) for f in frames]
+
+
+def test_a_reader_holding_an_old_trajectory_open_does_not_stop_a_new_run(tmp_path):
+    path = tmp_path / "traj.h5md"
+    frames = particle_frames()
+    with open_writer(path) as out:
+        out.write_frame(frames[0])
+    reader = subprocess.Popen([sys.executable, "-c", VIEWER, str(path)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert reader.stdout.readline().strip() == "open"
+        with open_writer(path) as out:  # the next run writes the file again
+            for frame in frames[2:]:
+                out.write_frame(frame)
+    finally:
+        reader.kill()
+        reader.wait()
+        reader.stdout.close()
+    assert [f.timestep for f in open_trajectory(path)] == [f.timestep for f in frames[2:]]
