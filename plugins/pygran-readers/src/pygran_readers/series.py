@@ -83,7 +83,7 @@ class SeriesWriter(TrajectoryWriter):
         self.path = Path(path)
         self.index = Path(index) if index is not None else index_path(self.path)
         self.count = 0
-        self._entries: list[str] = []
+        self._indexed = False  # whether the index holds this writer's (or the resumed) entries
         self._last: bytes | None = None  # the content digest of the last file written
         self._last_file = ""
 
@@ -102,15 +102,18 @@ class SeriesWriter(TrajectoryWriter):
         """Keep the entries of the index an earlier run wrote for the frames up to ``step``."""
         if not self.index.is_file():
             return
+        kept = []
         for entry in read_index(self.index):
-            if "cycle" not in entry or int(entry["cycle"]) > step:
+            try:
+                cycle, time = int(entry.get("cycle", "")), float(entry.get("timestep", ""))
+            except ValueError:
+                break  # not PyGran's entry, or one it cannot place: the frames from here are written anew
+            if cycle > step:
                 break
-            time, name = float(entry["timestep"]), entry["file"]
-            self._entries.append(
-                f'<DataSet timestep="{time!r}" cycle="{entry["cycle"]}" part="0" file={quoteattr(name)}/>\n'
-            )
-        self.count = len(self._entries)
-        write_atomically(self.index, (PVD_HEAD + "".join(self._entries) + PVD_TAIL).encode("utf-8"))
+            kept.append(_entry(time, cycle, entry.get("file", "")))
+        self.count = len(kept)
+        write_atomically(self.index, (PVD_HEAD + "".join(kept) + PVD_TAIL).encode("utf-8"))
+        self._indexed = True
 
     def write_frame(self, frame: Frame) -> None:
         step = int(frame.timestep) if frame.timestep is not None else self.count
@@ -123,11 +126,20 @@ class SeriesWriter(TrajectoryWriter):
             write_atomically(target, self.encode(frame))
             self._last = content
             self._last_file = Path(os.path.relpath(target, self.index.parent)).as_posix()
-        self._entries.append(
-            f'<DataSet timestep="{time!r}" cycle="{step}" part="0" file={quoteattr(self._last_file)}/>\n'
-        )
-        write_atomically(self.index, (PVD_HEAD + "".join(self._entries) + PVD_TAIL).encode("utf-8"))
+        entry = _entry(time, step, self._last_file)
+        if self._indexed:  # the new entry replaces the closing tags, which follow it again
+            with open(self.index, "r+b") as handle:
+                handle.seek(-len(PVD_TAIL), os.SEEK_END)
+                handle.write((entry + PVD_TAIL).encode("utf-8"))
+        else:
+            write_atomically(self.index, (PVD_HEAD + entry + PVD_TAIL).encode("utf-8"))
+            self._indexed = True
         self.count += 1
+
+
+def _entry(time: float, step: int, file: str) -> str:
+    """An index entry: ``timestep`` is the time (as ParaView names it), ``cycle`` the step."""
+    return f'<DataSet timestep="{time!r}" cycle="{step}" part="0" file={quoteattr(file)}/>\n'
 
 
 def can_open(path: Path) -> bool:
