@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 import pytest
+from pygran_native._solver import TEAM_HEURISTICS
 from pygran_native.solver import Solver
 
 from pygran_core.errors import ConfigError
@@ -101,6 +102,10 @@ def test_the_loops_cpu_times_and_their_span():
     assert t["pairs"] > 0 and t["particles"] > 0
 
 
+HEURISTICS = pytest.mark.skipif(not TEAM_HEURISTICS, reason="built with PYGRAN_NATIVE_TEAM_HEURISTICS=0")
+
+
+@HEURISTICS
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="no CPU affinity on this system")
 def test_a_team_that_shares_one_cpu_runs_alone():
     # three threads on one CPU could only take turns: the master runs most steps alone
@@ -113,6 +118,7 @@ def test_a_team_that_shares_one_cpu_runs_alone():
     assert run_bed(SOLO_STEPS, "2000", 1, "all").split() == ["0", "0"]
 
 
+@HEURISTICS
 @pytest.mark.skipif(
     not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2, reason="needs 2 CPUs"
 )

@@ -5,7 +5,6 @@ DEF NCOLUMNS = 24  # per-particle arrays, see particle_columns
 DEF NBCOLUMNS = 12  # per-body arrays of clumps, see body_columns
 DEF NMCOLUMNS = 4   # per-member arrays of clumps, see member_columns
 DEF NECOLUMNS = 9  # per-element arrays, see element_columns
-DEF MAXTHREADS = 1024   # a team's block numbers must stay below 65536 (team.h)
 DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
 DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
 DEF WRAP = 0x40    # flag bit of nb_s: the partner is across the periodic boundary of axis ax[0]
@@ -22,7 +21,6 @@ DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and
 DEF BLOCKS = 4     # blocks of the pair loop per thread (more threads than one): a thread
                    # kept from its core holds up at most 1 / (BLOCKS threads) of a pass
 DEF SPLIT = 4      # blocks of the particle loop per pair-loop block: its threads end closer
-DEF SPIN = 1e-4    # seconds a waiting thread spins before it sleeps (when not contended)
 DEF TUNE_WINDOW = 0.02   # seconds: shortest window the Tuner times
 DEF TUNE_MIN = 0.1       # seconds between the Tuner's comparisons, at first and after a change
 DEF TUNE_MAX = 2.0       # ... at most

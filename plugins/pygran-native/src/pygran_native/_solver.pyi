@@ -6,6 +6,7 @@ from typing import Any
 import numpy as np
 
 MAX_THREADS: int
+TEAM_HEURISTICS: bool
 MOTION_VALUES: int
 SLOT_VALUES: int
 VIBRATION_VALUES: int

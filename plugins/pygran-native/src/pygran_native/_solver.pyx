@@ -115,24 +115,25 @@ cdef extern from "kick_drift.h":
                          double* v, double* w, const double* x0, double* halo) noexcept nogil
 
 cdef extern from "team.h":
+    enum: PG_TEAM_HEURISTICS
+    enum: PG_MAX_THREADS
     ctypedef struct pg_team:
         pass
-    ctypedef void (*pg_task)(void* owner, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil
-    pg_team* pg_create(int nqueues, double spin) noexcept nogil
-    int pg_start(pg_team* t, pg_task task, void* owner) noexcept nogil
-    void pg_destroy(pg_team* t) noexcept nogil
-    double pg_now() noexcept nogil
-    unsigned int pg_epoch(pg_team* t) noexcept nogil
     ctypedef struct pg_flag:
         pass
-    void pg_begin(pg_team* t, int phase, int nfirst, int nsecond) noexcept nogil
-    void pg_post(pg_flag* f, unsigned int epoch) noexcept nogil
-    void pg_await(pg_flag* f, unsigned int epoch, double spin) noexcept nogil
-    int pg_posted(pg_flag* f, unsigned int epoch) noexcept nogil
-    pg_flag* pg_flags(int n) noexcept nogil
+    ctypedef void (*pg_task)(void* owner, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil
+    pg_team* pg_create(int nthreads) noexcept nogil
+    int pg_start(pg_team* t, pg_task task, void* owner) noexcept nogil
+    void pg_destroy(pg_team* t) noexcept nogil
+    unsigned int pg_begin(pg_team* t, int phase, int nfirst, int nsecond) noexcept nogil
     int pg_claim(pg_team* t, unsigned int epoch, int tid) noexcept nogil
-    void pg_finished(pg_team* t, int k, int nblocks) noexcept nogil
-    void pg_wait_done(pg_team* t, int nblocks) noexcept nogil
+    void pg_finished(pg_team* t, int k) noexcept nogil
+    void pg_wait_done(pg_team* t) noexcept nogil
+    pg_flag* pg_flags(int n) noexcept nogil
+    void pg_post(pg_flag* f, unsigned int epoch) noexcept nogil
+    int pg_posted(pg_flag* f, unsigned int epoch) noexcept nogil
+    void pg_await(pg_flag* f, unsigned int epoch) noexcept nogil
+    double pg_now() noexcept nogil
     long long pg_moves(pg_team* t) noexcept nogil
 
 from cython.parallel cimport parallel, prange, threadid
@@ -144,7 +145,9 @@ cnp.import_array()
 
 include "_defs.pxi"
 
-MAX_THREADS = MAXTHREADS
+MAX_THREADS = PG_MAX_THREADS
+#: Whether the thread team was built with its heuristics (setup.py, team.h).
+TEAM_HEURISTICS = bool(PG_TEAM_HEURISTICS)
 MOTION_VALUES = NMOT
 SLOT_VALUES = NSLOT
 VIBRATION_VALUES = NVIB
@@ -281,8 +284,8 @@ cdef class Core:
         self.s.ob_start = <int*>calloc(1, sizeof(int))
         self.s.wl_start = <int*>calloc(1, sizeof(int))
         self.s.ow_start = <int*>calloc(1, sizeof(int))
-        if not 1 <= threads <= MAXTHREADS:
-            raise ValueError(f"threads: between 1 and {MAXTHREADS}")
+        if not 1 <= threads <= PG_MAX_THREADS:
+            raise ValueError(f"threads: between 1 and {PG_MAX_THREADS}")
         self.s.nblocks = 1 if threads == 1 else BLOCKS * threads
         self.s.tmax = <double*>calloc(threads * PAD, sizeof(double))
         self.s.cpu = <double*>calloc(threads * PAD, sizeof(double))
@@ -291,7 +294,7 @@ cdef class Core:
         self.s.halos = <Halo*>calloc(self.s.nblocks, sizeof(Halo))
         self.s.posted = pg_flags(self.s.nblocks)
         self.s.found = <Found*>calloc(self.s.nblocks, sizeof(Found))
-        self.s.team = pg_create(threads, SPIN)
+        self.s.team = pg_create(threads)
         self.s.coef = <Coef*>calloc(1, sizeof(Coef))
         self.s.visc = <double*>calloc(1, sizeof(double))
         self.s.ntypes = 1

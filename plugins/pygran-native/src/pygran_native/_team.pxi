@@ -26,9 +26,8 @@ cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
         for b in prange(nblocks, schedule="dynamic", chunksize=1, num_threads=sim.nthreads):
             run_block(sim, phase, b, nblocks, threadid(), 0)
         return
-    pg_begin(sim.team, phase, nblocks, 0)
-    take(sim, pg_epoch(sim.team), phase, nblocks, 0)
-    pg_wait_done(sim.team, nblocks)
+    take(sim, pg_begin(sim.team, phase, nblocks, 0), phase, nblocks, 0)
+    pg_wait_done(sim.team)
 
 
 cdef void force_phase(State* sim) noexcept nogil:
@@ -54,9 +53,8 @@ cdef void force_phase(State* sim) noexcept nogil:
         omp_force_phase(sim)
         return
     sim.turn = 0.0
-    pg_begin(sim.team, P_FORCES, sim.nblocks, nparts)
-    take(sim, pg_epoch(sim.team), P_FORCES, sim.nblocks + nparts, 0)
-    pg_wait_done(sim.team, sim.nblocks + nparts)
+    take(sim, pg_begin(sim.team, P_FORCES, sim.nblocks, nparts), P_FORCES, sim.nblocks + nparts, 0)
+    pg_wait_done(sim.team)
 
 
 cdef void omp_force_phase(State* sim) noexcept nogil:
@@ -84,7 +82,7 @@ cdef inline void await_pair(State* sim, int b, unsigned int epoch, int tid) noex
     cdef double t0
     if not pg_posted(&sim.posted[b], epoch):
         t0 = thread_cpu()
-        pg_await(&sim.posted[b], epoch, SPIN)
+        pg_await(&sim.posted[b], epoch)
         sim.cpu[PAD * tid + 3] -= thread_cpu() - t0
 
 
@@ -165,7 +163,7 @@ cdef void take(State* sim, unsigned int epoch, int phase, int nblocks, int tid) 
         b = pg_claim(sim.team, epoch, tid)
     if phase == P_FORCES:
         sim.cpu[PAD * tid + stage] += thread_cpu() - t0
-    pg_finished(sim.team, k, nblocks)
+    pg_finished(sim.team, k)
 
 
 cdef void team_task(void* owner, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:

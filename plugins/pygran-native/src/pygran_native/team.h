@@ -1,34 +1,48 @@
 #ifndef PYGRAN_TEAM_H
 #define PYGRAN_TEAM_H
 
-/* The team of threads of a native-solver run (used by _solver.pyx).
+/* The team of threads of a native-solver run (used by _team.pxi; tested alone, under
+   ThreadSanitizer, by tests/team_stress.c).
 
    The calling thread (the master) runs the time-step loop and hands each parallel phase out
    as numbered blocks, a contiguous share of them queued for each thread. A thread takes
-   blocks from its own queue, then from the others' queues (see pg_claim), then waits for
-   the next phase: on an idle machine each thread works on the same rows step after
-   step, and a thread that is held up (its core taken by another program) leaves its blocks to
-   the others. Results do not depend on which thread runs a block.
+   blocks from its own queue, then from the others' queues, then waits for the next phase: on
+   an idle machine each thread works on the same rows step after step, and a thread held up
+   (its core taken by another program) leaves its blocks to the others. Results do not depend
+   on which thread runs a block.
 
    A phase can have two stages, each with its own queues: no block of the second is taken
    while one of the first is left. A block of the second stage may wait for blocks of the
    first (pg_post, pg_await); those are then taken already, so they finish without waiting.
-   Blocks of the second stage are taken from another queue at the end its owner takes next:
-   they depend on the first stage's blocks in the owner's order, so those are the ones that
-   are ready, while at the other end they wait for the owner's last block of the first.
 
-   A waiting thread spins for a moment (waking a sleeping thread takes tens of microseconds),
-   then sleeps on a futex; it does not spin at all while it has lately been kept waiting for
-   its CPU (its run-queue delay, from /proc/thread-self/schedstat): a thread with nothing to
-   do then gives its core away at once to the threads that have work, ours or another
-   program's. Spinning in OpenMP's barriers (libgomp's default wait policy) is what made 2
-   threads 7x slower than 1 on a 2-core machine where another process kept a core busy.
+   A waiting thread spins for PG_SPIN seconds (waking a sleeping thread takes tens of
+   microseconds), then sleeps on a futex.
 
-   A woken thread that finds itself on the CPU of another thread of the team moves to one of
-   the team's CPUs that none of them is on (pg_spread). When no CPU is idle, Linux wakes a
-   thread on its waker's CPU; two threads of the team then take turns on one CPU while the
-   other program has a CPU to itself, and the load balancer, seeing each of them busy only
-   half the time, leaves it so. */
+   API (everything else here is internal):
+     pg_create(nthreads), pg_destroy(t)          a team; its threads start at the first pg_start
+     pg_start(t, task, owner)                    start threads 1.. (again after a fork)
+     epoch = pg_begin(t, phase, nfirst, nsecond) master: open a phase, wake the threads
+     b = pg_claim(t, epoch, tid)                 a block to run, -1 when none is left
+     pg_finished(t, k)                           a thread ran k blocks and found none left
+     pg_wait_done(t)                             master: wait until every block is finished
+     pg_flags(n), pg_post(f, epoch),             per-block flags: a block of the first stage
+       pg_posted(f, epoch), pg_await(f, epoch)   is done, for a block of the second to wait
+     pg_now()                                    monotonic seconds
+     pg_moves(t)                                 moves off a teammate's CPU (heuristics)
+
+   Heuristics (build option PG_TEAM_HEURISTICS, on unless defined 0):
+   - a waiting thread does not spin at all while it has lately been kept waiting for its CPU
+     (its run-queue delay, /proc/thread-self/schedstat, see pg_contended): a thread with
+     nothing to do then gives its core away at once. Spinning in OpenMP's barriers (libgomp's
+     default wait policy) made 2 threads 7x slower than 1 on a 2-core machine where another
+     process kept a core busy.
+   - a woken thread that finds itself on the CPU of another thread of the team moves to one of
+     the team's CPUs that none of them is on (pg_spread). When no CPU is idle, Linux wakes a
+     thread on its waker's CPU; two threads of the team then take turns on one CPU while the
+     other program has a CPU to itself, and the load balancer leaves it so. */
+#ifndef _GNU_SOURCE
+#define _GNU_SOURCE   /* sched_getcpu, cpu_set_t; before the first system header */
+#endif
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,9 +51,6 @@
 #include <limits.h>
 #include <stdio.h>
 #include <time.h>
-#ifndef _GNU_SOURCE
-#define _GNU_SOURCE   /* sched_getcpu, cpu_set_t */
-#endif
 #include <sched.h>
 #ifdef __linux__
 #include <fcntl.h>
@@ -48,13 +59,18 @@
 #include <unistd.h>
 #endif
 
+#ifndef PG_TEAM_HEURISTICS
+#define PG_TEAM_HEURISTICS 1
+#endif
+#define PG_SPIN 1e-4         /* seconds a waiting thread spins before it sleeps */
+#define PG_MAX_THREADS 1024  /* with 4 blocks per thread, a stage's blocks stay below 65536 */
+#define PG_STOP (-1)         /* the phase that ends the threads */
+
 typedef struct { uint32_t word, sleepers; char pad[56]; } pg_flag;   /* a cache line */
 
 /* A thread's queues of the two stages (each epoch << 32 | front << 16 | end), the CPU it was
    on at its last phase and how often it moved off a CPU of the team's (pg_spread). */
 typedef struct { uint64_t word[2]; int cpu, moves; char pad[40]; } pg_queue;
-
-#define PG_STOP (-1)        /* the phase that ends the threads */
 
 /* What a thread does with phase `epoch`: claim blocks with pg_claim, run them, pg_finished. */
 typedef void (*pg_task)(void* owner, uint32_t epoch, int phase, int nblocks, int tid);
@@ -69,7 +85,6 @@ typedef struct pg_team_s {
     int phase, nblocks;    /* written by the master before it moves epoch on: the phase, its */
     int nfirst;            /* blocks, and those of its first stage */
     int nqueues;           /* one per thread */
-    double spin;           /* seconds a waiting thread spins before it sleeps */
     pg_task task;          /* the threads started by pg_start (in process pid) */
     void* owner;
     pthread_t* threads;
@@ -83,14 +98,13 @@ typedef struct pg_team_s {
     pg_queue queue[];      /* thread q's blocks */
 } pg_team;
 
-static pg_team* pg_create(int nqueues, double spin) {
-    pg_team* t = (pg_team*)calloc(1, sizeof(pg_team) + nqueues * sizeof(pg_queue));
+static pg_team* pg_create(int nthreads) {
+    pg_team* t = (pg_team*)calloc(1, sizeof(pg_team) + nthreads * sizeof(pg_queue));
     int q;
     if (t) {
-        for (q = 0; q < nqueues; q++)
+        for (q = 0; q < nthreads; q++)
             t->queue[q].cpu = -1;
-        t->nqueues = nqueues;
-        t->spin = spin;
+        t->nqueues = nthreads;
     }
     return t;
 }
@@ -109,9 +123,9 @@ static inline void pg_relax(void) {
 #endif
 }
 
+#if PG_TEAM_HEURISTICS && defined(__linux__)
 /* Nanoseconds the calling thread has spent runnable but waiting for a CPU, -1 if unknown. */
 static long long pg_run_delay(void) {
-#ifdef __linux__
     char buf[96];
     unsigned long long run, delay;
     ssize_t k;
@@ -124,9 +138,6 @@ static long long pg_run_delay(void) {
         return -1;
     buf[k] = 0;
     return sscanf(buf, "%llu %llu", &run, &delay) == 2 ? (long long)delay : -1;
-#else
-    return -1;
-#endif
 }
 
 /* Whether the calling thread shares its CPU with another that wants it: more than a fifth of
@@ -148,6 +159,44 @@ static int pg_contended(double now) {
     return now < pg_calm_from;
 }
 
+/* Thread tid, woken for a phase: if another thread of the team was on its CPU at its last
+   phase, move to a CPU of the team's that none was on, when there is one (the change of
+   affinity moves the thread; putting the team's CPUs back then leaves it there). */
+static void pg_spread(pg_team* t, int tid) {
+    cpu_set_t free_cpus;
+    int q, other, shared = 0, cpu = sched_getcpu();
+    if (cpu < 0 || cpu >= CPU_SETSIZE)
+        return;
+    free_cpus = t->cpus;
+    for (q = 0; q < t->nqueues; q++) {
+        if (q == tid || (other = __atomic_load_n(&t->queue[q].cpu, __ATOMIC_RELAXED)) < 0
+            || other >= CPU_SETSIZE)
+            continue;
+        shared |= other == cpu;
+        CPU_CLR(other, &free_cpus);
+    }
+    CPU_CLR(cpu, &free_cpus);
+    if (shared && CPU_COUNT(&free_cpus) && sched_setaffinity(0, sizeof(cpu_set_t), &free_cpus) == 0) {
+        sched_setaffinity(0, sizeof(cpu_set_t), &t->cpus);
+        cpu = sched_getcpu();
+        __atomic_store_n(&t->queue[tid].moves, t->queue[tid].moves + 1, __ATOMIC_RELAXED);
+    }
+    __atomic_store_n(&t->queue[tid].cpu, cpu, __ATOMIC_RELAXED);
+}
+#else
+static inline int pg_contended(double now) { (void)now; return 0; }
+static inline void pg_spread(pg_team* t, int tid) { (void)t; (void)tid; }
+#endif
+
+/* How often the team's threads moved off a teammate's CPU (pg_spread). */
+static long long pg_moves(pg_team* t) {
+    long long k = 0;
+    int q;
+    for (q = 0; q < t->nqueues; q++)
+        k += __atomic_load_n(&t->queue[q].moves, __ATOMIC_RELAXED);
+    return k;
+}
+
 static inline void pg_wake(pg_flag* f) {
     if (__atomic_load_n(&f->sleepers, __ATOMIC_SEQ_CST)) {
 #ifdef __linux__
@@ -157,14 +206,14 @@ static inline void pg_wake(pg_flag* f) {
 }
 
 /* Wait until f's word differs from `seen` (spin, then sleep); returns the new value. */
-static uint32_t pg_wait(pg_flag* f, uint32_t seen, double spin) {
+static uint32_t pg_wait(pg_flag* f, uint32_t seen) {
     uint32_t v;
     unsigned k = 0;
     double now, until;
     if ((v = __atomic_load_n(&f->word, __ATOMIC_ACQUIRE)) != seen)
         return v;
     now = pg_now();
-    until = now + (pg_contended(now) ? 0.0 : spin);
+    until = now + (pg_contended(now) ? 0.0 : PG_SPIN);
     while ((v = __atomic_load_n(&f->word, __ATOMIC_ACQUIRE)) == seen) {
         if (k++ & 63 && now < until) {   /* spinning: the clock is read every 64 rounds */
             pg_relax();
@@ -184,23 +233,16 @@ static uint32_t pg_wait(pg_flag* f, uint32_t seen, double spin) {
     return v;
 }
 
-static inline uint32_t pg_epoch(pg_team* t) {
-    return __atomic_load_n(&t->epoch.word, __ATOMIC_ACQUIRE);
-}
-
-static inline int pg_phase(pg_team* t) { return __atomic_load_n(&t->phase, __ATOMIC_RELAXED); }
-
-static inline int pg_nblocks(pg_team* t) { return __atomic_load_n(&t->nblocks, __ATOMIC_RELAXED); }
-
 /* Master: open phase `phase` of `nfirst` blocks, then `nsecond` in a second stage (blocks
-   nfirst to nfirst + nsecond - 1; each stage < 65536 blocks), and wake the team. */
-static void pg_begin(pg_team* t, int phase, int nfirst, int nsecond) {
+   nfirst to nfirst + nsecond - 1; each stage < 65536 blocks), and wake the team; returns the
+   phase's epoch, which the master passes to pg_claim like the other threads. */
+static uint32_t pg_begin(pg_team* t, int phase, int nfirst, int nsecond) {
     uint32_t e = __atomic_load_n(&t->epoch.word, __ATOMIC_RELAXED) + 1;
     uint64_t lo, hi;
     int q, s, n;
     if (e == 0)   /* after 2^32 phases: 0 is no phase (flags start at 0, see pg_post) */
         e = 1;
-#ifdef __linux__
+#if PG_TEAM_HEURISTICS && defined(__linux__)
     __atomic_store_n(&t->queue[0].cpu, sched_getcpu(), __ATOMIC_RELAXED);
 #endif
     __atomic_store_n(&t->phase, phase, __ATOMIC_RELAXED);
@@ -217,6 +259,7 @@ static void pg_begin(pg_team* t, int phase, int nfirst, int nsecond) {
     }
     __atomic_store_n(&t->epoch.word, e, __ATOMIC_SEQ_CST);
     pg_wake(&t->epoch);
+    return e;
 }
 
 /* The front (or last) block of queue q of stage s of phase `epoch`, counted in the stage; -1
@@ -239,7 +282,8 @@ static inline int pg_take(pg_queue* q, int s, uint32_t epoch, int last) {
    of its own queue, which even threads run forwards and odd threads backwards (two
    neighbouring threads reach the blocks at their common border last), else one of another
    queue (the nearest after its own first), from its other end in the first stage and from
-   the end its owner takes next in the second; -1 when none is left. */
+   the end its owner takes next in the second (those depend on the first stage's blocks in
+   the owner's order, so they are the ones that are ready); -1 when none is left. */
 static inline int pg_claim(pg_team* t, uint32_t epoch, int tid) {
     int k, b, q, s, base, nq = t->nqueues;
     for (s = 0; s < 2; s++) {
@@ -276,60 +320,25 @@ static inline int pg_posted(pg_flag* f, uint32_t epoch) {
 }
 
 /* Wait until flag f carries the stamp of phase `epoch` (see pg_post). */
-static inline void pg_await(pg_flag* f, uint32_t epoch, double spin) {
+static inline void pg_await(pg_flag* f, uint32_t epoch) {
     uint32_t v;
     while ((v = __atomic_load_n(&f->word, __ATOMIC_ACQUIRE)) != epoch)
-        pg_wait(f, v, spin);
+        pg_wait(f, v);
 }
 
-/* A thread finished k blocks of the phase (after its last claim failed). */
-static inline void pg_finished(pg_team* t, int k, int nblocks) {
-    if ((int)__atomic_add_fetch(&t->done.word, (uint32_t)k, __ATOMIC_SEQ_CST) == nblocks)
+/* A thread ran k blocks of the phase (after its last claim failed). */
+static inline void pg_finished(pg_team* t, int k) {
+    if ((int)__atomic_add_fetch(&t->done.word, (uint32_t)k, __ATOMIC_SEQ_CST)
+            == __atomic_load_n(&t->nblocks, __ATOMIC_RELAXED))
         pg_wake(&t->done);
 }
 
 /* Master: wait until every block of the phase is finished. */
-static void pg_wait_done(pg_team* t, int nblocks) {
+static void pg_wait_done(pg_team* t) {
     uint32_t d;
+    int nblocks = __atomic_load_n(&t->nblocks, __ATOMIC_RELAXED);
     while ((int)(d = __atomic_load_n(&t->done.word, __ATOMIC_ACQUIRE)) != nblocks)
-        pg_wait(&t->done, d, t->spin);
-}
-
-
-/* Thread tid, woken for a phase: if another thread of the team was on its CPU at its last
-   phase, move to a CPU of the team's that none was on, when there is one (the change of
-   affinity moves the thread; putting the team's CPUs back then leaves it there). */
-static void pg_spread(pg_team* t, int tid) {
-#ifdef __linux__
-    cpu_set_t free_cpus;
-    int q, other, shared = 0, cpu = sched_getcpu();
-    if (cpu < 0 || cpu >= CPU_SETSIZE)
-        return;
-    free_cpus = t->cpus;
-    for (q = 0; q < t->nqueues; q++) {
-        if (q == tid || (other = __atomic_load_n(&t->queue[q].cpu, __ATOMIC_RELAXED)) < 0
-            || other >= CPU_SETSIZE)
-            continue;
-        shared |= other == cpu;
-        CPU_CLR(other, &free_cpus);
-    }
-    CPU_CLR(cpu, &free_cpus);
-    if (shared && CPU_COUNT(&free_cpus) && sched_setaffinity(0, sizeof(cpu_set_t), &free_cpus) == 0) {
-        sched_setaffinity(0, sizeof(cpu_set_t), &t->cpus);
-        cpu = sched_getcpu();
-        __atomic_store_n(&t->queue[tid].moves, t->queue[tid].moves + 1, __ATOMIC_RELAXED);
-    }
-    __atomic_store_n(&t->queue[tid].cpu, cpu, __ATOMIC_RELAXED);
-#endif
-}
-
-/* How often the team's threads moved off a teammate's CPU (pg_spread). */
-static long long pg_moves(pg_team* t) {
-    long long k = 0;
-    int q;
-    for (q = 0; q < t->nqueues; q++)
-        k += __atomic_load_n(&t->queue[q].moves, __ATOMIC_RELAXED);
-    return k;
+        pg_wait(&t->done, d);
 }
 
 static void* pg_main(void* p) {
@@ -338,23 +347,23 @@ static void* pg_main(void* p) {
     uint32_t e = a->epoch;
     int phase;
     for (;;) {
-        e = pg_wait(&t->epoch, e, t->spin);
-        phase = pg_phase(t);
+        e = pg_wait(&t->epoch, e);
+        phase = __atomic_load_n(&t->phase, __ATOMIC_RELAXED);
         if (phase == PG_STOP)
             return NULL;
         pg_spread(t, a->tid);
-        t->task(t->owner, e, phase, pg_nblocks(t), a->tid);
+        t->task(t->owner, e, phase, __atomic_load_n(&t->nblocks, __ATOMIC_RELAXED), a->tid);
     }
 }
 
-/* Start threads 1 .. nqueues - 1 of the team (the caller is thread 0), unless they run
+/* Start threads 1 .. nthreads - 1 of the team (the caller is thread 0), unless they run
    already in this process (after a fork they do not); they take part in each phase the
    master opens, with signals blocked (Python handles them in its main thread). Returns how
    many run: fewer when the system refuses some, and the others then run their blocks. */
 static int pg_start(pg_team* t, pg_task task, void* owner) {
     sigset_t all, old;
     int k;
-#ifdef __linux__
+#if PG_TEAM_HEURISTICS && defined(__linux__)
     if (sched_getaffinity(0, sizeof(cpu_set_t), &t->cpus) != 0)
         CPU_ZERO(&t->cpus);
 #endif
