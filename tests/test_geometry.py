@@ -84,6 +84,15 @@ def test_stl_round_trip_and_the_meshes_of_the_test_data(tmp_path: Path) -> None:
     assert angles.tolist() == [-4, -3, -2, -1, 0, 1, 2, 3, 4]  # nine lifter ribs, 40 degrees apart
 
 
+def test_two_surfaces_make_one_mesh() -> None:
+    drum = geometry.drum(radius=0.01, length=0.01, axis="x")
+    cube = geometry.box((0.02, -0.005, -0.005), (0.03, 0.005, 0.005))
+    both = drum + cube
+    assert len(both) == len(drum) + 12 and both.closed
+    assert both.volume == pytest.approx(drum.volume + 1e-6, rel=1e-12)
+    assert both.contains(np.array([[0, 0, 0], [0.025, 0, 0], [0.015, 0, 0]])).tolist() == [True, True, False]
+
+
 def test_bad_geometry_is_refused() -> None:
     with pytest.raises(ConfigError, match="positive length"):
         geometry.drum(radius=-1, length=0.1)

@@ -168,14 +168,6 @@ class Surface:
             inside[chosen] = triangle_distance(points[chosen], self.triangles) >= margin[chosen]
         return inside
 
-    def translated(self, offset: Sequence[float]) -> Surface:
-        """The surface moved by ``offset`` (m)."""
-        shift = np.asarray(offset, float)
-        inscribed = None
-        if self.inscribed is not None:
-            inscribed = _shift_region(self.inscribed, shift)
-        return Surface(self.triangles + shift, self.name, inscribed)
-
     def __add__(self, other: Surface) -> Surface:
         """Both surfaces' triangles as one mesh (a hopper and its lid)."""
         return Surface(np.concatenate([self.triangles, other.triangles]), f"{self.name}+{other.name}")
@@ -206,22 +198,6 @@ def _inside_primitive(region: tuple[object, ...], points: np.ndarray, margin: np
     along = points[:, AXES.index(axis)]
     r = np.hypot(points[:, across[0]] - c1, points[:, across[1]] - c2)
     return (r <= radius - margin) & (along >= lo + margin) & (along <= hi - margin)
-
-
-def _shift_region(region: tuple[object, ...], shift: np.ndarray) -> tuple[object, ...]:
-    kind = region[0]
-    if kind == "block":
-        values = np.array(region[1:], float).reshape(3, 2) + shift[:, None]
-        return ("block", *values.reshape(-1).tolist())
-    axis = str(region[1])
-    across = [i for i in range(3) if i != AXES.index(axis)]
-    along = AXES.index(axis)
-    values = [float(v) for v in region[2:]]  # type: ignore[arg-type]
-    values[0] += float(shift[across[0]])
-    values[1] += float(shift[across[1]])
-    values[-2] += float(shift[along])
-    values[-1] += float(shift[along])
-    return (kind, axis, *values)
 
 
 def winding_number(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
