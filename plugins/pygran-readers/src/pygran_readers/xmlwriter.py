@@ -119,7 +119,9 @@ def _encoded(values: np.ndarray) -> str:
 def _array(name: str, values: np.ndarray, tuples: bool = False) -> str:
     """A DataArray of ``values`` (``tuples``: state NumberOfTuples, as field data must)."""
     values = np.asarray(values)
-    if values.dtype.kind in "iub":
+    if values.dtype == np.uint8:  # cell types, as VTK stores them
+        kind, data = "UInt8", values
+    elif values.dtype.kind in "iub":
         kind, data = "Int64", values.astype("<i8")
     elif values.dtype.kind == "f":
         kind, data = "Float64", values.astype("<f8")
@@ -200,6 +202,6 @@ def vtu_text(frame: Frame) -> Iterator[str]:
     yield _points(data.points)
     connectivity, offsets = _connectivity(data, np.ones(len(data.cells), bool))
     yield "<Cells>\n" + _array("connectivity", connectivity) + _array("offsets", offsets)
-    yield _array("types", data.types.astype(np.int64)) + "</Cells>\n"
+    yield _array("types", data.types.astype(np.uint8)) + "</Cells>\n"
     yield _data("PointData", data.point_data) + _data("CellData", data.cell_data) + "</Piece>\n"
     yield _field(frame) + "</UnstructuredGrid>\n</VTKFile>\n"
