@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from pygran_core import params, registry, simulation
-from pygran_core.errors import InsertionWarning
+from pygran_core.errors import ConfigError, InsertionWarning
 from pygran_core.simulation import geometry
 from pygran_core.simulation.geometry import triangle_distance
 from pygran_core.testing.solvers import in_ci, require_solver
@@ -141,3 +141,19 @@ def test_no_particle_is_placed_across_a_cylinder_wall(tmp_path: Path) -> None:
         x = sim.extractCoords()
     assert len(x) == 150
     assert np.all(np.abs(np.hypot(x[:, 0], x[:, 1]) - 0.005) >= 5e-4)
+
+
+def test_a_primitive_cylinder_wall_does_not_turn_and_says_what_does(tmp_path: Path) -> None:
+    with simulation.DEM(
+        engine="native",
+        box=(-0.01, 0.01, -0.01, 0.01, 0, 0.01),
+        dt=1e-5,
+        output=str(tmp_path / "turn"),
+        species=({"material": params.organic, "radius": ("constant", 5e-4)},),
+    ) as sim:
+        wall = sim.setupWall(wtype="primitive", axis="z", centre=(0, 0), radius=0.005)
+        with pytest.raises(ConfigError, match=r"is a primitive wall.*geometry\.drum\(radius=") as refused:
+            sim.moveMesh(wall, rotate=("origin", 0, 0, 0), axis=(0, 0, 1), period=1.0)
+        assert "Known: ." not in str(refused.value)
+        with pytest.raises(ConfigError, match="has no mesh to move"):
+            sim.moveMesh("drum", rotate=("origin", 0, 0, 0), axis=(0, 0, 1), period=1.0)
