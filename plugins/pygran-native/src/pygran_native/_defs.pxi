@@ -1,31 +1,42 @@
-# Compile-time constants and enums of the native solver (included by _solver.pyx).
+# Constants and enums of the native solver (included by _solver.pyx).
 
-DEF MAXCAND = 64
-DEF NCOLUMNS = 24  # per-particle arrays, see particle_columns
-DEF NBCOLUMNS = 12  # per-body arrays of clumps, see body_columns
-DEF NMCOLUMNS = 4   # per-member arrays of clumps, see member_columns
-DEF NECOLUMNS = 9  # per-element arrays, see element_columns
-DEF PAD = 8        # doubles per cache line: per-thread scalars are this far apart
-DEF TOUCH = 0x80   # flag bit of nb_s: the pair was in contact at the last force evaluation
-DEF WRAP = 0x40    # flag bit of nb_s: the partner is across the periodic boundary of axis ax[0]
-DEF IMAGE = 0x1f   # bits of nb_s: the periodic image code
-DEF NMOT = 14      # motion values per wall element, see Motion
-DEF NSLOT = 34     # values per stress mesh (a mesh whose force is summed, maybe a servo), see Slot
-DEF NVIB = 96      # values per vibrating mesh, see Vibration
-DEF NHARM = 30     # harmonics of a vibration at most
-DEF SACC = 8       # values per stress mesh in a pair block's sums, see Slot (A_FORCE...)
-DEF SUB_SKIN = 0.125   # the sublist's reach beyond contact, in skins (see State.sb_k)
-DEF WROW = 5       # work of a row of the pair loop, a touching pair and a wall entry in units of
-DEF WTOUCH = 12    # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
+cdef enum:
+    MAXCAND = 64       # triangles in reach of one particle that wall_row classifies, at most
+    NCOLUMNS = 24      # per-particle arrays, see particle_columns
+    NBCOLUMNS = 12     # per-body arrays of clumps, see body_columns
+    NMCOLUMNS = 4      # per-member arrays of clumps, see member_columns
+    NECOLUMNS = 9      # per-element arrays, see element_columns
+    PAD = 8            # doubles per cache line: per-thread scalars are this far apart
+    TOUCH = 0x80       # flag bit of nb_s: the pair was in contact at the last force evaluation
+    WRAP = 0x40        # flag bit of nb_s: the partner is across the periodic boundary of axis ax[0]
+    IMAGE = 0x1f       # bits of nb_s: the periodic image code
+    NMOT = 14          # motion values per wall element, see Motion
+    NSLOT = 34         # values per stress mesh (a mesh whose force is summed, maybe a servo), see Slot
+    NVIB = 96          # values per vibrating mesh, see Vibration
+    NHARM = 30         # harmonics of a vibration at most
+    SACC = 8           # values per stress mesh in a pair block's sums, see Slot (A_FORCE...)
+    WROW = 5           # work of a row of the pair loop, a touching pair and a wall entry in units of
+    WTOUCH = 12        # a listed pair that is apart (measured: about 20, 48, 48 and 4 ns)
+    BLOCKS = 4         # blocks of the pair loop per thread (more threads than one): a thread
+                       # kept from its core holds up at most 1 / (BLOCKS threads) of a pass
+    SPLIT = 4          # blocks of the particle loop per pair-loop block: its threads end closer
 
-DEF BLOCKS = 4     # blocks of the pair loop per thread (more threads than one): a thread
-                   # kept from its core holds up at most 1 / (BLOCKS threads) of a pass
-DEF SPLIT = 4      # blocks of the particle loop per pair-loop block: its threads end closer
-DEF TUNE_WINDOW = 0.02   # seconds: shortest window the Tuner times
-DEF TUNE_MIN = 0.1       # seconds between the Tuner's comparisons, at first and after a change
-DEF TUNE_MAX = 2.0       # ... at most
-DEF TUNE_AHEAD = 0.75    # the team's time per step, at most, against its guess of one thread's ...
-DEF TUNE_TRUSTED = 10.0  # ... for the Tuner to skip comparisons for up to this many seconds
+# Constants in seconds or skins, as C literals (macros), so the compiler folds them as before.
+cdef extern from *:
+    """
+    #define PG_SUB_SKIN 0.125      /* the sublist's reach beyond contact, in skins (see State.sb_k) */
+    #define PG_TUNE_WINDOW 0.02    /* seconds: shortest window the Tuner times */
+    #define PG_TUNE_MIN 0.1        /* seconds between the Tuner's comparisons, at first and after a change */
+    #define PG_TUNE_MAX 2.0        /* ... at most */
+    #define PG_TUNE_AHEAD 0.75     /* the team's time per step, at most, against its guess of one thread's ... */
+    #define PG_TUNE_TRUSTED 10.0   /* ... for the Tuner to skip comparisons for up to this many seconds */
+    """
+    const double SUB_SKIN "PG_SUB_SKIN"
+    const double TUNE_WINDOW "PG_TUNE_WINDOW"
+    const double TUNE_MIN "PG_TUNE_MIN"
+    const double TUNE_MAX "PG_TUNE_MAX"
+    const double TUNE_AHEAD "PG_TUNE_AHEAD"
+    const double TUNE_TRUSTED "PG_TUNE_TRUSTED"
 
 cdef enum:
     HOOKE = 0

@@ -10,6 +10,9 @@ TEAM_HEURISTICS: bool
 MOTION_VALUES: int
 SLOT_VALUES: int
 VIBRATION_VALUES: int
+HARMONICS: int
+SLOT_LAYOUT: dict[str, tuple[int, int]]
+VIBRATION_LAYOUT: dict[str, tuple[int, int]]
 LOST_PLACES: tuple[str, ...]
 TIMERS: tuple[str, ...]
 

@@ -151,6 +151,21 @@ TEAM_HEURISTICS = bool(PG_TEAM_HEURISTICS)
 MOTION_VALUES = NMOT
 SLOT_VALUES = NSLOT
 VIBRATION_VALUES = NVIB
+HARMONICS = NHARM
+#: The values of a row of Core.get_slots() (a stress mesh, the Slot enum of _defs.pxi) and of
+#: Core.get_vibrations() (a vibrating mesh, the Vibration enum): name -> (first, count).
+SLOT_LAYOUT = {
+    "WALL": (S_WALL, 1), "CONTROL": (S_CONTROL, 1), "AUTO": (S_AUTO, 1), "SET_POINT": (S_SP, 1),
+    "VEL_MAX": (S_VMAX, 1), "KP": (S_KP, 1), "KI": (S_KI, 1), "KD": (S_KD, 1), "RATIO": (S_RATIO, 1),
+    "OUTPUT_MAX": (S_OPMAX, 1), "ARM": (S_RPA, 1), "OUTPUT_MIN": (S_OPMIN, 1), "AXIS": (S_AXIS, 3),
+    "COM": (S_XCM, 3), "COM0": (S_XCM0, 3), "VELOCITY": (S_VEL, 3), "ANGLE": (S_PHI, 1),
+    "INTEGRAL": (S_SUM, 1), "PREVIOUS": (S_OLDPV, 1), "FORCE": (S_FORCE, 3), "TORQUE": (S_TORQUE, 3),
+    "CONTACTS": (S_CONTACTS, 1),
+}
+VIBRATION_LAYOUT = {
+    "WALL": (V_WALL, 1), "KIND": (V_KIND, 1), "ORDER": (V_ORDER, 1), "AXIS": (V_AXIS, 3),
+    "AMPLITUDE": (V_AMP, NHARM), "PHASE": (V_PHASE, NHARM), "FREQUENCY": (V_FREQ, NHARM),
+}
 #: Where :meth:`Core.take_lost` counts lost particles: the faces of the box, then non-finite.
 LOST_PLACES = ("x-", "x+", "y-", "y+", "z-", "z+", "non-finite")
 

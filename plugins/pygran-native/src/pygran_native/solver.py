@@ -52,6 +52,7 @@ import json
 import math
 import os
 from collections.abc import Mapping
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -60,10 +61,13 @@ from pygran_core.simulation import clumps
 from pygran_core.simulation.models import mixing
 from pygran_native import _kernels
 from pygran_native._solver import (
+    HARMONICS,
     LOST_PLACES,
     MAX_THREADS,
     MOTION_VALUES,
+    SLOT_LAYOUT,
     SLOT_VALUES,
+    VIBRATION_LAYOUT,
     VIBRATION_VALUES,
     Core,
 )
@@ -78,37 +82,22 @@ _ROLLING = {"cdt": 0, "epsd": 1, "epsd2": 2}
 _WALL_KINDS = ("plane", "cylinder", "mesh")
 
 
-class _S:
-    """Where a stress mesh's values lie in its row of ``Core.get_slots()`` (the Slot enum of
-    _solver.pyx)."""
+def _layout(fields: Mapping[str, tuple[int, int]]) -> SimpleNamespace:
+    """Indices into a row of values by name: the first value's, or a slice of several."""
+    return SimpleNamespace(
+        **{k: first if n == 1 else slice(first, first + n) for k, (first, n) in fields.items()}
+    )
 
-    WALL = 0
-    CONTROL = 1
-    AUTO = 2
-    SET_POINT = 3
-    VEL_MAX = 4
-    KP = 5
-    KI = 6
-    KD = 7
-    RATIO = 8
-    OUTPUT_MAX = 9
-    ARM = 10
-    AXIS = slice(12, 15)
-    COM = slice(15, 18)
-    COM0 = slice(18, 21)
-    VELOCITY = slice(21, 24)
-    ANGLE = 24
-    INTEGRAL = 25
-    PREVIOUS = 26
-    FORCE = slice(27, 30)
-    TORQUE = slice(30, 33)
-    CONTACTS = 33
+
+#: Where a stress mesh's values lie in its row of ``Core.get_slots()``, and a vibrating mesh's
+#: in its row of ``Core.get_vibrations()`` (the layouts _solver.pyx declares).
+_S = _layout(SLOT_LAYOUT)
+_V = _layout(VIBRATION_LAYOUT)
 
 
 _CONTROLS = ("stress", "force", "torque")
-#: Vibrations (LIGGGHTS move/mesh viblin, vibrot): their kinds, and their harmonics at most.
+#: Vibrations (LIGGGHTS move/mesh viblin, vibrot): their kinds.
 _VIBRATIONS = ("viblin", "vibrot")
-_HARMONICS = 30
 #: The contact-model settings a checkpoint stores (the arguments of Solver.set_contact_model).
 _MODEL_KEYS = (
     "youngs",
@@ -739,18 +728,18 @@ class Solver:
             raise ConfigError("axis: must not be zero.")
         amp = _array(np.atleast_1d(amplitudes), "amplitudes", (-1,))
         order = amp.shape[0]
-        if not 1 <= order <= _HARMONICS:
-            raise ConfigError(f"amplitudes: 1 to {_HARMONICS} harmonics, got {order}.")
+        if not 1 <= order <= HARMONICS:
+            raise ConfigError(f"amplitudes: 1 to {HARMONICS} harmonics, got {order}.")
         phase = _array(np.atleast_1d(phases), "phases", (order,))
         period = _array(np.atleast_1d(periods), "periods", (order,))
         if np.any(period <= 0):
             raise ConfigError(f"periods: must be > 0, got {period.tolist()}.")
         row = np.zeros(VIBRATION_VALUES)
-        row[:3] = mesh, 1 + _VIBRATIONS.index(kind), order
-        row[3:6] = direction / np.linalg.norm(direction)
-        row[6 : 6 + order] = amp
-        row[6 + _HARMONICS : 6 + _HARMONICS + order] = phase
-        row[6 + 2 * _HARMONICS : 6 + 2 * _HARMONICS + order] = 2 * np.pi / period
+        row[_V.WALL], row[_V.KIND], row[_V.ORDER] = mesh, 1 + _VIBRATIONS.index(kind), order
+        row[_V.AXIS] = direction / np.linalg.norm(direction)
+        row[_V.AMPLITUDE][:order] = amp
+        row[_V.PHASE][:order] = phase
+        row[_V.FREQUENCY][:order] = 2 * np.pi / period
         zero = np.zeros(3)
         self._set_vibration(mesh, None)
         self._core.set_motion(mesh, zero, zero, _array(origin, "origin", (3,)), zero, 0.0)
@@ -758,7 +747,7 @@ class Solver:
 
     def _set_vibration(self, mesh: int, row: np.ndarray | None) -> None:
         """Replace the vibration of a mesh by ``row`` (None: no vibration)."""
-        rows = [r for r in self._core.get_vibrations() if r[0] != mesh] + ([] if row is None else [row])
+        rows = [r for r in self._core.get_vibrations() if r[_V.WALL] != mesh] + ([] if row is None else [row])
         self._core.set_vibrations(np.ascontiguousarray(np.reshape(rows, (-1, VIBRATION_VALUES))))
 
     def remove_wall(self, wall: int) -> None:
@@ -1208,13 +1197,15 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
     _within("core_vib", vib, -np.inf, np.inf, "finite values")
     rows = vib.reshape(-1, VIBRATION_VALUES)
     if (
-        not all(walls.get(int(w)) == "mesh" and w == int(w) for w in rows[:, 0])
-        or len(set(rows[:, 0])) != len(rows)
-        or not np.all(np.isin(rows[:, 1], (1.0, 2.0)))
-        or not np.all(np.isin(rows[:, 2], np.arange(1, _HARMONICS + 1)))
+        not all(walls.get(int(w)) == "mesh" and w == int(w) for w in rows[:, _V.WALL])
+        or len(set(rows[:, _V.WALL])) != len(rows)
+        or not np.all(np.isin(rows[:, _V.KIND], (1.0, 2.0)))
+        or not np.all(np.isin(rows[:, _V.ORDER], np.arange(1, HARMONICS + 1)))
     ):
         raise _fail(
-            "core_vib", "one row per vibrating mesh: its wall, kind 1 or 2, 1 to 30 harmonics", "others"
+            "core_vib",
+            f"one row per vibrating mesh: its wall, kind 1 or 2, 1 to {HARMONICS} harmonics",
+            "others",
         )
     if n and next_id <= ids.max() or ne and next_vertex <= out["evid"].max():
         raise _fail("counters", "next particle id and vertex beyond those in use", [next_id, next_vertex])
