@@ -235,85 +235,101 @@ cdef struct State:
     int forces_valid   # nb_f and wl_f hold the forces of the last recording pass (not after set_state)
 
 
+cdef enum:   # the type of a Column's values
+    F64 = 0
+    I32 = 1
+    I64 = 2
+
+
 cdef struct Column:
-    # A per-particle (or per-element) array of the State in an allocation table (see
-    # particle_columns, element_columns).
+    # A per-particle (or per-element, per-body, per-member) array of the State in an allocation
+    # table (see particle_columns, element_columns, body_columns, member_columns).
     void** p           # where the State keeps its pointer
+    int kind           # F64, I32 or I64
+    int count          # values per particle
     size_t size        # bytes per particle
     int extra          # entries beyond one per particle (a CSR start array has cap + 1)
     bint zeroed        # reallocated zero-filled, not grown (contents not kept)
+    const char* key    # its name in a checkpoint (Core.get_state), NULL: not saved
 
 
-cdef inline void column(Column* c, void** p, size_t size, int extra, bint zeroed) noexcept nogil:
+cdef inline void column(Column* c, void** p, int kind, int count, int extra, bint zeroed,
+                        const char* key) noexcept nogil:
     c.p = p
-    c.size = size
+    c.kind = kind
+    c.count = count
+    c.size = count * (sizeof(int) if kind == I32 else sizeof(int64_t) if kind == I64 else sizeof(double))
     c.extra = extra
     c.zeroed = zeroed
+    c.key = key
 
 
 cdef void particle_columns(State* s, Column* c) noexcept nogil:
     """The allocation table: the NCOLUMNS per-particle arrays of the State, which Core grows
-    together (reserve), frees (dealloc) and counts (memory_bytes)."""
-    column(&c[0], <void**>&s.x, 3 * sizeof(double), 0, False)
-    column(&c[1], <void**>&s.v, 3 * sizeof(double), 0, False)
-    column(&c[2], <void**>&s.w, 3 * sizeof(double), 0, False)
-    column(&c[3], <void**>&s.f, 3 * sizeof(double), 0, False)
-    column(&c[4], <void**>&s.t, 3 * sizeof(double), 0, False)
-    column(&c[5], <void**>&s.x0, 3 * sizeof(double), 0, False)
-    column(&c[6], <void**>&s.r, sizeof(double), 0, False)
-    column(&c[7], <void**>&s.m, sizeof(double), 0, False)
-    column(&c[8], <void**>&s.type, sizeof(int), 0, False)
-    column(&c[9], <void**>&s.perm, sizeof(int), 0, False)
-    column(&c[10], <void**>&s.cell, sizeof(int), 0, False)
-    column(&c[11], <void**>&s.work, sizeof(int), 0, False)
-    column(&c[12], <void**>&s.pid, sizeof(int64_t), 0, False)
-    column(&c[13], <void**>&s.nb_start, sizeof(int), 1, False)
-    column(&c[14], <void**>&s.ob_start, sizeof(int), 1, False)
-    column(&c[15], <void**>&s.wl_start, sizeof(int), 1, False)
-    column(&c[16], <void**>&s.ow_start, sizeof(int), 1, False)
-    column(&c[17], <void**>&s.last, sizeof(int), 0, False)
-    column(&c[18], <void**>&s.flo, sizeof(int), 0, False)
-    column(&c[19], <void**>&s.fhi, sizeof(int), 0, False)
-    column(&c[20], <void**>&s.buf, 6 * sizeof(double), 0, True)   # the pair loop's, zero between steps
-    column(&c[21], <void**>&s.mem, sizeof(int), 0, False)
-    column(&c[22], <void**>&s.sb_n, sizeof(int), 0, False)
-    column(&c[23], <void**>&s.sb_at, sizeof(int), 0, False)
+    together (reserve), frees (dealloc), counts (memory_bytes) and checkpoints (state_of; the
+    clump member slots ``mem`` with the clumps)."""
+    column(&c[0], <void**>&s.x, F64, 3, 0, False, "x")
+    column(&c[1], <void**>&s.v, F64, 3, 0, False, "v")
+    column(&c[2], <void**>&s.w, F64, 3, 0, False, "w")
+    column(&c[3], <void**>&s.f, F64, 3, 0, False, "f")
+    column(&c[4], <void**>&s.t, F64, 3, 0, False, "t")
+    column(&c[5], <void**>&s.x0, F64, 3, 0, False, "x0")
+    column(&c[6], <void**>&s.r, F64, 1, 0, False, "r")
+    column(&c[7], <void**>&s.m, F64, 1, 0, False, "m")
+    column(&c[8], <void**>&s.type, I32, 1, 0, False, "type")
+    column(&c[9], <void**>&s.perm, I32, 1, 0, False, NULL)
+    column(&c[10], <void**>&s.cell, I32, 1, 0, False, NULL)
+    column(&c[11], <void**>&s.work, I32, 1, 0, False, NULL)
+    column(&c[12], <void**>&s.pid, I64, 1, 0, False, "id")
+    column(&c[13], <void**>&s.nb_start, I32, 1, 1, False, "nb_start")
+    column(&c[14], <void**>&s.ob_start, I32, 1, 1, False, NULL)
+    column(&c[15], <void**>&s.wl_start, I32, 1, 1, False, "wl_start")
+    column(&c[16], <void**>&s.ow_start, I32, 1, 1, False, NULL)
+    column(&c[17], <void**>&s.last, I32, 1, 0, False, NULL)
+    column(&c[18], <void**>&s.flo, I32, 1, 0, False, NULL)
+    column(&c[19], <void**>&s.fhi, I32, 1, 0, False, NULL)
+    column(&c[20], <void**>&s.buf, F64, 6, 0, True, NULL)   # the pair loop's, zero between steps
+    column(&c[21], <void**>&s.mem, I32, 1, 0, False, NULL)
+    column(&c[22], <void**>&s.sb_n, I32, 1, 0, False, NULL)
+    column(&c[23], <void**>&s.sb_at, I32, 1, 0, False, NULL)
 
 
 cdef void element_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the wall elements: the NECOLUMNS per-element arrays of the State,
-    which Core grows together (add_elements), compacts (remove_elements) and frees (dealloc)."""
-    column(&c[0], <void**>&s.ekind, sizeof(int), 0, False)
-    column(&c[1], <void**>&s.etype, sizeof(int), 0, False)
-    column(&c[2], <void**>&s.ewall, sizeof(int), 0, False)
-    column(&c[3], <void**>&s.emoving, sizeof(int), 0, False)
-    column(&c[4], <void**>&s.evid, 3 * sizeof(int), 0, False)
-    column(&c[5], <void**>&s.egeo, 9 * sizeof(double), 0, False)
-    column(&c[6], <void**>&s.eref, 9 * sizeof(double), 0, False)
-    column(&c[7], <void**>&s.ebuilt, 9 * sizeof(double), 0, False)
-    column(&c[8], <void**>&s.emot, NMOT * sizeof(double), 0, False)
+    which Core grows together (add_elements), compacts (remove_elements), frees (dealloc) and
+    checkpoints (state_of)."""
+    column(&c[0], <void**>&s.ekind, I32, 1, 0, False, "ekind")
+    column(&c[1], <void**>&s.etype, I32, 1, 0, False, "etype")
+    column(&c[2], <void**>&s.ewall, I32, 1, 0, False, "ewall")
+    column(&c[3], <void**>&s.emoving, I32, 1, 0, False, "emoving")
+    column(&c[4], <void**>&s.evid, I32, 3, 0, False, "evid")
+    column(&c[5], <void**>&s.egeo, F64, 9, 0, False, "egeo")
+    column(&c[6], <void**>&s.eref, F64, 9, 0, False, "eref")
+    column(&c[7], <void**>&s.ebuilt, F64, 9, 0, False, "ebuilt")
+    column(&c[8], <void**>&s.emot, F64, NMOT, 0, False, "emot")
 
 
 cdef void body_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the clumps' bodies: the NBCOLUMNS per-body arrays of the State,
-    which Core grows together (add_bodies), compacts (drop_bodies) and frees (dealloc)."""
-    column(&c[0], <void**>&s.bid, sizeof(int64_t), 0, False)
-    column(&c[1], <void**>&s.btype, sizeof(int), 0, False)
-    column(&c[2], <void**>&s.bx, 3 * sizeof(double), 0, False)
-    column(&c[3], <void**>&s.bv, 3 * sizeof(double), 0, False)
-    column(&c[4], <void**>&s.bq, 4 * sizeof(double), 0, False)
-    column(&c[5], <void**>&s.bp, 3 * sizeof(double), 0, False)
-    column(&c[6], <void**>&s.bm, sizeof(double), 0, False)
-    column(&c[7], <void**>&s.bI, 3 * sizeof(double), 0, False)
-    column(&c[8], <void**>&s.bf, 3 * sizeof(double), 0, False)
-    column(&c[9], <void**>&s.bt, 3 * sizeof(double), 0, False)
-    column(&c[10], <void**>&s.bdd, sizeof(double), 0, False)
-    column(&c[11], <void**>&s.mstart, sizeof(int), 1, False)
+    which Core grows together (add_bodies), compacts (drop_bodies), frees (dealloc) and
+    checkpoints (state_of)."""
+    column(&c[0], <void**>&s.bid, I64, 1, 0, False, "body_id")
+    column(&c[1], <void**>&s.btype, I32, 1, 0, False, "body_type")
+    column(&c[2], <void**>&s.bx, F64, 3, 0, False, "body_x")
+    column(&c[3], <void**>&s.bv, F64, 3, 0, False, "body_v")
+    column(&c[4], <void**>&s.bq, F64, 4, 0, False, "body_q")
+    column(&c[5], <void**>&s.bp, F64, 3, 0, False, "body_p")
+    column(&c[6], <void**>&s.bm, F64, 1, 0, False, "body_m")
+    column(&c[7], <void**>&s.bI, F64, 3, 0, False, "body_inertia")
+    column(&c[8], <void**>&s.bf, F64, 3, 0, False, "body_f")
+    column(&c[9], <void**>&s.bt, F64, 3, 0, False, "body_t")
+    column(&c[10], <void**>&s.bdd, F64, 1, 0, False, NULL)
+    column(&c[11], <void**>&s.mstart, I32, 1, 1, False, "body_start")
 
 
 cdef void member_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the clumps' member slots: the NMCOLUMNS per-slot arrays."""
-    column(&c[0], <void**>&s.md, 3 * sizeof(double), 0, False)
-    column(&c[1], <void**>&s.mimg, 3 * sizeof(double), 0, False)
-    column(&c[2], <void**>&s.mrow, sizeof(int), 0, False)
-    column(&c[3], <void**>&s.mbody, sizeof(int), 0, False)
+    column(&c[0], <void**>&s.md, F64, 3, 0, False, "member_offset")
+    column(&c[1], <void**>&s.mimg, F64, 3, 0, False, "member_shift")
+    column(&c[2], <void**>&s.mrow, I32, 1, 0, False, NULL)
+    column(&c[3], <void**>&s.mbody, I32, 1, 0, False, NULL)
