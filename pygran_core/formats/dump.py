@@ -41,6 +41,7 @@ from pygran_core._compiled import kernels as _accel
 from pygran_core.errors import ReadError, UnsupportedFeature, did_you_mean
 from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
+from pygran_core.formats.sanity import particle_problem, step_problem
 
 #: Columns read as integers.
 INT_COLUMNS = frozenset({"id", "type", "mol", "proc", "procp1", "ix", "iy", "iz"})
@@ -470,6 +471,7 @@ class DumpTrajectory(Trajectory):
             if ahead is not None:
                 ahead.shutdown(wait=False)  # its thread ends once the tables queued are parsed
         self._gz: tuple[int, _Inflater] | None = None
+        self._steps: dict[int, int] = {}  # the step of each frame read, for the order check
         self._walls = self._wall_contacts()
 
     def _wall_contacts(self) -> DumpTrajectory | None:
@@ -567,6 +569,7 @@ class DumpTrajectory(Trajectory):
         header = self._parse_header(index, data)
         table = self._parse_atoms(index, data, header, ahead)
         frame = self._build_frame(index, header, table)
+        self._check_sanity(index, block, frame)
         if self._walls is not None and frame.attrs.get("kind") == _contacts.KIND:
             walls = self._walls[index]
             if walls.timestep != frame.timestep:
@@ -579,6 +582,19 @@ class DumpTrajectory(Trajectory):
                 name: np.concatenate([frame.arrays[name], walls.arrays[name]]) for name in frame.arrays
             }
         return frame
+
+    def _check_sanity(self, index: int, block: _Block, frame: Frame) -> None:
+        """Refuse a particle frame that is physically impossible (:mod:`~.sanity`), and a step
+        that does not follow its neighbours' (those read so far: reading in order checks all)."""
+        problem = None if frame.attrs.get("kind") else particle_problem(frame.arrays)
+        if problem is None and frame.timestep is not None:
+            self._steps[index] = frame.timestep
+            before, after = self._steps.get(index - 1), self._steps.get(index + 1)
+            problem = step_problem(before, frame.timestep)
+            if problem is None and after is not None:
+                problem = step_problem(frame.timestep, after)
+        if problem:
+            raise self._error(index, block.line, problem)
 
     def read_header(self, index: int) -> dict[str, Any]:
         """Timestep, atom count, box and columns of frame ``index`` without parsing its atoms."""
