@@ -31,6 +31,11 @@ class ReadError(PyGranError):
     """A file cannot be read; the message names the file, and where known the frame and line."""
 
 
+class WriteError(PyGranError, OSError):
+    """A file could not be written: no space left, or another writer holds it; the message
+    names the file, and every frame written before stays readable."""
+
+
 class EngineError(PyGranError):
     """The solver behind an engine reported an error or died."""
 

@@ -226,7 +226,7 @@ class Outcome:
 def outcome(output: Path) -> Outcome:
     with np.load(output / "final.npz") as saved:
         final = dict(saved)
-    (path,) = (p for p in output.glob("traj.*") if ".before-resume" not in p.name)
+    (path,) = (p for p in output.glob("traj.*") if ".before-resume" not in p.name and "xdmf" not in p.name)
     with open_trajectory(path) as trajectory:
         frames = [(frame.timestep, dict(frame.arrays)) for frame in trajectory]
     return Outcome(final, (output / "monitor.txt").read_text(), frames)

@@ -55,11 +55,11 @@ from typing import Any
 
 import numpy as np
 
-from pygran_core.errors import PyGranError, ReadError, UnsupportedFeature
+from pygran_core.errors import PyGranError, ReadError, UnsupportedFeature, WriteError
 from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 from pygran_core.formats.h5md_units import to_si
-from pygran_core.formats.hdf5 import HDF5_SIGNATURE, Claim, WriteError, no_space, open_hdf5, stored_elements
+from pygran_core.formats.hdf5 import HDF5_SIGNATURE, Claim, no_space, open_hdf5, stored_elements
 from pygran_core.formats.sanity import particle_problem, step_problem
 from pygran_core.formats.xdmf import VECTORS, XdmfSidecar, frame_groups
 
@@ -158,7 +158,7 @@ class H5MDWriter(TrajectoryWriter):
     contacts frame, without ``contacts=True``, writes a file of contacts only.
 
     The file is claimed before it is emptied (a second writer of the same file gets a
-    :class:`~pygran_core.formats.hdf5.WriteError` and the first one's file is untouched), and
+    :class:`~pygran_core.errors.WriteError` and the first one's file is untouched), and
     each frame's disk space is reserved before it is written: a full disk gives one
     ``WriteError`` naming the file, with every earlier frame readable.
     """

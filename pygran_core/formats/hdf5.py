@@ -24,7 +24,7 @@ import struct
 from pathlib import Path
 from typing import Any, ClassVar
 
-from pygran_core.errors import PyGranError, ReadError
+from pygran_core.errors import ReadError, WriteError
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 #: Metadata read attempts of an SWMR reader: HDF5 sleeps 1, 2, 4, ... ns between them, so
@@ -34,10 +34,6 @@ SWMR_READ_ATTEMPTS = 20
 METADATA_RESERVE = 1 << 20
 #: What the operating system says when a write cannot get space.
 _NO_SPACE = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
-
-
-class WriteError(PyGranError, OSError):
-    """A file could not be written: no space left, or another writer holds it."""
 
 
 def open_hdf5(path: Path) -> Any:

@@ -29,9 +29,9 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.errors import ReadError, UnsupportedFeature, WriteError
 from pygran_core.formats.base import Frame, PathLike, Trajectory
-from pygran_core.formats.hdf5 import Claim, WriteError, no_space, open_hdf5
+from pygran_core.formats.hdf5 import Claim, no_space, open_hdf5
 from pygran_core.formats.sanity import particle_problem, step_problem
 
 _HEAD = (

@@ -16,8 +16,7 @@ import numpy as np
 import pytest
 
 from pygran_core import analysis
-from pygran_core.errors import ReadError
-from pygran_core.formats.hdf5 import WriteError
+from pygran_core.errors import ReadError, WriteError
 from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.simulation.checkpoint import read_checkpoint
 from pygran_core.testing.formats import damaged_copies, fuzz_check, fuzz_read, read_every_frame
