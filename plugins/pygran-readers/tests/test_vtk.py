@@ -344,6 +344,20 @@ def test_series_writes_an_unchanged_frame_once_and_indexes_it_at_every_step(tmp_
         np.testing.assert_array_equal(series[3].arrays["points"], frame.arrays["points"] + 1.0)
 
 
+@pytest.mark.parametrize("suffix", [".vtk", ".vtp", ".vtu"])
+def test_impossible_particles_are_a_read_error(tmp_path, suffix):
+    """Two particles with one id, a radius of zero: a ReadError naming the file and the fault."""
+    for name, arrays in (
+        ("twins", {"id": np.array([1, 1]), "radius": np.array([0.1, 0.1])}),
+        ("flat", {"id": np.array([1, 2]), "radius": np.array([0.1, 0.0])}),
+    ):
+        frame = Frame({"x": np.zeros(2), "y": np.zeros(2), "z": np.arange(2.0), **arrays}, timestep=5)
+        with open_writer(tmp_path / f"{name}*{suffix}") as out:
+            out.write_frame(frame)
+        with pytest.raises(ReadError, match=f"{name}5\\{suffix}: frame 0: .*(more than once|not positive)"):
+            open_trajectory(tmp_path / f"{name}5{suffix}")[0]
+
+
 def test_writer_replaces_files_atomically_and_names_them_by_timestep(tmp_path):
     frame = Frame({"x": np.zeros(2), "y": np.zeros(2), "z": np.ones(2)}, timestep=42)
     with open_writer(tmp_path / "plain.vtk") as out:

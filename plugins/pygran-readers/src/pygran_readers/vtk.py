@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.formats.sanity import particle_problem
 from pygran_core.io import Frame, PathLike, Trajectory
 from pygran_readers.series import SeriesWriter
 
@@ -429,7 +430,8 @@ def mesh_frame(mesh: Mesh, kind: str | None) -> Frame:
 
 
 class VTKTrajectory(Trajectory):
-    """One frame per VTK file, read when asked for."""
+    """One frame per VTK file, read when asked for; particles with repeated ids or a radius,
+    mass or density that is not positive are a ``ReadError`` naming the file."""
 
     def __init__(self, paths: Sequence[PathLike], kind: str | None = None) -> None:
         if kind not in (None, "mesh", "particles"):
@@ -447,7 +449,11 @@ class VTKTrajectory(Trajectory):
             mesh = _reader_for(path)(path)
         except ReadError as exc:
             raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
-        return mesh_frame(mesh, self.kind)
+        frame = mesh_frame(mesh, self.kind)
+        problem = particle_problem(frame.arrays) if frame.attrs["kind"] == "particles" else None
+        if problem:
+            raise ReadError(f"{path}: frame {index}: {problem}")
+        return frame
 
 
 # -- writing -------------------------------------------------------------------------------
