@@ -460,8 +460,8 @@ class Commands:
         else:
             args = " ".join(a if isinstance(a, str) else fmt(a) for a in region.args)
         rid = self.new_id("region")
-        args = " ".join(a if isinstance(a, str) else fmt(a) for a in region.args)
-        return rid, f"region {rid} {region.kind} {args} units box volume_limit {fmt(VOLUME_LIMIT)}"
+        lines.append(f"region {rid} {region.kind} {args} units box volume_limit {fmt(VOLUME_LIMIT)}")
+        return rid, lines
 
     def _templates(
         self, species: Sequence[int], weights: Sequence[float], seed: int
