@@ -127,6 +127,9 @@ def test_regions_inside_a_mesh_and_intersections(tmp_path: Path) -> None:
         ("intersect", ("block", -0.06, 0.06, -0.02, 0.02, -0.06, 0.0), drum), simulation_spec
     )
     assert by_name.volume() == pytest.approx(drum.volume, rel=1e-12)
+    assert by_name.args[0].inscribed == drum.inscribed  # what LIGGGHTS inserts into
+    moved = spec(tmp_path, mesh={"drum": {"triangles": drum, "material": params.glass, "move": (0, 0, 1e-3)}})
+    assert parse_region(("mesh", "drum"), moved).args[0].inscribed is None  # not where it was built
     assert by_object.volume() == pytest.approx(drum.volume, rel=1e-12)
     assert lower.volume() == pytest.approx(drum.volume / 2, rel=0.01)  # 20,000 points: 0.4 % standard error
     np.testing.assert_allclose(lower.bounds(), [[-0.05, 0.05], [-0.01, 0.01], [-0.05, 0.0]])

@@ -252,7 +252,7 @@ def _mesh_region(value: Sequence[Any], spec: SimulationSpec) -> Region:
         known = {mesh.name: mesh for mesh in spec.meshes}
         if given not in known:
             raise unknown_key("mesh of the region", given, list(known))
-        surface = geometry.Surface(known[given].triangles(), given)
+        surface = geometry.Surface(known[given].triangles(), given, known[given].inscribed)
     else:
         surface = geometry.as_surface(given, "of the region")
     surface.require_closed("an insertion region")

@@ -563,7 +563,9 @@ class MeshSpec:
     """A triangle-mesh wall read from an STL file and placed: its points ``p`` become
     ``scale * R p + translate``, ``R`` the rotation by ``rotate = (axis, angle in degrees)``
     about the origin. ``wall``: a wall from the first run (PyGran 1.x's ``'import'``);
-    ``servo``: the servo settings of a ``mesh/surface/stress/servo`` mesh."""
+    ``servo``: the servo settings of a ``mesh/surface/stress/servo`` mesh; ``inscribed``: the
+    primitive region inside a mesh a geometry builder made (see
+    :class:`~pygran_core.simulation.geometry.Surface`), as placed."""
 
     name: str
     file: Path
@@ -574,6 +576,7 @@ class MeshSpec:
     translate: Vector = (0.0, 0.0, 0.0)
     wall: bool = True
     servo: ServoSpec | None = None
+    inscribed: tuple[object, ...] | None = None
 
     def triangles(self) -> np.ndarray:
         """The mesh's triangles ``(T, 3, 3)`` in place: scaled, rotated about the origin, then
@@ -812,8 +815,10 @@ def parse_mesh(name: str, value: Any, base: Path, output: Path | None = None) ->
             else f"mesh {name!r} needs 'file' (an STL file) or 'triangles' (a geometry surface, such as "
             "simulation.geometry.drum(...), or an (M, 3, 3) array in metres)"
         )
+    inscribed = None
     if "triangles" in value:
         surface = geometry.as_surface(value["triangles"], name)
+        inscribed = surface.inscribed
         folder = output if output is not None else base
         folder.mkdir(parents=True, exist_ok=True)
         value = {**value, "file": surface.write(folder / f"mesh-{name}.stl")}
@@ -844,6 +849,7 @@ def parse_mesh(name: str, value: Any, base: Path, output: Path | None = None) ->
         translate=translate,
         wall=wall,
         servo=parse_servo(servo_values, name) if servo else None,
+        inscribed=inscribed if (scale, rotate, translate) == (1.0, None, (0.0, 0.0, 0.0)) else None,
     )
 
 
