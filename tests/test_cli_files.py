@@ -67,6 +67,24 @@ def test_convert_dump_glob_to_h5md_and_back(hopper, tmp_path):
             np.testing.assert_array_equal(got.arrays[name], values)
 
 
+def test_convert_to_a_dump_with_its_time_block(hopper, tmp_path):
+    """LIGGGHTS' dumps have no time; ``--option time=true`` keeps it, as LAMMPS' ``time yes``."""
+    out = run(
+        "convert",
+        "particles1000.dump",
+        str(tmp_path / "timed.dump"),
+        "--dt",
+        "1e-5",
+        "--option",
+        "time=true",
+        cwd=hopper,
+    )
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert (tmp_path / "timed.dump").read_text().startswith("ITEM: TIME\n0.01\nITEM: TIMESTEP\n1000\n")
+    (frame,) = open_trajectory(str(tmp_path / "timed.dump"))
+    assert frame.time == 0.01 and frame.timestep == 1000
+
+
 def test_errors_are_one_line_and_exit_1(hopper, tmp_path):
     missing = run("info", "nope.dump", cwd=tmp_path)
     assert missing.returncode == 1 and "pygran: error: File not found:" in missing.stderr

@@ -50,6 +50,7 @@ def pygran_writers() -> Iterator[WriterSpec]:
         open=dump.DumpWriter,
         kinds=frozenset({"particles", "contacts"}),
         description="LIGGGHTS/LAMMPS text dump; '*' in the name writes a file per frame",
+        options={"time": False},
     )
     yield WriterSpec(
         name="h5md",
