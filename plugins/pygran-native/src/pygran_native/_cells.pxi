@@ -33,43 +33,43 @@ cdef int setup_cells(State* sim, double rmax) noexcept nogil:
     while True:
         total = 1
         for d in range(3):
-            sim.nc[d] = <int>floor(sim.L[d] / size)
-            if sim.nc[d] < 1:
-                sim.nc[d] = 1
-            sim.cs[d] = sim.L[d] / sim.nc[d]
-            total *= sim.nc[d]
-        if total <= 4 * <long long>sim.n + 4096:
+            sim.lists.nc[d] = <int>floor(sim.L[d] / size)
+            if sim.lists.nc[d] < 1:
+                sim.lists.nc[d] = 1
+            sim.lists.cs[d] = sim.L[d] / sim.lists.nc[d]
+            total *= sim.lists.nc[d]
+        if total <= 4 * <long long>sim.particles.n + 4096:
             break
         size *= 1.26
-    sim.ncells = <int>total
+    sim.lists.ncells = <int>total
     # axes by decreasing cell count (ties: z before y before x)
-    sim.ax[0], sim.ax[1], sim.ax[2] = 2, 1, 0
+    sim.lists.ax[0], sim.lists.ax[1], sim.lists.ax[2] = 2, 1, 0
     for d in range(2):
         for k in range(2 - d):
-            if sim.nc[sim.ax[k + 1]] > sim.nc[sim.ax[k]]:
-                sim.ax[k], sim.ax[k + 1] = sim.ax[k + 1], sim.ax[k]
+            if sim.lists.nc[sim.lists.ax[k + 1]] > sim.lists.nc[sim.lists.ax[k]]:
+                sim.lists.ax[k], sim.lists.ax[k + 1] = sim.lists.ax[k + 1], sim.lists.ax[k]
     k = 0   # (exactly 14 with 3 cells or more along each axis, which scan_pairs needs to use them)
     for d in range(27):   # the order of scan_pairs' loops: offsets d0 (x), d1 (y), d2 (z) = -1, 0, 1
         cc[0], cc[1], cc[2] = d % 3 - 1, d // 3 % 3 - 1, d // 9 - 1
-        if k < 14 and cell_id(sim.nc, sim.ax, cc) >= 0:
-            sim.up[k] = cell_id(sim.nc, sim.ax, cc)
+        if k < 14 and cell_id(sim.lists.nc, sim.lists.ax, cc) >= 0:
+            sim.lists.up[k] = cell_id(sim.lists.nc, sim.lists.ax, cc)
             k += 1
-    if sim.ncells + 2 > sim.cell_cap:
-        p = grow(sim.cell_start, (sim.ncells + 2) * sizeof(int))
+    if sim.lists.ncells + 2 > sim.lists.cell_cap:
+        p = grow(sim.lists.cell_start, (sim.lists.ncells + 2) * sizeof(int))
         if p == NULL:
             return -1
-        sim.cell_start = <int*>p
-        p = grow(sim.ctri_start, (sim.ncells + 2) * sizeof(int))
+        sim.lists.cell_start = <int*>p
+        p = grow(sim.walls.ctri_start, (sim.lists.ncells + 2) * sizeof(int))
         if p == NULL:
             return -1
-        sim.ctri_start = <int*>p
-        sim.cell_cap = sim.ncells + 2
+        sim.walls.ctri_start = <int*>p
+        sim.lists.cell_cap = sim.lists.ncells + 2
     return 0
 
 
 cdef inline int cell_of(State* sim, const double* p) noexcept nogil:
     cdef int cc[3]
-    return locate(p, sim.lo, sim.cs, sim.nc, sim.ax, cc)
+    return locate(p, sim.lo, sim.lists.cs, sim.lists.nc, sim.lists.ax, cc)
 
 
 cdef void tri_cells(State* sim, int e, double reach, int* lo3, int* hi3) noexcept nogil:
@@ -77,20 +77,20 @@ cdef void tri_cells(State* sim, int e, double reach, int* lo3, int* hi3) noexcep
     cdef double mn, mx, val
     cdef int a, d
     for d in range(3):
-        mn = sim.egeo[9 * e + d]
+        mn = sim.walls.egeo[9 * e + d]
         mx = mn
         for a in range(1, 3):
-            val = sim.egeo[9 * e + 3 * a + d]
+            val = sim.walls.egeo[9 * e + 3 * a + d]
             if val < mn:
                 mn = val
             if val > mx:
                 mx = val
-        lo3[d] = <int>floor((mn - reach - sim.lo[d]) / sim.cs[d])
-        hi3[d] = <int>floor((mx + reach - sim.lo[d]) / sim.cs[d])
+        lo3[d] = <int>floor((mn - reach - sim.lo[d]) / sim.lists.cs[d])
+        hi3[d] = <int>floor((mx + reach - sim.lo[d]) / sim.lists.cs[d])
         if lo3[d] < 0:
             lo3[d] = 0
-        if hi3[d] >= sim.nc[d]:
-            hi3[d] = sim.nc[d] - 1
+        if hi3[d] >= sim.lists.nc[d]:
+            hi3[d] = sim.lists.nc[d] - 1
 
 
 cdef inline bint tri_near_cell(State* sim, int e, int a, int b, int c, double reach) noexcept nogil:
@@ -100,17 +100,17 @@ cdef inline bint tri_near_cell(State* sim, int e, int a, int b, int c, double re
     cdef double v[3]
     cdef double nrm[3]
     cdef double ctr[3]
-    cdef const double* g = &sim.egeo[9 * e]
+    cdef const double* g = &sim.walls.egeo[9 * e]
     cdef int d
     for d in range(3):
         u[d] = g[3 + d] - g[d]
         v[d] = g[6 + d] - g[d]
     cross3(u, v, nrm)
     ln = sqrt(dot3(nrm, nrm))
-    ctr[0] = sim.lo[0] + (a + 0.5) * sim.cs[0] - g[0]
-    ctr[1] = sim.lo[1] + (b + 0.5) * sim.cs[1] - g[1]
-    ctr[2] = sim.lo[2] + (c + 0.5) * sim.cs[2] - g[2]
-    half = 0.5 * sqrt(sim.cs[0] * sim.cs[0] + sim.cs[1] * sim.cs[1] + sim.cs[2] * sim.cs[2])
+    ctr[0] = sim.lo[0] + (a + 0.5) * sim.lists.cs[0] - g[0]
+    ctr[1] = sim.lo[1] + (b + 0.5) * sim.lists.cs[1] - g[1]
+    ctr[2] = sim.lo[2] + (c + 0.5) * sim.lists.cs[2] - g[2]
+    half = 0.5 * sqrt(sim.lists.cs[0] * sim.lists.cs[0] + sim.lists.cs[1] * sim.lists.cs[1] + sim.lists.cs[2] * sim.lists.cs[2])
     return fabs(dot3(nrm, ctr)) <= (reach + half) * ln
 
 
@@ -127,9 +127,9 @@ cdef int bin_triangles(State* sim, double reach) noexcept nogil:
     cdef int abc[3]
     cdef long long total
     cdef void* p
-    memset(sim.ctri_start, 0, (sim.ncells + 1) * sizeof(int))
-    for e in range(sim.ne):
-        if sim.ekind[e] == TRIANGLE:
+    memset(sim.walls.ctri_start, 0, (sim.lists.ncells + 1) * sizeof(int))
+    for e in range(sim.walls.ne):
+        if sim.walls.ekind[e] == TRIANGLE:
             tri_cells(sim, e, reach, lo3, hi3)
             for c in range(lo3[2], hi3[2] + 1):
                 for b in range(lo3[1], hi3[1] + 1):
@@ -138,19 +138,19 @@ cdef int bin_triangles(State* sim, double reach) noexcept nogil:
                             abc[0] = a
                             abc[1] = b
                             abc[2] = c
-                            sim.ctri_start[cell_id(sim.nc, sim.ax, abc) + 1] += 1
-    for c in range(sim.ncells):
-        sim.ctri_start[c + 1] += sim.ctri_start[c]
-    total = sim.ctri_start[sim.ncells]
-    if total + 1 > sim.ctri_cap:
-        p = grow(sim.ctri, (total + 1) * sizeof(int))
+                            sim.walls.ctri_start[cell_id(sim.lists.nc, sim.lists.ax, abc) + 1] += 1
+    for c in range(sim.lists.ncells):
+        sim.walls.ctri_start[c + 1] += sim.walls.ctri_start[c]
+    total = sim.walls.ctri_start[sim.lists.ncells]
+    if total + 1 > sim.walls.ctri_cap:
+        p = grow(sim.walls.ctri, (total + 1) * sizeof(int))
         if p == NULL:
             return -1
-        sim.ctri = <int*>p
-        sim.ctri_cap = total + 1
-    memcpy(sim.cell_start, sim.ctri_start, (sim.ncells + 1) * sizeof(int))
-    for e in range(sim.ne):
-        if sim.ekind[e] == TRIANGLE:
+        sim.walls.ctri = <int*>p
+        sim.walls.ctri_cap = total + 1
+    memcpy(sim.lists.cell_start, sim.walls.ctri_start, (sim.lists.ncells + 1) * sizeof(int))
+    for e in range(sim.walls.ne):
+        if sim.walls.ekind[e] == TRIANGLE:
             tri_cells(sim, e, reach, lo3, hi3)
             for c in range(lo3[2], hi3[2] + 1):
                 for b in range(lo3[1], hi3[1] + 1):
@@ -159,7 +159,7 @@ cdef int bin_triangles(State* sim, double reach) noexcept nogil:
                             abc[0] = a
                             abc[1] = b
                             abc[2] = c
-                            cc = cell_id(sim.nc, sim.ax, abc)
-                            sim.ctri[sim.cell_start[cc]] = e
-                            sim.cell_start[cc] += 1
+                            cc = cell_id(sim.lists.nc, sim.lists.ax, abc)
+                            sim.walls.ctri[sim.lists.cell_start[cc]] = e
+                            sim.lists.cell_start[cc] += 1
     return 0

@@ -39,32 +39,32 @@ cdef void load_table(state, Column* cols, int ncols, long long rows) except *:
 cdef dict state_of(Core core):
     """Everything the time-step loop depends on, as numpy arrays (storage order): the saved
     columns of the allocation tables (see particle_columns), the lists and the scalars."""
-    cdef int n = core.s.n
-    cdef long long npair = core.s.nb_start[n], nwall = core.s.wl_start[n]
+    cdef int n = core.s.particles.n
+    cdef long long npair = core.s.lists.nb_start[n], nwall = core.s.lists.wl_start[n]
     cdef Column cols[NCOLUMNS]
     state = {
-        "nb_j": _copy_i(core.s.nb_j, npair), "nb_s": _copy_b(core.s.nb_s, npair),
-        "nb_h": _copy_d(core.s.nb_h, npair * core.s.hs), "wl_e": _copy_i(core.s.wl_e, nwall),
-        "wl_h": _copy_d(core.s.wl_h, nwall * (core.s.hs + 1)), "visc": _copy_d(core.s.visc, core.s.ntypes),
-        "slots": _copy_d(core.s.slots, NSLOT * core.s.nslots),
-        "vib": _copy_d(core.s.vib, NVIB * core.s.nvib),
+        "nb_j": _copy_i(core.s.lists.nb_j, npair), "nb_s": _copy_b(core.s.lists.nb_s, npair),
+        "nb_h": _copy_d(core.s.lists.nb_h, npair * core.s.hs), "wl_e": _copy_i(core.s.lists.wl_e, nwall),
+        "wl_h": _copy_d(core.s.lists.wl_h, nwall * (core.s.hs + 1)), "visc": _copy_d(core.s.visc, core.s.ntypes),
+        "slots": _copy_d(core.s.walls.slots, NSLOT * core.s.walls.nslots),
+        "vib": _copy_d(core.s.walls.vib, NVIB * core.s.walls.nvib),
         "scalars": np.array([core.s.time, core.s.t_base, core.s.dt_base, core.s.lost_speed], dtype=float),
         "lost": np.array([core.s.lost_at[k] for k in range(7)], dtype=np.int64),
         "counters": np.array([core.s.step, core.s.lost, core.s.rebuilds, core.s.dirty, core.s.step_base],
                              dtype=np.int64),
-        "bounds": _copy_i(core.s.pb, core.s.nblocks + 1),
+        "bounds": _copy_i(core.s.schedule.pb, core.s.schedule.nblocks + 1),
     }
     particle_columns(&core.s, cols)
     save_table(state, cols, NCOLUMNS, n)
     element_columns(&core.s, cols)
-    save_table(state, cols, NECOLUMNS, core.s.ne)
-    if core.s.nbody == 0:   # a state of spheres only is what it was before there were clumps
+    save_table(state, cols, NECOLUMNS, core.s.walls.ne)
+    if core.s.clumps.nbody == 0:   # a state of spheres only is what it was before there were clumps
         return state
-    state["mem"] = _copy_i(core.s.mem, n)
+    state["mem"] = _copy_i(core.s.particles.mem, n)
     body_columns(&core.s, cols)
-    save_table(state, cols, NBCOLUMNS, core.s.nbody)
+    save_table(state, cols, NBCOLUMNS, core.s.clumps.nbody)
     member_columns(&core.s, cols)
-    save_table(state, cols, NMCOLUMNS, core.s.nmem)
+    save_table(state, cols, NMCOLUMNS, core.s.clumps.nmem)
     return state
 
 
@@ -77,8 +77,8 @@ cdef void restore(Core core, state) except *:
     core.reserve(n)
     if reserve_pairs(&core.s, npair) < 0 or reserve_walls(&core.s, nwall) < 0:
         raise MemoryError()
-    core.s.n = 0
-    core.s.ne = 0
+    core.s.particles.n = 0
+    core.s.walls.ne = 0
     core.s.forces_valid = 0
     core.add_elements(np.ascontiguousarray(state["ekind"], dtype=np.int32),   # grows the element columns
                       np.ascontiguousarray(state["etype"], dtype=np.int32),
@@ -91,33 +91,33 @@ cdef void restore(Core core, state) except *:
     core.set_vibrations(np.ascontiguousarray(state["vib"], dtype=float).reshape(-1, NVIB))
     particle_columns(&core.s, cols)
     load_table(state, cols, NCOLUMNS, n)
-    _put_d(core.s.nb_h, state["nb_h"], npair * core.s.hs)
-    _put_d(core.s.wl_h, state["wl_h"], nwall * (core.s.hs + 1))
-    _put_i(core.s.nb_j, state["nb_j"], npair)
-    _put_i(core.s.wl_e, state["wl_e"], nwall)
+    _put_d(core.s.lists.nb_h, state["nb_h"], npair * core.s.hs)
+    _put_d(core.s.lists.wl_h, state["wl_h"], nwall * (core.s.hs + 1))
+    _put_i(core.s.lists.nb_j, state["nb_j"], npair)
+    _put_i(core.s.lists.wl_e, state["wl_e"], nwall)
     nbs = np.ascontiguousarray(state["nb_s"], dtype=np.uint8)
     if nbs.shape[0] != npair:
         raise ValueError("nb_s: one per listed pair")
     if npair:
-        memcpy(core.s.nb_s, cnp.PyArray_DATA(nbs), npair)
+        memcpy(core.s.lists.nb_s, cnp.PyArray_DATA(nbs), npair)
     core.set_viscous(np.ascontiguousarray(state["visc"], dtype=float))
-    core.s.n = n
+    core.s.particles.n = n
     restore_bodies(core, state)
     core.s.time, core.s.t_base, core.s.dt_base, core.s.lost_speed = (float(k) for k in state["scalars"])
     for i in range(7):
         core.s.lost_at[i] = state["lost"][i]
     core.s.step, core.s.lost, core.s.rebuilds, core.s.dirty, core.s.step_base = (
         int(k) for k in state["counters"])
-    if state["bounds"].shape[0] == core.s.nblocks + 1:
-        _put_i(core.s.pb, state["bounds"], core.s.nblocks + 1)
+    if state["bounds"].shape[0] == core.s.schedule.nblocks + 1:
+        _put_i(core.s.schedule.pb, state["bounds"], core.s.schedule.nblocks + 1)
     else:   # another thread count: sums in another order anyway
         for i in range(n):
-            core.s.work[i] = estimated_work(&core.s, i)
+            core.s.schedule.work[i] = estimated_work(&core.s, i)
         balance(&core.s)
     for i in range(n):
         find_partners(&core.s, i)
     prefix_last(&core.s)
-    core.s.sub_build = 1
+    core.s.lists.sub_build = 1
     core.s.travel = INFINITY   # not saved: drifts measure until the next rebuild
     core.s.measure = 1
 
@@ -127,25 +127,25 @@ cdef void restore_bodies(Core core, state) except *:
     cdef int nb, nm, b, s
     cdef Column cols[NBCOLUMNS]
     if "mem" not in state:
-        core.s.nbody = core.s.nmem = 0
-        for s in range(core.s.n):
-            core.s.mem[s] = -1
+        core.s.clumps.nbody = core.s.clumps.nmem = 0
+        for s in range(core.s.particles.n):
+            core.s.particles.mem[s] = -1
         return
     nb = state["body_m"].shape[0]
     nm = state["member_offset"].shape[0] // 3
     core.reserve_bodies(nb, nm)
-    core.s.nbody = 0
+    core.s.clumps.nbody = 0
     body_columns(&core.s, cols)
     load_table(state, cols, NBCOLUMNS, nb)
     member_columns(&core.s, cols)
     load_table(state, cols, NMCOLUMNS, nm)
-    _put_i(core.s.mem, state["mem"], core.s.n)
+    _put_i(core.s.particles.mem, state["mem"], core.s.particles.n)
     for b in range(nb):
-        core.s.bdd[b] = 0.0
-        for s in range(core.s.mstart[b], core.s.mstart[b + 1]):
-            core.s.mbody[s] = b
-    core.s.nbody = nb
-    core.s.nmem = nm
+        core.s.clumps.bdd[b] = 0.0
+        for s in range(core.s.clumps.mstart[b], core.s.clumps.mstart[b + 1]):
+            core.s.clumps.mbody[s] = b
+    core.s.clumps.nbody = nb
+    core.s.clumps.nmem = nm
     find_members(&core.s)
 
 

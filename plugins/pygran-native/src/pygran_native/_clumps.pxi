@@ -83,22 +83,22 @@ cdef double body_members(const State* c, int b, bint positions) noexcept nogil:
     cdef double cx[3]
     cdef double dd, q, dmax = 0.0
     cdef int s, i, d
-    quat_matrix(&c.bq[4 * b], R)
+    quat_matrix(&c.clumps.bq[4 * b], R)
     for d in range(3):
-        wb[d] = c.bp[3 * b + d] / c.bI[3 * b + d]
+        wb[d] = c.clumps.bp[3 * b + d] / c.clumps.bI[3 * b + d]
     mat_vec(R, wb, om)
-    for s in range(c.mstart[b], c.mstart[b + 1]):
-        i = c.mrow[s]
-        mat_vec(R, &c.md[3 * s], rk)
+    for s in range(c.clumps.mstart[b], c.clumps.mstart[b + 1]):
+        i = c.clumps.mrow[s]
+        mat_vec(R, &c.clumps.md[3 * s], rk)
         cross3(om, rk, cx)
         dd = 0.0
         for d in range(3):
             if positions:
-                c.x[3 * i + d] = c.bx[3 * b + d] + rk[d] + c.mimg[3 * s + d]
-                q = c.x[3 * i + d] - c.x0[3 * i + d]
+                c.particles.x[3 * i + d] = c.clumps.bx[3 * b + d] + rk[d] + c.clumps.mimg[3 * s + d]
+                q = c.particles.x[3 * i + d] - c.particles.x0[3 * i + d]
                 dd += q * q
-            c.v[3 * i + d] = c.bv[3 * b + d] + cx[d]
-            c.w[3 * i + d] = om[d]
+            c.particles.v[3 * i + d] = c.clumps.bv[3 * b + d] + cx[d]
+            c.particles.w[3 * i + d] = om[d]
         if not dd <= dmax:
             dmax = dd if isfinite(dd) else INFINITY
     return dmax
@@ -106,13 +106,13 @@ cdef double body_members(const State* c, int b, bint positions) noexcept nogil:
 
 cdef inline void body_kick(const State* c, int b, const double* R, const double* F, const double* T) noexcept nogil:
     """Half kick of body b by force F and torque T (world frame; R: its orientation)."""
-    cdef double s = 0.5 * c.dt / c.bm[b]
+    cdef double s = 0.5 * c.dt / c.clumps.bm[b]
     cdef double tb[3]
     cdef int d
     mat_tvec(R, T, tb)
     for d in range(3):
-        c.bv[3 * b + d] += s * F[d]
-        c.bp[3 * b + d] += 0.5 * c.dt * tb[d]
+        c.clumps.bv[3 * b + d] += s * F[d]
+        c.clumps.bp[3 * b + d] += 0.5 * c.dt * tb[d]
 
 
 cdef void body_row(const State* c, int b, int phase) noexcept nogil:
@@ -128,32 +128,32 @@ cdef void body_row(const State* c, int b, int phase) noexcept nogil:
     cdef double cx[3]
     cdef double g
     cdef int s, i, d
-    quat_matrix(&c.bq[4 * b], R)
+    quat_matrix(&c.clumps.bq[4 * b], R)
     if phase == P_BODIES:
-        g = c.visc[c.btype[b]]
+        g = c.visc[c.clumps.btype[b]]
         for d in range(3):
-            F[d] = c.bm[b] * c.grav[d] - g * c.bv[3 * b + d]
+            F[d] = c.clumps.bm[b] * c.grav[d] - g * c.clumps.bv[3 * b + d]
             T[d] = 0.0
-        for s in range(c.mstart[b], c.mstart[b + 1]):
-            i = c.mrow[s]
-            mat_vec(R, &c.md[3 * s], rk)
-            cross3(rk, &c.f[3 * i], cx)
+        for s in range(c.clumps.mstart[b], c.clumps.mstart[b + 1]):
+            i = c.clumps.mrow[s]
+            mat_vec(R, &c.clumps.md[3 * s], rk)
+            cross3(rk, &c.particles.f[3 * i], cx)
             for d in range(3):
-                F[d] += c.f[3 * i + d]
-                T[d] += c.t[3 * i + d] + cx[d]
+                F[d] += c.particles.f[3 * i + d]
+                T[d] += c.particles.t[3 * i + d] + cx[d]
         for d in range(3):
-            c.bf[3 * b + d] = F[d]
-            c.bt[3 * b + d] = T[d]
+            c.clumps.bf[3 * b + d] = F[d]
+            c.clumps.bt[3 * b + d] = T[d]
         if c.kick:
             body_kick(c, b, R, F, T)
         if not c.fuse:
             body_members(c, b, False)
             return
-    body_kick(c, b, R, &c.bf[3 * b], &c.bt[3 * b])
-    free_rotor(&c.bq[4 * b], &c.bp[3 * b], &c.bI[3 * b], c.dt)
+    body_kick(c, b, R, &c.clumps.bf[3 * b], &c.clumps.bt[3 * b])
+    free_rotor(&c.clumps.bq[4 * b], &c.clumps.bp[3 * b], &c.clumps.bI[3 * b], c.dt)
     for d in range(3):
-        c.bx[3 * b + d] += c.dt * c.bv[3 * b + d]
-    c.bdd[b] = body_members(c, b, True)
+        c.clumps.bx[3 * b + d] += c.dt * c.clumps.bv[3 * b + d]
+    c.clumps.bdd[b] = body_members(c, b, True)
 
 
 cdef void body_rows(const State* c, int phase, int lo, int hi) noexcept nogil:
@@ -168,11 +168,11 @@ cdef void body_loop(State* sim, int phase) noexcept nogil:
     displacement raises the first thread's maximum (see drift_row)."""
     cdef int b
     cdef double dmax = sim.tmax[0]
-    parallel_rows(sim, phase, sim.nbody)
+    parallel_rows(sim, phase, sim.clumps.nbody)
     if phase == P_BODY_DRIFT or sim.fuse:
-        for b in range(sim.nbody):
-            if not sim.bdd[b] <= dmax:
-                dmax = sim.bdd[b] if isfinite(sim.bdd[b]) else INFINITY
+        for b in range(sim.clumps.nbody):
+            if not sim.clumps.bdd[b] <= dmax:
+                dmax = sim.clumps.bdd[b] if isfinite(sim.clumps.bdd[b]) else INFINITY
         sim.tmax[0] = dmax
 
 
@@ -183,24 +183,24 @@ cdef void place_bodies(State* sim) noexcept nogil:
     cdef double R[9]
     cdef double rk[3]
     cdef double p, shift
-    for b in range(sim.nbody):
+    for b in range(sim.clumps.nbody):
         for d in range(3):
-            p = sim.bx[3 * b + d]
+            p = sim.clumps.bx[3 * b + d]
             if sim.per[d] and isfinite(p) and (p < sim.lo[d] or p >= sim.hi[d]):
-                sim.bx[3 * b + d] = p - sim.L[d] * floor((p - sim.lo[d]) / sim.L[d])
-        quat_matrix(&sim.bq[4 * b], R)
-        for s in range(sim.mstart[b], sim.mstart[b + 1]):
-            i = sim.mrow[s]
-            mat_vec(R, &sim.md[3 * s], rk)
+                sim.clumps.bx[3 * b + d] = p - sim.L[d] * floor((p - sim.lo[d]) / sim.L[d])
+        quat_matrix(&sim.clumps.bq[4 * b], R)
+        for s in range(sim.clumps.mstart[b], sim.clumps.mstart[b + 1]):
+            i = sim.clumps.mrow[s]
+            mat_vec(R, &sim.clumps.md[3 * s], rk)
             for d in range(3):
-                p = sim.bx[3 * b + d] + rk[d]
+                p = sim.clumps.bx[3 * b + d] + rk[d]
                 shift = 0.0
                 if sim.per[d] and isfinite(p):
                     shift = -sim.L[d] * floor((p - sim.lo[d]) / sim.L[d])
                     if p + shift >= sim.hi[d]:
                         shift -= sim.L[d]
-                sim.mimg[3 * s + d] = shift
-                sim.x[3 * i + d] = p + shift
+                sim.clumps.mimg[3 * s + d] = shift
+                sim.particles.x[3 * i + d] = p + shift
 
 
 cdef int mark_dead_bodies(State* sim, long long* lost) noexcept nogil:
@@ -208,25 +208,25 @@ cdef int mark_dead_bodies(State* sim, long long* lost) noexcept nogil:
     of its spheres sorted into the sentinel cell, and counts once as lost (where its first lost
     sphere is) when one was. Marks it (bdd -1) and returns how many went."""
     cdef int b, s, i, first, gone, dead = 0
-    for b in range(sim.nbody):
+    for b in range(sim.clumps.nbody):
         first = -1
         gone = 0
-        for s in range(sim.mstart[b], sim.mstart[b + 1]):
-            i = sim.mrow[s]
-            if sim.cell[i] < 0:
+        for s in range(sim.clumps.mstart[b], sim.clumps.mstart[b + 1]):
+            i = sim.clumps.mrow[s]
+            if sim.particles.cell[i] < 0:
                 gone = 1
-                if sim.cell[i] == -1 and first < 0:
+                if sim.particles.cell[i] == -1 and first < 0:
                     first = i
-        sim.bdd[b] = 0.0
+        sim.clumps.bdd[b] = 0.0
         if not gone:
             continue
-        sim.bdd[b] = -1.0
+        sim.clumps.bdd[b] = -1.0
         dead += 1
         if first >= 0:
             lost[0] += 1
             count_lost(sim, first)
-        for s in range(sim.mstart[b], sim.mstart[b + 1]):
-            sim.cell[sim.mrow[s]] = sim.ncells
+        for s in range(sim.clumps.mstart[b], sim.clumps.mstart[b + 1]):
+            sim.particles.cell[sim.clumps.mrow[s]] = sim.lists.ncells
     return dead
 
 
@@ -235,35 +235,35 @@ cdef int drop_bodies(State* sim, int n) noexcept nogil:
     the slots of the ``n`` particles (all of live bodies or free); -1 when out of memory."""
     cdef Column bcols[NBCOLUMNS]
     cdef Column mcols[NMCOLUMNS]
-    cdef int* slot = <int*>malloc(max(sim.nmem, 1) * sizeof(int))
+    cdef int* slot = <int*>malloc(max(sim.clumps.nmem, 1) * sizeof(int))
     cdef int b, s, k, i, start, end, nb = 0, ns = 0
     if slot == NULL:
         return -1
     body_columns(sim, bcols)
     member_columns(sim, mcols)
-    for b in range(sim.nbody):
-        start = sim.mstart[b]
-        end = sim.mstart[b + 1]
-        if sim.bdd[b] < 0.0:
+    for b in range(sim.clumps.nbody):
+        start = sim.clumps.mstart[b]
+        end = sim.clumps.mstart[b + 1]
+        if sim.clumps.bdd[b] < 0.0:
             continue
         for k in range(NBCOLUMNS - 1):   # all but mstart, set below
             memmove(<char*>bcols[k].p[0] + nb * bcols[k].size, <char*>bcols[k].p[0] + b * bcols[k].size,
                     bcols[k].size)
-        sim.mstart[nb] = ns
+        sim.clumps.mstart[nb] = ns
         for s in range(start, end):
             for k in range(NMCOLUMNS):
                 memmove(<char*>mcols[k].p[0] + ns * mcols[k].size, <char*>mcols[k].p[0] + s * mcols[k].size,
                         mcols[k].size)
-            sim.mbody[ns] = nb
+            sim.clumps.mbody[ns] = nb
             slot[s] = ns
             ns += 1
         nb += 1
-    sim.mstart[nb] = ns
-    sim.nbody = nb
-    sim.nmem = ns
+    sim.clumps.mstart[nb] = ns
+    sim.clumps.nbody = nb
+    sim.clumps.nmem = ns
     for i in range(n):
-        if sim.mem[i] >= 0:
-            sim.mem[i] = slot[sim.mem[i]]
+        if sim.particles.mem[i] >= 0:
+            sim.particles.mem[i] = slot[sim.particles.mem[i]]
     free(slot)
     return 0
 
@@ -271,6 +271,6 @@ cdef int drop_bodies(State* sim, int n) noexcept nogil:
 cdef void find_members(State* sim) noexcept nogil:
     """Each member slot's storage row (``mrow``), after the particles moved."""
     cdef int i
-    for i in range(sim.n):
-        if sim.mem[i] >= 0:
-            sim.mrow[sim.mem[i]] = i
+    for i in range(sim.particles.n):
+        if sim.particles.mem[i] >= 0:
+            sim.clumps.mrow[sim.particles.mem[i]] = i

@@ -3,7 +3,7 @@
 
 cdef inline const double* origins(const State* c) noexcept nogil:
     """x0 for a drift that measures displacements, else NULL (see State.measure)."""
-    return c.x0 if c.measure else NULL
+    return c.particles.x0 if c.measure else NULL
 
 
 cdef inline void drift_row(const State* c, int i, int tid, const double* F, const double* T) noexcept nogil:
@@ -11,8 +11,8 @@ cdef inline void drift_row(const State* c, int i, int tid, const double* F, cons
     measured, displacement since the rebuild raise thread ``tid``'s maxima (per-thread maxima
     are a cache line apart)."""
     cdef double s, u
-    pg_row_kick_factors(i, c.dt, c.m, c.r, &s, &u)
-    pg_row_drift(i, c.dt, s, u, &c.tmax[PAD * tid], c.x, c.v, c.w, origins(c), F, T)
+    pg_row_kick_factors(i, c.dt, c.particles.m, c.particles.r, &s, &u)
+    pg_row_drift(i, c.dt, s, u, &c.tmax[PAD * tid], c.particles.x, c.particles.v, c.particles.w, origins(c), F, T)
 
 
 cdef inline void add_halos(const State* c, int i, int first, int end, double* F, double* T) noexcept nogil:
@@ -22,17 +22,17 @@ cdef inline void add_halos(const State* c, int i, int first, int end, double* F,
     cdef int k, q
     cdef double* b
     for k in range(first, end):
-        if i > c.tstat[PAD * k + 1]:
+        if i > c.schedule.tstat[PAD * k + 1]:
             continue
-        b = &c.halo[(c.halos[k].near_off + i - c.pb[k + 1]) * 6]
+        b = &c.lists.halo[(c.lists.halos[k].near_off + i - c.schedule.pb[k + 1]) * 6]
         for q in range(3):
             F[q] += b[q]
             T[q] += b[3 + q]
         memset(b, 0, 6 * sizeof(double))
-    for k in range(c.nfarblocks):
-        if not c.halos[k].far_lo <= i <= c.halos[k].far_hi:
+    for k in range(c.lists.nfarblocks):
+        if not c.lists.halos[k].far_lo <= i <= c.lists.halos[k].far_hi:
             continue
-        b = &c.halo[(c.halos[k].far_off + i - c.halos[k].far_lo) * 6]
+        b = &c.lists.halo[(c.lists.halos[k].far_off + i - c.lists.halos[k].far_lo) * 6]
         for q in range(3):
             F[q] += b[q]
             T[q] += b[3 + q]
@@ -46,8 +46,8 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
     then left alone: they hold the forces of a run's last step, which is not fused). A clump's
     sphere only stores its buffers' sums in f and t, for its body (see body_row), which gravity
     and drag act on. A fused pass always kicks (see run_steps)."""
-    cdef bint member = c.nbody and c.mem[i] >= 0
-    cdef double* b = &c.buf[<long long>i * 6]
+    cdef bint member = c.clumps.nbody and c.particles.mem[i] >= 0
+    cdef double* b = &c.lists.buf[<long long>i * 6]
     cdef double F[3]
     cdef double T[3]
     cdef double s, u
@@ -58,25 +58,25 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
             T[q] = 0.0 + b[3 + q]
         memset(b, 0, 6 * sizeof(double))
     else:
-        pg_row_forces(i, c.grav[0], c.grav[1], c.grav[2], c.m, c.type, c.visc, c.buf, c.v, F, T)
+        pg_row_forces(i, c.grav[0], c.grav[1], c.grav[2], c.particles.m, c.particles.type, c.visc, c.lists.buf, c.particles.v, F, T)
     add_halos(c, i, first, end, F, T)
     if not c.fuse or member:
         for q in range(3):
-            c.f[3 * i + q] = F[q]
-            c.t[3 * i + q] = T[q]
+            c.particles.f[3 * i + q] = F[q]
+            c.particles.t[3 * i + q] = T[q]
     if member:
         return
     if c.fuse:
-        pg_row_kick_drift(i, c.dt, &c.tmax[PAD * tid], c.m, c.r, c.x, c.v, c.w, origins(c), F, T)
+        pg_row_kick_drift(i, c.dt, &c.tmax[PAD * tid], c.particles.m, c.particles.r, c.particles.x, c.particles.v, c.particles.w, origins(c), F, T)
     elif c.kick:
-        pg_row_kick_factors(i, c.dt, c.m, c.r, &s, &u)
-        pg_row_kick(i, s, u, c.v, c.w, F, T)
+        pg_row_kick_factors(i, c.dt, c.particles.m, c.particles.r, &s, &u)
+        pg_row_kick(i, s, u, c.particles.v, c.particles.w, F, T)
 
 
 cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid, double* halo) noexcept nogil:
     """Rows [lo, hi) of the particle loop through kick_drift.h (see particle_block): ``halo``
     NULL, or the entry for row lo of the one halo that holds them."""
-    pg_kick_drift(lo, hi, c.dt, &c.tmax[PAD * tid], c.grav, c.m, c.r, c.type, c.visc, c.buf, c.x, c.v, c.w,
+    pg_kick_drift(lo, hi, c.dt, &c.tmax[PAD * tid], c.grav, c.particles.m, c.particles.r, c.particles.type, c.visc, c.lists.buf, c.particles.x, c.particles.v, c.particles.w,
                   origins(c), halo)
 
 
@@ -91,25 +91,25 @@ cdef inline int halo_run(const State* c, int i, int hi, int first, int end, int 
     cdef int k, far = -1, stop = hi
     halo[0] = NULL
     if i <= nearmax:   # a near halo holds row i: it must be block end - 1's, and only it
-        if i > c.tstat[PAD * (end - 1) + 1]:
+        if i > c.schedule.tstat[PAD * (end - 1) + 1]:
             return i
         for k in range(first, end - 1):
-            if i <= c.tstat[PAD * k + 1]:
+            if i <= c.schedule.tstat[PAD * k + 1]:
                 return i
-        stop = min(hi, <int>c.tstat[PAD * (end - 1) + 1] + 1)
-        halo[0] = &c.halo[(c.halos[end - 1].near_off + i - c.pb[end]) * 6]
-    elif end < c.nblocks - 1 and c.pb[end + 1] < stop:
-        stop = c.pb[end + 1]
-    for k in range(c.nfarblocks):
-        if c.halos[k].far_lo <= i <= c.halos[k].far_hi:
+        stop = min(hi, <int>c.schedule.tstat[PAD * (end - 1) + 1] + 1)
+        halo[0] = &c.lists.halo[(c.lists.halos[end - 1].near_off + i - c.schedule.pb[end]) * 6]
+    elif end < c.schedule.nblocks - 1 and c.schedule.pb[end + 1] < stop:
+        stop = c.schedule.pb[end + 1]
+    for k in range(c.lists.nfarblocks):
+        if c.lists.halos[k].far_lo <= i <= c.lists.halos[k].far_hi:
             if halo[0] != NULL or far >= 0:
                 return i
             far = k
-        elif i < c.halos[k].far_lo < stop:
-            stop = c.halos[k].far_lo
+        elif i < c.lists.halos[k].far_lo < stop:
+            stop = c.lists.halos[k].far_lo
     if far >= 0:
-        halo[0] = &c.halo[(c.halos[far].far_off + i - c.halos[far].far_lo) * 6]
-        stop = min(stop, c.halos[far].far_hi + 1)
+        halo[0] = &c.lists.halo[(c.lists.halos[far].far_off + i - c.lists.halos[far].far_lo) * 6]
+        stop = min(stop, c.lists.halos[far].far_hi + 1)
     return stop
 
 
@@ -121,13 +121,13 @@ cdef void particle_block(const State* c, int lo, int hi, int tid) noexcept nogil
     clumps, at a step that kicks and fuses the next drift, runs of rows that no halo holds,
     and runs that one halo alone holds (see halo_run), go through kick_drift.h in one call."""
     cdef int i = lo, stop, first = 0, end = 0, nearmax = -1
-    cdef bint plain = not c.nbody and c.kick and c.fuse
+    cdef bint plain = not c.clumps.nbody and c.kick and c.fuse
     cdef double* halo = NULL
     while i < hi:
-        while end < c.nblocks - 1 and c.pb[end + 1] <= i:
-            nearmax = max(nearmax, <int>c.tstat[PAD * end + 1])
+        while end < c.schedule.nblocks - 1 and c.schedule.pb[end + 1] <= i:
+            nearmax = max(nearmax, <int>c.schedule.tstat[PAD * end + 1])
             end += 1
-        while first < end and (c.pb[first + 1] == 0 or c.last[c.pb[first + 1] - 1] < i):
+        while first < end and (c.schedule.pb[first + 1] == 0 or c.lists.last[c.schedule.pb[first + 1] - 1] < i):
             first += 1
         stop = halo_run(c, i, hi, first, end, nearmax, &halo) if plain else i
         if stop > i:
@@ -142,16 +142,16 @@ cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:
     """Rows [lo, hi) of the drift; clumps' spheres move with their bodies (see body_row)."""
     cdef int i
     for i in range(lo, hi):
-        if c.nbody and c.mem[i] >= 0:
+        if c.clumps.nbody and c.particles.mem[i] >= 0:
             continue
-        drift_row(c, i, t, &c.f[3 * i], &c.t[3 * i])
+        drift_row(c, i, t, &c.particles.f[3 * i], &c.particles.t[3 * i])
 
 
 cdef void displacement_block(const State* c, int lo, int hi, int tid) noexcept nogil:
     """Rows [lo, hi) of a pass measuring the displacements (see displacement)."""
     cdef int i
     for i in range(lo, hi):
-        pg_row_displacement(i, &c.tmax[PAD * tid], c.x, c.x0)
+        pg_row_displacement(i, &c.tmax[PAD * tid], c.particles.x, c.particles.x0)
 
 
 cdef inline bint surely_within(const State* sim, double travel, double dw) noexcept nogil:
@@ -179,7 +179,7 @@ cdef double displacement(State* sim, double dw) noexcept nogil:
         return 0.0
     sim.passes += 1
     t0 = pg_now()
-    parallel_rows(sim, P_DISPLACEMENT, sim.n)
+    parallel_rows(sim, P_DISPLACEMENT, sim.particles.n)
     lap(sim, T_DRIFT, t0)
     return max_displacement(sim)
 
@@ -189,14 +189,14 @@ cdef inline void plan_measure(State* sim, double dt, double dw) noexcept nogil:
     with their bodies), else unless travel, even with twice the last drift's speed added, and
     the walls' move ``dw`` prove no rebuild due (when speeds or walls outgrow that, displacement
     measures in a pass of its own)."""
-    sim.measure = sim.nbody > 0 or not surely_within(sim, sim.travel + 2.0 * dt * sim.vlast, dw)
+    sim.measure = sim.clumps.nbody > 0 or not surely_within(sim, sim.travel + 2.0 * dt * sim.vlast, dw)
 
 
 cdef double max_displacement(State* sim) noexcept nogil:
     """The largest displacement since the last rebuild."""
     cdef int i
     cdef double dmax = 0.0
-    for i in range(sim.nthreads):
+    for i in range(sim.schedule.nthreads):
         if sim.tmax[PAD * i] > dmax:
             dmax = sim.tmax[PAD * i]
     return sqrt(dmax)
@@ -206,7 +206,7 @@ cdef double max_speed(State* sim) noexcept nogil:
     """The largest speed of the last drift (a non-finite one forces a rebuild: see pg_row_drift)."""
     cdef int i
     cdef double vmax = 0.0
-    for i in range(sim.nthreads):
+    for i in range(sim.schedule.nthreads):
         if sim.tmax[PAD * i + 1] > vmax:
             vmax = sim.tmax[PAD * i + 1]
     return sqrt(vmax)
@@ -215,7 +215,7 @@ cdef double max_speed(State* sim) noexcept nogil:
 cdef inline void reset_peaks(State* sim) noexcept nogil:
     """Clear each thread's largest squared displacement and speed (see pg_row_drift)."""
     cdef int t
-    for t in range(sim.nthreads):
+    for t in range(sim.schedule.nthreads):
         sim.tmax[PAD * t] = 0.0
         sim.tmax[PAD * t + 1] = 0.0
 
@@ -225,8 +225,8 @@ cdef void drift(State* sim, double dt) noexcept nogil:
     cdef double t0 = pg_now()
     sim.dt = dt
     reset_peaks(sim)
-    parallel_rows(sim, P_DRIFT, sim.n)
-    if sim.nbody:
+    parallel_rows(sim, P_DRIFT, sim.particles.n)
+    if sim.clumps.nbody:
         body_loop(sim, P_BODY_DRIFT)
     lap(sim, T_DRIFT, t0)
 
@@ -242,7 +242,7 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
     pass (see force_phase), so a thread that ran a block of the pair loop usually sums and
     integrates the same rows.
     """
-    cdef int t, T = sim.nthreads
+    cdef int t, T = sim.schedule.nthreads
     cdef double t0 = pg_now(), now, span = 0.0
     if place_halos(sim) < 0:
         return -1
@@ -251,37 +251,37 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
     sim.kick = kick
     sim.fuse = fuse
     sim.record = not fuse   # an unfused pass is the last of its run (see run_steps)
-    if sim.nbody:   # clumps' spheres move with their bodies, which sub_travel does not follow
-        sim.sub_build = 1
+    if sim.clumps.nbody:   # clumps' spheres move with their bodies, which sub_travel does not follow
+        sim.lists.sub_build = 1
     reset_peaks(sim)
     for t in range(T):
-        sim.cpu[PAD * t + 2] = 0.0
-        sim.cpu[PAD * t + 3] = 0.0
+        sim.schedule.cpu[PAD * t + 2] = 0.0
+        sim.schedule.cpu[PAD * t + 3] = 0.0
     force_phase(sim)
     now = pg_now()
-    if sim.turn == 0.0:
-        sim.turn = now
-    sim.timers[T_PAIRS] += sim.turn - t0
-    sim.timers[T_PARTICLES] += now - sim.turn
+    if sim.schedule.turn == 0.0:
+        sim.schedule.turn = now
+    sim.schedule.timers[T_PAIRS] += sim.schedule.turn - t0
+    sim.schedule.timers[T_PARTICLES] += now - sim.schedule.turn
     t0 = now
-    if sim.sub_build:
-        sim.sub_build = 0
-        sim.sub_travel = 0.0
-        sim.sub_builds += 1
+    if sim.lists.sub_build:
+        sim.lists.sub_build = 0
+        sim.lists.sub_travel = 0.0
+        sim.lists.sub_builds += 1
     sim.forces_valid = 1
-    if sim.nslots:
+    if sim.walls.nslots:
         servo_sums(sim)
         if update:
             servo_control(sim, dt)
-    if sim.nbody:
+    if sim.clumps.nbody:
         body_loop(sim, P_BODIES)
     rebalance(sim)
     lap(sim, T_PARTICLES, t0)
     for t in range(T):   # the busiest thread's CPU time: a lower bound of the loops' wall time on idle cores
-        sim.cpu[PAD * t] += sim.cpu[PAD * t + 2]
-        sim.cpu[PAD * t + 1] += sim.cpu[PAD * t + 3]
-        span = max(span, sim.cpu[PAD * t + 2] + sim.cpu[PAD * t + 3])
-    sim.timers[T_FORCES_SPAN] += span
+        sim.schedule.cpu[PAD * t] += sim.schedule.cpu[PAD * t + 2]
+        sim.schedule.cpu[PAD * t + 1] += sim.schedule.cpu[PAD * t + 3]
+        span = max(span, sim.schedule.cpu[PAD * t + 2] + sim.schedule.cpu[PAD * t + 3])
+    sim.schedule.timers[T_FORCES_SPAN] += span
     return 0
 
 
@@ -293,7 +293,7 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
         sim.t_base = sim.time
         sim.step_base = sim.step
         sim.dt_base = dt
-    if sim.nslots:
+    if sim.walls.nslots:
         servo_start(sim, dt)
     if sim.dirty:
         if rebuild(sim) < 0:
@@ -301,16 +301,16 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
         if forces(sim, dt, False, False, False) < 0:
             return -1
         sim.dirty = 0
-    sim.tuner.start = t0
+    sim.schedule.tuner.start = t0
     for s in range(nsteps):
-        if PG_TEAM_HEURISTICS and sim.nthreads > 1 and not sim.openmp:
+        if PG_TEAM_HEURISTICS and sim.schedule.nthreads > 1 and not sim.schedule.openmp:
             tune(sim)
         if not fused:
             plan_measure(sim, dt, sim.dw_last)
             drift(sim, dt)
         sim.vlast = max_speed(sim)
         moved = fabs(dt) * sim.vlast   # no particle moved further in this drift
-        sim.sub_travel += moved
+        sim.lists.sub_travel += moved
         sim.travel += moved
         sim.since += 1
         sim.step += 1
@@ -324,12 +324,12 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
         if dp + dw > 0.5 * sim.skin:
             if rebuild(sim) < 0:
                 return -1
-        if not sim.sub_travel < 0.45 * SUB_SKIN * sim.skin:   # 0.5 less a margin for round-off
-            sim.sub_build = 1
+        if not sim.lists.sub_travel < 0.45 * SUB_SKIN * sim.skin:   # 0.5 less a margin for round-off
+            sim.lists.sub_build = 1
         fused = s + 1 < nsteps   # the last step ends after its second half kick
         if fused:
             plan_measure(sim, dt, dw)
         if forces(sim, dt, True, True, fused) < 0:
             return -1
-    sim.tuner.elapsed += lap(sim, T_RUN, t0) - sim.tuner.start
+    sim.schedule.tuner.elapsed += lap(sim, T_RUN, t0) - sim.schedule.tuner.start
     return 0

@@ -75,8 +75,8 @@ cdef inline void rotation(const double* w, double tau, double* Rm) noexcept nogi
 cdef inline int slot_of(const State* c, int e) noexcept nogil:
     """The stress mesh (index into ``slots``) wall element e belongs to, -1 for none."""
     cdef int s
-    for s in range(c.nslots):
-        if c.slots[NSLOT * s + S_WALL] == c.ewall[e]:
+    for s in range(c.walls.nslots):
+        if c.walls.slots[NSLOT * s + S_WALL] == c.walls.ewall[e]:
             return s
     return -1
 
@@ -102,15 +102,15 @@ cdef inline void wall_velocity(const State* c, int e, const double* q, const dou
         for k in range(3):
             rel[k] = q[k] - sl[S_XCM + k]
         cross3(&sl[S_VEL], rel, vw)
-    elif q != NULL and c.emoving[e]:
-        mot = &c.emot[NMOT * e]
+    elif q != NULL and c.walls.emoving[e]:
+        mot = &c.walls.emot[NMOT * e]
         motion_origin(mot, c.time - mot[M_START], o, vo)
         for k in range(3):
             rel[k] = q[k] - o[k]
         cross3(&mot[M_OMEGA], rel, vw)
         for k in range(3):
             vw[k] += vo[k]
-        vb = vibration_of(c.vib, c.nvib, c.ewall[e]) if c.nvib else NULL
+        vb = vibration_of(c.walls.vib, c.walls.nvib, c.walls.ewall[e]) if c.walls.nvib else NULL
         if vb != NULL:   # along the axis, or about it through the origin
             vibration(vb, c.time - mot[M_START], &sv, &dsv)
             for k in range(3):
@@ -142,28 +142,28 @@ cdef double move_walls(State* sim) noexcept nogil:
     cdef double sv, dsv
     memset(o, 0, 3 * sizeof(double))   # set at each wall's first element
     memset(o0, 0, 3 * sizeof(double))
-    for e in range(sim.ne):
-        if not sim.emoving[e]:
+    for e in range(sim.walls.ne):
+        if not sim.walls.emoving[e]:
             continue
-        if sim.ewall[e] != last:
-            last = sim.ewall[e]
+        if sim.walls.ewall[e] != last:
+            last = sim.walls.ewall[e]
             slot = -1
-            for k in range(sim.nslots):
-                if sim.slots[NSLOT * k + S_WALL] == last and sim.slots[NSLOT * k + S_CONTROL] != STRESS_ONLY:
+            for k in range(sim.walls.nslots):
+                if sim.walls.slots[NSLOT * k + S_WALL] == last and sim.walls.slots[NSLOT * k + S_CONTROL] != STRESS_ONLY:
                     slot = k
             if slot >= 0:   # a force servo translates by com - com0, a torque servo turns by phi
-                sl = &sim.slots[NSLOT * slot]
+                sl = &sim.walls.slots[NSLOT * slot]
                 for d in range(3):
                     o[d] = sl[S_XCM + d]
                     o0[d] = sl[S_XCM0 + d]
                 rotation(&sl[S_AXIS], sl[S_PHI] if sl[S_CONTROL] == TORQUE_SERVO else 0.0, Rm)
             else:
-                mot = &sim.emot[NMOT * e]
+                mot = &sim.walls.emot[NMOT * e]
                 motion_origin(mot, sim.time - mot[M_START], o, vo)
                 rotation(&mot[M_OMEGA], sim.time - mot[M_START], Rm)
                 for d in range(3):
                     o0[d] = mot[M_ORIGIN + d]
-                vb = vibration_of(sim.vib, sim.nvib, last) if sim.nvib else NULL
+                vb = vibration_of(sim.walls.vib, sim.walls.nvib, last) if sim.walls.nvib else NULL
                 if vb != NULL:   # viblin: the origin moves along the axis; vibrot: turns about it
                     vibration(vb, sim.time - mot[M_START], &sv, &dsv)
                     if vb[V_KIND] == VIBLIN:
@@ -172,14 +172,14 @@ cdef double move_walls(State* sim) noexcept nogil:
                     else:
                         rotation(&vb[V_AXIS], sv, Rm)
         for k in range(3):
-            ref = &sim.eref[9 * e + 3 * k]
-            cur = &sim.egeo[9 * e + 3 * k]
+            ref = &sim.walls.eref[9 * e + 3 * k]
+            cur = &sim.walls.egeo[9 * e + 3 * k]
             for d in range(3):
                 rel[d] = ref[d] - o0[d]
             dd = 0.0
             for d in range(3):
                 cur[d] = o[d] + Rm[3 * d] * rel[0] + Rm[3 * d + 1] * rel[1] + Rm[3 * d + 2] * rel[2]
-                s = cur[d] - sim.ebuilt[9 * e + 3 * k + d]
+                s = cur[d] - sim.walls.ebuilt[9 * e + 3 * k + d]
                 dd += s * s
             if dd > dmax:
                 dmax = dd
@@ -191,8 +191,8 @@ cdef void servo_move(State* sim, double dt) noexcept nogil:
     dt times the velocity, or the angle by dt times the angular velocity along the axis."""
     cdef int s, d
     cdef double* sl
-    for s in range(sim.nslots):
-        sl = &sim.slots[NSLOT * s]
+    for s in range(sim.walls.nslots):
+        sl = &sim.walls.slots[NSLOT * s]
         if sl[S_CONTROL] == FORCE_SERVO:
             for d in range(3):
                 sl[S_XCM + d] += dt * sl[S_VEL + d]
@@ -206,12 +206,12 @@ cdef void servo_sums(State* sim) noexcept nogil:
     cdef int s, b, k
     cdef double* sl
     cdef const double* a
-    for s in range(sim.nslots):
-        sl = &sim.slots[NSLOT * s]
+    for s in range(sim.walls.nslots):
+        sl = &sim.walls.slots[NSLOT * s]
         for k in range(NACC):
             sl[S_FORCE + k] = 0.0
-        for b in range(sim.nblocks):
-            a = &sim.sacc[SACC * (sim.nslots * b + s)]
+        for b in range(sim.schedule.nblocks):
+            a = &sim.walls.sacc[SACC * (sim.walls.nslots * b + s)]
             for k in range(NACC):
                 sl[S_FORCE + k] += a[A_FORCE + k]
 
@@ -223,8 +223,8 @@ cdef void servo_control(State* sim, double dt) noexcept nogil:
     cdef int s, d
     cdef double* sl
     cdef double pv, err, kp, mag, vmag, limit, spinv, low = 0.9, high = 1.0, scale = 0.1
-    for s in range(sim.nslots):
-        sl = &sim.slots[NSLOT * s]
+    for s in range(sim.walls.nslots):
+        sl = &sim.walls.slots[NSLOT * s]
         if sl[S_CONTROL] == STRESS_ONLY:
             continue
         pv = dot3(&sl[S_FORCE if sl[S_CONTROL] == FORCE_SERVO else S_TORQUE], &sl[S_AXIS])
@@ -264,8 +264,8 @@ cdef void servo_start(State* sim, double dt) noexcept nogil:
     particle present (a radius of 1e6 m without particles, as LIGGGHTS)."""
     cdef int s, i
     cdef double rmin = 1e6
-    for i in range(sim.n):
-        rmin = min(rmin, sim.r[i])
-    for s in range(sim.nslots):
-        sim.slots[NSLOT * s + S_OPMIN] = sim.slots[NSLOT * s + S_RATIO] * rmin / dt \
-            / sim.slots[NSLOT * s + S_RPA]
+    for i in range(sim.particles.n):
+        rmin = min(rmin, sim.particles.r[i])
+    for s in range(sim.walls.nslots):
+        sim.walls.slots[NSLOT * s + S_OPMIN] = sim.walls.slots[NSLOT * s + S_RATIO] * rmin / dt \
+            / sim.walls.slots[NSLOT * s + S_RPA]

@@ -16,11 +16,11 @@ cdef struct Sink:
 
 
 cdef inline Sink block_sink(const State* c, int b) noexcept nogil:
-    cdef const Halo* hb = &c.halos[b]
+    cdef const Halo* hb = &c.lists.halos[b]
     cdef Sink s
-    s.buf = c.buf
-    s.halo = c.halo
-    s.own = c.pb[b + 1]
+    s.buf = c.lists.buf
+    s.halo = c.lists.halo
+    s.own = c.schedule.pb[b + 1]
     s.near_end = hb.near_end
     s.near = hb.near_off - s.own
     s.far = hb.far_off - hb.far_lo
@@ -40,15 +40,15 @@ cdef inline double* partner_row(const Sink* s, int j, int* hmax) noexcept nogil:
 
 cdef inline void forget_pair(const State* c, long long k) noexcept nogil:
     """Listed pair k is apart: its history cleared, no longer touching."""
-    memset(&c.nb_h[k * c.hs], 0, c.hs * sizeof(double))
-    c.nb_s[k] &= ~TOUCH
+    memset(&c.lists.nb_h[k * c.hs], 0, c.hs * sizeof(double))
+    c.lists.nb_s[k] &= ~TOUCH
 
 
 cdef inline int finish_row(const State* c, int i, int b, const double* fi, int touching) noexcept nogil:
     """Add row i's pair sums ``fi`` and its walls' forces to its buffer; returns its work. A
     row without contacts or walls adds nothing: its sums are +0.0, and the buffer never holds
     -0.0 (it starts at +0.0 and only adds and subtracts), so adding them would change no bit."""
-    cdef int q, walls = c.wl_start[i + 1] - c.wl_start[i]
+    cdef int q, walls = c.lists.wl_start[i + 1] - c.lists.wl_start[i]
     cdef double F[3]
     cdef double T[3]
     if touching or walls:
@@ -56,11 +56,11 @@ cdef inline int finish_row(const State* c, int i, int b, const double* fi, int t
             F[q] = 0.0
             T[q] = 0.0
         if walls:
-            wall_row(c, i, F, T, &c.sacc[<long long>SACC * c.nslots * b])
+            wall_row(c, i, F, T, &c.walls.sacc[<long long>SACC * c.walls.nslots * b])
         for q in range(3):
-            c.buf[i * 6 + q] += fi[q] + F[q]
-            c.buf[i * 6 + 3 + q] += fi[3 + q] + T[q]
-    return row_work(c.nb_start[i + 1] - c.nb_start[i], touching, walls)
+            c.lists.buf[i * 6 + q] += fi[q] + F[q]
+            c.lists.buf[i * 6 + 3 + q] += fi[3 + q] + T[q]
+    return row_work(c.lists.nb_start[i + 1] - c.lists.nb_start[i], touching, walls)
 
 
 cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
@@ -71,21 +71,21 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     the last row it wrote to the near one).
     """
     # locals: the flag store through uint8_t* may alias anything, including *c
-    cdef const double* x = c.x
-    cdef const double* v = c.v
-    cdef const double* w = c.w
-    cdef const double* r = c.r
-    cdef const double* m = c.m
-    cdef const int* typ = c.type
-    cdef const int* nb_j = c.nb_j
-    cdef uint8_t* nb_s = c.nb_s
-    cdef double* nb_h = c.nb_h
-    cdef double* nb_f = c.nb_f
+    cdef const double* x = c.particles.x
+    cdef const double* v = c.particles.v
+    cdef const double* w = c.particles.w
+    cdef const double* r = c.particles.r
+    cdef const double* m = c.particles.m
+    cdef const int* typ = c.particles.type
+    cdef const int* nb_j = c.lists.nb_j
+    cdef uint8_t* nb_s = c.lists.nb_s
+    cdef double* nb_h = c.lists.nb_h
+    cdef double* nb_f = c.lists.nb_f
     cdef const double* shiftv = &c.shiftv[0]
-    cdef const Coef* coef = c.coef + c.type[i] * c.ntypes
+    cdef const Coef* coef = c.coef + c.particles.type[i] * c.ntypes
     cdef Sink sink = block_sink(c, b)
     cdef int hs = c.hs, model = c.model, rolling = c.rolling, roff = c.roff, update = c.update
-    cdef int k, j, q, res, kend = c.nb_start[i + 1]
+    cdef int k, j, q, res, kend = c.lists.nb_start[i + 1]
     cdef int touching = 0
     cdef double dt = c.dt
     cdef double d[3]
@@ -111,7 +111,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         wi[q] = w[3 * i + q]
     for q in range(6):
         fi[q] = 0.0
-    for k in range(c.nb_start[i], kend):
+    for k in range(c.lists.nb_start[i], kend):
         j = nb_j[k]
         sv = &shiftv[3 * (nb_s[k] & IMAGE)]
         for q in range(3):
@@ -180,15 +180,15 @@ cdef int wall_contact(const State* c, int i, int e, double* h, double delta, con
     cdef double rel[3]
     cdef const double* sl = NULL
     cdef int k, res, slot = slot_of(c, e) if q != NULL else -1
-    cdef double ri = c.r[i], cr = ri - 0.5 * delta   # cr: the lever to the contact point, as LIGGGHTS has it
+    cdef double ri = c.particles.r[i], cr = ri - 0.5 * delta   # cr: the lever to the contact point, as LIGGGHTS has it
     if slot >= 0:
-        sl = &c.slots[NSLOT * slot]
+        sl = &c.walls.slots[NSLOT * slot]
     wall_velocity(c, e, q, sl, vw)
     for k in range(3):
-        vr[k] = c.v[3 * i + k] - vw[k]
-        rw[k] = cr * c.w[3 * i + k]
-    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.type[i] * c.ntypes + c.etype[e]], delta, ri,
-                        c.m[i], 1.4 * c.m[i] * ri * ri, n, vr, rw, &c.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
+        vr[k] = c.particles.v[3 * i + k] - vw[k]
+        rw[k] = cr * c.particles.w[3 * i + k]
+    res = contact_force(c.model, c.rolling, c.roff, &c.coef[c.particles.type[i] * c.ntypes + c.walls.etype[e]], delta, ri,
+                        c.particles.m[i], 1.4 * c.particles.m[i] * ri * ri, n, vr, rw, &c.particles.w[3 * i], h, c.dt, c.update, Fc, Ft, Mr)
     if res == NO_CONTACT:
         zero_hist(h, c.whs)
     if res != IN_CONTACT:
@@ -239,17 +239,17 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
     cdef double* rec
     cdef double scratch[WLF]   # the records of a pass that does not record (see State.record)
     cdef const double* g
-    cdef const double* xi = &c.x[3 * i]
-    cdef double ri = c.r[i]
-    for k in range(c.wl_start[i], c.wl_start[i + 1]):
-        e = c.wl_e[k]
-        h = &c.wl_h[<long long>k * c.whs]
-        rec = &c.wl_f[<long long>k * WLF] if c.record else scratch
+    cdef const double* xi = &c.particles.x[3 * i]
+    cdef double ri = c.particles.r[i]
+    for k in range(c.lists.wl_start[i], c.lists.wl_start[i + 1]):
+        e = c.lists.wl_e[k]
+        h = &c.lists.wl_h[<long long>k * c.whs]
+        rec = &c.lists.wl_f[<long long>k * WLF] if c.record else scratch
         rec[6] = 0.0
-        g = &c.egeo[9 * e]
-        if c.ekind[e] != TRIANGLE:
-            gap = primitive_gap(c.ekind[e], g, xi, nrm)
-            if c.ekind[e] == PLANE:   # the contact's side, or the centre's for a new contact
+        g = &c.walls.egeo[9 * e]
+        if c.walls.ekind[e] != TRIANGLE:
+            gap = primitive_gap(c.walls.ekind[e], g, xi, nrm)
+            if c.walls.ekind[e] == PLANE:   # the contact's side, or the centre's for a new contact
                 side = h[hs] if h[hs] != 0.0 else (1.0 if gap >= 0.0 else -1.0)
                 gap *= side
                 for a in range(3):
@@ -258,7 +258,7 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
                 zero_hist(h, c.whs)
                 continue
             res = wall_contact(c, i, e, h, ri - gap, nrm, NULL, F, T, sa, rec)
-            if res != NO_CONTACT and c.ekind[e] == PLANE and c.update:
+            if res != NO_CONTACT and c.walls.ekind[e] == PLANE and c.update:
                 h[hs] = side
             if res == IN_CONTACT:
                 for a in range(3):
@@ -284,8 +284,8 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
                 break
             done[a] = 1
             k = ck[a]
-            e = c.wl_e[k]
-            h = &c.wl_h[<long long>k * c.whs]
+            e = c.lists.wl_e[k]
+            h = &c.lists.wl_h[<long long>k * c.whs]
             ok = 1
             if reg == FACE:
                 for b in range(nacc):
@@ -295,12 +295,12 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
                         ok = 0
                         break
             else:
-                u = c.evid[3 * e + cfeat[a]]
-                w2 = c.evid[3 * e + (cfeat[a] + 1) % 3]
+                u = c.walls.evid[3 * e + cfeat[a]]
+                w2 = c.walls.evid[3 * e + (cfeat[a] + 1) % 3]
                 for b in range(nacc):
-                    if has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], u) and (
-                            reg == VERTEX or has_vertex(&c.evid[3 * c.wl_e[ck[acc[b]]]], w2)) \
-                            or coplanar(&c.egeo[9 * e], &c.egeo[9 * c.wl_e[ck[acc[b]]]], &cq[3 * a], 1e-9 * ri):
+                    if has_vertex(&c.walls.evid[3 * c.lists.wl_e[ck[acc[b]]]], u) and (
+                            reg == VERTEX or has_vertex(&c.walls.evid[3 * c.lists.wl_e[ck[acc[b]]]], w2)) \
+                            or coplanar(&c.walls.egeo[9 * e], &c.walls.egeo[9 * c.lists.wl_e[ck[acc[b]]]], &cq[3 * a], 1e-9 * ri):
                         ok = 0
                         break
             if not ok:
@@ -309,7 +309,7 @@ cdef void wall_row(const State* c, int i, double* F, double* T, double* sa) noex
             dist = sqrt(cd2[a])
             for b in range(3):
                 nrm[b] = (xi[b] - cq[3 * a + b]) / dist
-            rec = &c.wl_f[<long long>k * WLF] if c.record else scratch
+            rec = &c.lists.wl_f[<long long>k * WLF] if c.record else scratch
             if wall_contact(c, i, e, h, ri - dist, nrm, &cq[3 * a], F, T, sa, rec) == IN_CONTACT:
                 acc[nacc] = a
                 nacc += 1
@@ -345,20 +345,20 @@ cdef struct Gather:
 cdef inline Gather gather_state(const State* c) noexcept nogil:
     """The state as the gather reads it, for one pass of the pair loop."""
     cdef Gather g
-    g.x = c.x
-    g.v = c.v
-    g.w = c.w
-    g.r = c.r
-    g.m = c.m
-    g.type = c.type
-    g.nb_start = c.nb_start
-    g.nb_j = c.nb_j
-    g.nb_s = c.nb_s
-    g.nb_h = c.nb_h
-    g.sb_k = c.sb_k
-    g.sb_i = c.sb_i
-    g.sb_n = c.sb_n
-    g.sb_at = c.sb_at
+    g.x = c.particles.x
+    g.v = c.particles.v
+    g.w = c.particles.w
+    g.r = c.particles.r
+    g.m = c.particles.m
+    g.type = c.particles.type
+    g.nb_start = c.lists.nb_start
+    g.nb_j = c.lists.nb_j
+    g.nb_s = c.lists.nb_s
+    g.nb_h = c.lists.nb_h
+    g.sb_k = c.lists.sb_k
+    g.sb_i = c.lists.sb_i
+    g.sb_n = c.lists.sb_n
+    g.sb_at = c.lists.sb_at
     g.shiftv = &c.shiftv[0]
     g.coef = c.coef
     g.ntypes = c.ntypes
@@ -490,24 +490,24 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
                 forget_pair(c, k)
                 t += 1
                 continue
-            h = &c.nb_h[<long long>k * c.hs]
+            h = &c.lists.nb_h[<long long>k * c.hs]
             for q in range(3):
                 h[H_SHEAR + q] = bt.xi[q * PG_BATCH + t]
             h[H_FN] = bt.fn[t]
-            c.nb_s[k] |= TOUCH
+            c.lists.nb_s[k] |= TOUCH
             touching += 1
-            bj = partner_row(&sink, c.nb_j[k], hmax)
+            bj = partner_row(&sink, c.lists.nb_j[k], hmax)
             if c.record:
                 for q in range(3):
-                    c.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
+                    c.lists.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
             for q in range(3):
                 fi[q] += bt.F[q * PG_BATCH + t]
                 fi[3 + q] += bt.Ti[q * PG_BATCH + t]
                 bj[q] -= bt.F[q * PG_BATCH + t]
                 bj[3 + q] -= bt.Tj[q * PG_BATCH + t]
             t += 1
-        c.work[i] = finish_row(c, i, b, fi, touching)
-        total += c.work[i]
+        c.schedule.work[i] = finish_row(c, i, b, fi, touching)
+        total += c.schedule.work[i]
     return total
 
 
@@ -537,8 +537,8 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     cdef int partners[PG_BATCH]
     cdef int rows[PG_BATCH]
     cdef int ends[PG_BATCH]
-    cdef int i, n = 0, nrows = 0, first = c.pb[b], listed, gathered, at = c.nb_start[c.pb[b]], e0 = 0, e1 = 0
-    cdef int build = c.sub_build, entries
+    cdef int i, n = 0, nrows = 0, first = c.schedule.pb[b], listed, gathered, at = c.lists.nb_start[c.schedule.pb[b]], e0 = 0, e1 = 0
+    cdef int build = c.lists.sub_build, entries
     cdef long long total = 0
     cdef double one[7]   # the pair values when there is one type
     cdef double* cf = NULL
@@ -546,30 +546,30 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     if c.ntypes == 1:
         one[:] = [c.coef.E, c.coef.G, c.coef.mu, c.coef.damp, c.coef.tdamp, c.coef.coh, c.coef.limit]
         cf = one
-    for i in range(c.pb[b], c.pb[b + 1]):
-        listed = c.nb_start[i + 1] - c.nb_start[i]
-        gathered = listed if build or listed > PG_BATCH else c.sb_n[i]
+    for i in range(c.schedule.pb[b], c.schedule.pb[b + 1]):
+        listed = c.lists.nb_start[i + 1] - c.lists.nb_start[i]
+        gathered = listed if build or listed > PG_BATCH else c.lists.sb_n[i]
         entries = n if build else e1 - e0   # the batch's so far: without build, its run's sublists
         # a full batch, or a row whose sublist does not follow the run's (the blocks of the
         # pass that made them ended there)
         if (entries + gathered > PG_BATCH or nrows == PG_BATCH
-                or not build and gathered and e1 > e0 and c.sb_at[i] != e1):
+                or not build and gathered and e1 > e0 and c.lists.sb_at[i] != e1):
             if not build:
                 n = gather_sublists(c, &g, e0, e1, first, &bt, keys, partners, rows)
             total += flush_rows(c, b, &bt, keys, rows, ends, n, first, nrows, cf, hmax)
             first = i
             n = nrows = e0 = e1 = 0
         if listed > PG_BATCH:
-            c.work[i] = pair_row(c, i, b, hmax)
-            total += c.work[i]
+            c.schedule.work[i] = pair_row(c, i, b, hmax)
+            total += c.schedule.work[i]
             first = i + 1
             continue
         if build:
             n = gather_row(c, &g, i, first, &at, &bt, n, keys, partners, rows)
         elif gathered:
             if e1 == e0:
-                e0 = c.sb_at[i]
-            e1 = c.sb_at[i] + gathered
+                e0 = c.lists.sb_at[i]
+            e1 = c.lists.sb_at[i] + gathered
         nrows += 1
     if not build:
         n = gather_sublists(c, &g, e0, e1, first, &bt, keys, partners, rows)
@@ -580,16 +580,16 @@ cdef void pair_block(const State* c, int b) noexcept nogil:
     """Block b's rows of the pair loop; records their work and the last row of its halo."""
     cdef int i, hmax = -1
     cdef long long total = 0
-    if c.nslots:
-        memset(&c.sacc[<long long>SACC * c.nslots * b], 0, SACC * c.nslots * sizeof(double))
+    if c.walls.nslots:
+        memset(&c.walls.sacc[<long long>SACC * c.walls.nslots * b], 0, SACC * c.walls.nslots * sizeof(double))
     if c.batched:
         total = batched_rows(c, b, &hmax)
     else:
-        for i in range(c.pb[b], c.pb[b + 1]):
-            c.work[i] = pair_row(c, i, b, &hmax)
-            total += c.work[i]
-    c.tstat[PAD * b] = total
-    c.tstat[PAD * b + 1] = hmax
+        for i in range(c.schedule.pb[b], c.schedule.pb[b + 1]):
+            c.schedule.work[i] = pair_row(c, i, b, &hmax)
+            total += c.schedule.work[i]
+    c.schedule.tstat[PAD * b] = total
+    c.schedule.tstat[PAD * b + 1] = hmax
 
 
 cdef int place_halos(State* sim) noexcept nogil:
@@ -599,33 +599,33 @@ cdef int place_halos(State* sim) noexcept nogil:
     cdef long long total = 0
     cdef Halo* h
     cdef void* p
-    sim.nfarblocks = 0
-    for b in range(sim.nblocks):
-        sim.tstat[PAD * b + 1] = -1
-        h = &sim.halos[b]
-        start = sim.pb[b]
-        end = sim.pb[b + 1]
+    sim.lists.nfarblocks = 0
+    for b in range(sim.schedule.nblocks):
+        sim.schedule.tstat[PAD * b + 1] = -1
+        h = &sim.lists.halos[b]
+        start = sim.schedule.pb[b]
+        end = sim.schedule.pb[b + 1]
         h.near_off = total
         h.near_end = end - 1
-        if end > start and end < sim.n and sim.last[end - 1] >= end:
-            h.near_end = sim.last[end - 1]
+        if end > start and end < sim.particles.n and sim.lists.last[end - 1] >= end:
+            h.near_end = sim.lists.last[end - 1]
             total += h.near_end - end + 1
         h.far_lo = INT_MAX
         h.far_hi = -1
-        for i in range(start, min(end, sim.nfar)):
-            if sim.fhi[i] > h.near_end:
-                h.far_lo = min(h.far_lo, max(sim.flo[i], h.near_end + 1))
-                h.far_hi = max(h.far_hi, sim.fhi[i])
+        for i in range(start, min(end, sim.lists.nfar)):
+            if sim.lists.fhi[i] > h.near_end:
+                h.far_lo = min(h.far_lo, max(sim.lists.flo[i], h.near_end + 1))
+                h.far_hi = max(h.far_hi, sim.lists.fhi[i])
         h.far_off = total
         if h.far_hi >= h.far_lo:
             total += h.far_hi - h.far_lo + 1
-        if start < sim.nfar:
-            sim.nfarblocks = b + 1
-    if total > sim.halo_cap:   # the buffers are all zero between steps: start afresh
+        if start < sim.lists.nfar:
+            sim.lists.nfarblocks = b + 1
+    if total > sim.lists.halo_cap:   # the buffers are all zero between steps: start afresh
         p = calloc(6 * (total + total // 4), sizeof(double))
         if p == NULL:
             return -1
-        free(sim.halo)
-        sim.halo = <double*>p
-        sim.halo_cap = total + total // 4
+        free(sim.lists.halo)
+        sim.lists.halo = <double*>p
+        sim.lists.halo_cap = total + total // 4
     return 0

@@ -201,15 +201,15 @@ cdef class Core:
 
     @property
     def n(self):
-        return self.s.n
+        return self.s.particles.n
 
     @property
     def cap(self):
-        return self.s.cap
+        return self.s.particles.cap
 
     @property
     def nthreads(self):
-        return self.s.nthreads
+        return self.s.schedule.nthreads
 
     @property
     def hs(self):
@@ -257,24 +257,24 @@ cdef class Core:
 
     @property
     def ne(self):
-        return self.s.ne
+        return self.s.walls.ne
 
     @property
     def nslots(self):
-        return self.s.nslots
+        return self.s.walls.nslots
 
     @property
     def nvib(self):
-        return self.s.nvib
+        return self.s.walls.nvib
 
     @property
     def nbody(self):
-        return self.s.nbody
+        return self.s.clumps.nbody
 
     def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads, bint openmp=False):
         cdef int d, a, b, c
-        self.s.nthreads = threads
-        self.s.openmp = openmp
+        self.s.schedule.nthreads = threads
+        self.s.schedule.openmp = openmp
         self.s.skin = skin
         for d in range(3):
             self.s.lo[d] = lo[d]
@@ -295,37 +295,37 @@ cdef class Core:
         self.s.dirty = 1
         self.s.travel = INFINITY
         self.s.measure = 1
-        self.s.nb_start = <int*>calloc(1, sizeof(int))
-        self.s.ob_start = <int*>calloc(1, sizeof(int))
-        self.s.wl_start = <int*>calloc(1, sizeof(int))
-        self.s.ow_start = <int*>calloc(1, sizeof(int))
+        self.s.lists.nb_start = <int*>calloc(1, sizeof(int))
+        self.s.lists.ob_start = <int*>calloc(1, sizeof(int))
+        self.s.lists.wl_start = <int*>calloc(1, sizeof(int))
+        self.s.lists.ow_start = <int*>calloc(1, sizeof(int))
         if not 1 <= threads <= PG_MAX_THREADS:
             raise ValueError(f"threads: between 1 and {PG_MAX_THREADS}")
-        self.s.nblocks = 1 if threads == 1 else BLOCKS * threads
+        self.s.schedule.nblocks = 1 if threads == 1 else BLOCKS * threads
         self.s.tmax = <double*>calloc(threads * PAD, sizeof(double))
-        self.s.cpu = <double*>calloc(threads * PAD, sizeof(double))
-        self.s.pb = <int*>calloc(self.s.nblocks + 1, sizeof(int))
-        self.s.tstat = <long long*>calloc(self.s.nblocks * PAD, sizeof(long long))
-        self.s.halos = <Halo*>calloc(self.s.nblocks, sizeof(Halo))
-        self.s.posted = pg_flags(self.s.nblocks)
-        self.s.found = <Found*>calloc(self.s.nblocks, sizeof(Found))
-        self.s.team = pg_create(threads)
+        self.s.schedule.cpu = <double*>calloc(threads * PAD, sizeof(double))
+        self.s.schedule.pb = <int*>calloc(self.s.schedule.nblocks + 1, sizeof(int))
+        self.s.schedule.tstat = <long long*>calloc(self.s.schedule.nblocks * PAD, sizeof(long long))
+        self.s.lists.halos = <Halo*>calloc(self.s.schedule.nblocks, sizeof(Halo))
+        self.s.schedule.posted = pg_flags(self.s.schedule.nblocks)
+        self.s.lists.found = <Found*>calloc(self.s.schedule.nblocks, sizeof(Found))
+        self.s.schedule.team = pg_create(threads)
         self.s.coef = <Coef*>calloc(1, sizeof(Coef))
         self.s.visc = <double*>calloc(1, sizeof(double))
         self.s.ntypes = 1
-        if not (self.s.nb_start and self.s.ob_start and self.s.wl_start and self.s.ow_start and self.s.tmax
-                and self.s.pb and self.s.tstat and self.s.cpu and self.s.halos and self.s.posted and self.s.found
-                and self.s.team):
+        if not (self.s.lists.nb_start and self.s.lists.ob_start and self.s.lists.wl_start and self.s.lists.ow_start and self.s.tmax
+                and self.s.schedule.pb and self.s.schedule.tstat and self.s.schedule.cpu and self.s.lists.halos and self.s.schedule.posted and self.s.lists.found
+                and self.s.schedule.team):
             raise MemoryError()
 
     def __dealloc__(self):
         cdef Column cols[NCOLUMNS]
         cdef int k
-        pg_destroy(self.s.team)
-        if self.s.found:
-            for k in range(self.s.nblocks):
-                free(self.s.found[k].j)
-                free(self.s.found[k].s)
+        pg_destroy(self.s.schedule.team)
+        if self.s.lists.found:
+            for k in range(self.s.schedule.nblocks):
+                free(self.s.lists.found[k].j)
+                free(self.s.lists.found[k].s)
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
             free(cols[k].p[0])
@@ -338,21 +338,21 @@ cdef class Core:
         member_columns(&self.s, cols)
         for k in range(NMCOLUMNS):
             free(cols[k].p[0])
-        for p in (<size_t>self.s.halo, <size_t>self.s.halos, <size_t>self.s.posted, <size_t>self.s.nb_j,
-                  <size_t>self.s.nb_s, <size_t>self.s.nb_h, <size_t>self.s.nb_f, <size_t>self.s.sb_k, <size_t>self.s.sb_i,
-                  <size_t>self.s.ob_j, <size_t>self.s.ob_s, <size_t>self.s.ob_h, <size_t>self.s.wl_e,
-                  <size_t>self.s.wl_h, <size_t>self.s.wl_f, <size_t>self.s.ow_e, <size_t>self.s.ow_h,
-                  <size_t>self.s.cell_start, <size_t>self.s.ctri_start, <size_t>self.s.ctri,
-                  <size_t>self.s.slots, <size_t>self.s.sacc, <size_t>self.s.vib,
+        for p in (<size_t>self.s.lists.halo, <size_t>self.s.lists.halos, <size_t>self.s.schedule.posted, <size_t>self.s.lists.nb_j,
+                  <size_t>self.s.lists.nb_s, <size_t>self.s.lists.nb_h, <size_t>self.s.lists.nb_f, <size_t>self.s.lists.sb_k, <size_t>self.s.lists.sb_i,
+                  <size_t>self.s.lists.ob_j, <size_t>self.s.lists.ob_s, <size_t>self.s.lists.ob_h, <size_t>self.s.lists.wl_e,
+                  <size_t>self.s.lists.wl_h, <size_t>self.s.lists.wl_f, <size_t>self.s.lists.ow_e, <size_t>self.s.lists.ow_h,
+                  <size_t>self.s.lists.cell_start, <size_t>self.s.walls.ctri_start, <size_t>self.s.walls.ctri,
+                  <size_t>self.s.walls.slots, <size_t>self.s.walls.sacc, <size_t>self.s.walls.vib,
                   <size_t>self.s.coef, <size_t>self.s.visc, <size_t>self.s.tmax,
-                  <size_t>self.s.pb, <size_t>self.s.tstat, <size_t>self.s.cpu, <size_t>self.s.found):
+                  <size_t>self.s.schedule.pb, <size_t>self.s.schedule.tstat, <size_t>self.s.schedule.cpu, <size_t>self.s.lists.found):
             free(<void*>p)
 
     # ------------------------------------------------------------------ memory ----------
     cdef int reserve(self, int need) except -1:
         """Grow every per-particle array (the allocation table, see particle_columns) to hold
         ``need`` particles."""
-        cdef int cap = self.s.cap, k
+        cdef int cap = self.s.particles.cap, k
         cdef size_t c
         cdef Column cols[NCOLUMNS]
         if need <= cap:
@@ -368,27 +368,27 @@ cdef class Core:
                     raise MemoryError()
             else:
                 cols[k].p[0] = self._grow(cols[k].p[0], (c + cols[k].extra) * cols[k].size)
-        self.s.cap = cap
+        self.s.particles.cap = cap
         return 0
 
     cdef int reserve_bodies(self, int nbody, int nmem) except -1:
         """Grow the clumps' per-body and per-slot arrays (see body_columns, member_columns)."""
         cdef Column cols[NBCOLUMNS]
         cdef int k, cap
-        if nbody + 1 > self.s.bcap:
-            cap = max(nbody + 1, 2 * self.s.bcap, 8)
+        if nbody + 1 > self.s.clumps.bcap:
+            cap = max(nbody + 1, 2 * self.s.clumps.bcap, 8)
             body_columns(&self.s, cols)
             for k in range(NBCOLUMNS):
                 cols[k].p[0] = self._grow(cols[k].p[0], (cap + cols[k].extra) * cols[k].size)
-            if self.s.bcap == 0:
-                self.s.mstart[0] = 0
-            self.s.bcap = cap
-        if nmem > self.s.mcap:
-            cap = max(nmem, 2 * self.s.mcap, 8)
+            if self.s.clumps.bcap == 0:
+                self.s.clumps.mstart[0] = 0
+            self.s.clumps.bcap = cap
+        if nmem > self.s.clumps.mcap:
+            cap = max(nmem, 2 * self.s.clumps.mcap, 8)
             member_columns(&self.s, cols)
             for k in range(NMCOLUMNS):
                 cols[k].p[0] = self._grow(cols[k].p[0], cap * cols[k].size)
-            self.s.mcap = cap
+            self.s.clumps.mcap = cap
         return 0
 
     cdef void* _grow(self, void* p, size_t nbytes) except NULL:
@@ -432,14 +432,14 @@ cdef class Core:
         self.s.visc = vis
         self.s.ntypes = nt
         if hs != self.s.hs:
-            free(self.s.nb_h)
-            free(self.s.ob_h)
-            free(self.s.wl_h)
-            free(self.s.ow_h)
-            self.s.nb_h = self.s.ob_h = self.s.wl_h = self.s.ow_h = NULL
-            self.s.nb_cap = self.s.ob_cap = self.s.wl_cap = self.s.ow_cap = 0
-            memset(self.s.nb_start, 0, (self.s.n + 1) * sizeof(int))
-            memset(self.s.wl_start, 0, (self.s.n + 1) * sizeof(int))
+            free(self.s.lists.nb_h)
+            free(self.s.lists.ob_h)
+            free(self.s.lists.wl_h)
+            free(self.s.lists.ow_h)
+            self.s.lists.nb_h = self.s.lists.ob_h = self.s.lists.wl_h = self.s.lists.ow_h = NULL
+            self.s.lists.nb_cap = self.s.lists.ob_cap = self.s.lists.wl_cap = self.s.lists.ow_cap = 0
+            memset(self.s.lists.nb_start, 0, (self.s.particles.n + 1) * sizeof(int))
+            memset(self.s.lists.wl_start, 0, (self.s.particles.n + 1) * sizeof(int))
             self.s.hs = hs
             self.s.whs = hs + 1
         self.s.model = model
@@ -455,24 +455,24 @@ cdef class Core:
 
     def add_particles(self, double[:, ::1] x, double[::1] r, double[::1] m, int[::1] typ,
                       double[:, ::1] v, double[:, ::1] w, int64_t[::1] ids):
-        cdef int k = x.shape[0], i, d, base = self.s.n
+        cdef int k = x.shape[0], i, d, base = self.s.particles.n
         self.reserve(base + k)
         for i in range(k):
             for d in range(3):
-                self.s.x[3 * (base + i) + d] = x[i, d]
-                self.s.x0[3 * (base + i) + d] = x[i, d]
-                self.s.v[3 * (base + i) + d] = v[i, d]
-                self.s.w[3 * (base + i) + d] = w[i, d]
-                self.s.f[3 * (base + i) + d] = 0.0
-                self.s.t[3 * (base + i) + d] = 0.0
-            self.s.r[base + i] = r[i]
-            self.s.m[base + i] = m[i]
-            self.s.type[base + i] = typ[i]
-            self.s.pid[base + i] = ids[i]
-            self.s.mem[base + i] = -1
-            self.s.nb_start[base + i + 1] = self.s.nb_start[base]
-            self.s.wl_start[base + i + 1] = self.s.wl_start[base]
-        self.s.n = base + k
+                self.s.particles.x[3 * (base + i) + d] = x[i, d]
+                self.s.particles.x0[3 * (base + i) + d] = x[i, d]
+                self.s.particles.v[3 * (base + i) + d] = v[i, d]
+                self.s.particles.w[3 * (base + i) + d] = w[i, d]
+                self.s.particles.f[3 * (base + i) + d] = 0.0
+                self.s.particles.t[3 * (base + i) + d] = 0.0
+            self.s.particles.r[base + i] = r[i]
+            self.s.particles.m[base + i] = m[i]
+            self.s.particles.type[base + i] = typ[i]
+            self.s.particles.pid[base + i] = ids[i]
+            self.s.particles.mem[base + i] = -1
+            self.s.lists.nb_start[base + i + 1] = self.s.lists.nb_start[base]
+            self.s.lists.wl_start[base + i + 1] = self.s.lists.wl_start[base]
+        self.s.particles.n = base + k
         self.s.dirty = 1
 
     def add_bodies(self, double[:, ::1] x, double[:, ::1] v, double[:, ::1] q, double[:, ::1] p,
@@ -483,79 +483,79 @@ cdef class Core:
         moments inertia[k], type typ[k] and id bids[k] has the next counts[k] spheres of
         ``offsets`` (principal frame), radii r and ids; they are placed from the body."""
         cdef int nb = x.shape[0], total = offsets.shape[0], b, k, d, s, i
-        cdef int base = self.s.n, b0 = self.s.nbody, s0 = self.s.nmem
+        cdef int base = self.s.particles.n, b0 = self.s.clumps.nbody, s0 = self.s.clumps.nmem
         self.reserve(base + total)
         self.reserve_bodies(b0 + nb, s0 + total)
         i = base
         s = s0
         for b in range(nb):
-            self.s.bid[b0 + b] = bids[b]
-            self.s.btype[b0 + b] = typ[b]
-            self.s.bm[b0 + b] = m[b]
-            self.s.bdd[b0 + b] = 0.0
+            self.s.clumps.bid[b0 + b] = bids[b]
+            self.s.clumps.btype[b0 + b] = typ[b]
+            self.s.clumps.bm[b0 + b] = m[b]
+            self.s.clumps.bdd[b0 + b] = 0.0
             for d in range(3):
-                self.s.bx[3 * (b0 + b) + d] = x[b, d]
-                self.s.bv[3 * (b0 + b) + d] = v[b, d]
-                self.s.bp[3 * (b0 + b) + d] = p[b, d]
-                self.s.bI[3 * (b0 + b) + d] = inertia[b, d]
-                self.s.bf[3 * (b0 + b) + d] = 0.0
-                self.s.bt[3 * (b0 + b) + d] = 0.0
+                self.s.clumps.bx[3 * (b0 + b) + d] = x[b, d]
+                self.s.clumps.bv[3 * (b0 + b) + d] = v[b, d]
+                self.s.clumps.bp[3 * (b0 + b) + d] = p[b, d]
+                self.s.clumps.bI[3 * (b0 + b) + d] = inertia[b, d]
+                self.s.clumps.bf[3 * (b0 + b) + d] = 0.0
+                self.s.clumps.bt[3 * (b0 + b) + d] = 0.0
             for d in range(4):
-                self.s.bq[4 * (b0 + b) + d] = q[b, d]
-            self.s.mstart[b0 + b] = s
+                self.s.clumps.bq[4 * (b0 + b) + d] = q[b, d]
+            self.s.clumps.mstart[b0 + b] = s
             for k in range(counts[b]):
                 for d in range(3):
-                    self.s.md[3 * s + d] = offsets[s - s0, d]
-                    self.s.mimg[3 * s + d] = 0.0
-                    self.s.x0[3 * i + d] = 0.0
-                    self.s.f[3 * i + d] = 0.0
-                    self.s.t[3 * i + d] = 0.0
-                self.s.mrow[s] = i
-                self.s.mbody[s] = b0 + b
-                self.s.r[i] = r[s - s0]
-                self.s.m[i] = m[b]
-                self.s.type[i] = typ[b]
-                self.s.pid[i] = ids[s - s0]
-                self.s.mem[i] = s
-                self.s.nb_start[i + 1] = self.s.nb_start[base]
-                self.s.wl_start[i + 1] = self.s.wl_start[base]
+                    self.s.clumps.md[3 * s + d] = offsets[s - s0, d]
+                    self.s.clumps.mimg[3 * s + d] = 0.0
+                    self.s.particles.x0[3 * i + d] = 0.0
+                    self.s.particles.f[3 * i + d] = 0.0
+                    self.s.particles.t[3 * i + d] = 0.0
+                self.s.clumps.mrow[s] = i
+                self.s.clumps.mbody[s] = b0 + b
+                self.s.particles.r[i] = r[s - s0]
+                self.s.particles.m[i] = m[b]
+                self.s.particles.type[i] = typ[b]
+                self.s.particles.pid[i] = ids[s - s0]
+                self.s.particles.mem[i] = s
+                self.s.lists.nb_start[i + 1] = self.s.lists.nb_start[base]
+                self.s.lists.wl_start[i + 1] = self.s.lists.wl_start[base]
                 i += 1
                 s += 1
-        self.s.mstart[b0 + nb] = s
-        self.s.nbody = b0 + nb
-        self.s.nmem = s
-        self.s.n = base + total
+        self.s.clumps.mstart[b0 + nb] = s
+        self.s.clumps.nbody = b0 + nb
+        self.s.clumps.nmem = s
+        self.s.particles.n = base + total
         for b in range(b0, b0 + nb):
             body_members(&self.s, b, True)
         for i in range(base, base + total):
             for d in range(3):
-                self.s.x0[3 * i + d] = self.s.x[3 * i + d]
+                self.s.particles.x0[3 * i + d] = self.s.particles.x[3 * i + d]
         self.s.dirty = 1
 
     def bodies(self):
         """The clumps now: per body ``id``, ``type``, centre ``x``, velocity ``v``, orientation
         ``q`` (of its principal axes), angular momentum ``p`` (principal frame), mass ``m``,
         principal moments ``inertia``, force ``f`` and torque ``t`` of the last evaluation."""
-        cdef int nb = self.s.nbody
+        cdef int nb = self.s.clumps.nbody
         return {
-            "id": _copy_l(self.s.bid, nb), "type": _copy_i(self.s.btype, nb),
-            "x": _copy_d(self.s.bx, 3 * nb).reshape(nb, 3), "v": _copy_d(self.s.bv, 3 * nb).reshape(nb, 3),
-            "q": _copy_d(self.s.bq, 4 * nb).reshape(nb, 4), "p": _copy_d(self.s.bp, 3 * nb).reshape(nb, 3),
-            "m": _copy_d(self.s.bm, nb), "inertia": _copy_d(self.s.bI, 3 * nb).reshape(nb, 3),
-            "f": _copy_d(self.s.bf, 3 * nb).reshape(nb, 3), "t": _copy_d(self.s.bt, 3 * nb).reshape(nb, 3),
+            "id": _copy_l(self.s.clumps.bid, nb), "type": _copy_i(self.s.clumps.btype, nb),
+            "x": _copy_d(self.s.clumps.bx, 3 * nb).reshape(nb, 3), "v": _copy_d(self.s.clumps.bv, 3 * nb).reshape(nb, 3),
+            "q": _copy_d(self.s.clumps.bq, 4 * nb).reshape(nb, 4), "p": _copy_d(self.s.clumps.bp, 3 * nb).reshape(nb, 3),
+            "m": _copy_d(self.s.clumps.bm, nb), "inertia": _copy_d(self.s.clumps.bI, 3 * nb).reshape(nb, 3),
+            "f": _copy_d(self.s.clumps.bf, 3 * nb).reshape(nb, 3), "t": _copy_d(self.s.clumps.bt, 3 * nb).reshape(nb, 3),
         }
 
     def mark_removed(self, cnp.uint8_t[::1] mask):
         """Mark particles (storage order) for removal at the next rebuild (a clump's sphere:
         the clump)."""
         cdef int i
-        for i in range(self.s.n):
+        for i in range(self.s.particles.n):
             if mask[i]:
-                self.s.type[i] = -1
+                self.s.particles.type[i] = -1
         self.s.dirty = 1
 
     def set_vectors(self, str name, int[::1] index, double[:, ::1] values):
-        cdef double* a = self.s.v if name == "v" else self.s.w
+        cdef double* a = self.s.particles.v if name == "v" else self.s.particles.w
         cdef int i, d
         for i in range(index.shape[0]):
             for d in range(3):
@@ -565,45 +565,45 @@ cdef class Core:
         """New radii and masses of particles (storage order); lists are rebuilt at the next run."""
         cdef int i
         for i in range(index.shape[0]):
-            self.s.r[index[i]] = r[i]
-            self.s.m[index[i]] = m[i]
+            self.s.particles.r[index[i]] = r[i]
+            self.s.particles.m[index[i]] = m[i]
         self.s.dirty = 1
 
     def add_elements(self, int[::1] kind, int[::1] etype, int[::1] wall, double[:, ::1] geo, int[:, ::1] vid):
-        cdef int k = kind.shape[0], i, d, base = self.s.ne, cap = max(base + k, 2 * self.s.ecap, 8)
+        cdef int k = kind.shape[0], i, d, base = self.s.walls.ne, cap = max(base + k, 2 * self.s.walls.ecap, 8)
         cdef Column cols[NECOLUMNS]
-        if base + k > self.s.ecap:
+        if base + k > self.s.walls.ecap:
             element_columns(&self.s, cols)
             for d in range(NECOLUMNS):
                 cols[d].p[0] = self._grow(cols[d].p[0], cap * cols[d].size)
-            self.s.ecap = cap
+            self.s.walls.ecap = cap
         for i in range(k):
-            self.s.ekind[base + i] = kind[i]
-            self.s.etype[base + i] = etype[i]
-            self.s.ewall[base + i] = wall[i]
-            self.s.emoving[base + i] = 0
+            self.s.walls.ekind[base + i] = kind[i]
+            self.s.walls.etype[base + i] = etype[i]
+            self.s.walls.ewall[base + i] = wall[i]
+            self.s.walls.emoving[base + i] = 0
             for d in range(3):
-                self.s.evid[3 * (base + i) + d] = vid[i, d]
+                self.s.walls.evid[3 * (base + i) + d] = vid[i, d]
             for d in range(9):
-                self.s.egeo[9 * (base + i) + d] = geo[i, d]
-                self.s.eref[9 * (base + i) + d] = geo[i, d]
-                self.s.ebuilt[9 * (base + i) + d] = geo[i, d]
+                self.s.walls.egeo[9 * (base + i) + d] = geo[i, d]
+                self.s.walls.eref[9 * (base + i) + d] = geo[i, d]
+                self.s.walls.ebuilt[9 * (base + i) + d] = geo[i, d]
             for d in range(NMOT):
-                self.s.emot[NMOT * (base + i) + d] = 0.0
-        self.s.ne = base + k
+                self.s.walls.emot[NMOT * (base + i) + d] = 0.0
+        self.s.walls.ne = base + k
         self.s.dirty = 1
-        self.s.binned_dirty = 1
+        self.s.walls.binned_dirty = 1
 
     def remove_elements(self, int wall):
         """Drop the elements of one wall; wall-list entries are renumbered, their histories kept."""
         cdef int e, k = 0, i, d
-        cdef int* newidx = <int*>malloc((self.s.ne + 1) * sizeof(int))
+        cdef int* newidx = <int*>malloc((self.s.walls.ne + 1) * sizeof(int))
         cdef Column cols[NECOLUMNS]
         if newidx == NULL:
             raise MemoryError()
         element_columns(&self.s, cols)
-        for e in range(self.s.ne):
-            if self.s.ewall[e] == wall:
+        for e in range(self.s.walls.ne):
+            if self.s.walls.ewall[e] == wall:
                 newidx[e] = -1
                 continue
             newidx[e] = k
@@ -611,24 +611,24 @@ cdef class Core:
                 memmove(<char*>cols[d].p[0] + k * cols[d].size, <char*>cols[d].p[0] + e * cols[d].size,
                         cols[d].size)
             k += 1
-        self.s.ne = k
+        self.s.walls.ne = k
         k = 0
-        for i in range(self.s.n):
-            e = self.s.wl_start[i]
-            self.s.wl_start[i] = k
-            while e < self.s.wl_start[i + 1]:
-                if newidx[self.s.wl_e[e]] >= 0:
-                    self.s.wl_e[k] = newidx[self.s.wl_e[e]]
+        for i in range(self.s.particles.n):
+            e = self.s.lists.wl_start[i]
+            self.s.lists.wl_start[i] = k
+            while e < self.s.lists.wl_start[i + 1]:
+                if newidx[self.s.lists.wl_e[e]] >= 0:
+                    self.s.lists.wl_e[k] = newidx[self.s.lists.wl_e[e]]
                     for d in range(self.s.hs + 1):
-                        self.s.wl_h[k * (self.s.hs + 1) + d] = self.s.wl_h[e * (self.s.hs + 1) + d]
+                        self.s.lists.wl_h[k * (self.s.hs + 1) + d] = self.s.lists.wl_h[e * (self.s.hs + 1) + d]
                     for d in range(WLF):
-                        self.s.wl_f[k * WLF + d] = self.s.wl_f[e * WLF + d]
+                        self.s.lists.wl_f[k * WLF + d] = self.s.lists.wl_f[e * WLF + d]
                     k += 1
                 e += 1
-        self.s.wl_start[self.s.n] = k
+        self.s.lists.wl_start[self.s.particles.n] = k
         free(newidx)
         self.s.dirty = 1
-        self.s.binned_dirty = 1
+        self.s.walls.binned_dirty = 1
         self.set_slots(np.array([v for v in self.get_slots() if v[S_WALL] != wall]).reshape(-1, NSLOT))
         self.set_vibrations(
             np.array([v for v in self.get_vibrations() if v[V_WALL] != wall]).reshape(-1, NVIB))
@@ -641,25 +641,25 @@ cdef class Core:
         cdef bint moving = period > 0.0
         for d in range(3):
             moving = moving or vel[d] != 0.0 or omega[d] != 0.0
-        for e in range(self.s.ne):
-            if self.s.ewall[e] != wall or self.s.ekind[e] != TRIANGLE:
+        for e in range(self.s.walls.ne):
+            if self.s.walls.ewall[e] != wall or self.s.walls.ekind[e] != TRIANGLE:
                 continue
             for d in range(9):
-                self.s.eref[9 * e + d] = self.s.egeo[9 * e + d]
+                self.s.walls.eref[9 * e + d] = self.s.walls.egeo[9 * e + d]
             for d in range(3):
-                self.s.emot[NMOT * e + M_VEL + d] = vel[d]
-                self.s.emot[NMOT * e + M_OMEGA + d] = omega[d]
-                self.s.emot[NMOT * e + M_ORIGIN + d] = origin[d]
-                self.s.emot[NMOT * e + M_AMP + d] = amplitude[d]
-            self.s.emot[NMOT * e + M_START] = self.s.time
-            self.s.emot[NMOT * e + M_PERIOD] = period
-            self.s.emoving[e] = moving
+                self.s.walls.emot[NMOT * e + M_VEL + d] = vel[d]
+                self.s.walls.emot[NMOT * e + M_OMEGA + d] = omega[d]
+                self.s.walls.emot[NMOT * e + M_ORIGIN + d] = origin[d]
+                self.s.walls.emot[NMOT * e + M_AMP + d] = amplitude[d]
+            self.s.walls.emot[NMOT * e + M_START] = self.s.time
+            self.s.walls.emot[NMOT * e + M_PERIOD] = period
+            self.s.walls.emoving[e] = moving
         self.s.dirty = 1
-        self.s.binned_dirty = 1
+        self.s.walls.binned_dirty = 1
 
     def get_vibrations(self):
         """The vibrating meshes' values, (nvib, NVIB) (see vibration)."""
-        return _copy_d(self.s.vib, NVIB * self.s.nvib).reshape(self.s.nvib, NVIB)
+        return _copy_d(self.s.walls.vib, NVIB * self.s.walls.nvib).reshape(self.s.walls.nvib, NVIB)
 
     def set_vibrations(self, double[:, ::1] values):
         """Replace the vibrating meshes' values; their triangles vibrate about their positions
@@ -670,26 +670,26 @@ cdef class Core:
             raise MemoryError()
         if k:
             memcpy(q, &values[0, 0], k * NVIB * sizeof(double))
-        free(self.s.vib)
-        self.s.vib = <double*>q
-        self.s.nvib = k
+        free(self.s.walls.vib)
+        self.s.walls.vib = <double*>q
+        self.s.walls.nvib = k
         for s in range(k):
-            for e in range(self.s.ne):
-                if self.s.ewall[e] == <int>self.s.vib[NVIB * s + V_WALL] and self.s.ekind[e] == TRIANGLE:
-                    self.s.emoving[e] = 1
+            for e in range(self.s.walls.ne):
+                if self.s.walls.ewall[e] == <int>self.s.walls.vib[NVIB * s + V_WALL] and self.s.walls.ekind[e] == TRIANGLE:
+                    self.s.walls.emoving[e] = 1
         self.s.dirty = 1
-        self.s.binned_dirty = 1
+        self.s.walls.binned_dirty = 1
 
     def get_slots(self):
         """The stress meshes' values, (nslots, NSLOT) (see Slot)."""
-        return _copy_d(self.s.slots, NSLOT * self.s.nslots).reshape(self.s.nslots, NSLOT)
+        return _copy_d(self.s.walls.slots, NSLOT * self.s.walls.nslots).reshape(self.s.walls.nslots, NSLOT)
 
     def set_slots(self, double[:, ::1] values):
         """Replace the stress meshes' values; a servo's triangles move from their positions now
         (their reference), and move with the wall list's rebuilds."""
         cdef int k = values.shape[0], e, s, d
         cdef size_t nbytes = max(k, 1) * NSLOT * sizeof(double)
-        cdef void* p = calloc(max(k, 1) * self.s.nblocks * SACC, sizeof(double))
+        cdef void* p = calloc(max(k, 1) * self.s.schedule.nblocks * SACC, sizeof(double))
         cdef void* q = malloc(nbytes)
         if p == NULL or q == NULL:
             free(p)
@@ -697,22 +697,22 @@ cdef class Core:
             raise MemoryError()
         if k:
             memcpy(q, &values[0, 0], k * NSLOT * sizeof(double))
-        free(self.s.sacc)
-        free(self.s.slots)
-        self.s.sacc = <double*>p
-        self.s.slots = <double*>q
-        self.s.nslots = k
+        free(self.s.walls.sacc)
+        free(self.s.walls.slots)
+        self.s.walls.sacc = <double*>p
+        self.s.walls.slots = <double*>q
+        self.s.walls.nslots = k
         for s in range(k):
-            if self.s.slots[NSLOT * s + S_CONTROL] == STRESS_ONLY:
+            if self.s.walls.slots[NSLOT * s + S_CONTROL] == STRESS_ONLY:
                 continue
-            for e in range(self.s.ne):
-                if self.s.ewall[e] == <int>self.s.slots[NSLOT * s + S_WALL] and self.s.ekind[e] == TRIANGLE \
-                        and not self.s.emoving[e]:
+            for e in range(self.s.walls.ne):
+                if self.s.walls.ewall[e] == <int>self.s.walls.slots[NSLOT * s + S_WALL] and self.s.walls.ekind[e] == TRIANGLE \
+                        and not self.s.walls.emoving[e]:
                     for d in range(9):
-                        self.s.eref[9 * e + d] = self.s.egeo[9 * e + d]
-                    self.s.emoving[e] = 1
+                        self.s.walls.eref[9 * e + d] = self.s.walls.egeo[9 * e + d]
+                    self.s.walls.emoving[e] = 1
         self.s.dirty = 1
-        self.s.binned_dirty = 1
+        self.s.walls.binned_dirty = 1
 
     # ------------------------------------------------------------------ rebuild ---------
     def take_lost(self):
@@ -730,8 +730,8 @@ cdef class Core:
         ``nthreads`` threads: this one runs the loop, the others (started at the first run,
         asleep between runs) take part in its parallel passes."""
         cdef int rc
-        if self.s.nthreads > 1 and not self.s.openmp:
-            pg_start(self.s.team, team_task, <void*>&self.s)
+        if self.s.schedule.nthreads > 1 and not self.s.schedule.openmp:
+            pg_start(self.s.schedule.team, team_task, <void*>&self.s)
         with nogil:
             rc = run_steps(&self.s, nsteps, dt)
         if rc < 0:
@@ -740,30 +740,30 @@ cdef class Core:
     # ------------------------------------------------------------------ outputs ---------
     def array(self, str name):
         """Copy of a per-particle array in storage order."""
-        cdef int n = self.s.n, i
+        cdef int n = self.s.particles.n, i
         if name in ("x", "v", "w", "f", "t"):
-            ptr = {"x": <size_t>self.s.x, "v": <size_t>self.s.v, "w": <size_t>self.s.w,
-                   "f": <size_t>self.s.f, "t": <size_t>self.s.t}[name]
+            ptr = {"x": <size_t>self.s.particles.x, "v": <size_t>self.s.particles.v, "w": <size_t>self.s.particles.w,
+                   "f": <size_t>self.s.particles.f, "t": <size_t>self.s.particles.t}[name]
             return _copy_d(<double*><size_t>ptr, 3 * n).reshape(n, 3)
         if name == "r":
-            return _copy_d(self.s.r, n)
+            return _copy_d(self.s.particles.r, n)
         if name == "m":
-            return _copy_d(self.s.m, n)
+            return _copy_d(self.s.particles.m, n)
         if name == "type":
-            return _copy_i(self.s.type, n)
+            return _copy_i(self.s.particles.type, n)
         if name == "id":
-            return _copy_l(self.s.pid, n)
+            return _copy_l(self.s.particles.pid, n)
         if name == "body":   # the clump's id, -1 for a free sphere
             out = np.full(n, -1, dtype=np.int64)
             for i in range(n):
-                if self.s.mem[i] >= 0:
-                    out[i] = self.s.bid[self.s.mbody[self.s.mem[i]]]
+                if self.s.particles.mem[i] >= 0:
+                    out[i] = self.s.clumps.bid[self.s.clumps.mbody[self.s.particles.mem[i]]]
             return out
         raise KeyError(name)
 
     def contacts(self):
         """Particle-particle contacts now: storage indices i, j, overlap, normal force."""
-        cdef int i, k, q, cnt = 0, npair = self.s.nb_start[self.s.n]
+        cdef int i, k, q, cnt = 0, npair = self.s.lists.nb_start[self.s.particles.n]
         cdef double d2, d
         cdef double* sv
         for k in range(npair):
@@ -775,19 +775,19 @@ cdef class Core:
         cdef Py_ssize_t[::1] oi = out_i, oj = out_j
         cdef double[::1] od = out_d, of = out_f
         cnt = 0
-        for i in range(self.s.n):
-            for k in range(self.s.nb_start[i], self.s.nb_start[i + 1]):
+        for i in range(self.s.particles.n):
+            for k in range(self.s.lists.nb_start[i], self.s.lists.nb_start[i + 1]):
                 if not in_contact(&self.s, k):
                     continue
-                sv = &self.s.shiftv[3 * (self.s.nb_s[k] & IMAGE)]
+                sv = &self.s.shiftv[3 * (self.s.lists.nb_s[k] & IMAGE)]
                 d2 = 0.0
                 for q in range(3):
-                    d = self.s.x[3 * i + q] - self.s.x[3 * self.s.nb_j[k] + q] + sv[q]
+                    d = self.s.particles.x[3 * i + q] - self.s.particles.x[3 * self.s.lists.nb_j[k] + q] + sv[q]
                     d2 += d * d
                 oi[cnt] = i
-                oj[cnt] = self.s.nb_j[k]
-                od[cnt] = self.s.r[i] + self.s.r[self.s.nb_j[k]] - sqrt(d2)
-                of[cnt] = self.s.nb_h[k * self.s.hs + H_FN]
+                oj[cnt] = self.s.lists.nb_j[k]
+                od[cnt] = self.s.particles.r[i] + self.s.particles.r[self.s.lists.nb_j[k]] - sqrt(d2)
+                of[cnt] = self.s.lists.nb_h[k * self.s.hs + H_FN]
                 cnt += 1
         return out_i, out_j, out_d, out_f
 
@@ -800,18 +800,18 @@ cdef class Core:
         the branch vector ``bx, by, bz`` = x1 - x2 (the periodic image in contact), x1 - c for
         a wall. Pairs first, then walls, each by storage row. A ValueError when the lists have
         entries but no evaluation since the state was set (the forces are not checkpointed)."""
-        cdef int i, j, k, q, cnt = 0, nwall = 0, npair = self.s.nb_start[self.s.n]
-        cdef int nlisted = self.s.wl_start[self.s.n]
+        cdef int i, j, k, q, cnt = 0, nwall = 0, npair = self.s.lists.nb_start[self.s.particles.n]
+        cdef int nlisted = self.s.lists.wl_start[self.s.particles.n]
         cdef double dist, rc
         cdef double d[3]
         cdef const double* sv
         cdef const double* rec
         for k in range(npair):
-            cnt += (self.s.nb_s[k] & TOUCH) != 0
+            cnt += (self.s.lists.nb_s[k] & TOUCH) != 0
         if (cnt or nlisted) and not self.s.forces_valid:
             raise ValueError("no force evaluation since the state was set")
         for k in range(nlisted):
-            nwall += self.s.wl_f[<long long>k * WLF + 6] != 0.0
+            nwall += self.s.lists.wl_f[<long long>k * WLF + 6] != 0.0
         out = {key: np.empty(cnt + nwall, dtype=np.int64) for key in ("id1", "id2")}
         for key in ("fx", "fy", "fz", "cx", "cy", "cz", "bx", "by", "bz"):
             out[key] = np.empty(cnt + nwall, dtype=float)
@@ -820,36 +820,36 @@ cdef class Core:
         cdef double[::1] cx = out["cx"], cy = out["cy"], cz = out["cz"]
         cdef double[::1] bx = out["bx"], by = out["by"], bz = out["bz"]
         cnt = 0
-        for i in range(self.s.n):
-            for k in range(self.s.nb_start[i], self.s.nb_start[i + 1]):
-                if not self.s.nb_s[k] & TOUCH:
+        for i in range(self.s.particles.n):
+            for k in range(self.s.lists.nb_start[i], self.s.lists.nb_start[i + 1]):
+                if not self.s.lists.nb_s[k] & TOUCH:
                     continue
-                j = self.s.nb_j[k]
-                sv = &self.s.shiftv[3 * (self.s.nb_s[k] & IMAGE)]
+                j = self.s.lists.nb_j[k]
+                sv = &self.s.shiftv[3 * (self.s.lists.nb_s[k] & IMAGE)]
                 for q in range(3):
-                    d[q] = self.s.x[3 * i + q] - self.s.x[3 * j + q] + sv[q]
+                    d[q] = self.s.particles.x[3 * i + q] - self.s.particles.x[3 * j + q] + sv[q]
                 dist = sqrt(dot3(d, d))
-                rc = self.s.r[i] - 0.5 * (self.s.r[i] + self.s.r[j] - dist)   # centre to contact point
-                id1[cnt] = self.s.pid[i]
-                id2[cnt] = self.s.pid[j]
-                fx[cnt], fy[cnt], fz[cnt] = self.s.nb_f[3 * k], self.s.nb_f[3 * k + 1], self.s.nb_f[3 * k + 2]
+                rc = self.s.particles.r[i] - 0.5 * (self.s.particles.r[i] + self.s.particles.r[j] - dist)   # centre to contact point
+                id1[cnt] = self.s.particles.pid[i]
+                id2[cnt] = self.s.particles.pid[j]
+                fx[cnt], fy[cnt], fz[cnt] = self.s.lists.nb_f[3 * k], self.s.lists.nb_f[3 * k + 1], self.s.lists.nb_f[3 * k + 2]
                 bx[cnt], by[cnt], bz[cnt] = d[0], d[1], d[2]
-                cx[cnt] = self.s.x[3 * i] - rc * d[0] / dist
-                cy[cnt] = self.s.x[3 * i + 1] - rc * d[1] / dist
-                cz[cnt] = self.s.x[3 * i + 2] - rc * d[2] / dist
+                cx[cnt] = self.s.particles.x[3 * i] - rc * d[0] / dist
+                cy[cnt] = self.s.particles.x[3 * i + 1] - rc * d[1] / dist
+                cz[cnt] = self.s.particles.x[3 * i + 2] - rc * d[2] / dist
                 cnt += 1
-        for i in range(self.s.n):
-            for k in range(self.s.wl_start[i], self.s.wl_start[i + 1]):
-                rec = &self.s.wl_f[<long long>k * WLF]
+        for i in range(self.s.particles.n):
+            for k in range(self.s.lists.wl_start[i], self.s.lists.wl_start[i + 1]):
+                rec = &self.s.lists.wl_f[<long long>k * WLF]
                 if rec[6] == 0.0:
                     continue
-                id1[cnt] = self.s.pid[i]
-                id2[cnt] = -(self.s.ewall[self.s.wl_e[k]] + 1)
+                id1[cnt] = self.s.particles.pid[i]
+                id2[cnt] = -(self.s.walls.ewall[self.s.lists.wl_e[k]] + 1)
                 fx[cnt], fy[cnt], fz[cnt] = rec[0], rec[1], rec[2]
                 cx[cnt], cy[cnt], cz[cnt] = rec[3], rec[4], rec[5]
-                bx[cnt] = self.s.x[3 * i] - rec[3]
-                by[cnt] = self.s.x[3 * i + 1] - rec[4]
-                bz[cnt] = self.s.x[3 * i + 2] - rec[5]
+                bx[cnt] = self.s.particles.x[3 * i] - rec[3]
+                by[cnt] = self.s.particles.x[3 * i + 1] - rec[4]
+                bz[cnt] = self.s.particles.x[3 * i + 2] - rec[5]
                 cnt += 1
         return out
 
@@ -861,19 +861,19 @@ cdef class Core:
         see State.sb_k); the steps whose drift measured displacements (``measured_drifts``) and
         the passes that measured them after a drift that did not (``displacement_passes``, see
         State.travel)."""
-        out = {name: self.s.timers[k] for k, name in enumerate(TIMERS)}
-        out["solo_steps"] = self.s.tuner.solo_steps
-        out["sublist_builds"] = self.s.sub_builds
+        out = {name: self.s.schedule.timers[k] for k, name in enumerate(TIMERS)}
+        out["solo_steps"] = self.s.schedule.tuner.solo_steps
+        out["sublist_builds"] = self.s.lists.sub_builds
         out["measured_drifts"] = self.s.measured
         out["displacement_passes"] = self.s.passes
-        out["moves"] = pg_moves(self.s.team) if self.s.team else 0
-        out["pairs_cpu"] = np.array([self.s.cpu[PAD * t] for t in range(self.s.nthreads)])
-        out["particles_cpu"] = np.array([self.s.cpu[PAD * t + 1] for t in range(self.s.nthreads)])
+        out["moves"] = pg_moves(self.s.schedule.team) if self.s.schedule.team else 0
+        out["pairs_cpu"] = np.array([self.s.schedule.cpu[PAD * t] for t in range(self.s.schedule.nthreads)])
+        out["particles_cpu"] = np.array([self.s.schedule.cpu[PAD * t + 1] for t in range(self.s.schedule.nthreads)])
         return out
 
     def pair_count(self):
         """Entries of the neighbour and wall lists."""
-        return self.s.nb_start[self.s.n], self.s.wl_start[self.s.n]
+        return self.s.lists.nb_start[self.s.particles.n], self.s.lists.wl_start[self.s.particles.n]
 
     def memory_bytes(self):
         """Bytes held by the per-particle arrays and lists (allocated capacity)."""
@@ -889,20 +889,20 @@ cdef class Core:
         member_columns(&self.s, cols)
         for k in range(NMCOLUMNS):
             per_member += cols[k].size
-        for k in range(self.s.nblocks):
-            found += self.s.found[k].cap * 5
-        return (found + self.s.cap * per_particle + self.s.bcap * per_body + self.s.mcap * per_member
-                + self.s.halo_cap * 6 * 8
-                + self.s.nb_cap * (5 + 8 * self.s.hs) + self.s.ob_cap * (5 + 8 * self.s.hs) + self.s.nbf_cap * 24 + self.s.sbk_cap * 8
-                + self.s.wl_cap * (12 + 8 * self.s.hs) + self.s.ow_cap * (12 + 8 * self.s.hs)
-                + self.s.wlf_cap * WLF * 8
-                + self.s.cell_cap * 8 + self.s.ctri_cap * 4)
+        for k in range(self.s.schedule.nblocks):
+            found += self.s.lists.found[k].cap * 5
+        return (found + self.s.particles.cap * per_particle + self.s.clumps.bcap * per_body + self.s.clumps.mcap * per_member
+                + self.s.lists.halo_cap * 6 * 8
+                + self.s.lists.nb_cap * (5 + 8 * self.s.hs) + self.s.lists.ob_cap * (5 + 8 * self.s.hs) + self.s.lists.nbf_cap * 24 + self.s.lists.sbk_cap * 8
+                + self.s.lists.wl_cap * (12 + 8 * self.s.hs) + self.s.lists.ow_cap * (12 + 8 * self.s.hs)
+                + self.s.lists.wlf_cap * WLF * 8
+                + self.s.lists.cell_cap * 8 + self.s.walls.ctri_cap * 4)
 
     def elements(self):
         """Current wall elements: kind, type, wall, geometry (9), vertex ids (3), moving."""
-        cdef int ne = self.s.ne
-        return (_copy_i(self.s.ekind, ne), _copy_i(self.s.etype, ne), _copy_i(self.s.ewall, ne),
-                _copy_d(self.s.egeo, 9 * ne).reshape(ne, 9), _copy_i(self.s.evid, 3 * ne).reshape(ne, 3))
+        cdef int ne = self.s.walls.ne
+        return (_copy_i(self.s.walls.ekind, ne), _copy_i(self.s.walls.etype, ne), _copy_i(self.s.walls.ewall, ne),
+                _copy_d(self.s.walls.egeo, 9 * ne).reshape(ne, 9), _copy_i(self.s.walls.evid, 3 * ne).reshape(ne, 3))
 
     # ------------------------------------------------------------------ state -----------
     def get_state(self):

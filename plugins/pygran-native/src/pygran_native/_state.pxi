@@ -60,53 +60,35 @@ cdef struct Tuner:
     double per_step[2]  # seconds per step with the team [0] and solo [1], when last timed
 
 
-cdef struct State:
-    # The one copy of the solver's state: Core holds it, the kernels and the time-step loop
-    # work on it (through a pointer, as the team's threads do).
-    int openmp         # the phases run on OpenMP's threads instead of the team's
-    int n, cap, nthreads, hs, model, rolling, roff, ntypes, dirty
-    int whs            # history values per wall-list entry: hs + 1 (see wall_row)
-    int batched        # hertz without rolling resistance on any pair: the pair loop's batched path
-    double time, skin
-    # the clock: time = t_base + (step - step_base) dt_base, re-based when dt changes, so it
-    # does not accumulate round-off step by step
-    double t_base, dt_base
-    long long step_base
-    long long step, lost, rebuilds
-    # particles lost since the last take_lost: through each face x-, x+, y-, y+, z-, z+ of the
-    # box and non-finite (LOST_PLACES), and the largest speed of those lost through a face
-    long long lost_at[7]
-    double lost_speed
-    double lo[3]
-    double hi[3]
-    double L[3]
-    int per[3]
-    double grav[3]
-    double shiftv[81]
-    # particles
+cdef struct Particles:
+    # The spheres, stored in cell order (re-sorted at every rebuild): n of cap allocated.
+    int n, cap
     double *x
     double *v
     double *w
     double *f
     double *t
-    double *x0
+    double *x0         # positions at the last rebuild
     double *r
     double *m
     int *type
     int64_t *pid
     int *mem           # the clump member slot of each particle, -1 for a free sphere (see Clumps)
-    double *buf        # forces and torques of the pair loop, cap * 6 (see pair_row)
-    double *halo       # the pair blocks' halo buffers, 6 per row (see Halo)
-    long long halo_cap
-    Halo *halos
-    int nfarblocks     # the blocks that can have far halos: those starting before row nfar
-    int *last          # the largest near partner (see Halo) of the rows up to i
-    int *flo           # row i's smallest and largest far partner (INT_MAX, -1: none)
-    int *fhi
-    int nfar           # rows after the first nfar have no far partners
     int *perm
     int *cell
-    # neighbour list (current and previous)
+
+
+cdef struct Lists:
+    # The cell grid, the neighbour and wall lists (current and previous, with their contact
+    # histories), the sublist of the batched path, and the pair loop's buffers and halos.
+    int nc[3]
+    int ax[3]          # axes from the slowest-varying in the cell index, see cell_id
+    double cs[3]
+    int ncells
+    int up[14]         # the offsets of the cell index to the cell itself and the 13 after it
+                       # among its 27 neighbours (inside the grid), see scan_pairs
+    int *cell_start
+    int cell_cap
     int *nb_start
     int *nb_j
     uint8_t *nb_s
@@ -136,7 +118,6 @@ cdef struct State:
     uint8_t *ob_s
     double *ob_h
     long long ob_cap
-    # wall list (current and previous)
     int *wl_start
     int *wl_e
     double *wl_h
@@ -147,22 +128,20 @@ cdef struct State:
     int *ow_e
     double *ow_h
     long long ow_cap
-    # cells
-    int nc[3]
-    int ax[3]          # axes from the slowest-varying in the cell index, see cell_id
-    double cs[3]
-    int ncells
-    int up[14]         # the offsets of the cell index to the cell itself and the 13 after it
-                       # among its 27 neighbours (inside the grid), see scan_pairs
-    int *cell_start
-    int cell_cap
-    int *ctri_start
-    int *ctri
-    long long ctri_cap
-    int binned_dirty   # triangles added, removed or set in motion since the last binning
-    double binned_reach
-    int binned_nc[3]
-    # wall elements
+    double *buf        # forces and torques of the pair loop, cap * 6 (see pair_row)
+    double *halo       # the pair blocks' halo buffers, 6 per row (see Halo)
+    long long halo_cap
+    Halo *halos
+    int nfarblocks     # the blocks that can have far halos: those starting before row nfar
+    int *last          # the largest near partner (see Halo) of the rows up to i
+    int *flo           # row i's smallest and largest far partner (INT_MAX, -1: none)
+    int *fhi
+    int nfar           # rows after the first nfar have no far partners
+
+
+cdef struct Walls:
+    # The wall elements (ne of ecap allocated), the triangles near each cell, stress meshes
+    # and vibrating meshes.
     int ne
     int ecap
     int *ekind
@@ -174,40 +153,22 @@ cdef struct State:
     double *eref       # triangle vertices at the motion's start
     double *ebuilt     # triangle vertices at the last rebuild
     double *emot       # NMOT per element, see motion_origin
+    int *ctri_start
+    int *ctri
+    long long ctri_cap
+    int binned_dirty   # triangles added, removed or set in motion since the last binning
+    double binned_reach
+    int binned_nc[3]
     int nslots         # stress meshes (see Slot)
     double *slots      # NSLOT per stress mesh
     double *sacc       # the pair blocks' sums over stress meshes: SACC per mesh per block
     int nvib           # vibrating meshes (viblin, vibrot)
     double *vib        # NVIB per vibrating mesh, see vibration
-    # contact tables
-    Coef *coef
-    double *visc
-    double *tmax       # per thread (PAD apart): largest squared displacement, then squared speed
-                       # (see pg_row_drift)
-    # the displacement check: no free sphere has moved further since the last rebuild than
-    # ``travel`` (the drifts' largest speeds times |dt|, summed over its ``since`` steps) and
-    # round-off; while that proves no rebuild due, a drift need not measure each particle's
-    # displacement from x0 (``measure``, see displacement; with clumps it always does)
-    double travel
-    double vlast       # the largest speed of the last drift
-    double dw_last     # the walls' largest move since the rebuild, at the last step
-    long long since
-    int measure
-    long long measured, passes   # steps whose drift measured, and passes that measured after one
-    int nblocks        # blocks of the pair loop
-    int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
-    int *work          # work of each row in the last pair loop (see row_work)
-    long long *tstat   # per block (PAD apart): work of its rows, last row of its halo
-    pg_flag *posted    # per block: the epoch of the team's last phase that ran it (see force_phase)
-    double turn        # when the master began the particle loop of the last force phase
-    pg_team *team      # the threads of a run (see pg_team)
-    int rows           # rows of the current row phase
-    Tuner tuner        # whether the master runs the phases with the team or alone
-    double timers[NTIMERS]
-    double *cpu        # per thread (PAD apart): CPU seconds in the pair and particle loops,
-                       # in total and in the last step
-    # clumps (rigid bodies of spheres, see _clumps.pxi): nbody bodies (bcap allocated) of
-    # nmem member slots (mcap allocated); body b's slots are mstart[b] to mstart[b + 1] - 1
+
+
+cdef struct Clumps:
+    # Rigid bodies of spheres (see _clumps.pxi): nbody bodies (bcap allocated) of nmem member
+    # slots (mcap allocated); body b's slots are mstart[b] to mstart[b + 1] - 1.
     int nbody, bcap, nmem, mcap
     int64_t *bid       # per body: its id
     int *btype         # ... its spheres' type (viscous damping)
@@ -225,6 +186,69 @@ cdef struct State:
     double *mimg       # ... the periodic shift of the sphere's position (3, see place_bodies)
     int *mrow          # ... the sphere's storage row (since the last rebuild)
     int *mbody         # ... its body
+
+
+cdef struct Schedule:
+    # How the passes run: their blocks, the threads, and the timers.
+    int nthreads
+    int openmp         # the phases run on OpenMP's threads instead of the team's
+    int nblocks        # blocks of the pair loop
+    int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
+    int *work          # work of each row in the last pair loop (see row_work)
+    long long *tstat   # per block (PAD apart): work of its rows, last row of its halo
+    pg_flag *posted    # per block: the epoch of the team's last phase that ran it (see force_phase)
+    double turn        # when the master began the particle loop of the last force phase
+    pg_team *team      # the threads of a run (see pg_team)
+    int rows           # rows of the current row phase
+    Tuner tuner        # whether the master runs the phases with the team or alone
+    double timers[NTIMERS]
+    double *cpu        # per thread (PAD apart): CPU seconds in the pair and particle loops,
+                       # in total and in the last step
+
+
+cdef struct State:
+    # The one copy of the solver's state: Core holds it, the kernels and the time-step loop
+    # work on it (through a pointer, as the team's threads do). Its parts, then the box, the
+    # contact model, the clock and counters, the displacement check and the force evaluation.
+    Particles particles
+    Lists lists
+    Walls walls
+    Clumps clumps
+    Schedule schedule
+    int hs, model, rolling, roff, ntypes, dirty
+    int whs            # history values per wall-list entry: hs + 1 (see wall_row)
+    int batched        # hertz without rolling resistance on any pair: the pair loop's batched path
+    double time, skin
+    # the clock: time = t_base + (step - step_base) dt_base, re-based when dt changes, so it
+    # does not accumulate round-off step by step
+    double t_base, dt_base
+    long long step_base
+    long long step, lost, rebuilds
+    # particles lost since the last take_lost: through each face x-, x+, y-, y+, z-, z+ of the
+    # box and non-finite (LOST_PLACES), and the largest speed of those lost through a face
+    long long lost_at[7]
+    double lost_speed
+    double lo[3]
+    double hi[3]
+    double L[3]
+    int per[3]
+    double grav[3]
+    double shiftv[81]
+    # contact tables
+    Coef *coef
+    double *visc
+    double *tmax       # per thread (PAD apart): largest squared displacement, then squared speed
+                       # (see pg_row_drift)
+    # the displacement check: no free sphere has moved further since the last rebuild than
+    # ``travel`` (the drifts' largest speeds times |dt|, summed over its ``since`` steps) and
+    # round-off; while that proves no rebuild due, a drift need not measure each particle's
+    # displacement from x0 (``measure``, see displacement; with clumps it always does)
+    double travel
+    double vlast       # the largest speed of the last drift
+    double dw_last     # the walls' largest move since the rebuild, at the last step
+    long long since
+    int measure
+    long long measured, passes   # steps whose drift measured, and passes that measured after one
     # the force evaluation under way (see forces): step, whether histories advance, whether
     # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
     double dt
@@ -268,68 +292,68 @@ cdef void particle_columns(State* s, Column* c) noexcept nogil:
     """The allocation table: the NCOLUMNS per-particle arrays of the State, which Core grows
     together (reserve), frees (dealloc), counts (memory_bytes) and checkpoints (state_of; the
     clump member slots ``mem`` with the clumps)."""
-    column(&c[0], <void**>&s.x, F64, 3, 0, False, "x")
-    column(&c[1], <void**>&s.v, F64, 3, 0, False, "v")
-    column(&c[2], <void**>&s.w, F64, 3, 0, False, "w")
-    column(&c[3], <void**>&s.f, F64, 3, 0, False, "f")
-    column(&c[4], <void**>&s.t, F64, 3, 0, False, "t")
-    column(&c[5], <void**>&s.x0, F64, 3, 0, False, "x0")
-    column(&c[6], <void**>&s.r, F64, 1, 0, False, "r")
-    column(&c[7], <void**>&s.m, F64, 1, 0, False, "m")
-    column(&c[8], <void**>&s.type, I32, 1, 0, False, "type")
-    column(&c[9], <void**>&s.perm, I32, 1, 0, False, NULL)
-    column(&c[10], <void**>&s.cell, I32, 1, 0, False, NULL)
-    column(&c[11], <void**>&s.work, I32, 1, 0, False, NULL)
-    column(&c[12], <void**>&s.pid, I64, 1, 0, False, "id")
-    column(&c[13], <void**>&s.nb_start, I32, 1, 1, False, "nb_start")
-    column(&c[14], <void**>&s.ob_start, I32, 1, 1, False, NULL)
-    column(&c[15], <void**>&s.wl_start, I32, 1, 1, False, "wl_start")
-    column(&c[16], <void**>&s.ow_start, I32, 1, 1, False, NULL)
-    column(&c[17], <void**>&s.last, I32, 1, 0, False, NULL)
-    column(&c[18], <void**>&s.flo, I32, 1, 0, False, NULL)
-    column(&c[19], <void**>&s.fhi, I32, 1, 0, False, NULL)
-    column(&c[20], <void**>&s.buf, F64, 6, 0, True, NULL)   # the pair loop's, zero between steps
-    column(&c[21], <void**>&s.mem, I32, 1, 0, False, NULL)
-    column(&c[22], <void**>&s.sb_n, I32, 1, 0, False, NULL)
-    column(&c[23], <void**>&s.sb_at, I32, 1, 0, False, NULL)
+    column(&c[0], <void**>&s.particles.x, F64, 3, 0, False, "x")
+    column(&c[1], <void**>&s.particles.v, F64, 3, 0, False, "v")
+    column(&c[2], <void**>&s.particles.w, F64, 3, 0, False, "w")
+    column(&c[3], <void**>&s.particles.f, F64, 3, 0, False, "f")
+    column(&c[4], <void**>&s.particles.t, F64, 3, 0, False, "t")
+    column(&c[5], <void**>&s.particles.x0, F64, 3, 0, False, "x0")
+    column(&c[6], <void**>&s.particles.r, F64, 1, 0, False, "r")
+    column(&c[7], <void**>&s.particles.m, F64, 1, 0, False, "m")
+    column(&c[8], <void**>&s.particles.type, I32, 1, 0, False, "type")
+    column(&c[9], <void**>&s.particles.perm, I32, 1, 0, False, NULL)
+    column(&c[10], <void**>&s.particles.cell, I32, 1, 0, False, NULL)
+    column(&c[11], <void**>&s.schedule.work, I32, 1, 0, False, NULL)
+    column(&c[12], <void**>&s.particles.pid, I64, 1, 0, False, "id")
+    column(&c[13], <void**>&s.lists.nb_start, I32, 1, 1, False, "nb_start")
+    column(&c[14], <void**>&s.lists.ob_start, I32, 1, 1, False, NULL)
+    column(&c[15], <void**>&s.lists.wl_start, I32, 1, 1, False, "wl_start")
+    column(&c[16], <void**>&s.lists.ow_start, I32, 1, 1, False, NULL)
+    column(&c[17], <void**>&s.lists.last, I32, 1, 0, False, NULL)
+    column(&c[18], <void**>&s.lists.flo, I32, 1, 0, False, NULL)
+    column(&c[19], <void**>&s.lists.fhi, I32, 1, 0, False, NULL)
+    column(&c[20], <void**>&s.lists.buf, F64, 6, 0, True, NULL)   # the pair loop's, zero between steps
+    column(&c[21], <void**>&s.particles.mem, I32, 1, 0, False, NULL)
+    column(&c[22], <void**>&s.lists.sb_n, I32, 1, 0, False, NULL)
+    column(&c[23], <void**>&s.lists.sb_at, I32, 1, 0, False, NULL)
 
 
 cdef void element_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the wall elements: the NECOLUMNS per-element arrays of the State,
     which Core grows together (add_elements), compacts (remove_elements), frees (dealloc) and
     checkpoints (state_of)."""
-    column(&c[0], <void**>&s.ekind, I32, 1, 0, False, "ekind")
-    column(&c[1], <void**>&s.etype, I32, 1, 0, False, "etype")
-    column(&c[2], <void**>&s.ewall, I32, 1, 0, False, "ewall")
-    column(&c[3], <void**>&s.emoving, I32, 1, 0, False, "emoving")
-    column(&c[4], <void**>&s.evid, I32, 3, 0, False, "evid")
-    column(&c[5], <void**>&s.egeo, F64, 9, 0, False, "egeo")
-    column(&c[6], <void**>&s.eref, F64, 9, 0, False, "eref")
-    column(&c[7], <void**>&s.ebuilt, F64, 9, 0, False, "ebuilt")
-    column(&c[8], <void**>&s.emot, F64, NMOT, 0, False, "emot")
+    column(&c[0], <void**>&s.walls.ekind, I32, 1, 0, False, "ekind")
+    column(&c[1], <void**>&s.walls.etype, I32, 1, 0, False, "etype")
+    column(&c[2], <void**>&s.walls.ewall, I32, 1, 0, False, "ewall")
+    column(&c[3], <void**>&s.walls.emoving, I32, 1, 0, False, "emoving")
+    column(&c[4], <void**>&s.walls.evid, I32, 3, 0, False, "evid")
+    column(&c[5], <void**>&s.walls.egeo, F64, 9, 0, False, "egeo")
+    column(&c[6], <void**>&s.walls.eref, F64, 9, 0, False, "eref")
+    column(&c[7], <void**>&s.walls.ebuilt, F64, 9, 0, False, "ebuilt")
+    column(&c[8], <void**>&s.walls.emot, F64, NMOT, 0, False, "emot")
 
 
 cdef void body_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the clumps' bodies: the NBCOLUMNS per-body arrays of the State,
     which Core grows together (add_bodies), compacts (drop_bodies), frees (dealloc) and
     checkpoints (state_of)."""
-    column(&c[0], <void**>&s.bid, I64, 1, 0, False, "body_id")
-    column(&c[1], <void**>&s.btype, I32, 1, 0, False, "body_type")
-    column(&c[2], <void**>&s.bx, F64, 3, 0, False, "body_x")
-    column(&c[3], <void**>&s.bv, F64, 3, 0, False, "body_v")
-    column(&c[4], <void**>&s.bq, F64, 4, 0, False, "body_q")
-    column(&c[5], <void**>&s.bp, F64, 3, 0, False, "body_p")
-    column(&c[6], <void**>&s.bm, F64, 1, 0, False, "body_m")
-    column(&c[7], <void**>&s.bI, F64, 3, 0, False, "body_inertia")
-    column(&c[8], <void**>&s.bf, F64, 3, 0, False, "body_f")
-    column(&c[9], <void**>&s.bt, F64, 3, 0, False, "body_t")
-    column(&c[10], <void**>&s.bdd, F64, 1, 0, False, NULL)
-    column(&c[11], <void**>&s.mstart, I32, 1, 1, False, "body_start")
+    column(&c[0], <void**>&s.clumps.bid, I64, 1, 0, False, "body_id")
+    column(&c[1], <void**>&s.clumps.btype, I32, 1, 0, False, "body_type")
+    column(&c[2], <void**>&s.clumps.bx, F64, 3, 0, False, "body_x")
+    column(&c[3], <void**>&s.clumps.bv, F64, 3, 0, False, "body_v")
+    column(&c[4], <void**>&s.clumps.bq, F64, 4, 0, False, "body_q")
+    column(&c[5], <void**>&s.clumps.bp, F64, 3, 0, False, "body_p")
+    column(&c[6], <void**>&s.clumps.bm, F64, 1, 0, False, "body_m")
+    column(&c[7], <void**>&s.clumps.bI, F64, 3, 0, False, "body_inertia")
+    column(&c[8], <void**>&s.clumps.bf, F64, 3, 0, False, "body_f")
+    column(&c[9], <void**>&s.clumps.bt, F64, 3, 0, False, "body_t")
+    column(&c[10], <void**>&s.clumps.bdd, F64, 1, 0, False, NULL)
+    column(&c[11], <void**>&s.clumps.mstart, I32, 1, 1, False, "body_start")
 
 
 cdef void member_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the clumps' member slots: the NMCOLUMNS per-slot arrays."""
-    column(&c[0], <void**>&s.md, F64, 3, 0, False, "member_offset")
-    column(&c[1], <void**>&s.mimg, F64, 3, 0, False, "member_shift")
-    column(&c[2], <void**>&s.mrow, I32, 1, 0, False, NULL)
-    column(&c[3], <void**>&s.mbody, I32, 1, 0, False, NULL)
+    column(&c[0], <void**>&s.clumps.md, F64, 3, 0, False, "member_offset")
+    column(&c[1], <void**>&s.clumps.mimg, F64, 3, 0, False, "member_shift")
+    column(&c[2], <void**>&s.clumps.mrow, I32, 1, 0, False, NULL)
+    column(&c[3], <void**>&s.clumps.mbody, I32, 1, 0, False, NULL)

@@ -4,30 +4,30 @@
 cdef inline double lap(State* sim, int k, double since) noexcept nogil:
     """Add the wall-clock time since ``since`` to timer k; returns now."""
     cdef double now = pg_now()
-    sim.timers[k] += now - since
+    sim.schedule.timers[k] += now - since
     return now
 
 
 cdef void parallel_rows(State* sim, int phase, int rows) noexcept nogil:
     """Run a phase over rows [0, rows) in ``nblocks`` equal blocks on the team."""
-    sim.rows = rows
-    run_phase(sim, phase, sim.nblocks)
+    sim.schedule.rows = rows
+    run_phase(sim, phase, sim.schedule.nblocks)
 
 
 cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
     """Master: open a phase, take blocks of it like the other threads, and return when
     all its blocks are done (whichever threads ran them); alone, run them in order."""
     cdef int b
-    if sim.nthreads == 1 or sim.tuner.solo:
+    if sim.schedule.nthreads == 1 or sim.schedule.tuner.solo:
         for b in range(nblocks):
             run_block(sim, phase, b, nblocks, 0, 0)
         return
-    if sim.openmp:
-        for b in prange(nblocks, schedule="dynamic", chunksize=1, num_threads=sim.nthreads):
+    if sim.schedule.openmp:
+        for b in prange(nblocks, schedule="dynamic", chunksize=1, num_threads=sim.schedule.nthreads):
             run_block(sim, phase, b, nblocks, threadid(), 0)
         return
-    take(sim, pg_begin(sim.team, phase, nblocks, 0), phase, nblocks, 0)
-    pg_wait_done(sim.team)
+    take(sim, pg_begin(sim.schedule.team, phase, nblocks, 0), phase, nblocks, 0)
+    pg_wait_done(sim.schedule.team)
 
 
 cdef void force_phase(State* sim) noexcept nogil:
@@ -36,54 +36,54 @@ cdef void force_phase(State* sim) noexcept nogil:
     rows or put forces on them (see await_pairs), so a thread that ends its pair blocks early
     goes on with its particles, and the particle loop's small parts even out the threads.
     ``turn``: when the master began the particle loop (0 if the team left it none)."""
-    cdef int b, nparts = sim.nblocks * SPLIT
+    cdef int b, nparts = sim.schedule.nblocks * SPLIT
     cdef double t0, t1
-    if sim.nthreads == 1 or sim.tuner.solo:
+    if sim.schedule.nthreads == 1 or sim.schedule.tuner.solo:
         t0 = thread_cpu()
-        for b in range(sim.nblocks):
+        for b in range(sim.schedule.nblocks):
             pair_block(sim, b)
         t1 = thread_cpu()
-        sim.turn = pg_now()
+        sim.schedule.turn = pg_now()
         for b in range(nparts):
             particle_part(sim, b, 0, 0)
-        sim.cpu[2] += t1 - t0
-        sim.cpu[3] += thread_cpu() - t1
+        sim.schedule.cpu[2] += t1 - t0
+        sim.schedule.cpu[3] += thread_cpu() - t1
         return
-    if sim.openmp:
+    if sim.schedule.openmp:
         omp_force_phase(sim)
         return
-    sim.turn = 0.0
-    take(sim, pg_begin(sim.team, P_FORCES, sim.nblocks, nparts), P_FORCES, sim.nblocks + nparts, 0)
-    pg_wait_done(sim.team)
+    sim.schedule.turn = 0.0
+    take(sim, pg_begin(sim.schedule.team, P_FORCES, sim.schedule.nblocks, nparts), P_FORCES, sim.schedule.nblocks + nparts, 0)
+    pg_wait_done(sim.schedule.team)
 
 
 cdef void omp_force_phase(State* sim) noexcept nogil:
     """The force phase on OpenMP: the pair loop's blocks, then the particle loop's parts, each
     handed out one at a time (dynamic schedule), in one parallel region."""
-    cdef int b, p, tid, nparts = sim.nblocks * SPLIT
+    cdef int b, p, tid, nparts = sim.schedule.nblocks * SPLIT
     cdef double t0, t1
-    with parallel(num_threads=sim.nthreads):
+    with parallel(num_threads=sim.schedule.nthreads):
         tid = threadid()
         t0 = thread_cpu()
-        for b in prange(sim.nblocks, schedule="dynamic", chunksize=1):
+        for b in prange(sim.schedule.nblocks, schedule="dynamic", chunksize=1):
             pair_block(sim, b)
         t1 = thread_cpu()
-        sim.cpu[PAD * tid + 2] += t1 - t0
+        sim.schedule.cpu[PAD * tid + 2] += t1 - t0
         if tid == 0:
-            sim.turn = pg_now()
+            sim.schedule.turn = pg_now()
         for p in prange(nparts, schedule="dynamic", chunksize=1):
             particle_part(sim, p, threadid(), 0)
-        sim.cpu[PAD * tid + 3] += thread_cpu() - t1
+        sim.schedule.cpu[PAD * tid + 3] += thread_cpu() - t1
 
 
 cdef inline void await_pair(State* sim, int b, unsigned int epoch, int tid) noexcept nogil:
     """Thread ``tid``: wait until pair block b of phase ``epoch`` is done; the CPU time of the
     wait is not the particle loop's."""
     cdef double t0
-    if not pg_posted(&sim.posted[b], epoch):
+    if not pg_posted(&sim.schedule.posted[b], epoch):
         t0 = thread_cpu()
-        pg_await(&sim.posted[b], epoch)
-        sim.cpu[PAD * tid + 3] -= thread_cpu() - t0
+        pg_await(&sim.schedule.posted[b], epoch)
+        sim.schedule.cpu[PAD * tid + 3] -= thread_cpu() - t0
 
 
 cdef void await_pairs(State* sim, int b, int lo, int hi, unsigned int epoch, int tid) noexcept nogil:
@@ -93,19 +93,19 @@ cdef void await_pairs(State* sim, int b, int lo, int hi, unsigned int epoch, int
     reads, are -1 or final (see place_halos), and either way below lo."""
     cdef int k
     for k in range(b):
-        if sim.halos[k].near_end >= lo:
+        if sim.lists.halos[k].near_end >= lo:
             await_pair(sim, k, epoch, tid)
     await_pair(sim, b, epoch, tid)
-    for k in range(sim.nfarblocks):
-        if sim.halos[k].far_lo < hi and sim.halos[k].far_hi >= lo:
+    for k in range(sim.lists.nfarblocks):
+        if sim.lists.halos[k].far_lo < hi and sim.lists.halos[k].far_hi >= lo:
             await_pair(sim, k, epoch, tid)
 
 
 cdef inline void particle_part(State* sim, int p, int tid, unsigned int epoch) noexcept nogil:
     """Part p of the particle loop: part p % SPLIT of pair block p // SPLIT, run by thread
     ``tid``; in phase ``epoch`` of the team once the pair blocks it reads are done (0: alone)."""
-    cdef int b = p // SPLIT, lo = part_start(sim.pb[b], sim.pb[b + 1], p % SPLIT, SPLIT)
-    cdef int hi = part_start(sim.pb[b], sim.pb[b + 1], p % SPLIT + 1, SPLIT)
+    cdef int b = p // SPLIT, lo = part_start(sim.schedule.pb[b], sim.schedule.pb[b + 1], p % SPLIT, SPLIT)
+    cdef int hi = part_start(sim.schedule.pb[b], sim.schedule.pb[b + 1], p % SPLIT + 1, SPLIT)
     if lo == hi:
         return
     if epoch:
@@ -124,14 +124,14 @@ cdef inline void run_block(State* sim, int phase, int b, int nblocks, int tid, u
     force_phase); of the other loops over rows, part b of ``nblocks``."""
     cdef int lo, hi
     if phase == P_FORCES:
-        if b < sim.nblocks:
+        if b < sim.schedule.nblocks:
             pair_block(sim, b)
-            pg_post(&sim.posted[b], epoch)
+            pg_post(&sim.schedule.posted[b], epoch)
         else:
-            particle_part(sim, b - sim.nblocks, tid, epoch)
+            particle_part(sim, b - sim.schedule.nblocks, tid, epoch)
     else:
-        lo = part_start(0, sim.rows, b, nblocks)
-        hi = part_start(0, sim.rows, b + 1, nblocks)
+        lo = part_start(0, sim.schedule.rows, b, nblocks)
+        hi = part_start(0, sim.schedule.rows, b + 1, nblocks)
         if phase == P_DRIFT:
             drift_block(sim, lo, hi, tid)
         elif phase == P_DISPLACEMENT:
@@ -145,25 +145,25 @@ cdef void take(State* sim, unsigned int epoch, int phase, int nblocks, int tid) 
     the CPU time of the pair and particle loops goes to thread ``tid``'s counters."""
     cdef int b, k = 0, stage = 2   # the force phase's counter the CPU time goes to
     cdef double t0 = 0.0, t1
-    b = pg_claim(sim.team, epoch, tid)
+    b = pg_claim(sim.schedule.team, epoch, tid)
     if b < 0:
         return
     if phase == P_FORCES:
         t0 = thread_cpu()
     while b >= 0:
-        if phase == P_FORCES and stage == 2 and b >= sim.nblocks:
+        if phase == P_FORCES and stage == 2 and b >= sim.schedule.nblocks:
             t1 = thread_cpu()
-            sim.cpu[PAD * tid + 2] += t1 - t0
+            sim.schedule.cpu[PAD * tid + 2] += t1 - t0
             t0 = t1
             stage = 3
             if tid == 0:
-                sim.turn = pg_now()
+                sim.schedule.turn = pg_now()
         run_block(sim, phase, b, nblocks, tid, epoch)
         k += 1
-        b = pg_claim(sim.team, epoch, tid)
+        b = pg_claim(sim.schedule.team, epoch, tid)
     if phase == P_FORCES:
-        sim.cpu[PAD * tid + stage] += thread_cpu() - t0
-    pg_finished(sim.team, k)
+        sim.schedule.cpu[PAD * tid + stage] += thread_cpu() - t0
+    pg_finished(sim.schedule.team, k)
 
 
 cdef void team_task(void* owner, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
@@ -175,24 +175,24 @@ cdef double loops_cpu(const State* sim) noexcept nogil:
     """The CPU seconds of all threads in the pair and particle loops, in all runs."""
     cdef int t
     cdef double total = 0.0
-    for t in range(sim.nthreads):
-        total += sim.cpu[PAD * t] + sim.cpu[PAD * t + 1]
+    for t in range(sim.schedule.nthreads):
+        total += sim.schedule.cpu[PAD * t] + sim.schedule.cpu[PAD * t + 1]
     return total
 
 
 cdef inline void mark_window(State* sim, double loops_wall) noexcept nogil:
     """Keep the timers the Tuner's window that starts now is measured from: rebuilds, and the
     pair and particle loops' wall time (``loops_wall``) and CPU time."""
-    sim.tuner.rebuilt = sim.timers[T_REBUILD]
-    sim.tuner.loops_wall = loops_wall
-    sim.tuner.loops_cpu = loops_cpu(sim)
+    sim.schedule.tuner.rebuilt = sim.schedule.timers[T_REBUILD]
+    sim.schedule.tuner.loops_wall = loops_wall
+    sim.schedule.tuner.loops_cpu = loops_cpu(sim)
 
 
 cdef void tune(State* sim) noexcept nogil:
     """Before a step: time the window that ends here and choose how to run the next
     one (see Tuner)."""
-    cdef Tuner* u = &sim.tuner
-    cdef double now = pg_now(), window, loops_wall = sim.timers[T_PAIRS] + sim.timers[T_PARTICLES]
+    cdef Tuner* u = &sim.schedule.tuner
+    cdef double now = pg_now(), window, loops_wall = sim.schedule.timers[T_PAIRS] + sim.schedule.timers[T_PARTICLES]
     cdef double one_thread
     cdef int probe
     if u.interval == 0.0:   # the first step with a team
@@ -200,7 +200,7 @@ cdef void tune(State* sim) noexcept nogil:
         u.next_probe = now + TUNE_WINDOW
         u.probed = now
         mark_window(sim, loops_wall)
-    window = u.elapsed + now - u.start - (sim.timers[T_REBUILD] - u.rebuilt)
+    window = u.elapsed + now - u.start - (sim.schedule.timers[T_REBUILD] - u.rebuilt)
     if u.steps > 0 and window >= TUNE_WINDOW:
         probe = 1 if u.solo else 0
         u.per_step[probe] = window / u.steps
@@ -231,45 +231,45 @@ cdef void tune(State* sim) noexcept nogil:
 cdef inline int estimated_work(State* sim, int i) noexcept nogil:
     """Row i's work in the pair loop, counting the pairs that touched at the last step."""
     cdef int k, touching = 0
-    for k in range(sim.nb_start[i], sim.nb_start[i + 1]):
-        touching += (sim.nb_s[k] & TOUCH) != 0
-    return row_work(sim.nb_start[i + 1] - sim.nb_start[i], touching,
-                    sim.wl_start[i + 1] - sim.wl_start[i])
+    for k in range(sim.lists.nb_start[i], sim.lists.nb_start[i + 1]):
+        touching += (sim.lists.nb_s[k] & TOUCH) != 0
+    return row_work(sim.lists.nb_start[i + 1] - sim.lists.nb_start[i], touching,
+                    sim.lists.wl_start[i + 1] - sim.lists.wl_start[i])
 
 
 cdef void balance(State* sim) noexcept nogil:
     """Split the (cell-sorted) rows of the pair loop into ``nblocks`` blocks of about equal
     ``work``: each a spatial slab, so few neighbours belong to another block."""
-    cdef int t, i = 0, n = sim.n, T = sim.nblocks
+    cdef int t, i = 0, n = sim.particles.n, T = sim.schedule.nblocks
     cdef long long total = 0, prefix = 0
     for t in range(n):
-        total += sim.work[t]
+        total += sim.schedule.work[t]
     for t in range(1, T):
         while i < n and prefix < total * t // T:
-            prefix += sim.work[i]
+            prefix += sim.schedule.work[i]
             i += 1
-        sim.pb[t] = i
-    sim.pb[0] = 0
-    sim.pb[T] = n
+        sim.schedule.pb[t] = i
+    sim.schedule.pb[0] = 0
+    sim.schedule.pb[T] = n
 
 
 cdef void rebalance(State* sim) noexcept nogil:
     """Move each bound of the pair loop to where the work of the loop just run splits
     evenly (the first row where its prefix reaches ``total t / T``), walking from where the
     bound was: the partition follows contacts as they form, and depends only on the state."""
-    cdef int t, b, T = sim.nblocks
+    cdef int t, b, T = sim.schedule.nblocks
     cdef long long total = 0, old = 0, prefix, target
     for t in range(T):
-        total += sim.tstat[PAD * t]
+        total += sim.schedule.tstat[PAD * t]
     for t in range(1, T):
-        old += sim.tstat[PAD * (t - 1)]   # the work before the old bound t
+        old += sim.schedule.tstat[PAD * (t - 1)]   # the work before the old bound t
         target = total * t // T
-        b = sim.pb[t]
+        b = sim.schedule.pb[t]
         prefix = old
-        while b > 0 and prefix - sim.work[b - 1] >= target:
+        while b > 0 and prefix - sim.schedule.work[b - 1] >= target:
             b -= 1
-            prefix -= sim.work[b]
-        while b < sim.n and prefix < target:
-            prefix += sim.work[b]
+            prefix -= sim.schedule.work[b]
+        while b < sim.particles.n and prefix < target:
+            prefix += sim.schedule.work[b]
             b += 1
-        sim.pb[t] = b
+        sim.schedule.pb[t] = b
