@@ -419,9 +419,11 @@ class Engine(abc.ABC):
             self._logger.handle(record)
 
     def _progress_line(self, text: str, stderr: bool = True) -> None:
-        """A progress line into ``pygran.log``, and on stderr off a terminal (see :meth:`run`)."""
+        """A progress line into ``pygran.log``, and on stderr off a terminal (see :meth:`run`),
+        there from the first MPI rank only (under ``mpirun`` every rank runs the script)."""
         self.log("%s", text)
-        if stderr and self._progress_to_stderr:
+        rank = os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0"))
+        if stderr and self._progress_to_stderr and rank == "0":
             print(f"{self.name}: {text}", file=sys.stderr, flush=True)
 
     def _to_file(self, level: int, message: str) -> None:
