@@ -92,3 +92,20 @@ def test_progress_settings_and_durations() -> None:
         "progress: step 1000, run 1000 of 2000 (50 %), t = 0.01 s, 1e+04 particle-steps/s, "
         "run ETA 0:00:10; script 1000 of 4000 steps (25 %), ETA 0:00:30"
     ]
+
+
+def test_under_mpi_every_rank_counts_at_every_update() -> None:
+    # counting is collective under MPI, and each rank's clock decides differently when a
+    # line is due: every rank counts at every update, a line or not
+    counted: list[int] = []
+
+    def particles() -> int:
+        counted.append(1)
+        return 10
+
+    clock = iter([0.0, 1.0, 2.0, 100.0])
+    progress = Progress(ProgressSpec(every=50), [].append, clock=lambda: next(clock), collective=True)
+    progress.begin(0, 30)
+    for step in (10, 20, 30):
+        progress.update(step, 0.0, particles)
+    assert len(counted) == 3 and progress.lines == 1

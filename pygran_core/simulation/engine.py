@@ -293,7 +293,8 @@ class Engine(abc.ABC):
         self._clock = (0, 0.0)
         self.closed = False
         self._engine_id = next(Engine._ids)
-        self._progress = Progress(spec.progress, self._progress_line)
+        ranks = os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1"))
+        self._progress = Progress(spec.progress, self._progress_line, collective=ranks != "1")
         self._progress_to_stderr = False
         self._handles: dict[int, Handle] = {}
         self._handle_ids = itertools.count(1)
@@ -725,7 +726,7 @@ class Engine(abc.ABC):
                     raise
                 self._set_step(self.step + chunk, run_dt)
                 bar.update(chunk)
-                self._progress.update(self.step, self.time, lambda: len(self._extract("id")))
+                self._progress.update(self.step, self.time, lambda: int(self._scalar("n")))
                 self._on_event()
                 if watch is None:
                     lost += self._lost_since_last() or LostParticles()

@@ -33,12 +33,17 @@ class Progress:
     """The progress of one simulation's runs: :meth:`begin` at the start of a run,
     :meth:`update` after each of its pieces (a line through ``write`` when ``every`` seconds
     have passed since the last), :meth:`end` at its end. Steps accumulate over the runs, for
-    the script's ETA."""
+    the script's ETA. ``collective``: count the particles at every update, not only for a line
+    (under MPI counting is collective, and each rank's clock decides differently)."""
 
     def __init__(
-        self, spec: ProgressSpec, write: Callable[[str], None], clock: Callable[[], float] = time.monotonic
+        self,
+        spec: ProgressSpec,
+        write: Callable[[str], None],
+        clock: Callable[[], float] = time.monotonic,
+        collective: bool = False,
     ) -> None:
-        self.spec, self._write, self._clock = spec, write, clock
+        self.spec, self._write, self._clock, self._collective = spec, write, clock, collective
         self.done = 0  #: steps run by the script so far, over all its runs
         self._start = (0, 0, 0.0, 0)  # first step, end step, clock and script steps at the run's start
         self._last = 0.0
@@ -50,14 +55,15 @@ class Progress:
 
     def update(self, step: int, simulated: float, particles: Callable[[], int]) -> None:
         """Count the steps up to ``step``; write a line if one is due (``particles`` is called
-        then only: counting may gather them from the solver)."""
+        then only, unless ``collective``: counting may gather them from the solver)."""
         first, _, _, before = self._start
         self.done = before + step - first
+        count = particles() if self._collective else None
         now = self._clock()
         if now - self._last >= self.spec.every:
             self._last = now
             self.lines += 1
-            self._write(self.line(step, simulated, particles(), now))
+            self._write(self.line(step, simulated, particles() if count is None else count, now))
 
     def end(self, step: int) -> str:
         """The run's summary: steps, wall time and speed."""
