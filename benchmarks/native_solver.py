@@ -14,16 +14,20 @@ vary by 15 %.
 
     .venv/bin/python benchmarks/native_solver.py --n 20000 --threads 2 --repeats 3
 
-``--runtimes team openmp`` compares threading runtimes at ``--threads`` threads instead, for
-each ``--n`` (several may be given), on the machine as it is and while a busy loop holds a
-core (``--busy``): every case in a fresh process, the runtimes taking turns (their order
-alternating per round) so that a drifting host slows each alike. Its phases are short:
-``--settle-steps`` from the lattice, and ``--bed-steps`` on a dense bed, the 20,000-particle
-lattice after the 8,000 settling steps (made once and kept in ``--bed``) tiled along x and y
-to N (its contact histories start afresh). Prints each round, then per case the median
-particle-steps/s of each runtime and the ratio of each to the first, then one JSON line.
+``--variants`` compares variants instead, each ``RUNTIME[:THREADS][@BUILD]``: a threading
+runtime (``team`` or ``openmp``), a thread count (default ``--threads``) and a build (a
+directory put first on ``PYTHONPATH``, holding ``pygran_native`` compiled from other sources;
+default: the installed one). For each ``--n`` (several may be given), on the machine as it is
+and while a busy loop holds a core (``--busy``), every case runs in a fresh process, the
+variants taking turns (their order alternating per round) so that a drifting host slows each
+alike. Its phases are short: ``--settle-steps`` from the lattice, and ``--bed-steps`` on a
+dense bed, the 20,000-particle lattice after the 8,000 settling steps (made once and kept in
+``--bed``) tiled along x and y to N (its contact histories start afresh). Prints each round,
+then per case the median particle-steps/s of each variant and its ratio to the first, then
+one JSON line.
 
-    .venv/bin/python benchmarks/native_solver.py --runtimes team openmp --n 20000 1000000 --busy
+    .venv/bin/python benchmarks/native_solver.py --variants team openmp --n 20000 1000000 --busy
+    .venv/bin/python benchmarks/native_solver.py --variants team team@/tmp/old/src --n 20000
 """
 
 from __future__ import annotations
@@ -103,7 +107,7 @@ def tiled_bed(n: int, bed: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str,
     }
 
 
-def measure_runtime(n: int, threads: int, runtime: str, steps: tuple[int, int], bed_path: Path) -> dict:
+def measure_variant(n: int, threads: int, runtime: str, steps: tuple[int, int], bed_path: Path) -> dict:
     """Particle-steps/s of ``steps[0]`` settling steps from the lattice and ``steps[1]`` steps
     of the tiled dense bed (each after a first call that builds the lists), on ``runtime``."""
     solver = scenario(*lattice(n), threads=threads, runtime=runtime)
@@ -115,56 +119,44 @@ def measure_runtime(n: int, threads: int, runtime: str, steps: tuple[int, int], 
     bed = advance(solver, steps[1], steps[1])
     return {
         "N": n,
-        "runtime": runtime,
         "settle_pss": n * steps[0] / settle["wall"],
         "bed_pss": n * steps[1] / bed["wall"],
         "solo_steps": settle["solo_steps"] + bed["solo_steps"],
     }
 
 
-def run_case(args: argparse.Namespace, n: int, runtime: str) -> dict:
-    """:func:`measure_runtime` in a fresh process."""
-    command = [
-        sys.executable,
-        __file__,
-        "--one-runtime",
-        runtime,
-        "--n",
-        str(n),
-        "--threads",
-        str(args.threads),
-    ]
-    command += [
-        "--bed",
-        str(args.bed),
-        "--settle-steps",
-        str(args.settle_steps),
-        "--bed-steps",
-        str(args.bed_steps),
-    ]
-    out = subprocess.run(command, capture_output=True, text=True, check=True)
+def run_case(args: argparse.Namespace, n: int, variant: str) -> dict:
+    """:func:`measure_variant` of ``variant`` (``RUNTIME[:THREADS][@BUILD]``) in a fresh process."""
+    spec, _, build = variant.partition("@")
+    runtime, _, threads = spec.partition(":")
+    command = [sys.executable, __file__, "--one-variant", runtime, "--n", str(n), "--threads"]
+    command += [threads or str(args.threads), "--bed", str(args.bed)]
+    command += ["--settle-steps", str(args.settle_steps), "--bed-steps", str(args.bed_steps)]
+    env = dict(os.environ)
+    if build:
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, (build, env.get("PYTHONPATH"))))
+    out = subprocess.run(command, capture_output=True, text=True, check=True, env=env)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def compare_runtimes(args: argparse.Namespace) -> None:
-    """Each runtime in turn on each case (N, busy loop or not), ``--repeats`` rounds."""
+def compare_variants(args: argparse.Namespace) -> None:
+    """Each variant in turn on each case (N, busy loop or not), ``--repeats`` rounds."""
     settled_bed(args.bed)  # made before any timing
     pss: dict[tuple[int, bool, str], dict[str, list[float]]] = {}
     print(f"threads {args.threads}; load average before: {os.getloadavg()[0]:.2f}", flush=True)
-    for round_, n, busy in itertools.product(
-        range(args.repeats), args.n, (False, True) if args.busy else (False,)
-    ):
-        order = args.runtimes if round_ % 2 == 0 else args.runtimes[::-1]
+    loads = (False, True) if args.busy else (False,)
+    for round_, n, busy in itertools.product(range(args.repeats), args.n, loads):
+        order = args.variants if round_ % 2 == 0 else args.variants[::-1]
         loop = busy_loop() if busy else None
         try:
             time.sleep(0.5 if busy else 0)
-            for runtime in order:
-                res = run_case(args, n, runtime)
-                case = pss.setdefault((n, busy, runtime), {"settle": [], "bed": []})
+            for variant in order:
+                res = run_case(args, n, variant)
+                case = pss.setdefault((n, busy, variant), {"settle": [], "bed": []})
                 case["settle"].append(res["settle_pss"])
                 case["bed"].append(res["bed_pss"])
                 print(
-                    f"  round {round_ + 1}, N={n}, {'busy' if busy else 'quiet'}, {runtime}: settle "
+                    f"  round {round_ + 1}, N={n}, {'busy' if busy else 'quiet'}, {variant}: settle "
                     f"{res['settle_pss'] / 1e6:.2f}, bed {res['bed_pss'] / 1e6:.2f} M particle-steps/s "
                     f"(steps alone: {res['solo_steps']}; load {os.getloadavg()[0]:.2f})",
                     flush=True,
@@ -174,16 +166,16 @@ def compare_runtimes(args: argparse.Namespace) -> None:
                 loop.kill()
                 loop.wait()
     print(f"load average after: {os.getloadavg()[0]:.2f}")
-    print(f"medians of {args.repeats} round(s), M particle-steps/s, ratio to {args.runtimes[0]}:")
+    print(f"medians of {args.repeats} round(s), M particle-steps/s, ratio to {args.variants[0]}:")
     table = []
-    for (n, busy, runtime), phases in pss.items():
+    for (n, busy, variant), phases in pss.items():
         for phase, values in phases.items():
             median = statistics.median(values)
-            first = statistics.median(pss[n, busy, args.runtimes[0]][phase])
-            row = {"runtime": runtime, "N": n, "scenario": phase, "busy": busy, "pss": median}
+            first = statistics.median(pss[n, busy, args.variants[0]][phase])
+            row = {"variant": variant, "N": n, "scenario": phase, "busy": busy, "pss": median}
             table.append(row | {"ratio": median / first})
             print(
-                f"  {runtime:8s} N={n:<8d} {phase:7s} {'busy' if busy else 'quiet':6s} "
+                f"  {variant:12s} N={n:<8d} {phase:7s} {'busy' if busy else 'quiet':6s} "
                 f"{median / 1e6:7.3f} {median / first:6.3f}"
             )
     print(json.dumps(table))
@@ -262,23 +254,21 @@ def main() -> None:
     parser.add_argument("--chunk", type=int, default=8000, help="most steps per Solver.run call")
     parser.add_argument("--one", action="store_true", help="run one measurement in this process")
     parser.add_argument("--repeats", type=int, default=1, help="alternating runs per thread count; best kept")
-    parser.add_argument(
-        "--runtimes", nargs="+", choices=("team", "openmp"), help="compare threading runtimes"
-    )
-    parser.add_argument("--busy", action="store_true", help="with --runtimes: also under a busy loop")
-    parser.add_argument("--settle-steps", type=int, default=2000, help="with --runtimes")
-    parser.add_argument("--bed-steps", type=int, default=1000, help="with --runtimes")
+    parser.add_argument("--variants", nargs="+", help="compare RUNTIME[:THREADS][@BUILD] variants")
+    parser.add_argument("--busy", action="store_true", help="with --variants: also under a busy loop")
+    parser.add_argument("--settle-steps", type=int, default=2000, help="with --variants")
+    parser.add_argument("--bed-steps", type=int, default=1000, help="with --variants")
     parser.add_argument(
         "--bed", type=Path, default=Path(tempfile.gettempdir()) / "pygran_settled_bed_20000.npz"
     )
-    parser.add_argument("--one-runtime", choices=("team", "openmp"), help=argparse.SUPPRESS)
+    parser.add_argument("--one-variant", choices=("team", "openmp"), help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.one_runtime:
+    if args.one_variant:
         steps = (args.settle_steps, args.bed_steps)
-        print(json.dumps(measure_runtime(args.n[0], args.threads, args.one_runtime, steps, args.bed)))
+        print(json.dumps(measure_variant(args.n[0], args.threads, args.one_variant, steps, args.bed)))
         return
-    if args.runtimes:
-        compare_runtimes(args)
+    if args.variants:
+        compare_variants(args)
         return
     (args.n,) = args.n
     if args.one:
