@@ -118,7 +118,7 @@ import sys
 from pygran_core import simulation
 from pygran_core.testing.mistakes import valid
 
-with simulation.DEM(**valid(sys.argv[1], sys.argv[2])) as sim:
+with simulation.DEM(**valid(sys.argv[1], sys.argv[2]) | {"nprocs": int(sys.argv[3])}) as sim:
     sim.setupWall(species=1, plane="zplane", peq=0.0)
     sim.createParticles(1, "lattice", 2e-3, region=("block", 0, 0.02, 0, 0.02, 0, 0.02))
     print("running", flush=True)
@@ -126,39 +126,42 @@ with simulation.DEM(**valid(sys.argv[1], sys.argv[2])) as sim:
 """
 
 
-def children(pid: int) -> set[int]:
+def descendants(pid: int) -> set[int]:
+    """The processes ``pid`` started, and theirs (Linux /proc), still running."""
     found = set()
     for task in Path(f"/proc/{pid}/task").iterdir():
-        found.update(int(p) for p in (task / "children").read_text().split())
+        for child in map(int, (task / "children").read_text().split()):
+            found |= {child} | descendants(child)
     return found
 
 
-def gone(pid: int) -> bool:
+def running(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
     except FileNotFoundError:
-        return True
-    return state == "Z"  # ended, waiting for its parent to read its exit status
+        return False
+    return state != "Z"  # a zombie has ended, waiting for its parent to read its exit status
 
 
-@pytest.mark.parametrize("engine", ["liggghts", "yade"])
-def test_a_worker_dies_with_its_script(tmp_path, engine):
-    """The audit's case: after kill -9 of the script the LIGGGHTS worker ran on (to 14 GB)."""
+@pytest.mark.parametrize(("engine", "nprocs"), [("liggghts", 1), ("liggghts", 2), ("yade", 1)])
+def test_a_worker_dies_with_its_script(tmp_path, engine, nprocs):
+    """The audit's case: after kill -9 of the script the LIGGGHTS worker ran on (to 14 GB).
+    With nprocs=2 the script starts mpirun, which starts the two ranks: all end."""
     require_solver(registry.get_engine(engine).locate_solver)
     script = tmp_path / "script.py"
     script.write_text(textwrap.dedent(SCRIPT))
-    with subprocess.Popen(
-        [sys.executable, str(script), str(tmp_path / "out"), engine], stdout=subprocess.PIPE, text=True
-    ) as process:
-        assert process.stdout is not None and process.stdout.readline() == "running\n"
-        time.sleep(0.5)
-        workers = children(process.pid)
-        assert len(workers) == 1
-        (worker,) = workers
-        assert not gone(worker)
-        process.kill()
-        process.wait()
-        deadline = time.monotonic() + 3
-        while not gone(worker) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert gone(worker), f"worker {worker} outlived its script"
+    command = [sys.executable, str(script), str(tmp_path / "out"), engine, str(nprocs)]
+    with subprocess.Popen(command, stdout=subprocess.PIPE, text=True) as process:
+        try:
+            assert process.stdout is not None and process.stdout.readline() == "running\n"
+            time.sleep(0.5)
+            (worker,) = Path(f"/proc/{process.pid}/task/{process.pid}/children").read_text().split()
+            started = descendants(process.pid)  # the worker or mpirun, and what it started
+            assert int(worker) in started and all(map(running, started))
+        finally:
+            process.kill()
+            process.wait()
+    deadline = time.monotonic() + 3
+    while any(map(running, started)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(map(running, started)), f"{sorted(filter(running, started))} outlived the script"
