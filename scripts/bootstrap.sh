@@ -34,7 +34,7 @@ install_python_packages() {
         /usr/bin/python3 -m venv "$VENV"
     fi
     local stamp=$VENV/.pygran-install-stamp digest
-    digest=$(cd "$ROOT" && shopt -s nullglob && cat pyproject.toml plugins/*/pyproject.toml \
+    digest=$(cd "$ROOT" && shopt -s nullglob && cat pyproject.toml setup.py pygran_core/*.pyx plugins/*/pyproject.toml \
         plugins/*/setup.py plugins/*/src/*/*.{pyx,pxi,pxd,h} plugins/*/src/*/*/*.{cpp,h} | sha256sum | cut -d' ' -f1)
     if [[ -f $stamp && $(cat "$stamp") == "$digest" ]]; then
         return

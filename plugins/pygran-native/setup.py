@@ -16,16 +16,11 @@ if heuristics not in ("0", "1"):
 
 # -O3 without -ffast-math or -march=native, so results are reproducible across machines;
 # -fno-math-errno only lets sqrt compile to one instruction, and -fno-trapping-math lets the
-# batched pair loop (pair_batch.h) compute both sides of a choice and vectorise (same results:
+# pair law (pair_law.h) compute both sides of a choice and its batched loop vectorise (same results:
 # neither changes a value). -ffp-contract=off keeps its AVX2 version from fusing multiply-adds.
 openmp = {"extra_compile_args": ["-O3", "-fno-math-errno", "-fopenmp"], "extra_link_args": ["-fopenmp"]}
 extensions = [
     Extension("pygran_native._kernels", ["src/pygran_native/_kernels.pyx"], **openmp),
-    Extension(
-        "pygran_native._accel",
-        ["src/pygran_native/_accel.pyx"],
-        **openmp | {"extra_compile_args": [*openmp["extra_compile_args"], "-ffp-contract=off"]},
-    ),
     Extension(  # its own threads (team.h), not OpenMP's
         "pygran_native._solver",
         ["src/pygran_native/_solver.pyx"],

@@ -1,5 +1,5 @@
 # cython: boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""Compiled kernels pygran-core uses when this package is installed (it has numpy fallbacks).
+"""The core's optional compiled kernels; each caller has a numpy path with the same results.
 
 - ``histogram`` and ``pair_keys``: the cell-list sweep of ``pygran_core.analysis._neighbors``
   (same rows, runs and image shifts, same arithmetic, so the same counts and pairs), one
