@@ -58,6 +58,40 @@ CAPABILITIES = frozenset(
 )
 
 
+def _known_capabilities(engine: str, capabilities: Iterable[str]) -> frozenset[str]:
+    """``capabilities`` as a frozenset, or a ValueError if one is not in :data:`CAPABILITIES`."""
+    unknown = set(capabilities) - CAPABILITIES
+    if unknown:
+        raise ValueError(
+            f"Engine {engine!r} declares unknown capabilities {sorted(unknown)}; "
+            f"known: {sorted(CAPABILITIES)}"
+        )
+    return frozenset(capabilities)
+
+
+class _Capabilities:
+    """The field :attr:`EngineSpec.capabilities`, always read as a frozenset. It is given as a
+    set, checked at once, or as a function returning one, called and checked when they are
+    first read: for capabilities that cost something to find out (whether a solver's add-on
+    loads), which loading the registry must not pay for."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = f"_{name}"
+
+    def __get__(self, spec: EngineSpec | None, owner: type) -> frozenset[str]:
+        if spec is None:
+            return frozenset()  # the field's default
+        value = getattr(spec, self.slot)
+        if callable(value):
+            value = _known_capabilities(spec.name, value())
+            object.__setattr__(spec, self.slot, value)
+        return value
+
+    def __set__(self, spec: EngineSpec, value: Iterable[str] | Callable[[], Iterable[str]]) -> None:
+        checked = value if callable(value) else _known_capabilities(spec.name, value)
+        object.__setattr__(spec, self.slot, checked)
+
+
 @dataclass(frozen=True)
 class EngineSpec:
     """An engine a plugin provides.
@@ -65,6 +99,7 @@ class EngineSpec:
     ``factory(spec)`` builds the :class:`~pygran_core.simulation.engine.Engine` from a
     :class:`~pygran_core.simulation.specs.SimulationSpec` (typed loosely: the records are a leaf
     module, below the engine base class, which looks up writers through the registry);
+    ``capabilities`` are a set or a function returning one, called once, when first read;
     ``locate_solver()`` returns a one-line description of the solver it will drive (path,
     version, threads) or raises :class:`~pygran_core.errors.EngineError` whose message
     says how to install the missing solver.
@@ -72,19 +107,12 @@ class EngineSpec:
 
     name: str
     factory: Callable[..., Any]
-    capabilities: frozenset[str] = frozenset()
+    capabilities: _Capabilities = _Capabilities()
     description: str = ""
     locate_solver: Callable[[], str] | None = None
 
     def __post_init__(self) -> None:
         _check_name(self.name)
-        unknown = set(self.capabilities) - CAPABILITIES
-        if unknown:
-            raise ValueError(
-                f"Engine {self.name!r} declares unknown capabilities {sorted(unknown)}; "
-                f"known: {sorted(CAPABILITIES)}"
-            )
-        object.__setattr__(self, "capabilities", frozenset(self.capabilities))
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from pygran_liggghts import library
-from pygran_liggghts.library import ADDON_MODEL, find_library, load_addon
+from pygran_liggghts.library import ADDON_MODEL, find_library, probe_addon
 from pygran_liggghts.session import mpirun_prefix
 
 from pygran_core import registry, simulation
@@ -30,7 +30,7 @@ THORNTON_TABLE = {1.0: 1.0, 0.5: 0.931, 0.2: 0.773, 0.1: 0.659, 0.05: 0.557, 0.0
 
 def locate_addon() -> str:
     """The add-on's model name, or the EngineError saying why it is unavailable."""
-    addon = load_addon()
+    addon = probe_addon()
     if not addon.loaded:
         raise EngineError(addon.reason)
     return ADDON_MODEL

@@ -27,6 +27,7 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import replace
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -56,7 +57,7 @@ from pygran_liggghts.commands import (
     native_particles,
     size_classes,
 )
-from pygran_liggghts.library import ADDON_CAPABILITIES, load_addon
+from pygran_liggghts.library import ADDON_CAPABILITIES, Addon, load_addon, probe_addon
 from pygran_liggghts.screen import InsertionEvent, insertion_events
 from pygran_liggghts.session import LocalSession, WorkerSession
 
@@ -107,38 +108,63 @@ def mpi_placement(world: Any, spec: SimulationSpec) -> tuple[Any, SimulationSpec
     return world.Split(group, world.rank), spec.runs[group]
 
 
+#: What the engine does on LIGGGHTS alone; :func:`capabilities` adds the add-on's.
+LIGGGHTS_CAPABILITIES = frozenset(
+    {
+        "mesh-walls",
+        "moving-mesh",
+        "mesh-vibration",
+        "servo-walls",
+        "primitive-walls",
+        "periodic",
+        "polydisperse",
+        "multisphere",
+        "spring-dashpot",
+        "hertz-mindlin",
+        "cohesion",
+        "rolling-friction",
+        "rolling-epsd",
+        "rolling-epsd2",
+        "rolling-epsd3",
+        "limit-force",
+        "insert-by-rate",
+        "monitor-species",
+        "mpi",
+        "restart",
+        "raw-commands",
+        "liggghts-dump",
+        "neighbor-styles",
+        "contact-output",
+    }
+)
+
+
+def addon() -> Addon:
+    """Whether the Thornton-Ning add-on loads: under ``mpirun`` loaded here, where LIGGGHTS runs,
+    else in a probe process, so that libliggghts and the libraries it is linked to (Debian's
+    VTK, which crashes pip's) never enter a process that runs LIGGGHTS in a worker."""
+    return load_addon() if launch_world() is not None else probe_addon()
+
+
+@cache
+def capabilities() -> frozenset[str]:
+    """The engine's capabilities, with the add-on's when it loads (decided on first use)."""
+    return LIGGGHTS_CAPABILITIES | (ADDON_CAPABILITIES if addon().loaded else frozenset())
+
+
+class _Capabilities:
+    """:attr:`LiggghtsEngine.capabilities`: :func:`capabilities`, read when first needed, not
+    when this module is imported."""
+
+    def __get__(self, engine: LiggghtsEngine | None, owner: type) -> frozenset[str]:
+        return capabilities()
+
+
 class LiggghtsEngine(Engine):
     """A simulation on LIGGGHTS 3.x (``libliggghts``), see the module docstring."""
 
     name = "liggghts"
-    capabilities = frozenset(
-        {
-            "mesh-walls",
-            "moving-mesh",
-            "mesh-vibration",
-            "servo-walls",
-            "primitive-walls",
-            "periodic",
-            "polydisperse",
-            "multisphere",
-            "spring-dashpot",
-            "hertz-mindlin",
-            "cohesion",
-            "rolling-friction",
-            "rolling-epsd",
-            "rolling-epsd2",
-            "rolling-epsd3",
-            "limit-force",
-            "insert-by-rate",
-            "monitor-species",
-            "mpi",
-            "restart",
-            "raw-commands",
-            "liggghts-dump",
-            "neighbor-styles",
-            "contact-output",
-        }
-    ) | (ADDON_CAPABILITIES if load_addon().loaded else frozenset())
+    capabilities = _Capabilities()
     #: Each run chunk is a LIGGGHTS ``run``; few chunks keep the overhead negligible.
     max_run_chunks = 10
 
@@ -230,7 +256,7 @@ class LiggghtsEngine(Engine):
             super().require(capability, what)
         except UnsupportedFeature as exc:
             if capability in ADDON_CAPABILITIES:
-                raise UnsupportedFeature(f"{exc} On LIGGGHTS: {load_addon().reason}") from None
+                raise UnsupportedFeature(f"{exc} On LIGGGHTS: {addon().reason}") from None
             raise
 
     # -- messages: once per simulation, from rank 0 of its group ---------------------------

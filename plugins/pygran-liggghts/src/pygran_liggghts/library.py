@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import ctypes.util
+import json
 import logging
 import os
+import subprocess
+import sys
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -16,6 +19,10 @@ ADDON_MODEL = "thornton_ning_pygran"
 #: The capabilities the add-on gives the engine.
 ADDON_CAPABILITIES = frozenset({"thornton-ning"})
 REINSTALL = "apt-get install -y libliggghts-dev, then pip install --force-reinstall --no-deps pygran-liggghts"
+#: Python code that loads the add-on and prints, as JSON, why it is unavailable (``""``: it loaded).
+PROBE = "import json; from pygran_liggghts.library import _load_addon; print(json.dumps(_load_addon()))"
+#: Seconds the probe process may take.
+PROBE_TIMEOUT = 120.0
 
 
 def _library_or_none() -> str | None:
@@ -52,7 +59,7 @@ def _error(message: str) -> Exception:
 
 @dataclass(frozen=True)
 class Addon:
-    """Whether the Thornton-Ning add-on loaded into this process, and if not, why."""
+    """Whether the Thornton-Ning add-on loads, and if not, why."""
 
     loaded: bool
     reason: str = ""
@@ -66,7 +73,34 @@ def load_addon() -> Addon:
     and granular-style factories, so it must be loaded before ``pair_style gran``. A failure
     is logged (logger ``pygran.liggghts``) and returned, never raised.
     """
-    reason = _load_addon()
+    return _reported(_load_addon())
+
+
+@cache
+def probe_addon() -> Addon:
+    """Whether the add-on loads, found by loading it in a child process (:data:`PROBE`, once per
+    process), logged and returned as :func:`load_addon` does.
+
+    For a process that runs LIGGGHTS in a worker: libliggghts, loaded into it, would bring
+    the VTK libraries LIGGGHTS is linked to, on which pip's VTK crashes when a script then uses it.
+    """
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=PROBE_TIMEOUT
+        )
+    except subprocess.TimeoutExpired:
+        return _reported(f"loading the add-on in a probe process took more than {PROBE_TIMEOUT:g} s")
+    lines = done.stdout.splitlines()
+    if done.returncode != 0 or not lines:
+        return _reported(
+            f"the probe process loading the add-on ({sys.executable} -c ...) ended with status "
+            f"{done.returncode}: {done.stderr.strip()[-500:]}"
+        )
+    return _reported(json.loads(lines[-1]))
+
+
+def _reported(reason: str) -> Addon:
+    """The add-on's availability given why it does not load (``""``: it does), the reason logged."""
     if reason:
         logging.getLogger("pygran.liggghts").warning("ThorntonNing unavailable on LIGGGHTS: %s", reason)
     return Addon(not reason, reason)

@@ -19,14 +19,20 @@ def _create(spec: SimulationSpec) -> LiggghtsEngine:
     return LiggghtsEngine(spec)
 
 
+def _capabilities() -> frozenset[str]:
+    """The engine's capabilities, decided when the registry is first asked for them (whether
+    the add-on loads is found in a probe process, which loading the registry does not start)."""
+    from pygran_liggghts.engine import capabilities
+
+    return capabilities()
+
+
 @hookimpl
 def pygran_engines():
-    from pygran_liggghts.engine import LiggghtsEngine
-
     yield EngineSpec(
         name="liggghts",
         factory=_create,
-        capabilities=LiggghtsEngine.capabilities,
+        capabilities=_capabilities,
         description="LIGGGHTS 3.x shared library through its C API, in a worker or under mpirun",
         locate_solver=find_library,
     )
