@@ -534,7 +534,11 @@ def parse_insert(
     sizes = particle_sizes(species, spec)
     smallest = 4 / 3 * math.pi * sizes[0] ** 3
     density = max(spec.species[k - 1].density for k in species)
-    count = value if target.startswith("particle") else value / (density * smallest)  # at most
+    lightest = min(spec.species[k - 1].density for k in species) * smallest  # kg
+    # the most particles the request can make (per second, by rate)
+    count = {"particles_in_region": value, "particlerate": value}.get(target, value / lightest)
+    if target == "volumefraction_region":
+        count = value * region.volume() / smallest
     if target == "particles_in_region":
         check_packing(value, smallest, region, "insert", "particles", sizes, all_in)
     elif target == "mass_in_region":
