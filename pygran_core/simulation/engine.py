@@ -120,13 +120,15 @@ def claim_output(output: Path) -> IO[str]:
     opened for writing; the lock lasts while the returned file is open (the process's end
     releases it, however it ends). A folder that cannot be made or written, or that another
     live simulation holds, is a :class:`ConfigError` saying which. Under an MPI launcher the
-    ranks of one run share its folder, so none locks it."""
+    ranks of one run share its folder: rank 0 locks it for all of them."""
+    rank = os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0"))
     try:
         output.mkdir(parents=True, exist_ok=True)
         if not os.access(output, os.W_OK | os.X_OK):
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
-        ranks = os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1"))
-        lock = open(os.devnull if ranks != "1" else output / LOCK_NAME, "a+", encoding="utf-8")
+        lock = open(output / LOCK_NAME, "a+", encoding="utf-8")
+        if rank != "0":
+            return lock  # held open, unlocked: rank 0's lock covers the run
     except OSError as exc:
         what = "a file is in its place or in a parent's" if exc.errno in (errno.EEXIST, errno.ENOTDIR) else ""
         raise ConfigError(
