@@ -736,7 +736,8 @@ class H5MDTrajectory(_H5MDFile):
         if name in INTEGER_ELEMENTS and dataset.dtype.kind not in "iu":
             raise self._fail(f"{dataset.name} holds {dataset.dtype}: {name} must be integers")
         declared = int(np.prod(shape, dtype=np.int64))
-        if declared and stored_elements(dataset) < declared:
+        frames = dataset.shape[0] if timed else 1  # a series without frames stores nothing, rightly
+        if declared and frames and stored_elements(dataset) < declared:
             raise self._fail(
                 f"{dataset.name} declares {shape[0]} particles but stores data for fewer than one frame "
                 f"of them ({stored_elements(dataset)} of {declared} values): a sparse shell"
