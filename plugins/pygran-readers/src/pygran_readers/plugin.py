@@ -33,7 +33,7 @@ def pygran_readers():
     yield ReaderSpec(
         name="pvd",
         extensions=(".pvd",),
-        open=series.PVDTrajectory,
+        open=vtk.PVDTrajectory,
         can_open=series.can_open,
         kinds=frozenset({"mesh", "particles"}),
         description="ParaView .pvd index of a VTK series: each frame's file, time and step",

@@ -8,10 +8,10 @@ the last file's is not written again: its entry names that file, so a static wal
 indexed at every frame, and a wall's file is rewritten only when it moves or changes.
 
 Each entry also carries ``cycle``, the frame's step number; ParaView, pyvista and OVITO ignore
-attributes they do not know. :class:`PVDTrajectory` reads an index back as a trajectory: the
-time and step of each frame from the index, its data from the file it names; steps that do
-not increase, and particle frames with repeated ids or a radius, mass or density that is not
-positive, are a ``ReadError`` naming the index.
+attributes they do not know. :class:`pygran_readers.vtk.PVDTrajectory` reads an index back as a
+trajectory: the time and step of each frame from the index, its data from the file it names;
+steps that do not increase, and particle frames with repeated ids or a radius, mass or density
+that is not positive, are a ``ReadError`` naming the index.
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ import abc
 import hashlib
 import math
 import os
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 from xml.parsers import expat
@@ -29,8 +28,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature
-from pygran_core.formats.sanity import particle_problem, step_problem
-from pygran_core.io import Frame, PathLike, Trajectory, TrajectoryWriter
+from pygran_core.io import Frame, PathLike, TrajectoryWriter
 
 #: What opens an index.
 PVD_HEAD = (
@@ -179,63 +177,3 @@ def read_index(path: Path) -> list[dict[str, str]]:
     if tags[:2] != ["VTKFile", "Collection"]:
         raise ReadError(f"{path}: not a .pvd index (no <VTKFile type='Collection'><Collection>)")
     return entries
-
-
-class PVDTrajectory(Trajectory):
-    """The frames a ``.pvd`` index lists: each ``DataSet``'s file read as VTK (legacy or XML),
-    with the index's ``timestep`` as the frame's time and its ``cycle`` (else the file's) as
-    its step. A file listed for several frames is parsed once."""
-
-    def __init__(self, paths: Sequence[PathLike], kind: str | None = None) -> None:
-        from pygran_readers import vtk
-
-        if kind not in (None, "mesh", "particles"):
-            raise ReadError(f"kind must be 'mesh', 'particles' or None, got {kind!r}")
-        self._vtk, self.kind = vtk, kind
-        self.entries: list[tuple[Path, float, int | None, Path]] = []
-        for index in paths:
-            index = Path(index)
-            for entry in read_index(index):
-                where = f"{index}: line {entry['line']}"
-                if entry.get("part", "0") != "0":
-                    raise UnsupportedFeature(
-                        f"{where}: datasets of several parts are not read; open each file"
-                    )
-                if "file" not in entry:
-                    raise ReadError(f"{where}: a DataSet names no file")
-                try:
-                    time = float(entry.get("timestep", "nan"))
-                    cycle = int(entry["cycle"]) if "cycle" in entry else None
-                except ValueError:
-                    raise ReadError(f"{where}: timestep or cycle is not a number") from None
-                if not math.isfinite(time):
-                    raise ReadError(f"{where}: a DataSet has no finite timestep")
-                previous = self.entries[-1][2] if self.entries else None
-                problem = None if cycle is None else step_problem(previous, cycle)
-                if problem:
-                    raise ReadError(f"{where}: {problem}")
-                self.entries.append((index.parent / entry["file"], time, cycle, index))
-        self._cached: tuple[Path, Any] | None = None
-
-    @property
-    def n_frames(self) -> int:
-        return len(self.entries)
-
-    def _read_frame(self, index: int) -> Frame:
-        path, time, cycle, source = self.entries[index]
-        if self._cached is None or self._cached[0] != path:
-            if not path.is_file():
-                raise ReadError(f"{source}: frame {index} is {path}, which does not exist")
-            try:
-                self._cached = (path, self._vtk.read_any(path))
-            except ReadError as exc:
-                raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
-        frame = self._vtk.mesh_frame(self._cached[1], self.kind)
-        problem = particle_problem(frame.arrays) if frame.attrs.get("kind") == "particles" else None
-        if problem:
-            raise ReadError(f"{source}: frame {index} ({path.name}): {problem}")
-        frame.arrays = {name: values.copy() for name, values in frame.arrays.items()}  # the cache stays
-        frame.time = time
-        if cycle is not None:
-            frame.timestep = cycle
-        return frame

@@ -5,7 +5,8 @@ all vertices (or that has none) holds particles; it becomes ``x y z`` plus one c
 point-data array (3-component arrays split into ``<name>x``, ``<name>y``, ``<name>z``, as
 LIGGGHTS names them: ``v`` -> ``vx vy vz``). Any other file is a mesh (see
 :class:`pygran_core.io.Frame` for the mesh arrays). ``kind="mesh"`` or
-``kind="particles"`` forces one reading.
+``kind="particles"`` forces one reading. :class:`PVDTrajectory` reads the files a ``.pvd``
+index (:mod:`pygran_readers.series`) lists.
 
 The legacy reader handles ``POLYDATA`` and ``UNSTRUCTURED_GRID`` in ASCII and binary,
 with the classic and the VTK 5.1 (``OFFSETS``/``CONNECTIVITY``) cell layouts; numbers are
@@ -14,17 +15,18 @@ parsed a whole section at a time with numpy.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+import math
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature
-from pygran_core.formats.sanity import particle_problem
+from pygran_core.formats.sanity import particle_problem, step_problem
 from pygran_core.io import Frame, PathLike, Trajectory
-from pygran_readers.series import SeriesWriter
+from pygran_readers import vtkxml
+from pygran_readers.dataset import POLY_VERTEX, VERTEX, Mesh, poly_cell_types
+from pygran_readers.series import SeriesWriter, read_index
 
 #: legacy type name -> big-endian binary dtype
 DTYPES = {
@@ -43,11 +45,8 @@ DTYPES = {
     "vtkidtype": ">i8",
     "vtktypeint32": ">i4",
 }
-#: polydata section -> VTK cell type of its cells (by size where it matters)
+#: polydata sections in the order their cells are numbered
 POLY_SECTIONS = ("VERTICES", "LINES", "POLYGONS", "TRIANGLE_STRIPS")
-VERTEX, POLY_VERTEX = 1, 2
-_POLY_TYPE = {"VERTICES": (1, 2), "LINES": (3, 4), "TRIANGLE_STRIPS": (6, 6)}
-_POLYGON_TYPE = {3: 5, 4: 9}  # triangle, quad; other sizes are polygons (7)
 
 
 def can_open(path: Path) -> bool:
@@ -59,39 +58,6 @@ def can_open(path: Path) -> bool:
         return False
     xml = head.lstrip().startswith(b"<") and b"<VTKFile" in head and b'type="Collection"' not in head
     return head.startswith(b"# vtk DataFile") or xml
-
-
-@dataclass
-class Mesh:
-    """What a VTK file holds, before it becomes a Frame."""
-
-    points: np.ndarray
-    cells: list[np.ndarray] = field(default_factory=list)  # one int array per cell
-    cell_types: list[int] = field(default_factory=list)
-    point_data: dict[str, np.ndarray] = field(default_factory=dict)
-    cell_data: dict[str, np.ndarray] = field(default_factory=dict)
-    field_data: dict[str, np.ndarray] = field(default_factory=dict)  # dataset-level, e.g. TIME, CYCLE
-
-    @property
-    def timing(self) -> dict[str, Any]:
-        """``timestep``/``time`` for a Frame, from the CYCLE and TIME field data when present."""
-        found: dict[str, Any] = {}
-        if "CYCLE" in self.field_data and np.size(self.field_data["CYCLE"]) == 1:
-            found["timestep"] = int(np.ravel(self.field_data["CYCLE"])[0])
-        if "TIME" in self.field_data and np.size(self.field_data["TIME"]) == 1:
-            found["time"] = float(np.ravel(self.field_data["TIME"])[0])
-        return found
-
-
-def poly_cell_types(section: str, cells: list[np.ndarray]) -> list[int]:
-    """VTK cell types of the cells of a polydata section (``VERTICES``, ``LINES``,
-    ``POLYGONS``, ``TRIANGLE_STRIPS``; none for ``CELLS``, whose types are listed)."""
-    if section == "POLYGONS":
-        return [_POLYGON_TYPE.get(len(c), 7) for c in cells]
-    if section not in _POLY_TYPE:
-        return []
-    one, many = _POLY_TYPE[section]
-    return [one if len(c) == 1 or section == "LINES" and len(c) == 2 else many for c in cells]
 
 
 class _Legacy:
@@ -365,10 +331,8 @@ def _assemble(
     return Mesh(points, cells, types, point_data, cell_data)
 
 
-def _reader_for(path: Path) -> Any:
+def _reader_for(path: Path) -> Callable[[Path], Mesh]:
     """The parser of a file: by its suffix, else by its first bytes."""
-    from pygran_readers import vtkxml
-
     suffix = path.suffix.lower()
     if suffix in (".vtu", ".vtp"):
         return vtkxml.read_xml
@@ -384,8 +348,7 @@ def _reader_for(path: Path) -> Any:
 
 def read_any(path: Path) -> Mesh:
     """Parse a VTK file, legacy or XML (by its suffix, else by its first bytes)."""
-    reader: Mesh = _reader_for(path)(path)
-    return reader
+    return _reader_for(path)(path)
 
 
 def mesh_frame(mesh: Mesh, kind: str | None) -> Frame:
@@ -453,6 +416,64 @@ class VTKTrajectory(Trajectory):
         problem = particle_problem(frame.arrays) if frame.attrs["kind"] == "particles" else None
         if problem:
             raise ReadError(f"{path}: frame {index}: {problem}")
+        return frame
+
+
+class PVDTrajectory(Trajectory):
+    """The frames a ``.pvd`` index lists: each ``DataSet``'s file read as VTK (legacy or XML),
+    with the index's ``timestep`` as the frame's time and its ``cycle`` (else the file's) as
+    its step. A file listed for several frames is parsed once."""
+
+    def __init__(self, paths: Sequence[PathLike], kind: str | None = None) -> None:
+        if kind not in (None, "mesh", "particles"):
+            raise ReadError(f"kind must be 'mesh', 'particles' or None, got {kind!r}")
+        self.kind = kind
+        self.entries: list[tuple[Path, float, int | None, Path]] = []
+        for index in paths:
+            index = Path(index)
+            for entry in read_index(index):
+                where = f"{index}: line {entry['line']}"
+                if entry.get("part", "0") != "0":
+                    raise UnsupportedFeature(
+                        f"{where}: datasets of several parts are not read; open each file"
+                    )
+                if "file" not in entry:
+                    raise ReadError(f"{where}: a DataSet names no file")
+                try:
+                    time = float(entry.get("timestep", "nan"))
+                    cycle = int(entry["cycle"]) if "cycle" in entry else None
+                except ValueError:
+                    raise ReadError(f"{where}: timestep or cycle is not a number") from None
+                if not math.isfinite(time):
+                    raise ReadError(f"{where}: a DataSet has no finite timestep")
+                previous = self.entries[-1][2] if self.entries else None
+                problem = None if cycle is None else step_problem(previous, cycle)
+                if problem:
+                    raise ReadError(f"{where}: {problem}")
+                self.entries.append((index.parent / entry["file"], time, cycle, index))
+        self._cached: tuple[Path, Mesh] | None = None
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.entries)
+
+    def _read_frame(self, index: int) -> Frame:
+        path, time, cycle, source = self.entries[index]
+        if self._cached is None or self._cached[0] != path:
+            if not path.is_file():
+                raise ReadError(f"{source}: frame {index} is {path}, which does not exist")
+            try:
+                self._cached = (path, read_any(path))
+            except ReadError as exc:
+                raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
+        frame = mesh_frame(self._cached[1], self.kind)
+        problem = particle_problem(frame.arrays) if frame.attrs.get("kind") == "particles" else None
+        if problem:
+            raise ReadError(f"{source}: frame {index} ({path.name}): {problem}")
+        frame.arrays = {name: values.copy() for name, values in frame.arrays.items()}  # the cache stays
+        frame.time = time
+        if cycle is not None:
+            frame.timestep = cycle
         return frame
 
 

@@ -24,7 +24,7 @@ from xml.parsers import expat
 import numpy as np
 
 from pygran_core.errors import ReadError
-from pygran_readers.vtk import Mesh, poly_cell_types
+from pygran_readers.dataset import Mesh, poly_cell_types
 
 #: VTK XML type name -> numpy type code (byte order added from the file)
 TYPES = {
