@@ -6,8 +6,8 @@ Points are sorted by cell (cells at least ``reach / m`` wide, x fastest), so the
 of the neighbour rows of each point (those the sphere of radius ``reach`` can reach, each
 with the x run it needs), so each pair, or each periodic image of a pair, is met once;
 periodic axes wrap with explicit image shifts. The numpy path runs the sweep vectorised over
-all points at once (no Python loop per point or per cell); when the compiled kernels of
-``pygran-native`` are importable they run the same sweep in C on OpenMP threads. Both compute
+all points at once (no Python loop per point or per cell); when the core's compiled kernels
+are built (``pygran_core._compiled``) they run the same sweep in C on OpenMP threads. Both compute
 a separation exactly as a brute-force minimum-image loop does, ``(x_j - x_i) + shift`` then
 ``dx² + dy² + dz²``, so they give the same pairs and the same histogram counts.
 """

@@ -68,7 +68,7 @@ plain arrays. Time averages: density, momentum, ``sum m v ⊗ v phi`` and the co
 are averaged over the frames, then ``V = <p>/<rho>`` and ``sigma_k = <sum m v ⊗ v phi> -
 <p> ⊗ <p> / <rho>`` (velocity fluctuations in time count as kinetic stress, as in MercuryCG).
 
-The heavy loops run in pygran-native's compiled kernels when installed (Cartesian grids),
+The heavy loops run in the core's compiled kernels when built (Cartesian grids),
 else in vectorised numpy; both give the same fields to rounding.
 """
 

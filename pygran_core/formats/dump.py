@@ -8,7 +8,7 @@ pair/gran/local`` (mapped with ``compute=...``), or any other local quantities.
 Opening scans each file once for the line that starts every frame (normally
 ``ITEM: TIMESTEP``) and keeps only byte offsets and line numbers. ``read_frame(i)`` seeks,
 reads the frame's bytes in one call and parses the atom block in one pass into a
-column-major table: with pygran-native's compiled parser when it is installed, else (and for
+column-major table: with the core's compiled parser when it is built, else (and for
 anything that parser does not accept) with ``numpy.loadtxt``. Both round every number
 correctly, so they give the same values; there is no Python loop per line or per field.
 
