@@ -190,6 +190,7 @@ def cmd_convert(args: argparse.Namespace) -> int:
         raise ConfigError(f"The {spec.name} writer takes no option {unknown}; its options: {takes}")
     if args.dt is not None and not (np.isfinite(args.dt) and args.dt > 0):
         raise ConfigError(f"--dt {args.dt!r}: give the time step in seconds, a number > 0")
+    output.parent.mkdir(parents=True, exist_ok=True)
     with trajectory, spec.open(output, **options) as out:
         count = 0
         for frame in _progress(trajectory, len(trajectory), "converting"):

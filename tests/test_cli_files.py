@@ -85,6 +85,12 @@ def test_convert_to_a_dump_with_its_time_block(hopper, tmp_path):
     assert frame.time == 0.01 and frame.timestep == 1000
 
 
+def test_convert_into_a_new_folder_makes_it(hopper, tmp_path):
+    out = run("convert", "particles*.dump", str(tmp_path / "frames" / "step*.dump"), cwd=hopper)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert len(list((tmp_path / "frames").glob("step*.dump"))) == 31
+
+
 def test_errors_are_one_line_and_exit_1(hopper, tmp_path):
     missing = run("info", "nope.dump", cwd=tmp_path)
     assert missing.returncode == 1 and "pygran: error: File not found:" in missing.stderr

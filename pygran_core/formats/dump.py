@@ -38,7 +38,7 @@ from typing import IO, Any
 import numpy as np
 
 from pygran_core._compiled import kernels as _accel
-from pygran_core.errors import ReadError, UnsupportedFeature, did_you_mean
+from pygran_core.errors import ReadError, UnsupportedFeature, WriteError, did_you_mean
 from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 from pygran_core.formats.sanity import particle_problem, step_problem
@@ -899,15 +899,21 @@ class DumpWriter(TrajectoryWriter):
 
     def _write(self, frame: Frame) -> None:
         text = format_frame(frame, self.count, time=self.time).encode("ascii")
-        if "*" in self.path.name:
-            step = frame.timestep if frame.timestep is not None else self.count
-            with open(self.path.with_name(self.path.name.replace("*", str(step))), "wb") as handle:
-                handle.write(text)
-        else:
-            if self._handle is None:
-                self._handle = open(self.path, "wb")
-            self._handle.write(text)
-            self._handle.flush()
+        step = frame.timestep if frame.timestep is not None else self.count
+        target = self.path.with_name(self.path.name.replace("*", str(step)))
+        try:
+            if "*" in self.path.name:
+                with open(target, "wb") as handle:
+                    handle.write(text)
+            else:
+                if self._handle is None:
+                    self._handle = open(self.path, "wb")
+                self._handle.write(text)
+                self._handle.flush()
+        except OSError as exc:
+            raise WriteError(
+                f"{target}: frame {self.count} could not be written: {exc.strerror or exc}"
+            ) from None
         self.count += 1
 
     def close(self) -> None:

@@ -10,7 +10,7 @@ import types
 import numpy as np
 import pytest
 
-from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.errors import ReadError, UnsupportedFeature, WriteError
 from pygran_core.formats import dump
 from pygran_core.formats.dump import DumpTrajectory, format_frame
 from pygran_core.io import Frame, open_trajectory, open_writer
@@ -461,3 +461,12 @@ def test_time_is_written_only_when_asked(tmp_path):
         assert [f.time for f in back] == [f.time if time else None for f in frames]
     with pytest.raises(UnsupportedFeature, match="one option, time=True"):
         open_writer(tmp_path / "x.dump", colour="red")
+
+
+@pytest.mark.parametrize("name", ["series*.dump", "one.dump"])
+def test_a_frame_that_cannot_be_written_is_a_write_error_naming_the_file(tmp_path, name):
+    target = tmp_path / "missing-folder" / name
+    written = r"missing-folder/(series\d+|one)\.dump: frame 0 could not be written"
+    with pytest.raises(WriteError, match=written):
+        with open_writer(target) as out:
+            out.write_frame(particle_frames()[0])
