@@ -107,6 +107,42 @@ def test_a_folder_in_use_by_another_process_is_refused_and_freed_by_its_death(tm
         sim.run(1)
 
 
+FULL = """
+import resource, signal, sys
+from pygran_core import simulation
+from pygran_core.errors import PyGranError
+from pygran_core.testing.mistakes import valid
+
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # past the limit a write fails with EFBIG, as on a full disk
+resource.setrlimit(resource.RLIMIT_FSIZE, (60_000, 60_000))
+try:
+    with simulation.DEM(**valid(sys.argv[1], "native") | {"traj": {"pfile": "traj.dump", "freq": 10}}) as sim:
+        sim.createParticles(1, "lattice", 2e-3, region=("block", 0, 0.01, 0, 0.01, 0, 0.01))
+        sim.run(2000)
+except PyGranError as error:
+    print(type(error).__name__, error)
+"""
+
+
+def test_a_full_disk_under_a_dump_is_one_error_naming_the_file(tmp_path):
+    """A file-size limit of 60 kB stands for the full disk: one PyGranError naming traj.dump,
+    the frames before it readable, and the interpreter ends cleanly."""
+    script = tmp_path / "full.py"
+    script.write_text(textwrap.dedent(FULL))
+    done = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / "out")], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.startswith(f"WriteError {tmp_path / 'out' / 'traj.dump'}: frame ")
+    assert "Traceback" not in done.stderr
+    written = int(done.stdout.split(": frame ")[1].split()[0])  # frames before the one that failed
+    with open_trajectory(tmp_path / "out" / "traj.dump") as trajectory:
+        assert written >= 2 and [trajectory[k].timestep for k in range(written)] == list(
+            range(0, 10 * written, 10)
+        )
+        assert all(len(trajectory[k].arrays["id"]) == 125 for k in range(written))
+
+
 @pytest.mark.parametrize(
     ("place", "named"),
     [
