@@ -137,10 +137,9 @@ def test_a_full_disk_under_a_dump_is_one_error_naming_the_file(tmp_path):
     assert "Traceback" not in done.stderr
     written = int(done.stdout.split(": frame ")[1].split()[0])  # frames before the one that failed
     with open_trajectory(tmp_path / "out" / "traj.dump") as trajectory:
-        assert written >= 2 and [trajectory[k].timestep for k in range(written)] == list(
-            range(0, 10 * written, 10)
-        )
-        assert all(len(trajectory[k].arrays["id"]) == 125 for k in range(written))
+        frames = [trajectory[k] for k in range(written)]
+    assert written >= 2 and [frame.timestep for frame in frames] == list(range(0, 10 * written, 10))
+    assert all(len(frame.arrays["id"]) == 125 for frame in frames)  # the 5^3 lattice, whole
 
 
 @pytest.mark.parametrize(
