@@ -23,6 +23,7 @@ ENGINE_JOB = """
 import json, sys
 import numpy as np
 from pygran_core import analysis, params, simulation
+from pygran_core._compiled import kernels
 
 engine, silo, out = sys.argv[1:4]
 material = dict(params.stearicAcid, cohesionEnergyDensity=0.0)  # YADE has no cohesion model
@@ -54,6 +55,7 @@ print(json.dumps({
     "last_timestep": int(system.Particles.timestep),
     "read_ids": sorted(system.Particles.id.astype(int).tolist()) == ids,
     "read_z": bool(np.allclose(np.sort(system.Particles.z), np.sort(z), rtol=1e-5, atol=0)),
+    "compiled": kernels is not None,
 }))
 """
 
@@ -128,6 +130,8 @@ def test_engine_plugin_alone_runs_a_mesh_job(tmp_path, plugin):
     assert 0 < result["zmin"] and result["zmax"] < 3.6e-3, "particles left the box or did not fall"
     assert result["frames"] == 5 and result["last_timestep"] == 40000
     assert result["read_ids"] and result["read_z"], "the trajectory read back differs from the engine's state"
+    # the core's own compiled kernels (built with the core where a compiler is, as here)
+    assert result["compiled"], "pygran-core was installed without its compiled analysis kernels"
 
 
 @pytest.mark.slow
