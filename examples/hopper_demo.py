@@ -3,7 +3,7 @@
     python examples/hopper_demo.py --particles 3000 --output hopper-run
     python examples/hopper_demo.py --engine liggghts --particles 1000 --discharge-time 0.8
 
-Writes traj.h5 (particles), walls*.vtk (the hopper), hopper.png and summary.txt.
+Writes traj.h5md (particles, with its XDMF sidecar), walls.pvd (the hopper), hopper.png and summary.txt.
 """
 
 import argparse

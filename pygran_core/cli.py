@@ -214,7 +214,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     print(summary.text(), end="")
     print(
-        f"plots in {Path(args.output).resolve() / 'hopper.png'}; trajectory in traj.h5, walls in walls*.vtk"
+        f"plots in {Path(args.output).resolve() / 'hopper.png'}; trajectory in traj.h5md "
+        "(traj.xdmf for ParaView), walls in walls.pvd"
     )
     return 0
 

@@ -56,7 +56,7 @@ def test_files_are_readable(study):
     output, _ = study
     assert (output / "hopper.png").stat().st_size > 20_000
     assert [p.name for p in output.glob("walls*.vtk")] == ["walls0.vtk"]  # the hopper stands still
-    system = analysis.System(Particles=str(output / "traj.h5"), Mesh=str(output / "walls.pvd"))
+    system = analysis.System(Particles=str(output / "traj.h5md"), Mesh=str(output / "walls.pvd"))
     assert len(system) == 36  # a frame every 0.02 s over 0.7 s, and the first
     system.goto(0)
     assert len(system.Particles) == 700 and system.Mesh.nCells() == 3 * 2 * 64 - 2 * 64

@@ -179,7 +179,7 @@ def simulate(
         "seed": study.seed,
         "species": ({"material": study.material, "radius": study.radius},),
         "mesh": {"hopper": {"file": str(stl), "material": study.material}},
-        "traj": {"pfile": "traj.h5", "mfile": "walls*.vtk", "freq": frame_steps},
+        "traj": {"pfile": "traj.h5md", "mfile": "walls*.vtk", "freq": frame_steps},
         "progress": progress,
     } | ({"nprocs": nprocs} if nprocs > 1 else {})
     with simulation.DEM(**params) as sim:
@@ -204,7 +204,7 @@ def simulate(
 
 def analyse(study: HopperStudy, output: Path, engine: str, opened: int) -> Summary:
     """Measure the study's trajectory and write plots and a summary into ``output``."""
-    system = analysis.System(Particles=str(output / "traj.h5"))
+    system = analysis.System(Particles=str(output / "traj.h5md"))
     steps = np.asarray(analysis.dynamics.Temporal(system).series("timestep"))
     settled_frame = int(np.searchsorted(steps, opened))
     system.goto(settled_frame)
