@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+from vtkmodules.vtkCommonCore import vtkPoints
+from vtkmodules.vtkCommonDataModel import VTK_VERTEX, vtkUnstructuredGrid
 from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader, vtkXMLUnstructuredGridWriter
 
 from pygran_core import analysis, registry
@@ -77,6 +79,8 @@ class TestYadeSpheres(FormatConformance):
     reader = "yade-vtk"
     suffix = ".vtu"
     exact = False  # VTKRecorder writes the points as float32
+    physical_checks = True
+    steps_from_file_names = True
 
     @pytest.fixture(autouse=True)
     def _output(self, yade_binary):
@@ -92,6 +96,33 @@ class TestYadeSpheres(FormatConformance):
         last = tmp_path / "yade_spheres.3000.vtu"
         last.write_bytes(last.read_bytes()[:2000])
         return [*super().bad_files(tmp_path), (pattern, 3)]
+
+    def make_insane(self, tmp_path, name, frames):
+        """VTKRecorder's layout (one vertex per sphere, point data ``id`` and ``radii``) holding
+        ``frames``, one file per frame named by its step."""
+        folder = tmp_path / name.replace(" ", "-")
+        folder.mkdir()
+        for frame in frames:
+            write_spheres(folder / f"yade_spheres.{frame.timestep}.vtu", frame.arrays)
+        return str(folder / "yade_spheres.*.vtu")
+
+
+def write_spheres(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """A spheres file as YADE's VTKRecorder lays it out, written with VTK."""
+    grid = vtkUnstructuredGrid()
+    points = vtkPoints()
+    points.SetData(numpy_to_vtk(np.column_stack([arrays[a] for a in "xyz"]), deep=True))
+    grid.SetPoints(points)
+    for i in range(len(arrays["x"])):
+        grid.InsertNextCell(VTK_VERTEX, 1, [i])
+    for name, values in (("id", arrays["id"].astype(np.int32)), ("radii", arrays["radius"])):
+        data = numpy_to_vtk(values, deep=True)
+        data.SetName(name)
+        grid.GetPointData().AddArray(data)
+    writer = vtkXMLUnstructuredGridWriter()
+    writer.SetFileName(str(path))
+    writer.SetInputData(grid)
+    assert writer.Write() == 1
 
 
 class TestYadeSpheresAscii(TestYadeSpheres):

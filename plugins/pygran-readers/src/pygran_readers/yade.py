@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from pygran_core.errors import ReadError
+from pygran_core.formats.sanity import particle_problem
 from pygran_core.io import Frame, PathLike, Trajectory
 from pygran_readers import vtk, vtkxml
 
@@ -96,6 +97,9 @@ class YadeTrajectory(Trajectory):
             )
         except ReadError as exc:
             raise ReadError(str(exc).replace("frame 0", f"frame {index}", 1)) from exc
+        problem = particle_problem(frame.arrays) if frame.attrs.get("kind") == "particles" else None
+        if problem:
+            raise ReadError(f"{path}: frame {index}: {problem}")
         frame.timestep = _iteration(path)
         return frame
 
