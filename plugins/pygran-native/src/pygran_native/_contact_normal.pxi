@@ -103,35 +103,18 @@ cdef int tn_normal(const Coef* c, double delta, double Rs, double* hist, bint up
     return IN_CONTACT
 
 
-cdef inline double viscoelastic(const Coef* c, double kn, double gn, double delta, double Rs,
-                                double vn) noexcept nogil:
-    """Spring-dashpot normal force ``kn delta + gn vn`` (hooke, hertz), kept from turning
-    attractive with limitForce, less the SJKR cohesion ``c pi delta (2 R* - delta)``."""
-    cdef double fn = kn * delta + gn * vn
-    if fn < 0.0 and c.limit != 0.0:
-        fn = 0.0
-    if c.coh > 0.0:
-        fn -= c.coh * M_PI * delta * (2.0 * Rs - delta)
-    return fn
-
-
 cdef inline int normal_force(int model, const Coef* c, double delta, double Rs, double ms, double vn,
                              double* hist, bint update, double* fn, double* kn, double* kt,
                              double* gt) noexcept nogil:
     """Normal force ``fn`` of a contact of overlap ``delta`` closing at ``vn``, its normal and
     tangential stiffness ``kn``, ``kt`` and tangential damping ``gt``: IN_CONTACT, or
     NO_CONTACT / MEMORY (Thornton-Ning) with nothing set. Updates Thornton-Ning's history."""
-    cdef double a, gn
+    cdef double gn
     cdef int res
     if model == HERTZ:
         if delta <= 0.0:
             return NO_CONTACT
-        a = sqrt(Rs * delta)
-        kn[0] = 4.0 / 3.0 * c.E * a
-        gn = c.damp * sqrt(2.0 * c.E * a * ms)
-        kt[0] = 8.0 * c.G * a
-        gt[0] = c.tdamp * gn
-        fn[0] = viscoelastic(c, kn[0], gn, delta, Rs, vn)
+        fn[0] = pg_hertz_normal(c.E, c.G, c.damp, c.tdamp, c.coh, c.limit, delta, Rs, ms, vn, kn, kt, gt)
         return IN_CONTACT
     if model == HOOKE:
         if delta <= 0.0:
@@ -140,7 +123,7 @@ cdef inline int normal_force(int model, const Coef* c, double delta, double Rs, 
         gn = c.damp * sqrt(kn[0] * ms)
         kt[0] = kn[0]
         gt[0] = gn
-        fn[0] = viscoelastic(c, kn[0], gn, delta, Rs, vn)
+        fn[0] = pg_viscoelastic(kn[0], gn, delta, Rs, vn, c.coh, c.limit)
         return IN_CONTACT
     res = tn_normal(c, delta, Rs, hist, update, fn, kt)
     if res == IN_CONTACT:

@@ -71,6 +71,16 @@ from libc.stdint cimport int64_t, uint8_t
 from libc.limits cimport INT_MAX
 from posix.time cimport clock_gettime, timespec, CLOCK_THREAD_CPUTIME_ID
 
+cdef extern from "pair_law.h":
+    double pg_viscoelastic(double kn, double gn, double delta, double Rs, double vn, double coh,
+                           double limit) noexcept nogil
+    double pg_hertz_normal(double E, double G, double damp, double tdamp, double coh, double limit,
+                           double delta, double Rs, double ms, double vn, double* kn, double* kt,
+                           double* gt) noexcept nogil
+    void pg_tangential(double mu, double kt, double gt, double fn, double vn, const double* n,
+                       const double* vr, const double* rw, double* xi, double dt, int update,
+                       double* Ft) noexcept nogil
+
 cdef extern from "pair_batch.h":
     enum: PG_BATCH
     ctypedef struct pg_pair_batch:

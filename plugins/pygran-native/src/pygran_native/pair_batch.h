@@ -4,10 +4,10 @@
 /* The pair loop's batched path (used by _pairs.pxi): the forces of a batch of pairs within
    reach, hertz with tangential history and no rolling resistance, computed together in one
    loop without branches, which the compiler vectorises (AVX2 where the CPU has it, chosen at
-   load time). Each value is computed by the same operations in the same order as
-   contact_force (_contact.pxi) computes it, and IEEE arithmetic rounds each operation alike in
-   vector and scalar registers, so the results are those of the scalar path to the bit. */
-#include <math.h>
+   load time). The pair law is the per-contact path's (pair_law.h), and IEEE arithmetic
+   rounds each operation alike in vector and scalar registers, so the results are those of the
+   scalar path to the bit. */
+#include "pair_law.h"
 
 #define PG_BATCH 128
 
@@ -54,43 +54,19 @@ static inline __attribute__((always_inline)) void pg_hertz_entries(pg_pair_batch
         double den = 1.0 / (rs * (mi + mj));
         double Rs = ((ri * rj) * (mi + mj)) * den;
         double ms = ((mi * mj) * rs) * den;
-        /* normal: hertz spring-dashpot, limitForce, SJKR cohesion (normal_force, viscoelastic) */
+        /* normal and tangential (pair_law.h) */
         double vn = -((vr0 * n0 + vr1 * n1) + vr2 * n2);
-        double a = sqrt(Rs * delta);
-        double kn = ((4.0 / 3.0) * E) * a;
-        double gn = damp * sqrt(((2.0 * E) * a) * ms);
-        double kt = (8.0 * G) * a;
-        double gt = tdamp * gn;
-        double fn = kn * delta + gn * vn;
-        fn = (fn < 0.0) & (limit != 0.0) ? 0.0 : fn;
-        double fc = fn - ((coh * M_PI) * delta) * ((2.0 * Rs) - delta);
-        fn = coh > 0.0 ? fc : fn;
-        /* tangential: the spring on the history, Coulomb's limit on it alone (tangential_force) */
-        double cw0 = rw1 * n2 - rw2 * n1, cw1 = rw2 * n0 - rw0 * n2, cw2 = rw0 * n1 - rw1 * n0;
-        double vt0 = (vr0 + vn * n0) - cw0, vt1 = (vr1 + vn * n1) - cw1, vt2 = (vr2 + vn * n2) - cw2;
+        double kn, kt, gt;
+        double fn = pg_hertz_normal(E, G, damp, tdamp, coh, limit, delta, Rs, ms, vn, &kn, &kt, &gt);
+        double nv[3] = {n0, n1, n2}, vr[3] = {vr0, vr1, vr2}, rw[3] = {rw0, rw1, rw2};
         double x0 = b->xi[t], x1 = b->xi[B + t], x2 = b->xi[2 * B + t];
-        double s = (x0 * n0 + x1 * n1) + x2 * n2;
-        double u0 = x0, u1 = x1, u2 = x2;
-        if (update) {
-            u0 = x0 + ((vt0 * dt) - (s * n0));
-            u1 = x1 + ((vt1 * dt) - (s * n1));
-            u2 = x2 + ((vt2 * dt) - (s * n2));
-        }
-        double f0 = (-kt) * u0, f1 = (-kt) * u1, f2 = (-kt) * u2;
-        double ftm = (f0 * f0 + f1 * f1) + f2 * f2;
-        double lim = mu * fabs(fn);
-        double ratio = lim / sqrt(ftm);
-        /* every branch computed, then chosen: the loop has no control flow to vectorise */
-        double s0 = f0 * ratio, s1 = f1 * ratio, s2 = f2 * ratio;             /* sliding */
-        double k0 = f0 - gt * vt0, k1 = f1 - gt * vt1, k2 = f2 - gt * vt2;    /* sticking */
-        double us0 = u0 * ratio, us1 = u1 * ratio, us2 = u2 * ratio;
-        int slide = ftm > lim * lim, friction = mu > 0.0;
-        f0 = friction ? (slide ? s0 : k0) : 0.0;
-        f1 = friction ? (slide ? s1 : k1) : 0.0;
-        f2 = friction ? (slide ? s2 : k2) : 0.0;
-        b->xi[t] = friction ? (slide & update ? us0 : u0) : x0;
-        b->xi[B + t] = friction ? (slide & update ? us1 : u1) : x1;
-        b->xi[2 * B + t] = friction ? (slide & update ? us2 : u2) : x2;
+        double xi[3] = {x0, x1, x2}, ft[3];
+        pg_tangential(mu, kt, gt, fn, vn, nv, vr, rw, xi, dt, update, ft);
+        int friction = mu > 0.0;
+        double f0 = friction ? ft[0] : 0.0, f1 = friction ? ft[1] : 0.0, f2 = friction ? ft[2] : 0.0;
+        b->xi[t] = friction ? xi[0] : x0;
+        b->xi[B + t] = friction ? xi[1] : x1;
+        b->xi[2 * B + t] = friction ? xi[2] : x2;
         double fb0 = fn * n0, fb1 = fn * n1, fb2 = fn * n2;
         double ff0 = fb0 + f0, ff1 = fb1 + f1, ff2 = fb2 + f2;
         b->F[t] = friction ? ff0 : fb0;
