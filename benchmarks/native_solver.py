@@ -22,9 +22,10 @@ and while a busy loop holds a core (``--busy``), every case runs in a fresh proc
 variants taking turns (their order alternating per round) so that a drifting host slows each
 alike. Its phases are short: ``--settle-steps`` from the lattice, and ``--bed-steps`` on a
 dense bed, the 20,000-particle lattice after the 8,000 settling steps (made once and kept in
-``--bed``) tiled along x and y to N (its contact histories start afresh). Prints each round,
-then per case the median particle-steps/s of each variant and its ratio to the first, then
-one JSON line.
+``--bed``) tiled along x and y to N (its contact histories start afresh); with
+``--rolling-friction`` (cdt) the pair loop takes its per-contact path instead of batches.
+Prints each round, then per case the median particle-steps/s of each variant and its ratio to
+the first, then one JSON line.
 
     .venv/bin/python benchmarks/native_solver.py --variants team openmp --n 20000 1000000 --busy
     .venv/bin/python benchmarks/native_solver.py --variants team team@/tmp/old/src --n 20000
@@ -61,8 +62,11 @@ def lattice(n: int, seed: int = 12345) -> tuple[np.ndarray, np.ndarray]:
     return box, x
 
 
-def scenario(box: np.ndarray, x: np.ndarray, threads: int, runtime: str = "team", v=None, w=None):
-    """The solver of the scenario: Hertz-Mindlin with history, periodic x and y, a floor."""
+def scenario(
+    box: np.ndarray, x: np.ndarray, threads: int, runtime: str = "team", v=None, w=None, rolling: float = 0.0
+):
+    """The solver of the scenario: Hertz-Mindlin with history, periodic x and y, a floor; with
+    ``rolling`` friction (cdt) the pair loop takes the per-contact path instead of batches."""
     solver = Solver(
         box=box,
         periodic=(True, True, False),
@@ -71,7 +75,9 @@ def scenario(box: np.ndarray, x: np.ndarray, threads: int, runtime: str = "team"
         threads=threads,
         runtime=runtime,
     )
-    solver.set_contact_model("hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5)
+    solver.set_contact_model(
+        "hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5, rolling_friction=rolling
+    )
     solver.add_plane((0, 0, 0), (0, 0, 1), 0)
     solver.add_particles(x, RADIUS, densities=2500, velocities=v, omegas=w)
     return solver
@@ -107,14 +113,16 @@ def tiled_bed(n: int, bed: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str,
     }
 
 
-def measure_variant(n: int, threads: int, runtime: str, steps: tuple[int, int], bed_path: Path) -> dict:
+def measure_variant(
+    n: int, threads: int, runtime: str, steps: tuple[int, int], bed_path: Path, rolling: float
+) -> dict:
     """Particle-steps/s of ``steps[0]`` settling steps from the lattice and ``steps[1]`` steps
     of the tiled dense bed (each after a first call that builds the lists), on ``runtime``."""
-    solver = scenario(*lattice(n), threads=threads, runtime=runtime)
+    solver = scenario(*lattice(n), threads=threads, runtime=runtime, rolling=rolling)
     solver.run(0, DT)
     settle = advance(solver, steps[0], steps[0])
     box, state = tiled_bed(n, settled_bed(bed_path))
-    solver = scenario(box, state["x"], threads, runtime, state["v"], state["w"])
+    solver = scenario(box, state["x"], threads, runtime, state["v"], state["w"], rolling)
     solver.run(1, DT)
     bed = advance(solver, steps[1], steps[1])
     return {
@@ -132,6 +140,7 @@ def run_case(args: argparse.Namespace, n: int, variant: str) -> dict:
     command = [sys.executable, __file__, "--one-variant", runtime, "--n", str(n), "--threads"]
     command += [threads or str(args.threads), "--bed", str(args.bed)]
     command += ["--settle-steps", str(args.settle_steps), "--bed-steps", str(args.bed_steps)]
+    command += ["--rolling-friction", str(args.rolling_friction)]
     env = dict(os.environ)
     if build:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, (build, env.get("PYTHONPATH"))))
@@ -258,6 +267,7 @@ def main() -> None:
     parser.add_argument("--busy", action="store_true", help="with --variants: also under a busy loop")
     parser.add_argument("--settle-steps", type=int, default=2000, help="with --variants")
     parser.add_argument("--bed-steps", type=int, default=1000, help="with --variants")
+    parser.add_argument("--rolling-friction", type=float, default=0.0, help="with --variants")
     parser.add_argument(
         "--bed", type=Path, default=Path(tempfile.gettempdir()) / "pygran_settled_bed_20000.npz"
     )
@@ -265,7 +275,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.one_variant:
         steps = (args.settle_steps, args.bed_steps)
-        print(json.dumps(measure_variant(args.n[0], args.threads, args.one_variant, steps, args.bed)))
+        variant = (args.threads, args.one_variant, steps, args.bed, args.rolling_friction)
+        print(json.dumps(measure_variant(args.n[0], *variant)))
         return
     if args.variants:
         compare_variants(args)
