@@ -37,6 +37,7 @@ from pygran_core.errors import (
     ConfigError,
     EngineError,
     InsertionWarning,
+    PluginNotFound,
     PyGranWarning,
     ReadError,
     UnsupportedFeature,
@@ -225,6 +226,10 @@ class LiggghtsEngine(Engine):
         self._contacts_step = -1
         self._wall_contacts: bool | None = None
         self._wall_numbers: dict[str, int] = {}
+        #: Mesh frames LIGGGHTS writes as ``traj mfile`` (a file per frame), (step, time) each,
+        #: not yet in the series' ``.pvd`` index (see :meth:`_index_meshes`)
+        self._mesh_frames: list[tuple[int, float]] = []
+        self._mesh_index = True  # whether an index can be written (PyGran's VTK writer is installed)
         try:
             if spec.traj.mfile is not None and spec.meshes and spec.traj.mfile.suffix != ".vtk":
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
@@ -415,6 +420,7 @@ class LiggghtsEngine(Engine):
         self._report_insertions(start)
         if filling:
             self._log_fractions(filling, start + nsteps)
+        self._index_meshes()  # the frame LIGGGHTS wrote as this run started
 
     def _asked_by(self, spec: InsertSpec, dt: float) -> tuple[int, bool] | None:
         """The particles by-pack insertion ``spec`` asks for as the next run (of steps ``dt``)
@@ -1031,6 +1037,9 @@ class LiggghtsEngine(Engine):
 
     def _write(self, key: str, path: Any, make_frame: Any) -> None:
         if self._native(key):
+            if key == "meshes" and self._root and self._mesh_index and "*" in path.name:
+                self._mesh_frames.append((self.step, self.time))
+                self._index_meshes()
             return
         if key == "contacts":  # LIGGGHTS' dumps of them, from the first run on, gathered on rank 0
             for frame in self._written_contacts() if self._root else []:
@@ -1040,6 +1049,32 @@ class LiggghtsEngine(Engine):
             super()._write(key, path, make_frame)
         else:
             make_frame()  # gathering is collective: every rank takes part
+
+    def _index_meshes(self) -> None:
+        """Add the mesh frames LIGGGHTS has written (``*`` in the name: its step) to the
+        series' ``.pvd`` index, each at the simulated time of its step, as PyGran's VTK writer
+        indexes its own files. LIGGGHTS writes the frame of the step a run starts at as it
+        starts: a frame is indexed once its file is there. On resume the core has cut the
+        index back to the checkpoint's step; LIGGGHTS writes the later frames again."""
+        while self._mesh_frames and self._mesh_index:
+            path = given(self.spec.traj.mfile, "traj mfile")
+            step, time = self._mesh_frames[0]
+            file = path.with_name(path.name.replace("*", str(step)))
+            if not file.is_file():
+                return
+            writer = self._writers.get("meshes")
+            if writer is None:
+                from pygran_core.io import open_writer
+
+                try:
+                    writer = self._writers["meshes"] = open_writer(path)
+                except PluginNotFound as exc:
+                    self.log("no .pvd index for %s: %s", path.name, exc, level=logging.WARNING)
+                    self._mesh_index = False
+                    self._mesh_frames.clear()
+                    return
+            writer.index_file(file, step, time)  # type: ignore[attr-defined]
+            self._mesh_frames.pop(0)
 
     def _written_contacts(self) -> list[Frame]:
         """The contact frames LIGGGHTS has written since the last call (the first run writes

@@ -124,7 +124,14 @@ class SeriesWriter(TrajectoryWriter):
             write_atomically(target, self.encode(frame))
             self._last = content
             self._last_file = Path(os.path.relpath(target, self.index.parent)).as_posix()
-        entry = _entry(time, step, self._last_file)
+        self._append(_entry(time, step, self._last_file))
+
+    def index_file(self, file: Path, step: int, time: float) -> None:
+        """Index ``file``, the frame at ``step`` (``time``) that a solver wrote itself."""
+        self._append(_entry(time, step, Path(os.path.relpath(file, self.index.parent)).as_posix()))
+
+    def _append(self, entry: str) -> None:
+        """Add ``entry`` to the index."""
         if self._indexed:  # the new entry replaces the closing tags, which follow it again
             with open(self.index, "r+b") as handle:
                 handle.seek(-len(PVD_TAIL), os.SEEK_END)
