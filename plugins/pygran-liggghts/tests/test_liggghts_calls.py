@@ -92,7 +92,7 @@ def _plate_motion(tmp_path, **motion):
         sim.run(500)
     system = analysis.System(Mesh=str(tmp_path / "out" / "plate*.vtk"))
     frames = []
-    for _ in system:
+    for _ in system.frames():
         frames.append(np.array(system.Mesh.points))
     system.close()
     return np.array(frames)
@@ -178,14 +178,16 @@ def test_h5_trajectory_reads_back(tmp_path):
         final = sim.extractCoords()
     with analysis.System(Particles=str(out / "traj.h5")) as system:
         assert len(system) == 6
-        assert list(system) == [0, 100, 200, 300, 400, 500]  # iterating gives each frame's step
-        for step in system:
+        assert list(system) == [1, 2, 3, 4, 5]  # as the original: the frames after the first
+        steps = []
+        for _ in system.frames():
             particles = system.Particles
-            assert particles.timestep == step
-            t = step * DT
+            steps.append(particles.timestep)
+            t = particles.timestep * DT
             np.testing.assert_allclose(particles.z, 0.02 - G * t**2 / 2, rtol=0, atol=1e-12)
             np.testing.assert_allclose(particles.x, [-0.004, 0.0, 0.004], atol=1e-15)
             np.testing.assert_allclose(particles.radius, R)
+        assert steps == [0, 100, 200, 300, 400, 500]
         system.goto(-1)
         np.testing.assert_array_equal(system.Particles.positions, final)
 
