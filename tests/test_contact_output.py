@@ -127,7 +127,7 @@ def test_resume_keeps_the_frames_a_series_index_lists(tmp_path):
 def test_refused_without_the_capability(tmp_path):
     with pytest.raises(UnsupportedFeature, match="contact output.*'contact-output'"):
         PlainEngine(tmp_path / "asked", traj={"cfile": "contacts.dump"})
-    with PlainEngine(tmp_path / "plain") as engine:  # nothing asked: nothing refused
+    with PlainEngine(tmp_path / "plain", traj=TRAJ) as engine:  # nothing asked: nothing refused
         engine.run(10)
 
 

@@ -905,7 +905,9 @@ class TrajectorySpec:
     ``cfile`` (engines with the capability ``contact-output``) holds the contact records of
     :mod:`~pygran_core.formats.contacts`: a ``.dump`` is written as LIGGGHTS' ``dump local``,
     an H5MD name equal to ``pfile`` puts them in the particle file's ``/contacts`` group.
-    ``sel`` is ``"all"`` or a species number; ``args`` the particle columns. ``style``
+    ``sel`` is ``"all"`` or a species number; ``args`` the particle columns (by default with
+    ``mass`` and ``density``, which analysis reads instead of asking, and the angular
+    velocities, which viewers show). ``style``
     ``'custom/vtk'`` goes with a ``.vtk`` pfile. ``margs`` (the columns of LIGGGHTS' mesh dump)
     and ``dump_modify`` (of its ``.dump`` file) are LIGGGHTS' own: engines without the
     capability ``liggghts-dump`` refuse them when they differ from the defaults.
@@ -917,7 +919,10 @@ class TrajectorySpec:
     cfile: Path | None = None
     sel: str | int = "all"
     style: str = "custom"
-    args: tuple[str, ...] = ("id", "type", "x", "y", "z", "radius", "vx", "vy", "vz", "fx", "fy", "fz")
+    args: tuple[str, ...] = (
+        *("id", "type", "x", "y", "z", "radius", "mass", "density"),
+        *("vx", "vy", "vz", "fx", "fy", "fz", "omegax", "omegay", "omegaz"),
+    )
     margs: tuple[str, ...] = ("id", "stress")
     dump_modify: tuple[str, ...] = ()
 

@@ -55,7 +55,7 @@ ROLLING = {
 SIZE_CLASSES = 9
 #: Particle columns LIGGGHTS ``dump custom`` writes.
 DUMP_COLUMNS = frozenset(
-    "id type x y z vx vy vz fx fy fz omegax omegay omegaz tqx tqy tqz radius mass".split()
+    "id type x y z vx vy vz fx fy fz omegax omegay omegaz tqx tqy tqz radius mass density".split()
 )
 
 
