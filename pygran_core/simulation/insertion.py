@@ -285,6 +285,50 @@ def _clear_of_earlier(centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
     return np.flatnonzero(~dropped)
 
 
+def sample_radii(spec: SimulationSpec, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A radius for each sphere of ``species`` (1-based), drawn species by species."""
+    radii = np.empty(len(species))
+    for s in np.unique(species):
+        chosen = species == s
+        radii[chosen] = spec.species[int(s) - 1].radius.sample(int(chosen.sum()), rng)
+    return radii
+
+
+def target_shares(
+    spec: SimulationSpec, request: InsertSpec, species: np.ndarray, radii: np.ndarray
+) -> np.ndarray:
+    """Each sphere's share of the request's target: 1, its volume or its mass."""
+    if request.target in ("particles_in_region", "particlerate"):
+        return np.ones(len(radii))
+    volume = 4 / 3 * math.pi * radii**3
+    if request.target in ("volumefraction_region",):
+        return volume
+    return volume * np.array([spec.species[int(s) - 1].density for s in species])
+
+
+def draw_spheres(
+    spec: SimulationSpec, request: InsertSpec, amount: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Species and radii of spheres making up at most ``amount`` of the request's target."""
+    if request.target in ("particles_in_region", "particlerate"):
+        count = int(amount)
+    else:
+        typical = target_shares(
+            spec,
+            request,
+            np.array(request.species),
+            np.array([spec.species[s - 1].radius.mean for s in request.species]),
+        )
+        count = int(1.2 * amount / float(np.dot(request.weights, typical))) + 2
+    species = rng.choice(np.array(request.species), size=count, p=np.array(request.weights))
+    radii = sample_radii(spec, species, rng)
+    if request.target not in ("particles_in_region", "particlerate"):
+        shares = target_shares(spec, request, species, radii)
+        keep = int(np.searchsorted(np.cumsum(shares), amount, side="right"))
+        species, radii = species[:keep], radii[:keep]
+    return species, radii
+
+
 class PlacingEngine(Engine):
     """An engine that adds particles itself (no insertion of its own solver), so that every
     such engine inserts and creates the same particles for the same request and seed.
@@ -367,40 +411,15 @@ class PlacingEngine(Engine):
     # -- drawing -----------------------------------------------------------------------
 
     def _radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        radii = np.empty(len(species))
-        for s in np.unique(species):
-            chosen = species == s
-            radii[chosen] = self.spec.species[int(s) - 1].radius.sample(int(chosen.sum()), rng)
-        return radii
+        return sample_radii(self.spec, species, rng)
 
     def _share(self, request: InsertSpec, species: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """Each sphere's share of the request's target: 1, its volume or its mass."""
-        if request.target in ("particles_in_region", "particlerate"):
-            return np.ones(len(radii))
-        volume = 4 / 3 * math.pi * radii**3
-        if request.target in ("volumefraction_region",):
-            return volume
-        return volume * np.array([self.spec.species[int(s) - 1].density for s in species])
+        return target_shares(self.spec, request, species, radii)
 
     def _draw(
         self, request: InsertSpec, amount: float, rng: np.random.Generator
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Species and radii of spheres making up at most ``amount`` of the request's target."""
-        if request.target in ("particles_in_region", "particlerate"):
-            count = int(amount)
-        else:
-            typical = self._share(
-                request,
-                np.array(request.species),
-                np.array([self.spec.species[s - 1].radius.mean for s in request.species]),
-            )
-            count = int(1.2 * amount / float(np.dot(request.weights, typical))) + 2
-        species = rng.choice(np.array(request.species), size=count, p=np.array(request.weights))
-        radii = self._radii(species, rng)
-        if request.target not in ("particles_in_region", "particlerate"):
-            keep = int(np.searchsorted(np.cumsum(self._share(request, species, radii)), amount, side="right"))
-            species, radii = species[:keep], radii[:keep]
-        return species, radii
+        return draw_spheres(self.spec, request, amount, rng)
 
     def _held(self, request: InsertSpec) -> float:
         """How much of a by-pack target the region holds: particles, volume or mass; a clump

@@ -67,6 +67,7 @@ if TYPE_CHECKING:
         CreateSpec,
         InsertSpec,
         MotionSpec,
+        Region,
         SetSpec,
         ViscousSpec,
         WallSpec,
@@ -84,6 +85,8 @@ RESTART_KEY = "liggghts/restart"
 TARGET_KEY = "liggghts/targets"
 #: Queued lines of particles created one by one that are sent on without waiting.
 STREAM_LINES = 1000
+#: Cells along each edge of the grid :func:`reaches` lays over a triangle.
+GRID = 32
 
 
 def launch_world() -> Any:
@@ -161,6 +164,25 @@ class _Capabilities:
         return capabilities()
 
 
+def reaches(region: Region, triangles: np.ndarray, reach: float) -> bool:
+    """Whether a point of ``triangles`` ``(T, 3, 3)`` may lie in ``region`` grown by ``reach``:
+    tested on a grid of :data:`GRID` cells along each edge over each triangle, with the region
+    grown by a further cell's longest edge (any point of a triangle lies that close to a grid
+    point), so that a triangle in it is always found."""
+    a, b = (
+        np.array(v, float) / GRID
+        for v in zip(*[(i, j) for i in range(GRID + 1) for j in range(GRID + 1 - i)])
+    )
+    weights = np.column_stack([a, b, 1 - a - b])
+    edges = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2).max(axis=1)
+    for first in range(0, len(triangles), 256):
+        points = np.einsum("gk,tkd->tgd", weights, triangles[first : first + 256]).reshape(-1, 3)
+        margin = np.repeat(reach + edges[first : first + 256] / GRID, len(weights))
+        if region.contains(points, -margin).any():
+            return True
+    return False
+
+
 class LiggghtsEngine(Engine):
     """A simulation on LIGGGHTS 3.x (``libliggghts``), see the module docstring."""
 
@@ -199,7 +221,8 @@ class LiggghtsEngine(Engine):
         self._restart_file: Path | None = None  # of the last checkpoint
         #: Where the resumed step's frame starts in LIGGGHTS' ``.dump``, until a run writes it again
         self._rewritten_frame: int | None = None
-        self._replayed_once: set[str] = set()  # one-off insertions not redone on resume
+        #: Insertions without a fix in LIGGGHTS: one-offs not redone on resume, and those PyGran placed
+        self._fixless: set[str] = set()
         #: Insertion fixes in LIGGGHTS (label -> spec), whose counts are read
         self._insertions: dict[str, InsertSpec] = {}
         #: label -> (first step, steps between, last step or None) of each insertion's events
@@ -235,7 +258,7 @@ class LiggghtsEngine(Engine):
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
             if comm is not None and spec.nprocs not in (None, comm.size):
                 raise ConfigError(f"nprocs={spec.nprocs} differs from the {comm.size} MPI ranks of this run")
-            self.commands = Commands(spec)
+            self.commands = Commands(spec, self.material_table)
             if spec.traj.cfile is not None and self._root:  # frames of an earlier run are stale
                 for stale in (self.output / CONTACTS_DIR).glob("pg_*.dump"):
                     stale.unlink()
@@ -670,13 +693,16 @@ class LiggghtsEngine(Engine):
     def _insert(self, spec: InsertSpec) -> str:
         number = self._insert_calls
         self._insert_calls += 1
+        reached = self._meshes_reached(spec)
+        if reached:
+            return self._insert_clear(spec, reached)
         if spec.mechanism == "by_pack":
             spec = self._pack_target(number, spec)
         label, lines = self.commands.insert(spec, self.dt)
         if self.replaying and spec.mechanism == "by_pack" and not spec.freq:
             # done before the checkpoint: its particles are in the restart file, and a new
             # insert/pack would fill its region up again
-            self._replayed_once.add(label)
+            self._fixless.add(label)
             return label
         self._execute(lines)
         self._insertions[label] = spec
@@ -694,6 +720,110 @@ class LiggghtsEngine(Engine):
             self._targets[label] = (number, spec.value)
             if not self.replaying:
                 self._unplaced[label] = spec
+        return label
+
+    def _meshes_reached(self, spec: InsertSpec) -> list[str]:
+        """The mesh walls that particles LIGGGHTS inserts for ``spec`` could overlap (its
+        ``fix insert`` keeps clear of particles only): those with a triangle in the region,
+        grown by the largest radius when only centres must be in it (see :func:`reaches`). A
+        mesh whose inside is the region, or a part of its intersection, is not one with
+        ``all_in``: LIGGGHTS inserts whole particles into the primitive inscribed in it."""
+        region = spec.region
+        parts = region.args if region.kind == "intersect" else (region,)
+        insides = [part.args[0].triangles for part in parts if part.kind == "mesh"] if spec.all_in else []
+        reach = 0.0 if spec.all_in else max(self.spec.species[k - 1].radius.max for k in spec.species)
+        bounds = region.bounds()
+        meshes = {mesh.name: mesh for mesh in self.spec.meshes}
+        reached = []
+        for name in self._mesh_walls.values():
+            triangles = meshes[name].triangles()
+            if any(inside.shape == triangles.shape and np.allclose(inside, triangles) for inside in insides):
+                continue
+            near = np.all(
+                (triangles.max(axis=1) >= bounds[:, 0] - reach)
+                & (triangles.min(axis=1) <= bounds[:, 1] + reach),
+                axis=1,
+            )
+            if near.any() and reaches(region, triangles[near], reach):
+                reached.append(name)
+        return reached
+
+    def _insert_clear(self, spec: InsertSpec, meshes: list[str]) -> str:
+        """A by-pack insertion, once, into a region that mesh walls ``meshes`` cross, placed as
+        the placing engines place it (the same particles for the same seed and particles
+        present; :func:`~pygran_core.simulation.insertion.place_spheres`, clear of particles,
+        walls and meshes) and created at the call with ``create_atoms``. Insertions by rate,
+        repeated ones and multisphere species there are refused: LIGGGHTS would place them."""
+        from pygran_core.simulation.insertion import draw_spheres, place_spheres
+
+        bodies = sorted(set(spec.species) & set(self.commands.body_types))
+        if spec.mechanism != "by_pack" or spec.freq or bodies:
+            what = (
+                f"multisphere species {bodies}"
+                if bodies
+                else ("by rate" if spec.mechanism != "by_pack" else f"every {spec.freq} steps")
+            )
+            raise ConfigError(
+                f"insert() {what} into the region {spec.region}, which mesh wall {meshes[0]!r} crosses: "
+                "LIGGGHTS' fix insert keeps particles clear of other particles only, so they could "
+                "overlap the mesh. Give a region clear of the mesh (with all_in, the inside of a mesh "
+                "built by simulation.geometry, region=('mesh', surface), or its intersection with "
+                "your region, is clear of that mesh)"
+                + ("" if bodies else ", or insert once by pack (no freq), which PyGran places clear of it")
+            )
+        label = self.commands.new_id("insert")
+        self._fixless.add(label)
+        if self.replaying:  # made before the checkpoint: its particles are in the restart file
+            return label
+        rng = np.random.default_rng(spec.seed)
+        x, radius, mass = (
+            self._request("gather", ["x", "radius", "mass"])[k] for k in ("x", "radius", "mass")
+        )
+        x = x.reshape(-1, 3)
+        inside = spec.region.contains(x)
+        if spec.target == "particles_in_region":
+            held = float(np.count_nonzero(inside))
+        elif spec.target == "volumefraction_region":
+            held = float(np.sum(4 / 3 * np.pi * radius[inside] ** 3))
+        else:
+            held = float(np.sum(mass[inside]))
+        target = spec.value * (spec.region.volume() if spec.target == "volumefraction_region" else 1)
+        species, radii = draw_spheres(self.spec, spec, max(target - held, 0.0), rng)
+        velocities = spec.velocity.sample(len(radii), rng)
+        index, centres = place_spheres(
+            spec.region, radii, rng, (x, radius), self._obstacles("insert()"), spec.all_in
+        )
+        first = self._max_id + 1
+        lines = []
+        for k, centre in zip(index, centres):
+            lines.append(f"create_atoms {species[k]} single {' '.join(map(fmt, centre))} units box")
+            density = fmt(self.spec.species[species[k] - 1].density)
+            velocity = " ".join(f"v{axis} {fmt(v)}" for axis, v in zip("xyz", velocities[k]))
+            lines.append(
+                f"set atom {self._max_id + 1} diameter {fmt(2 * radii[k])} density {density} {velocity}"
+            )
+            self._max_id += 1
+        self._queue(lines)
+        self._prepared = False
+        self._ungrouped = bool(self.commands.body_types)
+        if any(spec.omega) and len(index):
+            self._set_omega(np.arange(first, self._max_id + 1), spec.omega, f"atoms {first}*{self._max_id}")
+        self._flush()
+        made, asked = len(index), len(radii)
+        self.log(
+            "insert at step %d: %d of %d particles, placed by PyGran clear of mesh %s",
+            self.step,
+            made,
+            asked,
+            ", ".join(meshes),
+        )
+        if made < asked:
+            self._warn(
+                f"insertion at step {self.step}: {made} of {asked} particles inserted, the region "
+                f"{spec.region} is full (no free place for the other {asked - made}): give a larger "
+                "region or fewer particles",
+                InsertionWarning,
+            )
         return label
 
     def _pack_target(self, number: int, spec: InsertSpec) -> InsertSpec:
@@ -809,13 +939,14 @@ class LiggghtsEngine(Engine):
         inside = np.all((centres > box[:, 0]) & (centres < box[:, 1]), axis=1)
         return centres[inside], radii[index][inside]
 
-    def _obstacles(self) -> Obstacles:
-        """The plane and mesh walls new particles must clear (cylinders are not checked)."""
+    def _obstacles(self, call: str = "createParticles 'random'") -> Obstacles:
+        """The plane, cylinder and mesh walls new particles of ``call`` must clear."""
         from pygran_core.simulation.insertion import Obstacles
 
         moving = set(self._motions.values())
         meshes = {mesh.name: mesh for mesh in self.spec.meshes}
         points, normals, triangles = [], [], []
+        cylinders: list[tuple[str, tuple[float, float], float]] = []
         for wall in self._walls.values():
             if wall.kind == "plane":
                 axis = "xyz".index(given(wall.plane, "a plane wall's plane")[0])
@@ -825,14 +956,17 @@ class LiggghtsEngine(Engine):
                 mesh = given(wall.mesh, "a mesh wall's mesh")
                 if mesh in moving:
                     raise UnsupportedFeature(
-                        f"createParticles 'random' on LIGGGHTS while mesh {mesh!r} moves "
-                        "(its current position is LIGGGHTS'); create them before moveMesh or use insert()"
+                        f"{call} on LIGGGHTS while mesh {mesh!r} moves (its current position is "
+                        f"LIGGGHTS'), into a region near it: make it before moveMesh"
                     )
                 triangles.append(meshes[mesh].triangles())
+            elif wall.axis and wall.centre and wall.radius:
+                cylinders.append((wall.axis, wall.centre, wall.radius))
         return Obstacles(
             np.reshape(points, (-1, 3)),
             np.reshape(normals, (-1, 3)),
             np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
+            tuple(cylinders),
         )
 
     def _set_omega(self, ids: np.ndarray, omega: Sequence[float], which: str) -> None:
@@ -937,8 +1071,8 @@ class LiggghtsEngine(Engine):
         self._flush()  # now: the user expects its effect (and errors) at once
 
     def _remove(self, handle: Handle) -> None:
-        if handle.label in self._replayed_once:
-            self._replayed_once.discard(handle.label)
+        if handle.label in self._fixless:
+            self._fixless.discard(handle.label)
             return
         if self._mesh_walls.pop(handle.label, None) is not None:
             self._execute(self._rebuild_mesh_walls())

@@ -1,0 +1,83 @@
+"""insert() on LIGGGHTS into a region that a mesh wall crosses: LIGGGHTS' fix insert keeps
+clear of particles only, so such an insertion (by pack, once) is placed by PyGran, clear of the
+mesh, as the placing engines place it; one that LIGGGHTS would have to make (by rate) is refused,
+and one into the inside of the mesh stays LIGGGHTS' own."""
+
+import warnings
+
+import numpy as np
+import pytest
+from pygran_liggghts.library import find_library
+
+from pygran_core import simulation
+from pygran_core.errors import ConfigError, InsertionWarning
+from pygran_core.simulation import geometry
+from pygran_core.testing.solvers import require_solver
+from pygran_core.testing.validation import SOFT as MATERIAL
+
+R = 1e-3
+DRUM = geometry.drum(radius=0.02, length=0.02, axis="y")
+#: A block whose corners stick out of the drum (its half-diagonal 27 mm, the drum's radius 20 mm).
+BLOCK = ("block", -0.019, 0.019, -0.009, 0.009, -0.019, 0.019)
+
+
+def dem(output, engine="liggghts"):
+    require_solver(find_library)
+    return simulation.DEM(
+        engine=engine,
+        model="HertzMindlin",
+        box=(-0.025, 0.025, -0.015, 0.015, -0.025, 0.025),
+        gravity=(9.81, 0, 0, -1),
+        dt=1e-5,
+        output=str(output),
+        species=({"material": MATERIAL, "radius": R},),
+        mesh={"drum": {"triangles": DRUM, "material": MATERIAL}},
+        traj={"pfile": None},
+        progress=False,
+    )
+
+
+def clearance(x):
+    """Each centre's distance to the drum's nearest triangle, in radii."""
+    return geometry.triangle_distance(x, DRUM.triangles) / R
+
+
+def test_a_block_crossing_the_drum_is_filled_clear_of_it(tmp_path):
+    with dem(tmp_path / "liggghts") as sim:
+        sim.setupWall(species=1, wtype="mesh", mesh="drum")
+        sim.insert(species=1, value=300, region=BLOCK, seed=7)
+        placed = sim.extractCoords()
+        sim.run(200)
+        assert len(sim.extractCoords()) == 300 and sim.lost == 0
+    assert len(placed) == 300
+    assert clearance(placed).min() >= 1.0
+    assert np.sum(clearance(placed) < 2) > 10  # the mesh is where they are: some lie against it
+    assert "insert/pack" not in (tmp_path / "liggghts" / "in.pygran").read_text()
+    with dem(tmp_path / "native", engine="native") as sim:  # the placing engines' particles
+        sim.setupWall(species=1, wtype="mesh", mesh="drum")
+        sim.insert(species=1, value=300, region=BLOCK, seed=7)
+        np.testing.assert_allclose(sim.extractCoords(), placed, rtol=0, atol=1e-15)
+
+
+def test_more_than_fits_is_reported_at_the_users_line(tmp_path):
+    with dem(tmp_path) as sim, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sim.setupWall(species=1, wtype="mesh", mesh="drum")
+        sim.insert(species=1, value=3500, region=BLOCK)
+        made = len(sim.extractCoords())
+    short = [w for w in caught if issubclass(w.category, InsertionWarning)]
+    assert len(short) == 1 and short[0].filename == __file__
+    assert f"{made} of 3500 particles inserted" in str(short[0].message)
+    assert 1000 < made < 3500
+
+
+def test_by_rate_across_the_drum_is_refused_and_inside_it_is_liggghts_own(tmp_path):
+    with dem(tmp_path) as sim:
+        sim.setupWall(species=1, wtype="mesh", mesh="drum")
+        with pytest.raises(ConfigError, match=r"mesh wall 'drum' crosses.*region=\('mesh', surface\)"):
+            sim.insert(species=1, value=1000, region=BLOCK, insert="by_rate")
+        sim.insert(species=1, value=1000, region=("mesh", DRUM), insert="by_rate")
+        sim.run(200)
+        x = sim.extractCoords()
+    assert "insert/rate/region" in (tmp_path / "in.pygran").read_text()
+    assert len(x) > 0 and clearance(x).min() >= 1.0
