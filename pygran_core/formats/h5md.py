@@ -59,7 +59,7 @@ from pygran_core.errors import PyGranError, ReadError, UnsupportedFeature, Write
 from pygran_core.formats import contacts as _contacts
 from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 from pygran_core.formats.h5md_units import to_si
-from pygran_core.formats.hdf5 import HDF5_SIGNATURE, Claim, no_space, open_hdf5, stored_elements
+from pygran_core.formats.hdf5 import HDF5_SIGNATURE, Claim, load_h5py, no_space, open_hdf5, stored_elements
 from pygran_core.formats.sanity import particle_problem, step_problem
 from pygran_core.formats.xdmf import VECTORS, XdmfSidecar, frame_groups
 
@@ -198,7 +198,7 @@ class H5MDWriter(TrajectoryWriter):
     def _create(self, frame: Frame | None) -> None:
         """The file, laid out for the particle frame ``frame`` (None: contacts only) and, if
         asked or if ``frame`` is None, for contacts; then in SWMR mode."""
-        import h5py
+        h5py = load_h5py()
 
         self._claim = Claim(self.path)
         self._claim.truncate()
@@ -238,7 +238,7 @@ class H5MDWriter(TrajectoryWriter):
         ]
 
     def _layout_particles(self, f: Any, frame: Frame) -> None:
-        import h5py
+        h5py = load_h5py()
 
         columns = list(frame.arrays)
         bad = [c for c in columns if np.ndim(frame.arrays[c]) != 1]
@@ -523,7 +523,7 @@ class _H5MDFile(Trajectory):
 
     def _root(self, top: str, group: str | None) -> Any:
         """The group ``/<top>/<group>`` (``group=None``: the only one), setting :attr:`group`."""
-        import h5py
+        h5py = load_h5py()
 
         parent = self._file[top]
         names = list(parent)
@@ -538,7 +538,7 @@ class _H5MDFile(Trajectory):
         return root
 
     def _boundary_of(self, box: Any) -> tuple[str, ...] | None:
-        import h5py
+        h5py = load_h5py()
 
         if isinstance(box, h5py.Group) and "pygran_boundary" in box.attrs:
             return tuple(_text(box.attrs["pygran_boundary"]).split())
@@ -549,7 +549,7 @@ class _H5MDFile(Trajectory):
 
     def _dataset(self, group: Any, name: str, min_ndim: int, max_ndim: int) -> Any:
         """``group[name]``, which must be a numeric dataset of ``min_ndim`` to ``max_ndim`` axes."""
-        import h5py
+        h5py = load_h5py()
 
         found = group.get(name)
         if not isinstance(found, h5py.Dataset):
@@ -611,7 +611,7 @@ class H5MDContacts(_H5MDFile):
     what = "contacts"
 
     def _index(self, group: str | None) -> None:
-        import h5py
+        h5py = load_h5py()
 
         top = self._file.get("contacts")
         if not isinstance(top, h5py.Group) or not len(top):
@@ -671,7 +671,7 @@ class H5MDTrajectory(_H5MDFile):
     """
 
     def _index(self, group: str | None) -> None:
-        import h5py
+        h5py = load_h5py()
 
         particles = self._file.get("particles")
         if not isinstance(particles, h5py.Group) or not len(particles):

@@ -24,7 +24,7 @@ import struct
 from pathlib import Path
 from typing import Any, ClassVar
 
-from pygran_core.errors import ReadError, WriteError
+from pygran_core.errors import PyGranError, ReadError, WriteError
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 #: Metadata read attempts of an SWMR reader: HDF5 sleeps 1, 2, 4, ... ns between them, so
@@ -34,6 +34,19 @@ SWMR_READ_ATTEMPTS = 20
 METADATA_RESERVE = 1 << 20
 #: What the operating system says when a write cannot get space.
 _NO_SPACE = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
+
+
+def load_h5py() -> Any:
+    """The h5py module, imported on first use so that ``import pygran_core`` does not load
+    HDF5: every module that reads or writes HDF5 takes it from here."""
+    try:
+        import h5py
+    except ImportError as exc:
+        raise PyGranError(
+            f"HDF5 files (H5MD trajectories, checkpoints) need h5py, which does not import: {exc}; "
+            "install it with `pip install h5py`"
+        ) from exc
+    return h5py
 
 
 def open_hdf5(path: Path) -> Any:
@@ -46,7 +59,7 @@ def open_hdf5(path: Path) -> Any:
     otherwise retries a damaged block with ever longer sleeps, which hangs on a truncated
     or damaged file.
     """
-    import h5py
+    h5py = load_h5py()
 
     try:
         f = h5py.File(path, "r")
@@ -66,7 +79,7 @@ def open_hdf5(path: Path) -> Any:
 
 
 def _open_swmr(path: Path) -> Any:
-    import h5py
+    h5py = load_h5py()
 
     library = _hdf5_library()
     fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
@@ -88,7 +101,7 @@ def refuse_outside_references(f: Any, path: Path) -> None:
     """Raise :class:`ReadError` if the open file ``f`` has an external or user-defined link, a
     dataset with external raw storage or a virtual dataset: anything that makes HDF5 read
     another file. Links are listed without being followed, so nothing outside is opened."""
-    import h5py
+    h5py = load_h5py()
 
     outside: list[str] = []
 
@@ -120,7 +133,7 @@ def refuse_outside_references(f: Any, path: Path) -> None:
 def stored_elements(dataset: Any) -> int:
     """How many elements ``dataset`` has storage for: a dataset declared far larger than what
     is stored is a sparse shell whose every read gives fill values."""
-    import h5py
+    h5py = load_h5py()
 
     layout = dataset.id.get_create_plist().get_layout()
     if layout == h5py.h5d.CHUNKED:
@@ -218,7 +231,7 @@ def no_space(exc: BaseException) -> bool:
 def _hdf5_library() -> ctypes.CDLL | None:
     """The HDF5 library h5py runs on (found among the loaded libraries), for the one setting
     h5py does not expose, or None where it cannot be found."""
-    import h5py  # noqa: F401 - loads the library
+    load_h5py()  # loads the library
 
     names: list[str] = []
     try:

@@ -31,7 +31,7 @@ import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature, WriteError
 from pygran_core.formats.base import Frame, PathLike, Trajectory
-from pygran_core.formats.hdf5 import Claim, no_space, open_hdf5
+from pygran_core.formats.hdf5 import Claim, load_h5py, no_space, open_hdf5
 from pygran_core.formats.sanity import particle_problem, step_problem
 
 _HEAD = (
@@ -69,7 +69,7 @@ class XdmfSidecar:
     """Writes the sidecar of one H5MD trajectory; :meth:`add` appends a frame."""
 
     def __init__(self, trajectory: Path, compression: int = 4) -> None:
-        import h5py
+        h5py = load_h5py()
 
         self.xdmf, self.data = sidecar_paths(trajectory)
         self.compression = compression
@@ -86,7 +86,7 @@ class XdmfSidecar:
     def add(self, index: int, step: int, time: float, groups: Sequence[tuple[str, np.ndarray]]) -> None:
         """Frame ``index`` of ``step`` at ``time``: ``groups`` are (name, (n,) or (n, 3) array),
         ``position`` among them."""
-        import h5py
+        h5py = load_h5py()
 
         positions = dict(groups)["position"]
         n = len(positions)

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ConfigError, ReadError
-from pygran_core.formats.hdf5 import HDF5_SIGNATURE, open_hdf5
+from pygran_core.formats.hdf5 import HDF5_SIGNATURE, load_h5py, open_hdf5
 from pygran_core.simulation.specs import RestartSpec
 
 FORMAT = "pygran-checkpoint"
@@ -125,7 +125,7 @@ def latest_checkpoint(restart: RestartSpec) -> Path:
 def write_checkpoint(path: Path, checkpoint: Checkpoint) -> None:
     """Write ``checkpoint`` to ``path`` atomically (temporary file, then rename), sealed with
     the SHA-256 of its bytes."""
-    import h5py
+    h5py = load_h5py()
 
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial")
@@ -201,7 +201,7 @@ def read_checkpoint(path: Path) -> Checkpoint:
 
 def _read(path: Path, f: Any) -> tuple[Checkpoint, int]:
     """The checkpoint in an open file, checked, and its format version."""
-    import h5py
+    h5py = load_h5py()
 
     def fail(message: str) -> ReadError:
         return ReadError(f"{path}: {message}")
