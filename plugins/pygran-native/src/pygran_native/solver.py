@@ -58,6 +58,7 @@ import numpy as np
 
 from pygran_core.errors import ConfigError, ReadError
 from pygran_core.simulation import clumps
+from pygran_core.simulation.checkpoint import decode_text, encode_text
 from pygran_core.simulation.models import mixing
 from pygran_native import _kernels
 from pygran_native._solver import (
@@ -941,8 +942,8 @@ class Solver:
             raise ConfigError("get_state: no contact model set yet.")
         state = {f"core_{k}": v for k, v in self._core.get_state().items()}
         model = self._model
-        state["model_kind"] = _encode(model["kind"])
-        state["model_rolling"] = _encode(model["rolling"])
+        state["model_kind"] = encode_text(model["kind"])
+        state["model_rolling"] = encode_text(model["rolling"])
         for key in _MODEL_KEYS:
             state[f"model_{key}"] = np.array(np.nan if model[key] is None else model[key], float)
         state["viscous"] = self._viscous.copy()
@@ -951,7 +952,7 @@ class Solver:
             state["clump_counter"] = np.array([self._next_body], np.int64)
         state["wall_handles"] = np.array(list(self._walls), np.int64)
         state["wall_kinds"] = np.array([_WALL_KINDS.index(k) for k in self._walls.values()], np.int64)
-        state["rng"] = _encode(json.dumps(self.rng.bit_generator.state))
+        state["rng"] = encode_text(json.dumps(self.rng.bit_generator.state))
         return state
 
     def set_state(self, state: Mapping[str, np.ndarray]) -> None:
@@ -977,14 +978,6 @@ class Solver:
         self._next_id, self._next_wall, self._next_vertex, self._next_body = counters
         self._walls = walls
         self.rng.bit_generator.state = rng
-
-
-def _encode(text: str) -> np.ndarray:
-    return np.frombuffer(text.encode(), dtype=np.uint8).copy()
-
-
-def _decode(array: np.ndarray) -> str:
-    return np.asarray(array, dtype=np.uint8).tobytes().decode()
 
 
 # --- checking a state ------------------------------------------------------------------
@@ -1018,7 +1011,7 @@ def _entry(
 def _text(state: Mapping[str, np.ndarray], key: str) -> str:
     """``state[key]``, UTF-8 text stored as bytes, or a ReadError."""
     try:
-        return _decode(_entry(state, key, np.uint8))
+        return decode_text(_entry(state, key, np.uint8))
     except UnicodeDecodeError as exc:
         raise _fail(key, "UTF-8 text", f"bytes that are not: {exc}") from None
 
