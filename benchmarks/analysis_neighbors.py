@@ -2,7 +2,7 @@
 
 A periodic box of random spheres at packing fraction 0.3 (about 2 neighbours each within
 contact). PyGran's ``Particles.computeRDF`` and ``equilibrium.Neighbors(...).coon`` are
-timed as installed (with the compiled sweep of pygran-native when it is importable) and on
+timed as installed (with the core's compiled sweep when it was built) and on
 the core's pure numpy path, against a straightforward scipy cKDTree implementation
 (``query_pairs`` then ``np.histogram`` / ``np.bincount``) and freud. The contenders run in
 turn within each repetition (best of ``--repeats``), so a busy machine slows them alike; the
@@ -79,7 +79,7 @@ def freud_functions(positions: np.ndarray, length: float, r_max: float) -> dict[
 
 @contextlib.contextmanager
 def numpy_path() -> Iterator[None]:
-    """The core without pygran-native's compiled sweep."""
+    """The core without its compiled sweep."""
     kernels, _neighbors._accel = _neighbors._accel, None
     try:
         yield
@@ -146,9 +146,7 @@ def main() -> None:
     parser.add_argument("sizes", nargs="*", type=float, default=[1e5, 1e6])
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
-    kernels = (
-        "pygran-native's compiled sweep" if _neighbors._accel is not None else "numpy (no pygran-native)"
-    )
+    kernels = "the core's compiled sweep" if _neighbors._accel is not None else "numpy (no compiled kernels)"
     print(f"pygran: as installed, {kernels}; numpy: the core's pure numpy path; best of {args.repeats}")
     names = ["pygran", "numpy", "scipy", "freud"]
     header = f"{'N':>9} {'task':>6}" + "".join(f" {name + ' s':>9}" for name in names)

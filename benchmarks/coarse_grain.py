@@ -5,7 +5,7 @@ chosen so that the 100^3 grid has cells one diameter wide (about one particle pe
 5 N contacts between random particles and their neighbours (branch vectors of length 0.9
 to 1 in random directions, random forces). ``coarse_grain`` computes density, momentum,
 kinetic and contact stress with each kernel (``WIDTH``: the Gaussian's 0.5 reaches 1.5 cells),
-as installed (pygran-native's compiled deposits when importable) and, for sizes up to
+as installed (the core's compiled deposits when they were built) and, for sizes up to
 ``--numpy-max``, on the core's numpy path. Best of ``--repeats``; the script checks that the
 grid holds the mass and ``sum f ⊗ b``, prints the seconds per size, and for N = 1e6 whether
 the issue's target is met: N = 1e6 (5e6 contacts) on the 100^3 grid under 10 s on a 2-core
@@ -104,7 +104,7 @@ def main() -> None:
     parser.add_argument("--numpy-max", type=float, default=1e5)
     parser.add_argument("--kernels", nargs="*", default=list(cg.KERNELS))
     args = parser.parse_args()
-    kernels = "pygran-native's compiled deposits" if cg._accel is not None else "numpy (no pygran-native)"
+    kernels = "the core's compiled deposits" if cg._accel is not None else "numpy (no compiled kernels)"
     threads = os.environ.get("OMP_NUM_THREADS", f"{os.cpu_count()} (all cores)")
     print(
         f"installed: {kernels}, {threads} thread(s); numpy: the core's numpy path; {args.bins}^3 grid; "

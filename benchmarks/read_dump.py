@@ -3,7 +3,7 @@
 Writes a synthetic LIGGGHTS dump (id type x y z radius vx vy vz fx fy fz; 5 frames of
 200,000 particles, 131 MB), then times reading every frame with each reader, in turn within
 each repetition (best of ``--repeats``, so a busy machine slows them alike), and prints MB/s
-of dump text and the ratios. PyGran runs as installed (with pygran-native's compiled parser
+of dump text and the ratios. PyGran runs as installed (with the core's compiled parser
 when it is importable; for the .dump.gz, it then parses frames on a second thread while it
 decompresses, when this process may use more than one CPU) and on the core's numpy path.
 numpy.loadtxt gets each frame's atom rows as bytes (its fastest input); for the .dump.gz
@@ -70,7 +70,7 @@ def make_dump(path: Path, particles: int, frames: int) -> None:
 
 @contextlib.contextmanager
 def numpy_path() -> Iterator[None]:
-    """The core without pygran-native's compiled parser."""
+    """The core without its compiled parser."""
     kernels, dump._accel = dump._accel, None
     try:
         yield
@@ -133,7 +133,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--mdanalysis-python", help="an interpreter with MDAnalysis installed")
     args = parser.parse_args()
-    parser_name = "pygran-native's compiled parser" if dump._accel is not None else "numpy (no pygran-native)"
+    parser_name = "the core's compiled parser" if dump._accel is not None else "numpy (no compiled kernels)"
     print(f"pygran: as installed, {parser_name}; pygran-numpy: the core's numpy path; best of {args.repeats}")
     print(f"CPUs this process may use: {dump._cpus()}")
     with tempfile.TemporaryDirectory() as folder:

@@ -17,7 +17,7 @@ R = 0.5
 
 @pytest.fixture(params=["compiled", "numpy"])
 def pair_search(request, monkeypatch):
-    """Each test runs on pygran-native's compiled sweep (required under CI) and on the numpy path."""
+    """Each test runs on the core's compiled sweep (required under CI) and on the numpy path."""
     return kernel_path(request.param, _neighbors, monkeypatch)
 
 

@@ -51,7 +51,7 @@ def uniform_ball(n, radius, seed=0):
 
 @pytest.fixture(params=["compiled", "numpy"])
 def pair_search(request, monkeypatch):
-    """Each test runs on pygran-native's compiled sweep (required under CI) and on the numpy path."""
+    """Each test runs on the core's compiled sweep (required under CI) and on the numpy path."""
     return kernel_path(request.param, _neighbors, monkeypatch)
 
 

@@ -1,4 +1,4 @@
-"""Tests that need an external solver (LIGGGHTS, YADE) or pygran-native's compiled kernels:
+"""Tests that need an external solver (LIGGGHTS, YADE) or the core's compiled kernels:
 fail in CI, skip with the fix elsewhere."""
 
 from __future__ import annotations
@@ -32,13 +32,13 @@ def require_solver(locate: Callable[[], str]) -> str:
 
 
 def kernel_path(path: str, module: ModuleType, monkeypatch: pytest.MonkeyPatch) -> str:
-    """Make ``module`` (one that takes pygran-native's compiled kernels as ``_accel``) run on
-    ``path``: ``"numpy"`` (the kernels patched away) or ``"compiled"`` (required under CI,
-    else a skip naming the fix). For a fixture parametrized over both paths."""
+    """Make ``module`` (one that takes the core's compiled kernels, ``pygran_core._accel``, as
+    ``_accel``) run on ``path``: ``"numpy"`` (the kernels patched away) or ``"compiled"``
+    (required under CI, else a skip naming the fix). For a fixture parametrized over both paths."""
     if path == "numpy":
         monkeypatch.setattr(module, "_accel", None)
     elif module._accel is None:
-        message = "pygran-native's compiled kernels are not built (pip install -e plugins/pygran-native)"
+        message = "the core's compiled kernels are not built (pip install -e . with a C compiler)"
         if in_ci():
             pytest.fail(message)
         pytest.skip(message)

@@ -22,7 +22,7 @@ HEADER = "ITEM: TIMESTEP\n{step}\nITEM: NUMBER OF ATOMS\n{n}\nITEM: BOX BOUNDS p
 
 @pytest.fixture(params=["compiled", "numpy"])
 def table_parser(request, monkeypatch):
-    """Each test runs on pygran-native's compiled parser (required under CI) and on the numpy path."""
+    """Each test runs on the core's compiled parser (required under CI) and on the numpy path."""
     return kernel_path(request.param, dump, monkeypatch)
 
 
