@@ -1,8 +1,9 @@
 """Registers the pygran-readers file formats with PyGran: VTK (legacy, VTU, VTP), ParaView's
 ``.pvd`` series index and YADE output.
 
-The LIGGGHTS dump, H5MD and STL are the core's own (``pygran_core.formats``). Only this
-module is imported at plugin discovery; vtk is imported inside the functions that use it.
+The LIGGGHTS dump, H5MD and STL are the core's own (``pygran_core.formats``). Discovery
+imports this module and, through it, the format modules, which need numpy and the standard
+library only: the plugin parses and writes VTK itself, without the vtk package.
 """
 
 from __future__ import annotations

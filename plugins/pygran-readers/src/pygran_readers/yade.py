@@ -27,6 +27,7 @@ from pygran_core.errors import ReadError
 from pygran_core.formats.sanity import particle_problem
 from pygran_core.io import Frame, PathLike, Trajectory
 from pygran_readers import vtk, vtkxml
+from pygran_readers.dataset import VERTEX, Mesh
 
 #: The file names VTKRecorder gives: ``<fileName><kind>.<iteration>.vtu``.
 FILE_NAME = re.compile(r"(spheres|facets|boxes)\.(\d+)\.vtu$", re.IGNORECASE)
@@ -104,7 +105,7 @@ class YadeTrajectory(Trajectory):
         return frame
 
 
-def _spheres(path: Path, grid: vtk.Mesh) -> Frame:
+def _spheres(path: Path, grid: Mesh) -> Frame:
     """The particles of one VTKRecorder spheres file."""
     points = grid.points
     n = len(points)
@@ -113,7 +114,7 @@ def _spheres(path: Path, grid: vtk.Mesh) -> Frame:
         return ReadError(f"{path}: frame 0: {message}")
 
     types = np.asarray(grid.cell_types, dtype=np.int64)
-    if len(types) != n or (types != vtk.VERTEX).any():
+    if len(types) != n or (types != VERTEX).any():
         found = ", ".join(str(t) for t in np.unique(types)) or "none"
         raise fail(
             f"not a YADE spheres file: expected one vertex cell (type 1) per sphere for {n} points, "
