@@ -68,6 +68,7 @@ from pygran_core.simulation.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
+from pygran_core.simulation.materials import build_table
 from pygran_core.simulation.progress import Progress
 from pygran_core.simulation.specs import SimulationSpec, TrajectorySpec, positive_float, positive_int
 from pygran_core.simulation.timestep import Assessment, Body, Limits, characteristic_speed, limits
@@ -322,6 +323,14 @@ class Engine(abc.ABC):
         self.log("%s engine opened, output in %s", self.name, self.output)
         try:
             self._check_spec(spec)
+            #: The material types and pair matrices the engine's contacts take (see materials.py).
+            self.material_table = build_table(
+                [s.material for s in spec.species],
+                [(m.name, m.material) for m in spec.meshes],
+                spec.pairs,
+                spec.model.required,
+            )
+            self.log("%s", self.material_table.describe())
         except PyGranError as exc:
             self._to_file(logging.ERROR, f"refused: {exc}")
             self._abandon()

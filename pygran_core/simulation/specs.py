@@ -26,6 +26,7 @@ from pygran_core import params as materials
 from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature, unknown_key
 from pygran_core.formats.stl import STLTrajectory
 from pygran_core.simulation import geometry
+from pygran_core.simulation.materials import Pairs, parse_pairs
 from pygran_core.simulation.models.base import ContactModel
 
 Vector = tuple[float, float, float]
@@ -1076,6 +1077,8 @@ class SimulationSpec:
     domain: Domain
     species: tuple[Species, ...] = ()
     meshes: tuple[MeshSpec, ...] = ()
+    #: ``pairs=``: per-pair material values over the mixing rules (see :mod:`.materials`).
+    pairs: Pairs = ()
     gravity: Gravity | None = None
     dt: float | None = None
     seed: int = 12345
@@ -1118,6 +1121,7 @@ SIMULATION_KEYS = (
     "gravity",
     "species",
     "mesh",
+    "pairs",
     "output",
     "restart",
     "dump_modify",
@@ -1302,4 +1306,6 @@ def parse_simulation(params: Mapping[str, Any], engine: str, model: type[Contact
     )
     for mesh in spec.meshes:
         check_mesh_in_box(mesh, spec.domain)
-    return spec
+    meshes = {m.name: bool(m.material) for m in spec.meshes}
+    pairs = parse_pairs(params.get("pairs"), len(spec.species), meshes)
+    return replace(spec, pairs=pairs) if pairs else spec

@@ -14,7 +14,7 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +27,7 @@ from pygran_core.simulation.calls import (
     ViscousSpec,
     WallSpec,
 )
-from pygran_core.simulation.models import mixing
+from pygran_core.simulation.materials import MaterialTable
 from pygran_core.simulation.specs import (
     RadiusDistribution,
     ServoSpec,
@@ -125,8 +125,9 @@ HARD_LIMIT = 1e9
 class Commands:
     """LIGGGHTS commands for one simulation; each method returns ``(id, lines)`` or lines."""
 
-    def __init__(self, spec: SimulationSpec) -> None:
+    def __init__(self, spec: SimulationSpec, table: MaterialTable) -> None:
         self.spec = spec
+        self.table = table
         self._counter = itertools.count(1)
         self.check_paths()
         self.model = MODELS[given(spec.model.kernel, "the contact model's kernel")]  # others refused
@@ -135,25 +136,21 @@ class Commands:
         if self.rolling_model not in ROLLING:
             raise unknown_key("rolling-friction model", str(self.rolling_model), ROLLING)
         self.limit_force = bool(getattr(spec.model, "limit_force", False))
-        #: Materials by atom type (1-based): the species, then meshes with their own material.
-        self.materials: list[Mapping[str, float]] = [s.material for s in spec.species]
         self.mesh_ids: dict[str, str] = {}
+        #: Atom type (1-based) of each mesh: its own material's, else species 1's (a wall of
+        #: another species is refused in :meth:`wall`).
         self.mesh_types: dict[str, int] = {}
         self.bare_meshes = {mesh.name for mesh in spec.meshes if not mesh.material}
         for mesh in spec.meshes:
             self.mesh_ids[mesh.name] = self.new_id("mesh")
-            if mesh.material:
-                self.materials.append(mesh.material)
-                self.mesh_types[mesh.name] = len(self.materials)
-            else:
-                self.mesh_types[mesh.name] = 1
-        if not self.materials:
+            self.mesh_types[mesh.name] = table.mesh_types.get(mesh.name, 0) + 1
+        if not spec.species:
             raise ConfigError("LIGGGHTS needs at least one species: pass species=({'material': ...},)")
         #: Atom types of the multisphere species (rigid clumps of spheres) and of the others.
         self.body_types = [s.type for s in spec.species if s.style == "multisphere"]
         self.sphere_types = [s.type for s in spec.species if s.style != "multisphere"]
-        self.cohesion = any(m.get("cohesionEnergyDensity", 0) > 0 for m in self.materials)
-        self.rolling = any(m.get("coefficientRollingFriction", 0) > 0 for m in self.materials)
+        self.cohesion = bool(table.pairs["cohesionEnergyDensity"].any())
+        self.rolling = bool(table.pairs["coefficientRollingFriction"].any())
         if self.rolling and "coeffRollingStiffness" in ROLLING[self.rolling_model]:
             raise UnsupportedFeature(
                 f"LIGGGHTS' rolling_friction {self.rolling_model} needs coeffRollingStiffness, which "
@@ -220,7 +217,7 @@ class Commands:
         sort_bin = spec.max_radius + spec.skin / 2
         sort = f" sort 1000 {fmt(sort_bin)}" if sort_bin > 0 else ""
         lines = ["units si", "atom_style granular", f"atom_modify map array{sort}"]
-        moduli = [m["youngsModulus"] for m in self.materials]
+        moduli = self.table.per_type["youngsModulus"]
         # LIGGGHTS refuses moduli outside 5 MPa - 1 GPa in SI units unless told
         if min(moduli) < SOFT_LIMIT:
             lines.append("soft_particles yes")
@@ -232,7 +229,7 @@ class Commands:
             lines += [
                 f"boundary {' '.join(spec.domain.boundary)}",
                 f"region pg_domain block {bounds} units box volume_limit {fmt(VOLUME_LIMIT)}",
-                f"create_box {len(self.materials)} pg_domain",
+                f"create_box {self.table.size} pg_domain",
             ]
         else:
             lines.append(f"read_restart {self.path(resume)}")
@@ -313,70 +310,30 @@ class Commands:
         return f"group {SPHERES} type {' '.join(map(str, self.sphere_types))}"
 
     def _material_tables(self) -> list[str]:
-        """``fix property/global`` tables of the materials by atom type, pairs mixed by PyGran's rules."""
-        required = ["youngsModulus", "poissonsRatio", "coefficientFriction"]
-        # Thornton-Ning dissipates by plasticity and adhesion hysteresis, without damping
-        required.append("yieldPress" if self.model == ADDON_MODEL else "coefficientRestitution")
-        if self.model == "hooke":
-            required.append("characteristicVelocity")
-        if self.rolling:
-            required += ROLLING[self.rolling_model]
-        for index, material in enumerate(self.materials, start=1):
-            missing = [key for key in required if key not in material]
-            if missing:
-                raise ConfigError(f"LIGGGHTS needs {', '.join(missing)} in the material of atom type {index}")
+        """``fix property/global`` tables of the material table's types and pairs."""
+        table, n = self.table, self.table.size
 
-        def column(key: str, default: float | None = None) -> np.ndarray:
-            return np.array([m.get(key, default) for m in self.materials], float)
-
-        n = len(self.materials)
-
-        def table(name: str, values: np.ndarray) -> str:
-            return f"fix pg_{name} all property/global {name} peratomtypepair {n} " + " ".join(
+        def pairs(key: str) -> str:
+            values = table.pairs[key]
+            return f"fix pg_{key} all property/global {key} peratomtypepair {n} " + " ".join(
                 fmt(v) for v in values.ravel()
             )
 
-        def per_type(name: str, values: np.ndarray) -> str:
-            return f"fix pg_{name} all property/global {name} peratomtype " + " ".join(fmt(v) for v in values)
+        def per_type(key: str) -> str:
+            values = table.per_type[key]
+            return f"fix pg_{key} all property/global {key} peratomtype " + " ".join(fmt(v) for v in values)
 
-        E, nu = column("youngsModulus"), column("poissonsRatio")
-        lines = [
-            per_type("youngsModulus", E),
-            per_type("poissonsRatio", nu),
-            table(
-                "coefficientFriction", mixing.pair_table(mixing.pair_friction, column("coefficientFriction"))
-            ),
-        ]
-        if self.model == ADDON_MODEL:
-            yield_pressure = mixing.pair_table(mixing.pair_yield_pressure, column("yieldPress"))
-            lines.append(table("yieldPress", yield_pressure))
-        else:
-            restitution = mixing.pair_table(mixing.pair_restitution, column("coefficientRestitution"))
-            lines.append(table("coefficientRestitution", restitution))
+        lines = [per_type("youngsModulus"), per_type("poissonsRatio"), pairs("coefficientFriction")]
+        # Thornton-Ning dissipates by plasticity and adhesion hysteresis, without damping
+        lines.append(pairs("yieldPress" if self.model == ADDON_MODEL else "coefficientRestitution"))
         if self.cohesion or self.model == ADDON_MODEL:
-            lines.append(
-                table(
-                    "cohesionEnergyDensity",
-                    mixing.pair_table(mixing.pair_cohesion, column("cohesionEnergyDensity", 0.0)),
-                )
-            )
+            lines.append(pairs("cohesionEnergyDensity"))
         if self.rolling:
-            lines.append(
-                table(
-                    "coefficientRollingFriction",
-                    mixing.pair_table(mixing.pair_friction, column("coefficientRollingFriction", 0.0)),
-                )
-            )
+            lines.append(pairs("coefficientRollingFriction"))
             if "coefficientRollingViscousDamping" in ROLLING[self.rolling_model]:
-                damping = column("coefficientRollingViscousDamping")
-                # mixed as friction: the smaller of the two
-                lines.append(
-                    table(
-                        "coefficientRollingViscousDamping", mixing.pair_table(mixing.pair_friction, damping)
-                    )
-                )
+                lines.append(pairs("coefficientRollingViscousDamping"))
         if self.model == "hooke":
-            velocities = set(column("characteristicVelocity"))
+            velocities = set(table.per_type["characteristicVelocity"].tolist())
             if len(velocities) > 1:
                 raise ConfigError(
                     "LIGGGHTS' hooke model takes one characteristicVelocity; "

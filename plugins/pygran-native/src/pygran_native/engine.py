@@ -70,11 +70,8 @@ class NativeEngine(PlacingEngine):
             self.solver = Solver(
                 np.array(spec.domain.box).T, spec.domain.periodic, gravity, spec.skin, spec.threads, spec.seed
             )
-            self._mesh_types = {m.name: len(spec.species) + i for i, m in enumerate(spec.meshes)}
-            materials = [s.material for s in spec.species] + [
-                m.material or spec.species[0].material for m in spec.meshes
-            ]
-            self.solver.set_contact_model(self._law, **self._material_arrays(materials))
+            self._mesh_types = dict(self.material_table.mesh_types)
+            self.solver.set_contact_model(self._law, **self._material_arrays())
             self._walls: dict[str, int] = {}
             #: Solver wall handle -> the wall's index in the order walls were set up (removed ones
             #: kept): contact records name the wall by it (see :meth:`_contacts`)
@@ -91,21 +88,15 @@ class NativeEngine(PlacingEngine):
             self._abandon()
             raise
 
-    def _material_arrays(self, materials: list[Any]) -> dict[str, Any]:
-        kind = self._law
-
-        def column(key: str, default: float | None) -> np.ndarray:
-            values = [m.get(key, default) for m in materials]
-            if None in values:
-                raise ConfigError(f"The {self.spec.model.__name__} model needs {key!r} in every material")
-            return np.array(values, float)
-
+    def _material_arrays(self) -> dict[str, Any]:
+        """The solver's contact-model arguments: the material table's entries renamed."""
+        table = self.material_table
         arrays: dict[str, Any] = {
-            "youngs": column("youngsModulus", None),
-            "poisson": column("poissonsRatio", None),
-            "friction": column("coefficientFriction", 0.0),
-            "rolling_friction": column("coefficientRollingFriction", 0.0),
-            "cohesion_energy": column("cohesionEnergyDensity", 0.0),
+            "youngs": table.per_type["youngsModulus"],
+            "poisson": table.per_type["poissonsRatio"],
+            "friction": table.pairs["coefficientFriction"],
+            "rolling_friction": table.pairs["coefficientRollingFriction"],
+            "cohesion_energy": table.pairs["cohesionEnergyDensity"],
         }
         # rolling resistance models other than the solver's are refused when a species has rolling
         # friction (Engine._check_spec); without, no pair has any and the model does not matter
@@ -113,14 +104,13 @@ class NativeEngine(PlacingEngine):
         arrays["rolling"] = rolling if rolling in ("epsd", "epsd2") else "cdt"
         arrays["limit_force"] = self.spec.model.limit_force
         if arrays["rolling"] == "epsd":
-            needed = None if arrays["rolling_friction"].any() else 0.0
-            arrays["rolling_damping"] = column("coefficientRollingViscousDamping", needed)
-        if kind == "thornton-ning":
-            arrays["yield_pressure"] = column("yieldPress", None)
+            arrays["rolling_damping"] = table.pairs["coefficientRollingViscousDamping"]
+        if self._law == "thornton-ning":
+            arrays["yield_pressure"] = table.pairs["yieldPress"].diagonal().copy()
         else:
-            arrays["restitution"] = column("coefficientRestitution", None)
-        if kind == "hooke":
-            arrays["characteristic_velocity"] = float(column("characteristicVelocity", None).max())
+            arrays["restitution"] = table.pairs["coefficientRestitution"]
+        if self._law == "hooke":
+            arrays["characteristic_velocity"] = float(table.per_type["characteristicVelocity"].max())
         return arrays
 
     def _label(self, kind: str) -> str:

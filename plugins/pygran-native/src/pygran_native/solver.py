@@ -179,12 +179,25 @@ def _model_tables(
             raise ConfigError(f"{name}: out of range: {arr.tolist()}.")
         return arr
 
+    def pairwise(value, name, check, rule):
+        """The (nt, nt) pair matrix ``value`` as given (symmetric), or mixed by ``rule`` from
+        per-type values."""
+        if np.ndim(value) < 2:
+            return mixing.pair_table(rule, per_type(value, name, check))
+        arr = _array(value, name, (nt, nt))
+        if not np.all(check(arr)) or not np.array_equal(arr, arr.T):
+            raise ConfigError(f"{name}: a pair matrix must be symmetric and in range: {arr.tolist()}.")
+        return arr
+
     E = per_type(E, "youngs", lambda a: a > 0)
     nu = per_type(per_type_values["poisson"], "poisson", lambda a: (a > -1) & (a < 0.5))
-    mu = per_type(per_type_values["friction"], "friction", lambda a: a >= 0)
-    mur = per_type(per_type_values["rolling_friction"], "rolling_friction", lambda a: a >= 0)
-    coh = per_type(per_type_values["cohesion_energy"], "cohesion_energy", lambda a: a >= 0)
-    eta = per_type(per_type_values["rolling_damping"], "rolling_damping", lambda a: a >= 0)
+    def non_negative(name, rule):
+        return pairwise(per_type_values[name], name, lambda a: a >= 0, rule)
+
+    mu = non_negative("friction", mixing.pair_friction)
+    mur = non_negative("rolling_friction", mixing.pair_friction)
+    coh = non_negative("cohesion_energy", mixing.pair_cohesion)
+    eta = non_negative("rolling_damping", mixing.pair_friction)  # the smaller one, as LIGGGHTS mixes it
     vchar = 0.0
     if kind == "thornton-ning":
         if yield_pressure is None:
@@ -194,10 +207,10 @@ def _model_tables(
     else:
         if restitution is None:
             raise ConfigError(f"restitution: required by the {kind} model.")
-        e = per_type(restitution, "restitution", lambda a: (a > 0) & (a <= 1))
+        e = pairwise(restitution, "restitution", lambda a: (a > 0) & (a <= 1), mixing.pair_restitution)
         py = np.zeros(nt)
         # LIGGGHTS' beta is -zeta
-        zeta = np.asarray(mixing.damping_ratio(mixing.pair_table(mixing.pair_restitution, e)), float)
+        zeta = np.asarray(mixing.damping_ratio(e), float)
         damp = (2 * math.sqrt(5 / 6) if kind == "hertz" else 2.0) * zeta
         if kind == "hooke":
             if characteristic_velocity is None or not characteristic_velocity > 0:
@@ -206,12 +219,12 @@ def _model_tables(
     tables = [
         mixing.pair_table(mixing.effective_modulus, E, nu),
         mixing.pair_table(mixing.effective_shear_modulus, E, nu),
-        mixing.pair_table(mixing.pair_friction, mu),
-        mixing.pair_table(mixing.pair_friction, mur),
+        mu,
+        mur,
         np.asarray(damp, float) + np.zeros((nt, nt)),
-        mixing.pair_table(mixing.pair_cohesion, coh),
+        coh,
         mixing.pair_table(mixing.pair_yield_pressure, py) if kind == "thornton-ning" else np.zeros((nt, nt)),
-        mixing.pair_table(mixing.pair_friction, eta),  # the smaller one, as the LIGGGHTS engine mixes it
+        eta,
     ]
     model = {
         "kind": kind,
@@ -1042,9 +1055,11 @@ def _checked_state(state: Mapping[str, np.ndarray], periodic: tuple[bool, ...]):
     settings = {}
     for key in _MODEL_KEYS:
         value = np.asarray(state[f"model_{key}"]) if f"model_{key}" in state else None
-        if value is None or value.dtype != np.float64 or value.ndim > 1:
+        if value is None or value.dtype != np.float64 or value.ndim > 2:
             raise _fail(
-                f"model_{key}", "a float64 number or one per type", None if value is None else value.dtype
+                f"model_{key}",
+                "a float64 number, one per type or a pair matrix",
+                None if value is None else value.dtype,
             )
         settings[key] = (
             None if value.ndim == 0 and np.isnan(value) else (float(value) if value.ndim == 0 else value)

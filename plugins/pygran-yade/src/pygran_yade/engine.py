@@ -57,7 +57,7 @@ import numpy as np
 
 from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.io import Frame
-from pygran_core.simulation.calls import MotionSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
 from pygran_core.simulation.models import SpringDashpot, mixing
@@ -155,6 +155,13 @@ class YadeEngine(PlacingEngine):
 
     def __init__(self, spec: SimulationSpec) -> None:
         super().__init__(spec)
+        restitution = self.material_table.pairs.get("coefficientRestitution", np.ones(1))
+        if spec.model.kernel == "spring-dashpot" and len(set(restitution.ravel().tolist())) > 1:
+            self._abandon()
+            raise UnsupportedFeature(
+                "The yade engine runs SpringDashpot only when every material and pair has the same "
+                "coefficientRestitution (YADE's damping ratio is per material, not per pair)"
+            )
         n = len(spec.species)
         # materials: species k -> k - 1; walls of species k -> n + k - 1; meshes with their own after
         self._mesh_material = {m.name: 2 * n + i for i, m in enumerate(m for m in spec.meshes if m.material)}
@@ -168,7 +175,7 @@ class YadeEngine(PlacingEngine):
             worker.call(
                 "setup",
                 model="hertz" if spec.model.kernel == "hertz-mindlin" else "linear",
-                materials=[self._yade_material(m, rho) for m, rho in zip(materials, densities)],
+                materials=[self._yade_material(i, rho) for i, rho in enumerate(densities)],
                 matches=self._pairs(materials, n),
                 gravity=spec.gravity.vector.tolist() if spec.gravity is not None else [0.0, 0.0, 0.0],
                 box=[[float(v) for v in b] for b in spec.domain.box],
@@ -207,36 +214,40 @@ class YadeEngine(PlacingEngine):
                     "law takes one stiffness per material pair, and the reference stiffness depends "
                     "on the radius"
                 )
-            materials = [s.material for s in spec.species] + [m.material for m in spec.meshes if m.material]
-            if len({m.get("coefficientRestitution") for m in materials}) > 1:
-                raise UnsupportedFeature(
-                    "The yade engine runs SpringDashpot only when every material has the same "
-                    "coefficientRestitution (YADE's damping ratio is per material, not per pair)"
-                )
 
-    def _yade_material(self, material: Any, density: float) -> dict[str, float]:
+    def _table_type(self, material: int) -> int:
+        """The material-table type of YADE material ``material`` (a wall of species k is made
+        of species k's material)."""
+        n = len(self.spec.species)
+        return material if material < n else material - n
+
+    def _yade_material(self, material: int, density: float) -> dict[str, float]:
+        table, kind = self.material_table, self._table_type(material)
         props = {
-            "young": material["youngsModulus"],
-            "poisson": material["poissonsRatio"],
+            "young": float(table.per_type["youngsModulus"][kind]),
+            "poisson": float(table.per_type["poissonsRatio"][kind]),
             "density": density,
-            "frictionAngle": math.atan(material.get("coefficientFriction", 0.0)),
+            "frictionAngle": math.atan(table.pairs["coefficientFriction"][kind, kind]),
         }
         if self.spec.model.kernel == "spring-dashpot":
-            props["betan"] = float(mixing.damping_ratio(material["coefficientRestitution"]))
+            props["betan"] = float(mixing.damping_ratio(table.pairs["coefficientRestitution"][kind, kind]))
         return props
 
     def _pairs(self, materials: list[Any], n: int) -> dict[str, list[tuple[int, int, float]]]:
-        """YADE's per-material-pair values, as ``{Ip2 attribute: [(i, j, value)]}``: the
-        normal and tangential damping ratios (Hertz) or the normal stiffness (linear)."""
-        species = self.spec.species
+        """YADE's per-material-pair values, as ``{Ip2 attribute: [(i, j, value)]}``: the friction
+        angle and the normal and tangential damping ratios (Hertz) or the normal stiffness
+        (linear), from the material table's pairs."""
+        species, table = self.spec.species, self.material_table
         values: dict[str, list[tuple[int, int, float]]] = {}
         for i in range(len(materials)):
             for j in range(min(i + 1, n)):  # j is always a species: walls never touch walls
                 mi, mj = materials[i], materials[j]
+                ti, tj = self._table_type(i), self._table_type(j)
+                values.setdefault("frictAngle", []).append(
+                    (i, j, math.atan(table.pairs["coefficientFriction"][ti, tj]))
+                )
                 if self.spec.model.kernel == "hertz-mindlin":
-                    e = float(
-                        mixing.pair_restitution(mi["coefficientRestitution"], mj["coefficientRestitution"])
-                    )
+                    e = float(table.pairs["coefficientRestitution"][ti, tj])
                     betas = math.sqrt(5 / 6) * float(mixing.damping_ratio(e))
                     pair = {"betan": clamped_damping_ratio(e), "betas": betas}
                 else:
@@ -320,6 +331,22 @@ class YadeEngine(PlacingEngine):
             np.reshape([p for p, _ in planes], (-1, 3)),
             np.reshape([n for _, n in planes], (-1, 3)),
             np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
+        )
+
+    def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
+        types = self._extract("type")[np.isin(self._extract("id"), ids)]
+        bodies = sorted({int(t) for t in types if self.spec.species[int(t) - 1].style == "multisphere"})
+        if bodies:
+            raise UnsupportedFeature(
+                f"set() on the spheres of multisphere species {bodies}: they move with their clumps; "
+                "select the species of single spheres (species=...)"
+            )
+        self.worker.call(
+            "assign",
+            ids=to_bytes(np.asarray(ids, np.int64) - 1),  # YADE body ids count from 0
+            velocity=None if spec.velocity is None else [float(v) for v in spec.velocity],
+            omega=None if spec.omega is None else [float(v) for v in spec.omega],
+            radius=spec.radius,
         )
 
     # -- walls and meshes ----------------------------------------------------------------

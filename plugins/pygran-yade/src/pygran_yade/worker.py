@@ -183,6 +183,21 @@ class Simulation:
                 self._drag_one(label, i, species)
         return ids
 
+    def assign(self, ids, velocity, omega, radius):
+        """Give the spheres ``ids`` (YADE body ids) a velocity, angular velocity and/or radius
+        (``None``: unchanged); a new radius resizes the mass and inertia at the material's density."""
+        for i in from_bytes(ids).tolist():
+            body = self.O.bodies[i]
+            if velocity is not None:
+                body.state.vel = vector(velocity)
+            if omega is not None:
+                body.state.angVel = vector(omega)
+            if radius is not None:
+                body.shape.radius = float(radius)
+                body.state.mass = body.material.density * 4 / 3 * math.pi * radius**3
+                body.state.inertia = vector([0.4 * body.state.mass * radius**2] * 3)
+        return None
+
     def clumps(self, centres, orientations, template, velocities, omegas, material, species, discretization):
         """Add rigid clumps of the ``template`` spheres ``(k, 4)``: offsets ``(x, y, z)`` in the
         particle's frame and radii, the frame's origin at each of ``centres`` and rotated by
