@@ -1,16 +1,14 @@
 """insert() on LIGGGHTS into a region that a mesh wall crosses: LIGGGHTS' fix insert keeps
-clear of particles only, so such an insertion (by pack, once) is placed by PyGran, clear of the
-mesh, as the placing engines place it; one that LIGGGHTS would have to make (by rate) is refused,
-and one into the inside of the mesh stays LIGGGHTS' own."""
+clear of particles only, so such an insertion (by pack or by rate) is made by PyGran, clear of
+the mesh, as the placing engines make it; one into the inside of the mesh stays LIGGGHTS' own."""
 
 import warnings
 
 import numpy as np
-import pytest
 from pygran_liggghts.library import find_library
 
 from pygran_core import simulation
-from pygran_core.errors import ConfigError, InsertionWarning
+from pygran_core.errors import InsertionWarning
 from pygran_core.simulation import geometry
 from pygran_core.testing.solvers import require_solver
 from pygran_core.testing.validation import SOFT as MATERIAL
@@ -71,13 +69,30 @@ def test_more_than_fits_is_reported_at_the_users_line(tmp_path):
     assert 1000 < made < 3500
 
 
-def test_by_rate_across_the_drum_is_refused_and_inside_it_is_liggghts_own(tmp_path):
+def test_by_rate_across_the_drum_keeps_its_rate_clear_of_it(tmp_path):
+    """1e5 particles/s every 100 steps of 1e-5 s: 100 at the call, then at steps 100 and 200 of
+    the run, each batch clear of the drum and of the particles before it."""
     with dem(tmp_path) as sim:
         sim.setupWall(species=1, wtype="mesh", mesh="drum")
-        with pytest.raises(ConfigError, match=r"mesh wall 'drum' crosses.*region=\('mesh', surface\)"):
-            sim.insert(species=1, value=1000, region=BLOCK, insert="by_rate")
-        sim.insert(species=1, value=1000, region=("mesh", DRUM), insert="by_rate")
-        sim.run(200)
+        sim.insert(species=1, value=1e5, region=BLOCK, insert="by_rate", freq=100, seed=3)
+        assert clearance(sim.extractCoords()).min() >= 1.0
+        sim.run(250)
+        x = sim.extractCoords()
+        assert sim.lost == 0
+    assert len(x) == 300
+    log = (tmp_path / "pygran.log").read_text()
+    for step in (0, 100, 200):
+        assert f"insert at step {step}: 100 of 100 particles, placed by PyGran clear of mesh drum" in log
+    assert clearance(x).min() > 0.99  # 2.5 ms later: resting on the drum at most
+    assert "insert/rate/region" not in (tmp_path / "in.pygran").read_text()
+
+
+def test_inside_the_drum_liggghts_inserts_by_rate_itself(tmp_path):
+    """A region that is the drum's inside (LIGGGHTS' cylinder inscribed in it) is clear of it."""
+    with dem(tmp_path) as sim:
+        sim.setupWall(species=1, wtype="mesh", mesh="drum")
+        sim.insert(species=1, value=1e5, region=("mesh", DRUM), insert="by_rate", freq=100)
+        sim.run(250)
         x = sim.extractCoords()
     assert "insert/rate/region" in (tmp_path / "in.pygran").read_text()
-    assert len(x) > 0 and clearance(x).min() >= 1.0
+    assert len(x) > 100 and clearance(x).min() > 0.99

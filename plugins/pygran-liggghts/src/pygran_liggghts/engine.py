@@ -22,11 +22,12 @@ into its arrays and only noted there in a comment. LIGGGHTS' screen output goes 
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -183,6 +184,23 @@ def reaches(region: Region, triangles: np.ndarray, reach: float) -> bool:
     return False
 
 
+@dataclass
+class _Placed:
+    """An insertion PyGran makes on LIGGGHTS (see :meth:`LiggghtsEngine._insert_clear`): the
+    request, the mesh walls crossing its region, its random stream, the step of its next event,
+    the steps between events (``None``: once), the step it ends before (``None``: never), what
+    is owed (by rate) and whether a full region was warned about."""
+
+    spec: InsertSpec
+    meshes: list[str]
+    rng: np.random.Generator
+    next_step: int
+    every: int | None
+    end: int | None
+    owed: float = 0.0
+    warned: bool = False
+
+
 class LiggghtsEngine(Engine):
     """A simulation on LIGGGHTS 3.x (``libliggghts``), see the module docstring."""
 
@@ -223,6 +241,7 @@ class LiggghtsEngine(Engine):
         self._rewritten_frame: int | None = None
         #: Insertions without a fix in LIGGGHTS: one-offs not redone on resume, and those PyGran placed
         self._fixless: set[str] = set()
+        self._placings: dict[str, _Placed] = {}  # insertions PyGran makes, by label
         #: Insertion fixes in LIGGGHTS (label -> spec), whose counts are read
         self._insertions: dict[str, InsertSpec] = {}
         #: label -> (first step, steps between, last step or None) of each insertion's events
@@ -401,6 +420,8 @@ class LiggghtsEngine(Engine):
                 f"servo mesh {idle[0]!r} must be a wall while the simulation runs (LIGGGHTS moves it by "
                 f"the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
             )
+        for label in list(self._placings):  # PyGran's insertions due as this piece starts
+            self._place_due(label, self.step)
         lines = []
         if self.spec.traj.cfile is not None and self._wall_contacts is None:
             # LIGGGHTS defines its contact computes before the first run only
@@ -444,6 +465,20 @@ class LiggghtsEngine(Engine):
         if filling:
             self._log_fractions(filling, start + nsteps)
         self._index_meshes()  # the frame LIGGGHTS wrote as this run started
+
+    def _chunks(self, nsteps: int) -> list[int]:
+        """The core's pieces of a run, also split at the events of PyGran's insertions, each
+        made as the piece it starts begins."""
+        from pygran_core.simulation.insertion import insertion_steps
+
+        start = self.step
+        stops = set(itertools.accumulate(super()._chunks(nsteps), initial=start))
+        for placed in self._placings.values():
+            stops.update(
+                insertion_steps(placed.next_step, placed.every, start + 1, start + nsteps, placed.end)
+            )
+        ordered = sorted(stops)
+        return [b - a for a, b in zip(ordered, ordered[1:])]
 
     def _asked_by(self, spec: InsertSpec, dt: float) -> tuple[int, bool] | None:
         """The particles by-pack insertion ``spec`` asks for as the next run (of steps ``dt``)
@@ -749,49 +784,87 @@ class LiggghtsEngine(Engine):
         return reached
 
     def _insert_clear(self, spec: InsertSpec, meshes: list[str]) -> str:
-        """A by-pack insertion, once, into a region that mesh walls ``meshes`` cross, placed as
-        the placing engines place it (the same particles for the same seed and particles
-        present; :func:`~pygran_core.simulation.insertion.place_spheres`, clear of particles,
-        walls and meshes) and created at the call with ``create_atoms``. Insertions by rate,
-        repeated ones and multisphere species there are refused: LIGGGHTS would place them."""
-        from pygran_core.simulation.insertion import draw_spheres, place_spheres
-
+        """An insertion into a region that mesh walls ``meshes`` cross, made by PyGran as the
+        placing engines make it: at the call, then every ``freq`` steps (by rate, every
+        :meth:`~.Commands.insert_every` steps for its duration), the particles drawn from the
+        insertion's seed and placed clear of particles, walls and meshes
+        (:func:`~pygran_core.simulation.insertion.place_spheres`), then created with
+        ``create_atoms``. LIGGGHTS makes multisphere particles by its own insertion only: those
+        are refused there."""
         bodies = sorted(set(spec.species) & set(self.commands.body_types))
-        if spec.mechanism != "by_pack" or spec.freq or bodies:
-            what = (
-                f"multisphere species {bodies}"
-                if bodies
-                else ("by rate" if spec.mechanism != "by_pack" else f"every {spec.freq} steps")
-            )
+        if bodies:
             raise ConfigError(
-                f"insert() {what} into the region {spec.region}, which mesh wall {meshes[0]!r} crosses: "
-                "LIGGGHTS' fix insert keeps particles clear of other particles only, so they could "
-                "overlap the mesh. Give a region clear of the mesh (with all_in, the inside of a mesh "
-                "built by simulation.geometry, region=('mesh', surface), or its intersection with "
-                "your region, is clear of that mesh)"
-                + ("" if bodies else ", or insert once by pack (no freq), which PyGran places clear of it")
+                f"insert() of multisphere species {bodies} into the region {spec.region}, which mesh wall "
+                f"{meshes[0]!r} crosses: LIGGGHTS inserts multisphere particles itself, clear of other "
+                "particles only, so they could overlap the mesh. Give a region clear of the mesh (with "
+                "all_in, the inside of a mesh built by simulation.geometry, region=('mesh', surface), or "
+                "its intersection with your region, is clear of that mesh)"
             )
         label = self.commands.new_id("insert")
         self._fixless.add(label)
-        if self.replaying:  # made before the checkpoint: its particles are in the restart file
-            return label
-        rng = np.random.default_rng(spec.seed)
-        x, radius, mass = (
-            self._request("gather", ["x", "radius", "mass"])[k] for k in ("x", "radius", "mass")
+        every = (
+            None
+            if spec.mechanism == "by_pack" and not spec.freq
+            else self.commands.insert_every(spec, self.dt)
         )
-        x = x.reshape(-1, 3)
-        inside = spec.region.contains(x)
-        if spec.target == "particles_in_region":
-            held = float(np.count_nonzero(inside))
-        elif spec.target == "volumefraction_region":
-            held = float(np.sum(4 / 3 * np.pi * radius[inside] ** 3))
+        end = None
+        if spec.duration is not None:
+            end = self.step + round(spec.duration / given(self.dt, "the time step"))
+        self._placings[label] = _Placed(spec, meshes, np.random.default_rng(spec.seed), self.step, every, end)
+        self._place_due(label, self.step)  # due at the call, as on the placing engines
+        return label
+
+    def _place_due(self, label: str, step: int) -> None:
+        """Make PyGran's insertion ``label`` if one of its events is due at ``step`` (none while a
+        resumed script is replayed: the restart file holds their particles), and schedule the next."""
+        placed = self._placings[label]
+        if placed.every is not None and placed.next_step < step:  # events before a resumed step
+            placed.next_step += -(-(step - placed.next_step) // placed.every) * placed.every
+        if placed.next_step != step:
+            return
+        if not self.replaying:
+            spec = placed.spec
+            if spec.mechanism == "by_pack":
+                self._place(placed, self._lacking(spec))
+            else:
+                placed.owed += (
+                    spec.value * given(placed.every, "an insertion's interval") * given(self.dt, "dt")
+                )
+                placed.owed -= self._place(placed, placed.owed)
+        following = None if placed.every is None else step + placed.every
+        if following is None or (placed.end is not None and following >= placed.end):
+            del self._placings[label]
         else:
-            held = float(np.sum(mass[inside]))
-        target = spec.value * (spec.region.volume() if spec.target == "volumefraction_region" else 1)
-        species, radii = draw_spheres(self.spec, spec, max(target - held, 0.0), rng)
-        velocities = spec.velocity.sample(len(radii), rng)
+            placed.next_step = following
+
+    def _lacking(self, spec: InsertSpec) -> float:
+        """What the region of by-pack insertion ``spec`` lacks of its target (particles, volume
+        or mass), counted as the placing engines count it."""
+        arrays = self._request("gather", ["x", "radius", "mass"])
+        inside = spec.region.contains(arrays["x"].reshape(-1, 3))
+        if spec.target == "particles_in_region":
+            return max(spec.value - np.count_nonzero(inside), 0.0)
+        if spec.target == "volumefraction_region":
+            held = float(np.sum(4 / 3 * np.pi * arrays["radius"][inside] ** 3))
+            return max(spec.value * spec.region.volume() - held, 0.0)
+        return max(spec.value - float(np.sum(arrays["mass"][inside])), 0.0)
+
+    def _place(self, placed: _Placed, amount: float) -> float:
+        """Draw up to ``amount`` of ``placed``'s target, place what fits and create it; returns
+        the amount drawn, placed or not (as the placing engines count what is owed)."""
+        from pygran_core.simulation.insertion import draw_spheres, place_spheres, target_shares
+
+        spec = placed.spec
+        species, radii = draw_spheres(self.spec, spec, amount, placed.rng)
+        velocities = spec.velocity.sample(len(radii), placed.rng)
+        existing = self._request("gather", ["x", "radius"])
         index, centres = place_spheres(
-            spec.region, radii, rng, (x, radius), self._obstacles("insert()"), spec.all_in
+            spec.region,
+            radii,
+            placed.rng,
+            (existing["x"].reshape(-1, 3), existing["radius"]),
+            self._obstacles("insert()"),
+            spec.all_in,
         )
         first = self._max_id + 1
         lines = []
@@ -815,16 +888,23 @@ class LiggghtsEngine(Engine):
             self.step,
             made,
             asked,
-            ", ".join(meshes),
+            ", ".join(placed.meshes),
         )
         if made < asked:
-            self._warn(
+            message = (
                 f"insertion at step {self.step}: {made} of {asked} particles inserted, the region "
-                f"{spec.region} is full (no free place for the other {asked - made}): give a larger "
-                "region or fewer particles",
-                InsertionWarning,
+                f"{spec.region} is full (no free place for the other {asked - made})"
             )
-        return label
+            if placed.warned:
+                self._to_file(logging.WARNING, message)
+            else:
+                placed.warned = True
+                self._warn(
+                    f"{message}: give a larger region or fewer particles. Further shortfalls of this "
+                    "insertion are logged in pygran.log only.",
+                    InsertionWarning,
+                )
+        return float(target_shares(self.spec, spec, species, radii).sum())
 
     def _pack_target(self, number: int, spec: InsertSpec) -> InsertSpec:
         """``spec`` with the target of insert call ``number``: while a resumed script is
@@ -1073,6 +1153,7 @@ class LiggghtsEngine(Engine):
     def _remove(self, handle: Handle) -> None:
         if handle.label in self._fixless:
             self._fixless.discard(handle.label)
+            self._placings.pop(handle.label, None)
             return
         if self._mesh_walls.pop(handle.label, None) is not None:
             self._execute(self._rebuild_mesh_walls())
