@@ -1,9 +1,10 @@
 """Placing new particles without overlaps: engine-neutral, reproducible from a seed.
 
-Engines whose solver inserts particles (LIGGGHTS) need none of this; the others (native,
-YADE) derive from :class:`PlacingEngine`, so that the same request gives the same particles
-on every engine. Candidates are drawn in batches and checked with k-d trees, never one
-Python iteration per particle. Spheres are placed by :func:`place_spheres`; clumps of
+Engines whose solver inserts particles (LIGGGHTS) use it only where theirs cannot keep clear
+of the walls (a mesh wall crossing the region); the others (native, YADE) derive from
+:class:`PlacingEngine`, so that the same request gives the same particles on every engine.
+Candidates are drawn in batches and checked with k-d trees, never one Python iteration per
+particle. Spheres are placed by :func:`place_spheres`; clumps of
 multisphere species by :func:`place_clumps`, which checks their own spheres, each clump turned
 its own way, as LIGGGHTS does.
 """

@@ -5,10 +5,11 @@ the mesh, as the placing engines make it; one into the inside of the mesh stays 
 import warnings
 
 import numpy as np
+import pytest
 from pygran_liggghts.library import find_library
 
 from pygran_core import simulation
-from pygran_core.errors import InsertionWarning
+from pygran_core.errors import ConfigError, InsertionWarning
 from pygran_core.simulation import geometry
 from pygran_core.testing.solvers import require_solver
 from pygran_core.testing.validation import SOFT as MATERIAL
@@ -96,3 +97,18 @@ def test_inside_the_drum_liggghts_inserts_by_rate_itself(tmp_path):
         x = sim.extractCoords()
     assert "insert/rate/region" in (tmp_path / "in.pygran").read_text()
     assert len(x) > 100 and clearance(x).min() > 0.99
+
+
+def test_moving_the_mesh_while_pygran_inserts_across_it_is_refused(tmp_path):
+    """PyGran places clear of the mesh where it stands; a moving mesh's position is LIGGGHTS'."""
+    with dem(tmp_path) as sim:
+        sim.setupWall(species=1, wtype="mesh", mesh="drum")
+        inserting = sim.insert(species=1, value=1e5, region=BLOCK, insert="by_rate", freq=100)
+        with pytest.raises(
+            ConfigError, match=r"moveMesh\('drum'\) while the insertion .* Remove that insertion"
+        ):
+            sim.moveMesh("drum", rotate=True, axis=(0, 1, 0), origin=(0, 0, 0), omega=1.0)
+        sim.remove(inserting)
+        sim.moveMesh("drum", rotate=True, axis=(0, 1, 0), origin=(0, 0, 0), omega=1.0)
+        sim.run(200)
+        assert len(sim.extractCoords()) == 100  # the batch made at the call only

@@ -17,7 +17,12 @@ event, so that the particles lost are seen first (see :meth:`LiggghtsEngine._los
 Every command sent is appended to ``<output>/in.pygran``, which reruns unchanged with the
 ``liggghts`` binary; angular velocities, which no LIGGGHTS 3.8 command sets, are written
 into its arrays and only noted there in a comment. LIGGGHTS' screen output goes to
-``<output>/liggghts.log``.
+``<output>/liggghts.log``. Mesh frames are LIGGGHTS' own files, indexed in a ``.pvd`` as
+PyGran's VTK series are (see :meth:`LiggghtsEngine._index_meshes`).
+
+LIGGGHTS' ``fix insert`` keeps new particles clear of other particles, not of mesh walls: an
+insertion into a region that a mesh wall crosses is made by PyGran instead, as the placing
+engines make it (see :meth:`LiggghtsEngine._insert_clear`).
 """
 
 from __future__ import annotations
@@ -1036,8 +1041,9 @@ class LiggghtsEngine(Engine):
                 mesh = given(wall.mesh, "a mesh wall's mesh")
                 if mesh in moving:
                     raise UnsupportedFeature(
-                        f"{call} on LIGGGHTS while mesh {mesh!r} moves (its current position is "
-                        f"LIGGGHTS'), into a region near it: make it before moveMesh"
+                        f"{call} on LIGGGHTS while mesh {mesh!r} moves: PyGran places these particles "
+                        "clear of the walls, and the mesh's current position is LIGGGHTS'; make them "
+                        "before moveMesh"
                     )
                 triangles.append(meshes[mesh].triangles())
             elif wall.axis and wall.centre and wall.radius:
@@ -1122,6 +1128,14 @@ class LiggghtsEngine(Engine):
             raise ConfigError(
                 f"mesh {spec.mesh!r} is a servo wall, which its controller moves: LIGGGHTS cannot "
                 "move it with moveMesh too"
+            )
+        waiting = [label for label, placed in self._placings.items() if spec.mesh in placed.meshes]
+        if waiting:
+            raise ConfigError(
+                f"moveMesh({spec.mesh!r}) while the insertion {waiting[0]}, into a region the mesh crosses, "
+                "has events to come: PyGran places its particles clear of the mesh where it stands, "
+                "and a moving mesh's position is LIGGGHTS'. Remove that insertion first, or insert "
+                "into a region clear of the mesh"
             )
         label, lines = self.commands.motion(spec)
         self._execute(lines)
