@@ -3,9 +3,9 @@ the core's sampling of some species, on native's particles."""
 
 import numpy as np
 import pytest
-from PyGran.params import cohesionless, organic
 
-from PyGran import simulation
+from pygran_core import simulation
+from pygran_core.params import cohesionless, organic
 
 
 def test_a_monitor_of_one_species_sums_its_kinetic_energy_only(tmp_path):
