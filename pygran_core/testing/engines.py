@@ -97,6 +97,8 @@ MATERIAL: Mapping[str, float] = params.MATERIALS["organic"]
 G = 9.81
 GRAVITY = (G, 0.0, 0.0, -1.0)
 BOX = (-0.01, 0.01, -0.01, 0.01, -0.01, 0.01)
+#: The pair values of the pair-table checks (Dosta et al. 2024's M1-M2 pair).
+PAIR: Mapping[str, float] = {"coefficientRestitution": 0.45, "coefficientFriction": 0.2}
 #: The period of the mesh motions (a quarter of it is the time each is run for, at least).
 MOTION_PERIOD = 0.04
 #: The settle runs until the slowest vibration about rest has fallen to this fraction.
@@ -1066,6 +1068,57 @@ class EngineConformance:
             np.testing.assert_allclose(again[key], straight[key], rtol=1e-9, atol=1e-15, err_msg=key)
 
     # -- contact models and materials -----------------------------------------------------------------
+
+    def pair_scene(self, output: Path, material: Mapping[str, float], **keywords: Any) -> DEM:
+        """Species 1 and 2 of ``material`` (species 1 with friction 0.5, 2 with none, so that
+        mixing gives none) and a floor of species 2 at z = 0; pair (1, 2) from :data:`PAIR`."""
+        species = (
+            {"material": dict(material, coefficientFriction=0.5), "radius": RADIUS},
+            {"material": dict(material), "radius": RADIUS},
+        )
+        sim = self.dem(output, species=species, pairs={(2, 1): dict(PAIR)}, **keywords)
+        sim.setupWall(species=2, plane="zplane", peq=0.0)
+        return sim
+
+    def test_pair_table_bounce(self, tmp_path):
+        """A sphere of species 1 hitting a floor of species 2 rebounds with the pair's
+        restitution (0.45, not the species' 0.9 mixed): the reference model's, within 2 %."""
+        material = dict(MATERIAL, coefficientRestitution=0.9)
+        reference = self.model(material=dict(material, radius=RADIUS, coefficientRestitution=0.45))
+        dt = reference.contactTime(IMPACT_SPEED) / STEPS_PER_CONTACT
+        with self.pair_scene(tmp_path, material, dt=dt) as sim:
+            sim.createParticles(
+                1, "single", 0.0, 0.0, RADIUS + 0.5 * IMPACT_SPEED * dt, vel=(0, 0, -IMPACT_SPEED)
+            )
+            sim.run(4 * STEPS_PER_CONTACT)
+            rebound = sim.extractVelocities()[0, 2] / IMPACT_SPEED
+            assert "species 1 - species 2*" in (tmp_path / "pygran.log").read_text()  # the table, logged
+        want = reference_collision(reference, IMPACT_SPEED).restitution
+        assert rebound == pytest.approx(want, rel=0.02)
+        assert rebound < 0.6  # the species' own 0.9 would rebound near 0.9
+
+    def test_pair_table_slide(self, tmp_path):
+        """A sphere of species 1 sliding on a floor of species 2 decelerates at mu_pair g
+        (0.2 g; the mixed value is 0) until it rolls; with a material of only its model's
+        required keys (friction from the defaults table: 0) it keeps its speed."""
+        speed, late = 0.1, 0.006  # rolling starts at 2 v / (7 mu g) = 0.0146 s
+        measured = {}
+        required = {k: MATERIAL[k] for k in (*self.model.required, "density") if k != "radius"}
+        for name, material, pairs in (("pair", dict(MATERIAL), True), ("bare", required, False)):
+            species = (
+                {"material": material, "radius": RADIUS},
+                {"material": dict(material), "radius": RADIUS},
+            )
+            extra = {"pairs": {(1, 2): {"coefficientFriction": 0.2}}} if pairs else {}
+            with self.dem(tmp_path / name, species=species, gravity=GRAVITY, dt=self.dt(), **extra) as sim:
+                sim.setupWall(species=2, plane="zplane", peq=0.0)
+                sim.createParticles(1, "single", 0.0, -8e-3, RADIUS, vel=(0.0, speed, 0.0))
+                sim.run(round(0.001 / sim.engine.dt))  # settled on the floor
+                early = sim.time, sim.extractVelocities()[0, 1]
+                sim.run(round((late - early[0]) / sim.engine.dt))
+                measured[name] = (early[1] - sim.extractVelocities()[0, 1]) / (sim.time - early[0])
+        assert measured["pair"] == pytest.approx(0.2 * G, rel=0.01)
+        assert measured["bare"] == pytest.approx(0.0, abs=1e-6)
 
     @pytest.mark.parametrize("model", MODELS, ids=[m.__name__ for m in MODELS])
     def test_impacts(self, tmp_path, model):
