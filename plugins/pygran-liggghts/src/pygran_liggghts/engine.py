@@ -91,10 +91,6 @@ RESTART_KEY = "liggghts/restart"
 TARGET_KEY = "liggghts/targets"
 #: Queued lines of particles created one by one that are sent on without waiting.
 STREAM_LINES = 1000
-#: createParticles with this many positions or more reads them from a dump file it writes in
-#: the output folder's :data:`CREATED_DIR` (``read_dump ... add yes``), not one command each.
-BULK_CREATE = 64
-CREATED_DIR = "created"
 #: Cells along each edge of the grid :func:`reaches` lays over a triangle.
 GRID = 32
 
@@ -970,15 +966,9 @@ class LiggghtsEngine(Engine):
         radii = None  # per particle, when drawn here
         if spec.style in ("single", "lattice"):  # lattice: the front end's sites, as on every engine
             centres = spec.centres
-            box = np.array(self.spec.domain.box, float)
-            inside = bool(np.all((centres > box[:, 0]) & (centres < box[:, 1])))
-            bulk = inside and len(centres) >= BULK_CREATE
-            if bulk:
-                radii = self._bulk_create(spec, first, centres)
-                centres = centres[:0]  # created
             lines = [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
-            if inside:
-        bulk = False  # read from a file with their radii
+            box = np.array(self.spec.domain.box, float)
+            if np.all((centres > box[:, 0]) & (centres < box[:, 1])):
                 # inside the box LIGGGHTS gives them the next ids: no round trip needed
                 self._pending += lines
                 self._prepared = False
@@ -1002,7 +992,7 @@ class LiggghtsEngine(Engine):
         if radii is None or np.all(radii == radii[0]):
             radius = radii[0] if radii is not None else spec.radius or species.radius.values[0]
             values = f"diameter {fmt(2 * radius)} {values}"
-        elif not bulk:  # set density then gives each its mass from its own radius
+        else:
             self._queue([f"set atom {first + i} diameter {fmt(2 * r)}" for i, r in enumerate(radii)])
         if any(spec.velocity):
             vx, vy, vz = (fmt(v) for v in spec.velocity)
