@@ -91,6 +91,10 @@ RESTART_KEY = "liggghts/restart"
 TARGET_KEY = "liggghts/targets"
 #: Queued lines of particles created one by one that are sent on without waiting.
 STREAM_LINES = 1000
+#: createParticles with this many positions or more reads them from a dump file it writes in
+#: the output folder's :data:`CREATED_DIR` (``read_dump ... add yes``), not one command each.
+BULK_CREATE = 64
+CREATED_DIR = "created"
 #: Cells along each edge of the grid :func:`reaches` lays over a triangle.
 GRID = 32
 
@@ -964,11 +968,17 @@ class LiggghtsEngine(Engine):
         self._ungrouped = bool(self.commands.body_types)
         first = self._max_id + 1
         radii = None  # per particle, when drawn here
+        bulk = False  # read from a file with their radii
         if spec.style in ("single", "lattice"):  # lattice: the front end's sites, as on every engine
             centres = spec.centres
-            lines = [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
             box = np.array(self.spec.domain.box, float)
-            if np.all((centres > box[:, 0]) & (centres < box[:, 1])):
+            inside = bool(np.all((centres > box[:, 0]) & (centres < box[:, 1])))
+            bulk = inside and len(centres) >= BULK_CREATE
+            if bulk:
+                radii = self._bulk_create(spec, first, centres)
+                centres = centres[:0]  # created
+            lines = [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
+            if inside:
                 # inside the box LIGGGHTS gives them the next ids: no round trip needed
                 self._pending += lines
                 self._prepared = False
@@ -992,7 +1002,7 @@ class LiggghtsEngine(Engine):
         if radii is None or np.all(radii == radii[0]):
             radius = radii[0] if radii is not None else spec.radius or species.radius.values[0]
             values = f"diameter {fmt(2 * radius)} {values}"
-        else:
+        elif not bulk:  # set density then gives each its mass from its own radius
             self._queue([f"set atom {first + i} diameter {fmt(2 * r)}" for i, r in enumerate(radii)])
         if any(spec.velocity):
             vx, vy, vz = (fmt(v) for v in spec.velocity)
@@ -1003,6 +1013,31 @@ class LiggghtsEngine(Engine):
         elif len(self._pending) >= STREAM_LINES and self._session.ready():
             self._post()  # LIGGGHTS creates these while the script creates the next ones
         return count
+
+    def _bulk_create(self, spec: CreateSpec, first: int, centres: np.ndarray) -> np.ndarray:
+        """Queue ``read_dump`` of a dump file of the particles (ids from ``first``, the species'
+        type, radii) written to :data:`CREATED_DIR` of the output folder: one command, linear
+        in their number (``create_atoms single`` per particle is quadratic). Returns the radii."""
+        species = self.spec.species[spec.species - 1]
+        count = len(centres)
+        if spec.radius is None and species.radius.kind != "constant":
+            radii = species.radius.sample(count, np.random.default_rng(spec.seed))
+        else:
+            radii = np.full(count, spec.radius or species.radius.values[0])
+        path = self.output / CREATED_DIR / f"atoms-{first}.dump"
+        if self._root:
+            path.parent.mkdir(exist_ok=True)
+            ids = np.arange(first, first + count)
+            rows = np.column_stack([ids, np.full(count, spec.species), centres, radii])
+            bounds = "\n".join(f"{fmt(lo)} {fmt(hi)}" for lo, hi in self.spec.domain.box)
+            header = (
+                f"ITEM: TIMESTEP\n0\nITEM: NUMBER OF ATOMS\n{count}\nITEM: BOX BOUNDS ff ff ff\n{bounds}\n"
+                "ITEM: ATOMS id type x y z radius"
+            )
+            np.savetxt(path, rows, fmt=["%d", "%d"] + ["%.17g"] * 4, header=header, comments="")
+        self._queue([f"read_dump {self.commands.path(path)} 0 x y z radius box no add yes"])
+        self._max_id += count
+        return radii
 
     def _random_spheres(self, spec: CreateSpec) -> tuple[np.ndarray, np.ndarray]:
         """Centres and radii of ``spec.count`` spheres placed in ``spec.region`` clear of the
