@@ -2,6 +2,7 @@
 clear of particles only, so such an insertion (by pack or by rate) is made by PyGran, clear of
 the mesh, as the placing engines make it; one into the inside of the mesh stays LIGGGHTS' own."""
 
+import shutil
 import warnings
 
 import numpy as np
@@ -20,7 +21,7 @@ DRUM = geometry.drum(radius=0.02, length=0.02, axis="y")
 BLOCK = ("block", -0.019, 0.019, -0.009, 0.009, -0.019, 0.019)
 
 
-def dem(output, engine="liggghts"):
+def dem(output, engine="liggghts", **settings):
     require_solver(find_library)
     return simulation.DEM(
         engine=engine,
@@ -33,6 +34,7 @@ def dem(output, engine="liggghts"):
         mesh={"drum": {"triangles": DRUM, "material": MATERIAL}},
         traj={"pfile": None},
         progress=False,
+        **settings,
     )
 
 
@@ -112,3 +114,27 @@ def test_moving_the_mesh_while_pygran_inserts_across_it_is_refused(tmp_path):
         sim.moveMesh("drum", rotate=True, axis=(0, 1, 0), origin=(0, 0, 0), omega=1.0)
         sim.run(200)
         assert len(sim.extractCoords()) == 100  # the batch made at the call only
+
+
+def resumable(output, restart):
+    """By rate across the drum (100 every 100 steps), then, at step 300 (a checkpoint's), 5
+    particles created at random and 50 inserted at once."""
+    require_solver(find_library)
+    with dem(output, restart=restart) as sim:
+        sim.setupWall(species=1, wtype="mesh", mesh="drum")
+        sim.insert(species=1, value=1e5, region=BLOCK, insert="by_rate", freq=100, seed=3)
+        sim.run(300)
+        sim.createParticles(1, "random", 5, region=BLOCK, seed=5)
+        sim.insert(species=1, value=50, region=BLOCK, seed=4)
+        sim.run(150)
+        return len(sim.extractCoords()), sim.lost
+
+
+@pytest.mark.parametrize("step", [200, 300])
+def test_a_resumed_run_goes_on_inserting_across_the_drum(tmp_path, step):
+    """LIGGGHTS creates no atoms after reading a restart file until it has run: it runs 0 steps."""
+    straight = resumable(tmp_path / "straight", (100, "restart", "restart.*.h5"))
+    assert straight == (5 * 100 + 5 + 50, 0)  # events at steps 0, 100, ..., 400
+    shutil.copytree(tmp_path / "straight", tmp_path / "resumed")
+    restart = (100, "restart", "restart.*.h5", True, f"restart.{step}.h5")
+    assert resumable(tmp_path / "resumed", restart) == straight

@@ -291,6 +291,8 @@ class LiggghtsEngine(Engine):
                 for stale in (self.output / CONTACTS_DIR).glob("pg_*.dump"):
                     stale.unlink()
             resume = self._resume_file()
+            #: LIGGGHTS read a restart file and has not run since: it refuses create_atoms then
+            self._restored = resume is not None
             self._input = (self.output / INPUT_NAME).open("w") if self._root else None
             args = ["-screen", str(self.output / LOG_NAME), "-log", "none"]
             if comm is not None:
@@ -468,6 +470,7 @@ class LiggghtsEngine(Engine):
         self._queue(runs)
         self._max_id, losses = self._ask("run", self._take(), len(runs), sorted(self._insertions))
         self._prepared = self._computed = True
+        self._restored = False
         if any(count for count, _, _ in losses):
             self._unreported += self._lost_particles(losses, pieces, dt)
         self._report_insertions(start)
@@ -875,6 +878,7 @@ class LiggghtsEngine(Engine):
             self._obstacles("insert()"),
             spec.all_in,
         )
+        self._allow_create()
         first = self._max_id + 1
         lines = []
         for k, centre in zip(index, centres):
@@ -966,6 +970,7 @@ class LiggghtsEngine(Engine):
                 "use insert(), or createParticles for the species of single spheres"
             )
         self._ungrouped = bool(self.commands.body_types)
+        self._allow_create()
         first = self._max_id + 1
         radii = None  # per particle, when drawn here
         bulk = False  # read from a file with their radii
@@ -1013,6 +1018,16 @@ class LiggghtsEngine(Engine):
         elif len(self._pending) >= STREAM_LINES and self._session.ready():
             self._post()  # LIGGGHTS creates these while the script creates the next ones
         return count
+
+    def _allow_create(self) -> None:
+        """Let LIGGGHTS create atoms: after reading a restart file it refuses ``create_atoms``
+        until a run has set it up, so 0 steps are run then (its dumps write this step's frames
+        as the next run would)."""
+        if self._restored:
+            self._before_run()
+            self._execute(["run 0 post no"])
+            self._restored = False
+            self._computed = True
 
     def _bulk_create(self, spec: CreateSpec, first: int, centres: np.ndarray) -> np.ndarray:
         """Queue ``read_dump`` of a dump file of the particles (ids from ``first``, the species'
