@@ -619,6 +619,53 @@ def lattice_sites(region: Region, spacing: float, radius: float) -> np.ndarray:
     return sites[region.contains(sites, radius)]
 
 
+def sphere_rows(args: Sequence[Any]) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(radii, positions)`` of ``createParticles(species, 'single', rows)`` when ``rows`` gives
+    a radius per row: an ``(N, 4)`` array ``radius x y z`` or a table of
+    :func:`~pygran_core.formats.tables.read_spheres`; ``None`` for other arguments."""
+    if len(args) != 1:
+        return None
+    rows = args[0]
+    if hasattr(rows, "radius") and hasattr(rows, "positions"):
+        return np.asarray(rows.radius, float), np.asarray(rows.positions, float)
+    if np.ndim(rows) == 2 and np.shape(rows)[1] == 4:
+        table = np.asarray(rows, float)
+        return table[:, 0], table[:, 1:]
+    return None
+
+
+def parse_create_rows(
+    species: Any, args: Sequence[Any], kwargs: Mapping[str, Any], spec: SimulationSpec, seed: int
+) -> list[CreateSpec]:
+    """``createParticles(species, 'single', rows)`` with a radius per row (:func:`sphere_rows`):
+    one request per species, each row going to the species (of ``species``: ``'all'``, a
+    number or numbers) whose constant radius it has. A radius no species has, or two have, is
+    a :class:`ConfigError`."""
+    radii, positions = given(sphere_rows(args), "rows with radii")
+    if "radius" in kwargs:
+        raise ConfigError("createParticles: the rows give each particle's radius; drop radius=")
+    if not np.isfinite(radii).all() or (radii <= 0).any():
+        raise ConfigError("createParticles rows: every radius must be a finite number > 0")
+    candidates = [spec.species[k - 1] for k in parse_species_selection(species, spec)]
+    sizes = {s.type: s.radius.values[0] for s in candidates if s.radius.kind == "constant"}
+    requests = []
+    for radius in np.unique(radii):
+        owners = [k for k, r in sizes.items() if math.isclose(r, radius, rel_tol=1e-9)]
+        if len(owners) != 1:
+            rows = np.flatnonzero(radii == radius)[:5].tolist()
+            have = ", ".join(f"species {k}: {r:g} m" for k, r in sizes.items()) or "none of constant radius"
+            whose = "no species"
+            if owners:
+                whose = f"species {' and '.join(map(str, owners))}: choose one with species="
+            raise ConfigError(
+                f"createParticles rows {rows}...: radius {radius:g} m is the radius of {whose} ({have}); "
+                "give each radius a species of its own"
+            )
+        chosen = positions[radii == radius]
+        requests.append(parse_create(owners[0], "single", (chosen,), kwargs, spec, seed))
+    return requests
+
+
 def parse_create(
     species: Any, style: Any, args: Sequence[Any], kwargs: Mapping[str, Any], spec: SimulationSpec, seed: int
 ) -> CreateSpec:

@@ -180,7 +180,12 @@ class DEM:
 
     def createParticles(self, species: Any, style: str, *args: Any, **kwargs: Any) -> int:
         """Create particles now: ``'single'`` at x, y, z (or one per row of an ``(N, 3)`` array
-        of positions); ``'lattice'`` or ``'random'`` in a region. Returns how many were created."""
+        of positions, or an ``(N, 4)`` array ``radius x y z`` or a ``read_spheres`` table: each
+        radius to the species of that radius); ``'lattice'`` or ``'random'`` in a region.
+        Returns how many were created."""
+        if style == "single" and calls.sphere_rows(args) is not None:
+            requests = calls.parse_create_rows(species, args, kwargs, self.spec, self._seed())
+            return sum(self.engine.create_particles(request) for request in requests)
         return self.engine.create_particles(
             calls.parse_create(species, style, args, kwargs, self.spec, self._seed())
         )

@@ -25,6 +25,7 @@ import numpy as np
 from pygran_core import params as materials
 from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature, unknown_key
 from pygran_core.formats.stl import STLTrajectory
+from pygran_core.formats.tables import read_triangles
 from pygran_core.simulation import geometry
 from pygran_core.simulation.materials import Pairs, parse_pairs
 from pygran_core.simulation.models.base import ContactModel
@@ -798,8 +799,13 @@ def check_mesh_file(path: Path, name: str) -> None:
         )
 
 
+#: Mesh files read as text tables of triangles (nine columns a row, :func:`read_triangles`).
+TRIANGLE_TABLES = (".txt", ".txt.gz")
+
+
 def parse_mesh(name: str, value: Any, base: Path, output: Path | None = None) -> MeshSpec:
-    """A mesh of ``mesh={name: value}``: ``file`` (STL) or ``triangles`` (a
+    """A mesh of ``mesh={name: value}``: ``file`` (STL, or a text table of triangles ending in
+    ``.txt`` or ``.txt.gz``) or ``triangles`` (a
     :class:`~pygran_core.simulation.geometry.Surface` or an ``(M, 3, 3)`` array in metres,
     written to ``<output>/mesh-<name>.stl`` for the engines), ``material``, ``mtype``, ``args``
     (placement and servo keywords, see :func:`parse_placement`) and ``import`` (``False``: not
@@ -817,6 +823,10 @@ def parse_mesh(name: str, value: Any, base: Path, output: Path | None = None) ->
             "simulation.geometry.drum(...), or an (M, 3, 3) array in metres)"
         )
     inscribed = None
+    if isinstance(value.get("file"), (str, os.PathLike)) and str(value["file"]).endswith(TRIANGLE_TABLES):
+        table = Path(file_name(value["file"], f"mesh {name!r} file"))
+        triangles = read_triangles(table if table.is_absolute() else base / table)
+        value = {key: v for key, v in value.items() if key != "file"} | {"triangles": triangles}
     if "triangles" in value:
         surface = geometry.as_surface(value["triangles"], name)
         inscribed = surface.inscribed
@@ -1103,9 +1113,15 @@ class SimulationSpec:
         return max((s.radius.max for s in self.species), default=0.0)
 
     @property
+    def min_radius(self) -> float:
+        return min((s.radius.min for s in self.species), default=0.0)
+
+    @property
     def skin(self) -> float:
-        """Neighbour-list skin: ``nns_skin``, else the largest particle radius."""
-        return self.nns_skin if self.nns_skin is not None else self.max_radius
+        """Neighbour-list skin: ``nns_skin``, else the smallest particle radius. The small
+        particles set it: a skin of the largest radius (a 10 mm ball in a bed of 1 mm beads)
+        makes every small particle's list many times longer, for no fewer rebuilds."""
+        return self.nns_skin if self.nns_skin is not None else self.min_radius
 
 
 SIMULATION_KEYS = (
