@@ -75,7 +75,8 @@ def check(output):
     for (_, _, name), seen in zip(entries, points):
         with open_trajectory(output / name) as frames:
             np.testing.assert_allclose(seen, frames[0].arrays["points"], rtol=1e-6)  # VTK's float32
-    assert [name for _, _, name in entries] == [f"walls{step}.vtk" for step in STEPS]
+    # the drum stands still until step 100: LIGGGHTS' copies of its first file are not kept
+    assert [name for _, _, name in entries] == ["walls0.vtk"] * 3 + [f"walls{step}.vtk" for step in STEPS[3:]]
     np.testing.assert_array_equal(points[2], points[0])  # still
     assert np.abs(points[3] - points[2]).max() > 1e-4  # turned 0.01 rad: a corner 0.02 m out moves 0.2 mm
     return entries
@@ -83,7 +84,8 @@ def check(output):
 
 def test_liggghts_mesh_frames_are_indexed_with_their_time(tmp_path):
     study(tmp_path)
-    check(tmp_path)
+    entries = check(tmp_path)
+    assert sorted(p.name for p in tmp_path.glob("walls*.vtk")) == sorted({name for _, _, name in entries})
 
 
 def test_a_resumed_run_continues_the_index(tmp_path):

@@ -28,7 +28,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from pygran_core.errors import ReadError, UnsupportedFeature
-from pygran_core.io import Frame, PathLike, TrajectoryWriter
+from pygran_core.io import Frame, PathLike, TrajectoryWriter, open_trajectory
 
 #: What opens an index.
 PVD_HEAD = (
@@ -127,8 +127,17 @@ class SeriesWriter(TrajectoryWriter):
         self._append(_entry(time, step, self._last_file))
 
     def index_file(self, file: Path, step: int, time: float) -> None:
-        """Index ``file``, the frame at ``step`` (``time``) that a solver wrote itself."""
-        self._append(_entry(time, step, Path(os.path.relpath(file, self.index.parent)).as_posix()))
+        """Index ``file``, the frame at ``step`` (``time``) that a solver wrote itself. A file
+        holding what the last one indexed holds (time and step aside) is removed and that one
+        indexed in its place, as :meth:`write_frame` writes an unchanged frame once."""
+        with open_trajectory(file) as frames:
+            content = content_digest(frames[0])
+        if content == self._last:
+            file.unlink()
+        else:
+            self._last = content
+            self._last_file = Path(os.path.relpath(file, self.index.parent)).as_posix()
+        self._append(_entry(time, step, self._last_file))
 
     def _append(self, entry: str) -> None:
         """Add ``entry`` to the index."""
