@@ -16,9 +16,9 @@ SCRIPT = """
 import sys
 
 from pygran_core import simulation
+from pygran_core.testing.validation import SOFT
 
-material = {"youngsModulus": 5e6, "poissonsRatio": 0.45, "coefficientRestitution": 0.3,
-            "coefficientFriction": [0.2, 0.7], "density": 2500.0}
+material = dict(SOFT, coefficientFriction=[0.2, 0.7])  # one friction per run
 with simulation.DEM(engine="liggghts", model="HertzMindlin", nSim=2, box=(0, 0.01, 0, 0.01, 0, 0.01),
                     gravity=(9.81, 0, 0, -1), dt=1e-6, output=OUTPUT, progress=False,
                     species=({"material": material, "radius": [5e-4, 8e-4]},)) as sim:

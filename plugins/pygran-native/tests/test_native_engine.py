@@ -9,15 +9,9 @@ from scipy.spatial import cKDTree
 from pygran_core import analysis, simulation
 from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.simulation.models import HertzMindlin
+from pygran_core.testing.validation import SOFT
 
 SILO = Path(__file__).resolve().parents[3] / "tests" / "data" / "meshes" / "silo.stl"
-SOFT = {
-    "youngsModulus": 1e6,
-    "poissonsRatio": 0.3,
-    "coefficientRestitution": 0.5,
-    "coefficientFriction": 0.5,
-    "density": 1000.0,
-}
 
 
 def dem(tmp_path, **overrides):
@@ -70,7 +64,7 @@ def test_viscous_drag_gives_the_terminal_velocity(tmp_path):
     conformance suite checks the drag law to 1e-3 on every engine)."""
     with dem(tmp_path, dt=1e-5) as sim:
         sim.createParticles(1, "single", 0.0, 0.0, 3e-3)
-        mass = 1000.0 * 4 / 3 * np.pi * 5e-5**3
+        mass = SOFT["density"] * 4 / 3 * np.pi * 5e-5**3
         gamma = mass / 1e-3  # relaxation time 1 ms
         drag = sim.addViscous(gamma=gamma)
         sim.run(2000)  # 20 relaxation times

@@ -17,14 +17,8 @@ from pygran_core.errors import ConfigError, ReadError
 from pygran_core.io import open_trajectory
 from pygran_core.simulation.checkpoint import read_checkpoint
 from pygran_core.simulation.models import HertzMindlin
+from pygran_core.testing.validation import SOFT
 
-SOFT = {
-    "youngsModulus": 1e6,
-    "poissonsRatio": 0.3,
-    "coefficientRestitution": 0.5,
-    "coefficientFriction": 0.5,
-    "density": 1000.0,
-}
 QUANTITIES = ("x", "v", "omega", "f", "torque", "radius", "id")
 
 

@@ -16,16 +16,9 @@ from pygran_core import params, registry, simulation
 from pygran_core.errors import EngineError, UnsupportedFeature
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot, ThorntonNing
 from pygran_core.testing.solvers import in_ci, require_solver
-from pygran_core.testing.validation import GRAVITY, settle_setup
+from pygran_core.testing.validation import GRAVITY, SOFT, settle_setup
 
-MATERIAL = {
-    "youngsModulus": 5e6,
-    "poissonsRatio": 0.45,
-    "coefficientRestitution": 0.3,
-    "coefficientFriction": 0.5,
-    "density": 2500.0,
-    "characteristicVelocity": 0.5,
-}
+MATERIAL = dict(SOFT, characteristicVelocity=0.5)
 R, V0, DT = 1e-3, 0.5, 1e-7
 
 
