@@ -88,12 +88,27 @@ def vtk_dataset(points, cells, point_data, cell_data, unstructured):
     return data
 
 
+def write_series(tmp_path, name, frames, suffix):
+    """Particle frames as PyGran's writer of ``suffix`` lays them out: one file a frame, named
+    by its step (so a glob orders them and steps cannot go back)."""
+    pattern = tmp_path / f"insane-{name.replace(' ', '-')}-*{suffix}"
+    with open_writer(pattern) as out:
+        for frame in frames:
+            out.write_frame(frame)
+    return str(pattern)
+
+
 class _VTKCase(FormatConformance):
     reader = "vtk"
     test_empty_frame = None  # a VTK/STL file cannot hold an empty mesh
     exact = False  # vtk's ASCII writer prints fewer digits than a float64 needs
     unstructured = False
     binary = False
+    physical_checks = True
+    steps_from_file_names = True
+
+    def make_insane(self, tmp_path, name, frames):
+        return write_series(tmp_path, name, frames, self.suffix)
 
     def write(self, path, mesh):
         data = vtk_dataset(*mesh, self.unstructured)
@@ -223,6 +238,8 @@ class TestWriterParticles(FormatConformance):
     reader = writer = "vtk"
     suffix = ".vtk"
     metadata = ("timestep",)  # box and boundary flags have no place in a VTK file
+    physical_checks = True
+    steps_from_file_names = True  # one file a frame, named by its step: a glob orders them
 
     def sample_frames(self):
         frames = particle_frames()
@@ -239,6 +256,9 @@ class TestWriterParticles(FormatConformance):
         return str(tmp_path / "p*.vtk"), frames
 
     options = {"binary": False}
+
+    def make_insane(self, tmp_path, name, frames):
+        return write_series(tmp_path, name, frames, self.suffix)
 
 
 class TestWriterParticlesBinary(TestWriterParticles):
