@@ -1,0 +1,196 @@
+"""Run a case of Dosta et al. (2024) on one engine, or compare the engines' results.
+
+    python benchmarks/dosta2024/run.py penetration --engine liggghts --size 25k --until 0.1 --out results/
+    python benchmarks/dosta2024/run.py drum --engine native --size soft --until 5 --out results/ --resume
+    python benchmarks/dosta2024/run.py silo --engine native --size small-M1 --until 5 --out results/
+    python benchmarks/dosta2024/run.py compare results/
+
+Sizes: penetration ``25k``, ``50k``; drum ``stiff``, ``soft``; silo ``small-M1``, ``small-M2``,
+``large-M1``, ``large-M2`` (the cases are in ``cases.py``). A run writes into ``OUT``:
+``<case>-<engine>.csv`` (``time,<columns>``: the paper's observable at the paper's interval,
+written as it goes), ``<case>-<engine>.json`` (set-up time, the runs' wall time and particle-
+steps per second, the engine's settings) and the simulation's own folder ``<case>-<engine>/``
+(``pygran.log`` with progress lines, checkpoints every ``--checkpoint`` seconds of simulated
+time on the engines with restart; ``--resume`` continues from the newest). The silo's fill is
+made once, by pouring on the native engine with a fixed seed, and kept as
+``OUT/silo-<orifice>-<material>-fill.txt`` for every engine (``--fill N`` pours N spheres
+instead of 100,000, for a quick try).
+``compare`` overlays the engines' CSVs, one PNG per case, and prints the agreement table: per
+case and column the largest difference of each engine from the first engine's values at the
+common times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+import cases
+
+from pygran_core import registry, simulation
+
+SIZES = {
+    "penetration": ("25k", "50k"),
+    "drum": ("stiff", "soft"),
+    "silo": ("small-M1", "small-M2", "large-M1", "large-M2"),
+}
+
+
+def build(case: str, size: str, out: Path, fill: int) -> cases.Case:
+    if size not in SIZES[case]:
+        raise SystemExit(f"{case} sizes: {', '.join(SIZES[case])}; got {size!r}")
+    if case == "penetration":
+        return cases.penetration(size)
+    if case == "drum":
+        return cases.drum(size)
+    orifice, material = size.split("-")
+    suffix = "" if fill == cases.SILO_FILL else f"-{fill}"
+    return cases.silo(orifice, material, out / f"silo-{size}{suffix}-fill.txt", fill)
+
+
+def run(args: argparse.Namespace) -> None:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    case = build(args.case, args.size, out, args.fill)
+    label = f"{case.name}-{args.size}" if args.case == "penetration" else case.name
+    name = f"{label}-{args.engine}"
+    dt = case.keywords["dt"]
+    steps = round(case.interval / dt)
+    intervals = round(args.until / case.interval)
+    restart = None
+    if "restart" in registry.get_engine(args.engine).capabilities:
+        restart = {"freq": steps * max(1, round(args.checkpoint / case.interval)), "fname": "restart.*.h5",
+                   "resume": args.resume}  # fmt: skip
+    elif args.resume:
+        raise SystemExit(f"the {args.engine} engine has no restart: run without --resume")
+    keywords = dict(case.keywords, engine=args.engine, output=str(out / name), traj={"pfile": None})
+    if args.threads:
+        keywords["threads" if args.engine != "liggghts" else "nprocs"] = args.threads
+    table = out / f"{name}.csv"
+    rows: dict[str, list[str]] = {}
+    if args.resume and table.is_file():
+        with table.open() as handle:
+            rows = {r[0]: r for r in list(csv.reader(handle))[1:]}
+    particle_steps, start = 0, time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # particles leaving the silo are lost by design
+        with simulation.DEM(restart=restart, progress={"steps": steps * intervals}, **keywords) as sim:
+            case.setup(sim)
+            setup, start = time.perf_counter() - start, time.perf_counter()
+            if not sim.engine.replaying:
+                rows["0"] = ["0", *map(repr, case.observe(sim))]
+            for k in range(1, intervals + 1):
+                sim.run(steps)
+                if sim.engine.replaying:  # this interval's row is in the CSV already
+                    continue
+                present = len(sim.extractIds())
+                particle_steps += present * steps
+                rows[f"{k * case.interval:.6g}"] = [f"{k * case.interval:.6g}", *map(repr, case.observe(sim))]
+                write_csv(table, case.columns, rows)
+            settings = {
+                "engine": args.engine,
+                "dt": dt,
+                "skin": sim.spec.skin,
+                "nns_type": sim.spec.nns_type,
+                "threads": sim.spec.threads,
+                "nprocs": sim.spec.nprocs,
+                "particles": case.particles,
+            }
+    wall = time.perf_counter() - start
+    write_csv(table, case.columns, rows)
+    report = {
+        "case": label,
+        "until": args.until,
+        "setup_s": setup,
+        "wall_time_s": wall,
+        "particle_steps_per_s": particle_steps / wall if wall else None,
+        "settings": settings,
+    }
+    (out / f"{name}.json").write_text(json.dumps(report, indent=1))
+    print(json.dumps(report))
+
+
+def write_csv(path: Path, columns: tuple[str, ...], rows: dict[str, list[str]]) -> None:
+    ordered = sorted(rows.values(), key=lambda r: float(r[0]))
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["time", *columns])
+        writer.writerows(ordered)
+
+
+def compare(folder: Path) -> None:
+    """One PNG per case overlaying its engines, and the agreement table on stdout."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs: dict[str, dict[str, np.ndarray]] = {}
+    names: dict[str, tuple[str, ...]] = {}
+    for table in sorted(folder.glob("*.csv")):
+        label, _, engine = table.stem.rpartition("-")
+        with table.open() as handle:
+            header = next(csv.reader(handle))
+        data = np.atleast_2d(np.loadtxt(table, delimiter=",", skiprows=1))
+        runs.setdefault(label, {})[engine] = data
+        names[label] = tuple(header)
+    print(f"{'case':<24} {'column':<14} {'engine':<10} {'max |diff|':>12} {'relative':>10}  vs")
+    for label, engines in runs.items():
+        figure, axes = plt.subplots(
+            1, len(names[label]) - 1, figsize=(5 * (len(names[label]) - 1), 4), squeeze=False
+        )
+        reference_engine = sorted(engines)[0]
+        reference = engines[reference_engine]
+        for column, axis in enumerate(axes[0], start=1):
+            for engine, data in sorted(engines.items()):
+                axis.plot(data[:, 0], data[:, column], label=engine)
+                common = min(len(data), len(reference))
+                if engine != reference_engine and common:
+                    diff = np.abs(data[:common, column] - reference[:common, column]).max()
+                    scale = np.abs(reference[:common, column]).max() or 1.0
+                    print(f"{label:<24} {names[label][column]:<14} {engine:<10} {diff:>12.4g} "
+                          f"{diff / scale:>10.3g}  {reference_engine}")  # fmt: skip
+            axis.set_xlabel("time (s)")
+            axis.set_ylabel(names[label][column])
+            axis.legend()
+        figure.suptitle(label)
+        figure.tight_layout()
+        figure.savefig(folder / f"{label}.png", dpi=120)
+        plt.close(figure)
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["compare"]:
+        if len(argv) != 2:
+            raise SystemExit("usage: run.py compare DIR")
+        compare(Path(argv[1]))
+        return
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("case", choices=sorted(SIZES))
+    parser.add_argument("--engine", default="native")
+    parser.add_argument("--size", required=True)
+    parser.add_argument("--until", type=float, required=True, help="simulated seconds")
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--resume", action="store_true")
+    parser.add_argument("--checkpoint", type=float, default=0.1, help="simulated seconds between checkpoints")
+    parser.add_argument(
+        "--threads", type=int, default=None, help="threads (native, YADE) or MPI ranks (LIGGGHTS)"
+    )
+    parser.add_argument("--fill", type=int, default=cases.SILO_FILL, help="silo: spheres poured for its fill")
+    run(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    main()
