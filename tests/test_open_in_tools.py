@@ -370,7 +370,7 @@ def test_convert_a_mesh_and_a_series_back_to_a_dump(dumps, tmp_path):
 def test_convert_refuses_what_it_cannot_write(dumps, tmp_path, capsys):
     for target, extra, says in (
         ("out.xyz", [], ("dump", "h5md", "vtk", "vtp", "vtu", "pvd")),
-        ("out.stl", [], ("dump", "h5md", "vtk", "vtp", "vtu", "pvd")),
+        ("out.stl", [], ("STL holds surface meshes, not particle frames",)),
         ("out.vtk", ["--option", "colour=red"], ("binary", "index")),
         ("out.vtk", ["--dt", "-1"], ("--dt",)),
     ):

@@ -60,3 +60,10 @@ def pygran_writers() -> Iterator[WriterSpec]:
         description="HDF5 in the H5MD layout, flushed frame by frame",
         options={"group": "trajectory", "units": "si", "compression": 4, "contacts": False, "xdmf": True},
     )
+    yield WriterSpec(
+        name="stl",
+        extensions=(".stl",),
+        open=stl.STLWriter,
+        kinds=frozenset({"mesh"}),
+        description="ASCII STL surface mesh, polygons as triangle fans; '*' in the name: a file per frame",
+    )

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pygran_core.errors import ReadError
-from pygran_core.formats.base import Frame, PathLike, Trajectory
+from pygran_core.errors import ReadError, UnsupportedFeature, WriteError
+from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWriter
 
 TRIANGLE = 5  # VTK cell type
 _BINARY_TRIANGLE = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
@@ -126,3 +126,75 @@ class STLTrajectory(Trajectory):
             "cell_types": np.full(len(vertices), TRIANGLE, dtype=np.int64),
         }
         return Frame(arrays, attrs={"kind": "mesh", "point_data": [], "cell_data": [], "scale": self.scale})
+
+
+#: VTK cell types an STL file can hold, split into triangles: triangle, polygon, quad.
+SURFACE_CELLS = frozenset({TRIANGLE, 7, 9})
+
+
+class STLWriter(TrajectoryWriter):
+    """Mesh frames as ASCII STL, every coordinate written so that it reads back exactly.
+
+    Polygons and quads become fans of triangles; a frame with other cells (vertices, lines,
+    volumes) or particles is refused. An STL file holds one mesh: a ``*`` in the name writes
+    a file per frame with its step in its place, else a second frame is refused.
+    """
+
+    def __init__(self, path: PathLike) -> None:
+        self.path = Path(path)
+        self.count = 0
+
+    def write_frame(self, frame: Frame) -> None:
+        if frame.attrs.get("kind") != "mesh" or "cells" not in frame.arrays:
+            kind = frame.attrs.get("kind") or "particle"
+            raise UnsupportedFeature(f"{self.path}: STL holds surface meshes, not {kind} frames")
+        if self.count and "*" not in self.path.name:
+            raise UnsupportedFeature(
+                f"{self.path}: an STL file holds one mesh; put '*' in the name for a file per frame"
+            )
+        step = frame.timestep if frame.timestep is not None else self.count
+        target = self.path.with_name(self.path.name.replace("*", str(step)))
+        try:
+            target.write_text(stl_text(surface_triangles(frame.arrays, target)), encoding="ascii")
+        except OSError as exc:
+            raise WriteError(
+                f"{target}: frame {self.count} could not be written: {exc.strerror or exc}"
+            ) from None
+        self.count += 1
+
+
+def surface_triangles(arrays: dict[str, np.ndarray], where: PathLike) -> np.ndarray:
+    """The ``(T, 3, 3)`` triangles of a mesh frame's surface cells, polygons split as fans."""
+    points = np.asarray(arrays["points"], np.float64)
+    cells = np.asarray(arrays["cells"], np.int64).reshape(len(arrays["cells"]), -1)
+    sizes = (cells >= 0).sum(axis=1)
+    types = np.asarray(arrays.get("cell_types", np.where(sizes == 3, TRIANGLE, 7)), np.int64)
+    other = sorted(set(types.tolist()) - SURFACE_CELLS)
+    if other or (sizes < 3).any():
+        raise UnsupportedFeature(
+            f"{where}: STL holds triangles; this mesh has cells of VTK type {other or [1, 3]} "
+            "(vertices, lines or volumes): write it as .vtk or .vtu"
+        )
+    corners, owners = [np.empty((0, 3), np.int64)], [np.empty(0, np.int64)]
+    for n in np.unique(sizes):
+        rows = np.flatnonzero(sizes == n)
+        fan = np.array([[0, k, k + 1] for k in range(1, n - 1)])
+        corners.append(cells[rows][:, fan].reshape(-1, 3))
+        owners.append(np.repeat(rows, n - 2))
+    in_cell_order = np.argsort(np.concatenate(owners), kind="stable")
+    return points[np.concatenate(corners)[in_cell_order]]
+
+
+def stl_text(triangles: np.ndarray) -> str:
+    """ASCII STL of ``triangles`` with unit normals (zero for a triangle without area)."""
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    lengths = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, lengths, out=np.zeros_like(normals), where=lengths > 0)
+    lines = ["solid pygran"]
+    for normal, corners in zip(normals, triangles):
+        lines.append("facet normal " + " ".join(map(repr, normal.tolist())))
+        lines.append("outer loop")
+        lines.extend("vertex " + " ".join(map(repr, corner.tolist())) for corner in corners)
+        lines.extend(("endloop", "endfacet"))
+    lines.append("endsolid pygran")
+    return "\n".join(lines) + "\n"

@@ -5,8 +5,8 @@ import shutil
 import numpy as np
 import pytest
 
-from pygran_core.errors import ReadError
-from pygran_core.io import Frame, open_trajectory
+from pygran_core.errors import ReadError, UnsupportedFeature
+from pygran_core.io import Frame, open_trajectory, open_writer
 from pygran_core.testing.formats import FormatConformance
 
 
@@ -140,3 +140,61 @@ def test_binary_with_a_coordinate_not_finite(tmp_path):
         ReadError, match=r"a\.stl: frame 0: binary triangle 3 has a coordinate that is not finite"
     ):
         open_trajectory(tmp_path / "a.stl", format="stl")[0]
+
+
+def test_written_stl_reads_back_exactly(data_dir, tmp_path):
+    """The example hopper written by PyGran's STL writer: the same points, cells and normals."""
+    (silo,) = open_trajectory(data_dir / "meshes" / "silo.stl")
+    with open_writer(tmp_path / "copy.stl") as out:
+        out.write_frame(silo)
+    (copy,) = open_trajectory(tmp_path / "copy.stl")
+    for name in ("points", "cells", "cell_types"):
+        np.testing.assert_array_equal(copy.arrays[name], silo.arrays[name], err_msg=name)
+    normals = [
+        line.split()[2:] for line in (tmp_path / "copy.stl").read_text().splitlines() if "normal" in line
+    ]
+    corners = silo.arrays["points"][silo.arrays["cells"]]
+    expected = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    expected /= np.linalg.norm(expected, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.array(normals, float), expected, atol=1e-15)
+
+
+def test_polygons_become_fans_in_cell_order_and_a_series_needs_a_star(tmp_path):
+    points = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0.5]], float)
+    # a quad, a triangle, a pentagon (padded with -1), as VTK readers give mixed cells
+    cells = np.array([[0, 1, 2, 3, -1], [1, 4, 5, -1, -1], [0, 1, 4, 5, 3]])
+    mesh = Frame(
+        {"points": points, "cells": cells, "cell_types": np.array([9, 5, 7])}, attrs={"kind": "mesh"}
+    )
+    with open_writer(tmp_path / "walls*.stl") as out:
+        for step in (0, 10):
+            mesh.timestep = step
+            out.write_frame(mesh)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["walls0.stl", "walls10.stl"]
+    (back,) = open_trajectory(tmp_path / "walls10.stl")
+    got = back.arrays["points"][back.arrays["cells"]]
+    fans = [[0, 1, 2], [0, 2, 3], [1, 4, 5], [0, 1, 4], [0, 4, 5], [0, 5, 3]]
+    np.testing.assert_array_equal(got, points[fans])
+    with open_writer(tmp_path / "one.stl") as out:
+        out.write_frame(mesh)
+        with pytest.raises(UnsupportedFeature, match="holds one mesh; put '\\*' in the name"):
+            out.write_frame(mesh)
+
+
+def test_what_stl_cannot_hold_is_refused(tmp_path):
+    lines = Frame(
+        {"points": np.eye(3), "cells": np.array([[0, 1, -1], [0, 1, 2]]), "cell_types": np.array([3, 5])},
+        attrs={"kind": "mesh"},
+    )
+    with (
+        open_writer(tmp_path / "lines.stl") as out,
+        pytest.raises(UnsupportedFeature, match="VTK type \\[3\\]"),
+    ):
+        out.write_frame(lines)
+    particles = Frame({"x": np.zeros(2), "y": np.zeros(2), "z": np.zeros(2)})
+    with (
+        open_writer(tmp_path / "p.stl") as out,
+        pytest.raises(UnsupportedFeature, match="not particle frames"),
+    ):
+        out.write_frame(particles)
+    assert not list(tmp_path.iterdir())
