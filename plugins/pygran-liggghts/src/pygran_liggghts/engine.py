@@ -287,6 +287,7 @@ class LiggghtsEngine(Engine):
             if comm is not None and spec.nprocs not in (None, comm.size):
                 raise ConfigError(f"nprocs={spec.nprocs} differs from the {comm.size} MPI ranks of this run")
             self.commands = Commands(spec, self.material_table)
+            self.log("neighbour lists: skin %g m, style %s", spec.skin, spec.nns_type)
             if spec.traj.cfile is not None and self._root:  # frames of an earlier run are stale
                 for stale in (self.output / CONTACTS_DIR).glob("pg_*.dump"):
                     stale.unlink()

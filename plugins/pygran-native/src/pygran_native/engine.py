@@ -81,7 +81,7 @@ class NativeEngine(PlacingEngine):
             self._motions: dict[str, str] = {}
             self._drags: dict[str, ViscousSpec] = {}
             self._labels = 0
-            self.log("native solver: %d threads, skin %g m", self.solver.threads, spec.skin)
+            self.log("native solver: %d threads, neighbour skin %g m", self.solver.threads, spec.skin)
             if spec.dt is not None:
                 self.check_servo_speeds(spec.dt)
         except BaseException:
