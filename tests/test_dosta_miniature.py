@@ -1,0 +1,152 @@
+"""Dosta et al. (2024)'s inputs on the engines, in miniature: a part of the penetration bed hit
+by the steel ball (native and LIGGGHTS agree on its z(t)), the drum's triangle file turning
+about an axis through a point, beds created from the files' rows, and a bulk creation of
+10^5 particles on LIGGGHTS."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from pygran_core import params, registry, simulation
+from pygran_core.errors import ConfigError, PluginNotFound
+from pygran_core.formats.tables import read_spheres, read_triangles
+from pygran_core.io import open_trajectory
+from pygran_core.testing.solvers import in_ci, require_solver
+
+DOSTA = Path(__file__).parents[1] / "benchmarks" / "dosta2024"
+sys.path.insert(0, str(DOSTA))
+
+import cases  # noqa: E402  (the benchmark's case definitions)
+
+ENGINES = ("native", "liggghts")
+
+
+def engine_ready(engine: str) -> None:
+    """The engine and its solver: else a failure under CI, a skip elsewhere."""
+    try:
+        spec = registry.get_engine(engine)
+    except PluginNotFound as exc:
+        if in_ci():
+            pytest.fail(f"CI=true and the {engine} engine is missing: {exc}")
+        pytest.skip(str(exc))
+    if spec.locate_solver is not None:
+        require_solver(spec.locate_solver)
+
+
+def ball_track(engine: str, output: Path) -> np.ndarray:
+    """The ball's z every 0.1 ms for 2 ms: the top 12 mm of the 25k bed within 20 mm of its
+    axis (1,900 beads) on a floor, the ball touching it at 5 m/s after 0.1 ms."""
+    rows = cases.bed("25k")
+    top = rows[:, 3].max()
+    keep = (np.hypot(rows[:, 1], rows[:, 2]) < 0.02) & (rows[:, 3] > top - 0.012)
+    floor = rows[keep, 3].min() - 1e-3
+    box = (-0.025, 0.025, -0.025, 0.025, floor - 1e-3, top + 0.03)
+    case = cases.penetration(rows=rows[keep], box=box)
+    centre = (0.0, 0.0, top + 1e-3 + cases.BALL["radius"] + 5e-4)
+    keywords = dict(case.keywords, engine=engine, output=str(output), traj={"pfile": None}, progress=False)
+    track = []
+    with simulation.DEM(**keywords) as sim:
+        sim.setupWall(species=1, plane="zplane", peq=floor)
+        sim.createParticles(1, "single", rows[keep])
+        sim.createParticles(2, "single", *centre, vel=(0.0, 0.0, -cases.BALL["speed"]))
+        for _ in range(20):
+            sim.run(200)
+            track.append(case.observe(sim)[0])
+    return np.array(track)
+
+
+def test_penetration_miniature_agrees_on_native_and_liggghts(tmp_path):
+    """The ball's z(t) over 2 ms of impact on 1,900 beads: native and LIGGGHTS within 1e-4 m
+    at every 0.1 ms, and the bed slows the ball (from 5 m/s to about 4.6 m/s)."""
+    engine_ready("liggghts")
+    tracks = {engine: ball_track(engine, tmp_path / engine) for engine in ENGINES}
+    times = 1e-4 * np.arange(1, 21)
+    free = tracks["native"][0] - cases.BALL["speed"] * (times - 1e-4) - 0.5 * cases.G * (times**2 - 1e-8)
+    np.testing.assert_allclose(tracks["liggghts"], tracks["native"], rtol=0, atol=1e-4)
+    assert tracks["native"][-1] > free[-1] + 5e-4  # resisted: over 0.5 mm above free flight
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_drum_triangle_file_turns_about_an_axis_through_a_point(tmp_path, engine):
+    """The drum's 9-column wall file as a mesh, moved to a centre c and turned at 2 rad/s
+    about y through c: its written frame's corners are the originals turned by 2 t about c."""
+    engine_ready(engine)
+    walls = DOSTA / "data" / "drum_walls.txt.gz"
+    centre = np.array([0.01, 0.0, 0.02])
+    with simulation.DEM(
+        engine=engine,
+        model=simulation.models.HertzMindlin,
+        box=(-0.12, 0.13, -0.04, 0.04, -0.1, 0.13),
+        species=({"material": params.glass, "radius": 1e-3},),
+        mesh={"drum": {"file": str(walls), "material": params.steel, "move": tuple(centre)}},
+        dt=2e-7,
+        output=str(tmp_path),
+        progress=False,
+        traj={"pfile": None, "mfile": "walls*.vtk", "freq": 500},
+    ) as sim:
+        sim.moveMesh("drum", rotate=("origin", *centre), axis=(0, 1, 0), omega=2.0)
+        sim.createParticles(1, "single", *centre)
+        sim.run(500)
+        angle = 2.0 * sim.time
+    frames = sorted(tmp_path.glob("walls*.vtk"), key=lambda p: int("".join(filter(str.isdigit, p.name))))
+    points = open_trajectory(frames)[len(frames) - 1].arrays["points"]
+    turn = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]])
+    original = read_triangles(walls).reshape(-1, 3)
+    gap = cKDTree(original @ turn.T + centre).query(points)[0].max()
+    unmoved = cKDTree(original + centre).query(points)[0].max()
+    assert gap < 1e-6  # LIGGGHTS writes VTK with 7 significant digits
+    assert unmoved > 1e-5  # turned by 2e-4 rad: corners 0.1 m out moved 2e-5 m
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_drum_bed_rows_go_to_the_species_of_their_radius(tmp_path, engine):
+    """The drum file's rows (1 and 2 mm): each radius to its species, every position exact;
+    a radius no species has is refused by name."""
+    engine_ready(engine)
+    table = read_spheres(DOSTA / "data" / "drum_particles.txt.gz", strict=False)
+    case = cases.drum("stiff")
+    keywords = dict(case.keywords, engine=engine, output=str(tmp_path), progress=False, traj={"pfile": None})
+    with simulation.DEM(**keywords) as sim:
+        assert sim.createParticles("all", "single", table) == 38_000
+        x, kind, radius = sim.extractCoords(), sim.engine.extract("type"), sim.extractRadii()
+        with pytest.raises(ConfigError, match="radius 0.0015 m is the radius of no species"):
+            sim.createParticles("all", "single", np.array([[1.5e-3, 0.0, 0.0, 0.0]]))
+    assert np.count_nonzero(kind == 1) == 30_000 and np.count_nonzero(kind == 2) == 8_000
+    np.testing.assert_array_equal(radius, np.where(kind == 1, 1e-3, 2e-3))
+    order = np.lexsort(table.positions.T)
+    np.testing.assert_array_equal(x[np.lexsort(x.T)], table.positions[order])
+
+
+def test_bulk_creation_of_100k_on_liggghts(tmp_path):
+    """10^5 positions on LIGGGHTS: created within a generous 30 s (one read_dump, linear; one
+    create_atoms each took 17 s), at their exact positions, with the species' mass."""
+    engine_ready("liggghts")
+    side = 47
+    grid = (np.arange(side) + 0.5) * 2.2e-3
+    x = np.stack(np.meshgrid(grid, grid, grid, indexing="ij"), -1).reshape(-1, 3)[:100_000]
+    length = side * 2.2e-3
+    with simulation.DEM(
+        engine="liggghts",
+        model=simulation.models.HertzMindlin,
+        box=(0, length, 0, length, 0, length),
+        species=({"material": params.glass, "radius": 1e-3},),
+        dt=1e-7,
+        output=str(tmp_path),
+        progress=False,
+        traj={"pfile": None},
+    ) as sim:
+        start = time.perf_counter()
+        sim.createParticles(1, "single", x)
+        got = sim.extractCoords()
+        elapsed = time.perf_counter() - start
+        mass = sim.engine.extract("mass")
+    assert elapsed < 30, elapsed
+    np.testing.assert_array_equal(got, x)
+    np.testing.assert_allclose(mass, params.glass["density"] * 4 / 3 * np.pi * 1e-9, rtol=1e-12)
+    assert "read_dump" in (tmp_path / "in.pygran").read_text()
