@@ -10,6 +10,7 @@ Engines only read the table and rename its keys into their own.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from numbers import Integral, Real
@@ -96,7 +97,7 @@ def parse_pairs(value: Any, n_species: int, meshes: Mapping[str, bool]) -> Pairs
             if name not in PAIR_SETTABLE:
                 raise unknown_key(f"pairs {key!r} property", str(name), PAIR_SETTABLE)
             _, check, allowed = PAIR_KEYS[name]
-            if not isinstance(number, Real) or isinstance(number, bool) or not np.isfinite(number):
+            if not isinstance(number, Real) or isinstance(number, bool) or not math.isfinite(number):
                 raise ConfigError(f"pairs {key!r} {name}: expected a number, got {number!r}")
             if not check(float(number)):
                 raise ConfigError(f"pairs {key!r} {name}={number}: out of range, must be {allowed}")
@@ -185,7 +186,7 @@ def build_table(
         bad = [names[i] for i, v in enumerate(values) if not check(v)]
         if bad:
             raise ConfigError(f"{key} of {', '.join(bad)} is out of range: it must be {allowed}")
-        matrices[key] = mixing.pair_table(rule, values)
+        matrices[key] = np.asarray(mixing.pair_table(rule, values), np.float64)
     index = {f"species {k}": k - 1 for k in range(1, len(species) + 1)} | {
         f"mesh {m}": t for m, t in mesh_types.items()
     }

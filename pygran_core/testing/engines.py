@@ -1109,13 +1109,14 @@ class EngineConformance:
                 {"material": material, "radius": RADIUS},
                 {"material": dict(material), "radius": RADIUS},
             )
-            extra = {"pairs": {(1, 2): {"coefficientFriction": 0.2}}} if pairs else {}
-            with self.dem(tmp_path / name, species=species, gravity=GRAVITY, dt=self.dt(), **extra) as sim:
+            extra: dict[str, Any] = {"pairs": {(1, 2): {"coefficientFriction": 0.2}}} if pairs else {}
+            dt = self.dt()
+            with self.dem(tmp_path / name, species=species, gravity=GRAVITY, dt=dt, **extra) as sim:
                 sim.setupWall(species=2, plane="zplane", peq=0.0)
                 sim.createParticles(1, "single", 0.0, -8e-3, RADIUS, vel=(0.0, speed, 0.0))
-                sim.run(round(0.001 / sim.engine.dt))  # settled on the floor
+                sim.run(round(0.001 / dt))  # settled on the floor
                 early = sim.time, sim.extractVelocities()[0, 1]
-                sim.run(round((late - early[0]) / sim.engine.dt))
+                sim.run(round((late - early[0]) / dt))
                 measured[name] = (early[1] - sim.extractVelocities()[0, 1]) / (sim.time - early[0])
         assert measured["pair"] == pytest.approx(0.2 * G, rel=0.01)
         assert measured["bare"] == pytest.approx(0.0, abs=1e-6)

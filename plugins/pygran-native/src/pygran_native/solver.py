@@ -191,6 +191,7 @@ def _model_tables(
 
     E = per_type(E, "youngs", lambda a: a > 0)
     nu = per_type(per_type_values["poisson"], "poisson", lambda a: (a > -1) & (a < 0.5))
+
     def non_negative(name, rule):
         return pairwise(per_type_values[name], name, lambda a: a >= 0, rule)
 
