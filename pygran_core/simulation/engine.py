@@ -19,6 +19,7 @@ import ctypes
 import dataclasses
 import errno
 import fcntl
+import functools
 import hashlib
 import itertools
 import logging
@@ -68,7 +69,7 @@ from pygran_core.simulation.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
-from pygran_core.simulation.materials import build_table
+from pygran_core.simulation.materials import MaterialTable, build_table
 from pygran_core.simulation.progress import Progress
 from pygran_core.simulation.specs import SimulationSpec, TrajectorySpec, positive_float, positive_int
 from pygran_core.simulation.timestep import Assessment, Body, Limits, characteristic_speed, limits
@@ -324,14 +325,6 @@ class Engine(abc.ABC):
         self.log("%s engine opened, output in %s", self.name, self.output)
         try:
             self._check_spec(spec)
-            #: The material types and pair matrices the engine's contacts take (see materials.py).
-            self.material_table = build_table(
-                [s.material for s in spec.species],
-                [(m.name, m.material) for m in spec.meshes],
-                spec.pairs,
-                spec.model.required,
-            )
-            self.log("%s", self.material_table.describe())
         except PyGranError as exc:
             self._to_file(logging.ERROR, f"refused: {exc}")
             self._abandon()
@@ -363,6 +356,20 @@ class Engine(abc.ABC):
         self._placed: tuple[np.ndarray, np.ndarray] | None = (
             None if self._resume else (np.empty((0, 3)), np.empty(0))
         )
+
+    @functools.cached_property
+    def material_table(self) -> MaterialTable:
+        """The material types and pair matrices the engine's contacts take (see
+        materials.py), built and logged when an engine first reads it."""
+        spec = self.spec
+        table = build_table(
+            [s.material for s in spec.species],
+            [(m.name, m.material) for m in spec.meshes],
+            spec.pairs,
+            spec.model.required,
+        )
+        self.log("%s", table.describe())
+        return table
 
     def _check_spec(self, spec: SimulationSpec) -> None:
         """Refuse, before the solver starts, whatever of ``spec`` this engine cannot do."""

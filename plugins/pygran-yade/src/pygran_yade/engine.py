@@ -155,13 +155,16 @@ class YadeEngine(PlacingEngine):
 
     def __init__(self, spec: SimulationSpec) -> None:
         super().__init__(spec)
-        restitution = self.material_table.pairs.get("coefficientRestitution", np.ones(1))
-        if spec.model.kernel == "spring-dashpot" and len(set(restitution.ravel().tolist())) > 1:
+        try:
+            restitution = self.material_table.pairs.get("coefficientRestitution", np.ones(1))
+            if spec.model.kernel == "spring-dashpot" and len(set(restitution.ravel().tolist())) > 1:
+                raise UnsupportedFeature(
+                    "The yade engine runs SpringDashpot only when every material and pair has the same "
+                    "coefficientRestitution (YADE's damping ratio is per material, not per pair)"
+                )
+        except BaseException:
             self._abandon()
-            raise UnsupportedFeature(
-                "The yade engine runs SpringDashpot only when every material and pair has the same "
-                "coefficientRestitution (YADE's damping ratio is per material, not per pair)"
-            )
+            raise
         n = len(spec.species)
         # materials: species k -> k - 1; walls of species k -> n + k - 1; meshes with their own after
         self._mesh_material = {m.name: 2 * n + i for i, m in enumerate(m for m in spec.meshes if m.material)}
