@@ -184,7 +184,10 @@ class YadeEngine(PlacingEngine):
                 box=[[float(v) for v in b] for b in spec.domain.box],
                 periodic=[bool(p) for p in spec.domain.periodic],
                 dt=self.dt or 1.0,
+                # the skin is the distance pairs are listed ahead: each bound gets half of it
+                verlet=spec.skin / 2 if spec.skin > 0 else None,
             )
+            self.log("neighbour lists: skin %g m (verletDist %g m)", spec.skin, spec.skin / 2)
         except BaseException:
             if worker is not None:
                 worker.close()

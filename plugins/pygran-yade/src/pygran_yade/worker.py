@@ -115,11 +115,13 @@ class Simulation:
 
     # -- setup ----------------------------------------------------------------------------
 
-    def setup(self, model, materials, matches, gravity, box, periodic, dt):
+    def setup(self, model, materials, matches, gravity, box, periodic, dt, verlet):
         """Materials, contact law, gravity and the (periodic) cell; returns material ids.
 
         ``model`` is ``"hertz"`` or ``"linear"`` (every material then carrying ``betan``);
-        ``matches`` maps attributes of the Ip2 functor to ``(material i, material j, value)``.
+        ``matches`` maps attributes of the Ip2 functor to ``(material i, material j, value)``;
+        ``verlet`` the collider's ``verletDist`` (m; each bound's margin, so pairs within twice
+        it are found ahead), ``None`` for YADE's default.
         """
         y, O = self.yade, self.O  # noqa: E741 - YADE's own name for the scene
         O.reset()
@@ -153,6 +155,7 @@ class Simulation:
                 [y.Bo1_Sphere_Aabb(), y.Bo1_Facet_Aabb()],
                 allowBiggerThanPeriod=True,
                 sortAxis=sort_axis(periodic),
+                **({} if verlet is None else {"verletDist": verlet}),
             ),
             # hertzian: a facet's reference radius is 1e8 sphere radii, so R* = R as for a flat wall
             y.InteractionLoop(
