@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> None:
     name = f"{label}-{args.engine}"
     dt = case.keywords["dt"]
     steps = round(case.interval / dt)
-    intervals = round(args.until / case.interval)
+    total = round(args.until / dt)  # the last piece is shorter when --until is not a whole interval
     restart = None
     if "restart" in registry.get_engine(args.engine).capabilities:
         restart = {"freq": steps * max(1, round(args.checkpoint / case.interval)), "fname": "restart.*.h5",
@@ -83,18 +83,21 @@ def run(args: argparse.Namespace) -> None:
     particle_steps, start = 0, time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # particles leaving the silo are lost by design
-        with simulation.DEM(restart=restart, progress={"steps": steps * intervals}, **keywords) as sim:
+        with simulation.DEM(restart=restart, progress={"steps": total}, **keywords) as sim:
             case.setup(sim)
             setup, start = time.perf_counter() - start, time.perf_counter()
             if not sim.engine.replaying:
                 rows["0"] = ["0", *map(repr, case.observe(sim))]
-            for k in range(1, intervals + 1):
-                sim.run(steps)
+            done = 0
+            while done < total:
+                piece = min(steps, total - done)
+                sim.run(piece)
+                done += piece
                 if sim.engine.replaying:  # this interval's row is in the CSV already
                     continue
-                present = len(sim.extractIds())
-                particle_steps += present * steps
-                rows[f"{k * case.interval:.6g}"] = [f"{k * case.interval:.6g}", *map(repr, case.observe(sim))]
+                particle_steps += len(sim.extractIds()) * piece
+                now = f"{done * dt:.6g}"
+                rows[now] = [now, *map(repr, case.observe(sim))]
                 write_csv(table, case.columns, rows)
             settings = {
                 "engine": args.engine,
