@@ -174,18 +174,20 @@ def silo_keywords(orifice: str, material: str) -> dict[str, Any]:
 
 def make_silo_fill(orifice: str, material: str, path: Path, count: int, seed: int = 2024) -> np.ndarray:
     """Pour ``count`` spheres into the silo closed by a plane at its orifice, in waves of at
-    most a quarter of them, each settled for 0.3 s, on the native engine with ``seed``; the
-    rows ``radius x y z`` written to ``path`` and returned."""
+    most 12,500 into the cylinder above the spheres poured so far, each settled for 0.3 s, on
+    the native engine with ``seed``; the rows ``radius x y z`` written to ``path`` and returned."""
     keywords = silo_keywords(orifice, material)
-    waves = max(1, math.ceil(count / 25_000))
-    region = ("cylinder", "z", 0.0, 0.0, 0.09, 0.0, 0.3)
+    waves = max(1, math.ceil(count / 12_500))
     output = path.parent / f"{path.stem}-pour"
     with simulation.DEM(
         engine="native", output=str(output), seed=seed, traj={"pfile": None}, **keywords
     ) as sim:
         sim.setupWall(species=1, plane="zplane", peq=-ORIFICE_DEPTH[orifice])
         for wave in range(waves):
-            sim.insert(species=1, value=min(count - wave * (count // waves), count // waves), region=region)
+            heights = sim.extractCoords()[:, 2]
+            bottom = max(0.0, float(heights.max()) + 2 * SILO_RADIUS) if len(heights) else 0.0
+            region = ("cylinder", "z", 0.0, 0.0, 0.09, bottom, 0.31)
+            sim.insert(species=1, value=count // waves + (wave < count % waves), region=region)
             sim.run(round(0.3 / keywords["dt"]))
         rows = np.column_stack([sim.extractRadii(), sim.extractCoords()])
     np.savetxt(path, rows, fmt="%.17g", header="radius x y z")
