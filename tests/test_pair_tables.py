@@ -81,3 +81,41 @@ def test_defaults_table_and_required_keys():
         assert table.pairs[key].tolist() == [[0.0]]
     with pytest.raises(ConfigError, match="'coefficientRestitution' in every material: species 2"):
         build_table([bare, {"youngsModulus": 1e7, "poissonsRatio": 0.3}], [], (), ("coefficientRestitution",))
+
+
+@pytest.mark.parametrize("engine", ["native", "liggghts", "yade"])
+def test_a_mesh_pair_is_honoured(tmp_path, engine):
+    """A sphere sliding on a mesh plate: friction 0.5 for the sphere's material and 0 for the
+    plate's mix to 0; pairs={(1, 'plate'): 0.2} makes it decelerate at 0.2 g."""
+    from pygran_core import registry
+    from pygran_core.testing.solvers import require_solver
+
+    locate = registry.get_engine(engine).locate_solver
+    if locate is not None:
+        require_solver(locate)
+    corners = np.array(
+        [[-0.009, -0.009, 0.0], [0.009, -0.009, 0.0], [0.009, 0.009, 0.0], [-0.009, 0.009, 0.0]]
+    )
+    plate = np.array([corners[[0, 1, 2]], corners[[0, 2, 3]]])
+    # well damped (restitution 0.3): the sphere rests on the plate after the first millisecond
+    material = dict(params.glass, youngsModulus=1e7, coefficientFriction=0.5, coefficientRestitution=0.3)
+    material.pop("cohesionEnergyDensity", None)  # YADE has no cohesion
+    with simulation.DEM(
+        engine=engine,
+        model=simulation.models.HertzMindlin,
+        box=BOX,
+        species=({"material": material, "radius": 1e-3},),
+        mesh={"plate": {"triangles": plate, "material": dict(material, coefficientFriction=0.0)}},
+        pairs={(1, "plate"): {"coefficientFriction": 0.2}},
+        gravity=(9.81, 0, 0, -1),
+        dt=2e-6,
+        output=str(tmp_path),
+        progress=False,
+        traj={"pfile": None},
+    ) as sim:
+        sim.createParticles(1, "single", 0.0, -0.005, 1e-3, vel=(0.0, 0.1, 0.0))
+        sim.run(1000)
+        early = sim.time, sim.extractVelocities()[0, 1]
+        sim.run(2500)
+        deceleration = (early[1] - sim.extractVelocities()[0, 1]) / (sim.time - early[0])
+    assert deceleration == pytest.approx(0.2 * 9.81, rel=0.01)
