@@ -1,9 +1,10 @@
 """Pair (mixing) rules for a contact between two bodies 1 and 2, and the damping ratio of a
 restitution coefficient: the one place they live.
 
-Every function takes scalars or numpy arrays and broadcasts, so an engine builds a
-per-type-pair table with :func:`pair_table`, e.g.
-``pair_table(effective_modulus, E, nu)[i, j]`` is E* between types i and j.
+Every function takes scalars or numpy arrays and broadcasts, so a per-type-pair table is
+built with :func:`pair_table`, e.g. ``pair_table(effective_modulus, E, nu)[i, j]`` is E*
+between types i and j. The material table (:mod:`pygran_core.simulation.materials`) mixes the
+pairs that ``DEM(pairs=...)`` does not give with these rules.
 A wall is a body of infinite radius and mass: pass ``numpy.inf`` (the default for the
 second body of :func:`effective_radius` and :func:`effective_mass`).
 """
