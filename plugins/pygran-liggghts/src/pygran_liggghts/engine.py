@@ -295,7 +295,8 @@ class LiggghtsEngine(Engine):
             #: LIGGGHTS read a restart file and has not run since: it refuses create_atoms then
             self._restored = resume is not None
             self._input = (self.output / INPUT_NAME).open("w") if self._root else None
-            args = ["-screen", str(self.output / LOG_NAME), "-log", "none"]
+            # -nocite: LIGGGHTS would write log.cite into the script's working folder
+            args = ["-screen", str(self.output / LOG_NAME), "-log", "none", "-nocite"]
             if comm is not None:
                 self._session = LocalSession(args, comm, str(self.output))
             else:
