@@ -14,10 +14,9 @@ vary by 15 %.
 
     .venv/bin/python benchmarks/native_solver.py --n 20000 --threads 2 --repeats 3
 
-``--variants`` compares variants instead, each ``RUNTIME[:THREADS][@BUILD]``: a threading
-runtime (``team`` or ``openmp``), a thread count (default ``--threads``) and a build (a
-directory put first on ``PYTHONPATH``, holding ``pygran_native`` compiled from other sources;
-default: the installed one). For each ``--n`` (several may be given), on the machine as it is
+``--variants`` compares variants instead, each ``THREADS[@BUILD]``: a thread count and a
+build (a directory put first on ``PYTHONPATH``, holding ``pygran_native`` compiled from other
+sources; default: the installed one). For each ``--n`` (several may be given), on the machine as it is
 and while a busy loop holds a core (``--busy``), every case runs in a fresh process, the
 variants taking turns (their order alternating per round) so that a drifting host slows each
 alike. Its phases are short: ``--settle-steps`` from the lattice, and ``--bed-steps`` on a
@@ -27,8 +26,8 @@ dense bed, the 20,000-particle lattice after the 8,000 settling steps (made once
 Prints each round, then per case the median particle-steps/s of each variant and its ratio to
 the first, then one JSON line.
 
-    .venv/bin/python benchmarks/native_solver.py --variants team openmp --n 20000 1000000 --busy
-    .venv/bin/python benchmarks/native_solver.py --variants team team@/tmp/old/src --n 20000
+    .venv/bin/python benchmarks/native_solver.py --variants 2 1 --n 20000 1000000 --busy
+    .venv/bin/python benchmarks/native_solver.py --variants 2 2@/tmp/old/src --n 20000
 """
 
 from __future__ import annotations
@@ -62,9 +61,7 @@ def lattice(n: int, seed: int = 12345) -> tuple[np.ndarray, np.ndarray]:
     return box, x
 
 
-def scenario(
-    box: np.ndarray, x: np.ndarray, threads: int, runtime: str = "team", v=None, w=None, rolling: float = 0.0
-):
+def scenario(box: np.ndarray, x: np.ndarray, threads: int, v=None, w=None, rolling: float = 0.0):
     """The solver of the scenario: Hertz-Mindlin with history, periodic x and y, a floor; with
     ``rolling`` friction (cdt) the pair loop takes the per-contact path instead of batches."""
     solver = Solver(
@@ -73,7 +70,6 @@ def scenario(
         gravity=(0, 0, -9.81),
         skin=4e-4,
         threads=threads,
-        runtime=runtime,
     )
     solver.set_contact_model(
         "hertz", youngs=5e6, poisson=0.45, restitution=0.3, friction=0.5, rolling_friction=rolling
@@ -113,16 +109,14 @@ def tiled_bed(n: int, bed: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str,
     }
 
 
-def measure_variant(
-    n: int, threads: int, runtime: str, steps: tuple[int, int], bed_path: Path, rolling: float
-) -> dict:
+def measure_variant(n: int, threads: int, steps: tuple[int, int], bed_path: Path, rolling: float) -> dict:
     """Particle-steps/s of ``steps[0]`` settling steps from the lattice and ``steps[1]`` steps
-    of the tiled dense bed (each after a first call that builds the lists), on ``runtime``."""
-    solver = scenario(*lattice(n), threads=threads, runtime=runtime, rolling=rolling)
+    of the tiled dense bed (each after a first call that builds the lists)."""
+    solver = scenario(*lattice(n), threads=threads, rolling=rolling)
     solver.run(0, DT)
     settle = advance(solver, steps[0], steps[0])
     box, state = tiled_bed(n, settled_bed(bed_path))
-    solver = scenario(box, state["x"], threads, runtime, state["v"], state["w"], rolling)
+    solver = scenario(box, state["x"], threads, state["v"], state["w"], rolling)
     solver.run(1, DT)
     bed = advance(solver, steps[1], steps[1])
     return {
@@ -134,11 +128,10 @@ def measure_variant(
 
 
 def run_case(args: argparse.Namespace, n: int, variant: str) -> dict:
-    """:func:`measure_variant` of ``variant`` (``RUNTIME[:THREADS][@BUILD]``) in a fresh process."""
-    spec, _, build = variant.partition("@")
-    runtime, _, threads = spec.partition(":")
-    command = [sys.executable, __file__, "--one-variant", runtime, "--n", str(n), "--threads"]
-    command += [threads or str(args.threads), "--bed", str(args.bed)]
+    """:func:`measure_variant` of ``variant`` (``THREADS[@BUILD]``) in a fresh process."""
+    threads, _, build = variant.partition("@")
+    command = [sys.executable, __file__, "--one-variant", "--n", str(n), "--threads", threads]
+    command += ["--bed", str(args.bed)]
     command += ["--settle-steps", str(args.settle_steps), "--bed-steps", str(args.bed_steps)]
     command += ["--rolling-friction", str(args.rolling_friction)]
     env = dict(os.environ)
@@ -263,7 +256,7 @@ def main() -> None:
     parser.add_argument("--chunk", type=int, default=8000, help="most steps per Solver.run call")
     parser.add_argument("--one", action="store_true", help="run one measurement in this process")
     parser.add_argument("--repeats", type=int, default=1, help="alternating runs per thread count; best kept")
-    parser.add_argument("--variants", nargs="+", help="compare RUNTIME[:THREADS][@BUILD] variants")
+    parser.add_argument("--variants", nargs="+", help="compare THREADS[@BUILD] variants")
     parser.add_argument("--busy", action="store_true", help="with --variants: also under a busy loop")
     parser.add_argument("--settle-steps", type=int, default=2000, help="with --variants")
     parser.add_argument("--bed-steps", type=int, default=1000, help="with --variants")
@@ -271,11 +264,11 @@ def main() -> None:
     parser.add_argument(
         "--bed", type=Path, default=Path(tempfile.gettempdir()) / "pygran_settled_bed_20000.npz"
     )
-    parser.add_argument("--one-variant", choices=("team", "openmp"), help=argparse.SUPPRESS)
+    parser.add_argument("--one-variant", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one_variant:
         steps = (args.settle_steps, args.bed_steps)
-        variant = (args.threads, args.one_variant, steps, args.bed, args.rolling_friction)
+        variant = (args.threads, steps, args.bed, args.rolling_friction)
         print(json.dumps(measure_variant(args.n[0], *variant)))
         return
     if args.variants:

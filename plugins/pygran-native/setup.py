@@ -33,9 +33,8 @@ extensions = [
             "-fno-trapping-math",
             "-ffp-contract=off",
             "-pthread",
-            "-fopenmp",
         ],
-        extra_link_args=["-pthread", "-fopenmp"],
+        extra_link_args=["-pthread"],
     ),
 ]
 setup(ext_modules=cythonize(extensions, language_level=3))

@@ -303,7 +303,7 @@ cdef int run_steps(State* sim, long long nsteps, double dt) noexcept nogil:
         sim.dirty = 0
     sim.schedule.tuner.start = t0
     for s in range(nsteps):
-        if PG_TEAM_HEURISTICS and sim.schedule.nthreads > 1 and not sim.schedule.openmp:
+        if PG_TEAM_HEURISTICS and sim.schedule.nthreads > 1:
             tune(sim)
         if not fused:
             plan_measure(sim, dt, sim.dw_last)

@@ -43,7 +43,6 @@ class Core:
         gravity: Sequence[float] | np.ndarray,
         skin: float,
         threads: int,
-        openmp: bool = ...,
     ) -> None: ...
     def set_model(
         self,

@@ -1,13 +1,17 @@
 # cython: boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """Compiled core of the native DEM solver: data in C arrays, the time-step loop nogil/threaded.
 
-One ``State`` struct holds everything (``_state.pxi``, with the allocation table of the
-per-particle arrays); :class:`Core` is its Python face, and the kernels, in include files by
-concern, work on it:
+One ``State`` struct holds everything, in named parts (``particles``, ``lists``, ``walls``,
+``clumps``, ``schedule``) beside the box, contact model, clock and counters (``_state.pxi``,
+with the allocation tables of the per-particle, per-element, per-body and per-member arrays,
+which also name the arrays a checkpoint keeps); :class:`Core` is its Python face, and the
+kernels, in include files by concern, work on it:
 
 - ``_defs.pxi``: constants, and the named offsets of histories, motions, vibrations, slots;
 - ``_contact.pxi``: a contact's force from its sub-models, ``_contact_normal.pxi`` (hooke,
   hertz, Thornton-Ning; damping, cohesion), ``_contact_tangential.pxi``, ``_contact_rolling.pxi``;
+  the spring-dashpot, hertz and tangential laws themselves are ``pair_law.h``'s, which the
+  batched pair loop (``pair_batch.h``) shares;
 - ``_geometry.pxi``: wall elements (planes, cylinders, triangles);
 - ``_motion.pxi``: moving walls (rigid motion, vibration), stress meshes and servos;
 - ``_cells.pxi``: the cell grid and the triangles near each cell;
@@ -15,7 +19,8 @@ concern, work on it:
 - ``_pairs.pxi``: the pair loop (pair and wall forces) and its halos;
 - ``_integrate.pxi``: the particle loop, the drift and the time-step loop;
 - ``_clumps.pxi``: rigid clumps of spheres: the body loop, its rotation, wrapping and dropping;
-- ``_team.pxi``: parallel phases on team.h's threads, block balance, the Tuner, timers;
+- ``_team.pxi``: parallel phases on team.h's threads, timers, block balance;
+- ``_tuner.pxi``: the Tuner (team or one thread; a heuristic, see team.h);
 - ``_checkpoint.pxi``: the State as numpy arrays and back (after Core, which it uses).
 
 Layout (struct of arrays, particles stored in cell order, re-sorted at every neighbour
@@ -53,14 +58,16 @@ blocks (each in SPLIT parts), adds them up in block order. The bounds are part o
 and the order of every sum depends on the blocks only, so results are bitwise reproducible
 for a given thread count, whichever thread runs a block.
 
-The threads are the solver's own (team.h), started at the first run and asleep between
-runs; the calling thread runs the time-step loop and hands each parallel pass out to the team
+The threads are the solver's own (team.h; measured against OpenMP with passive waits and
+dynamic scheduling over the same blocks, see the plugin's README), started at the first run
+and asleep between runs; the calling thread runs the time-step loop and hands each parallel pass out to the team
 as blocks: each thread first takes its own share (the same slab step after step), then the
 blocks others have not started. So a thread whose core is taken by another program delays a
 pass by at most the block it is in, and threads with nothing to do sleep instead of spinning
 (see team.h for why that matters). The pair and particle loops are one pass of two stages: a
 part of the particle loop waits only for the pair blocks that read its rows or put forces on
-them (see force_phase).
+them (see force_phase). The team's heuristics (team.h, and the Tuner, which runs a pass on the
+calling thread alone while that is faster) are built unless PYGRAN_NATIVE_TEAM_HEURISTICS=0.
 """
 
 from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
@@ -146,8 +153,6 @@ cdef extern from "team.h":
     double pg_now() noexcept nogil
     long long pg_moves(pg_team* t) noexcept nogil
 
-from cython.parallel cimport parallel, prange, threadid
-
 import numpy as np
 cimport numpy as cnp
 
@@ -197,6 +202,7 @@ include "_integrate.pxi"
 include "_clumps.pxi"
 include "_motion.pxi"
 include "_team.pxi"
+include "_tuner.pxi"
 
 
 cdef class Core:
@@ -281,10 +287,9 @@ cdef class Core:
     def nbody(self):
         return self.s.clumps.nbody
 
-    def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads, bint openmp=False):
+    def __cinit__(self, lo, hi, periodic, gravity, double skin, int threads):
         cdef int d, a, b, c
         self.s.schedule.nthreads = threads
-        self.s.schedule.openmp = openmp
         self.s.skin = skin
         for d in range(3):
             self.s.lo[d] = lo[d]
@@ -740,7 +745,7 @@ cdef class Core:
         ``nthreads`` threads: this one runs the loop, the others (started at the first run,
         asleep between runs) take part in its parallel passes."""
         cdef int rc
-        if self.s.schedule.nthreads > 1 and not self.s.schedule.openmp:
+        if self.s.schedule.nthreads > 1:
             pg_start(self.s.schedule.team, team_task, <void*>&self.s)
         with nogil:
             rc = run_steps(&self.s, nsteps, dt)

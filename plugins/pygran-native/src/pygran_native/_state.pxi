@@ -191,7 +191,6 @@ cdef struct Clumps:
 cdef struct Schedule:
     # How the passes run: their blocks, the threads, and the timers.
     int nthreads
-    int openmp         # the phases run on OpenMP's threads instead of the team's
     int nblocks        # blocks of the pair loop
     int *pb            # rows [pb[b], pb[b + 1]) of the pair loop are block b
     int *work          # work of each row in the last pair loop (see row_work)

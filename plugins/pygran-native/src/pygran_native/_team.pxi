@@ -1,5 +1,5 @@
-# The team: parallel phases handed out in blocks to the solver's threads (team.h), the
-# balance of the pair loop's blocks, the choice between team and one thread (Tuner), timers.
+# The team: parallel phases handed out in blocks to the solver's threads (team.h), timers, and
+# the balance of the pair loop's blocks.
 
 cdef inline double lap(State* sim, int k, double since) noexcept nogil:
     """Add the wall-clock time since ``since`` to timer k; returns now."""
@@ -21,10 +21,6 @@ cdef void run_phase(State* sim, int phase, int nblocks) noexcept nogil:
     if sim.schedule.nthreads == 1 or sim.schedule.tuner.solo:
         for b in range(nblocks):
             run_block(sim, phase, b, nblocks, 0, 0)
-        return
-    if sim.schedule.openmp:
-        for b in prange(nblocks, schedule="dynamic", chunksize=1, num_threads=sim.schedule.nthreads):
-            run_block(sim, phase, b, nblocks, threadid(), 0)
         return
     take(sim, pg_begin(sim.schedule.team, phase, nblocks, 0), phase, nblocks, 0)
     pg_wait_done(sim.schedule.team)
@@ -49,31 +45,9 @@ cdef void force_phase(State* sim) noexcept nogil:
         sim.schedule.cpu[2] += t1 - t0
         sim.schedule.cpu[3] += thread_cpu() - t1
         return
-    if sim.schedule.openmp:
-        omp_force_phase(sim)
-        return
     sim.schedule.turn = 0.0
     take(sim, pg_begin(sim.schedule.team, P_FORCES, sim.schedule.nblocks, nparts), P_FORCES, sim.schedule.nblocks + nparts, 0)
     pg_wait_done(sim.schedule.team)
-
-
-cdef void omp_force_phase(State* sim) noexcept nogil:
-    """The force phase on OpenMP: the pair loop's blocks, then the particle loop's parts, each
-    handed out one at a time (dynamic schedule), in one parallel region."""
-    cdef int b, p, tid, nparts = sim.schedule.nblocks * SPLIT
-    cdef double t0, t1
-    with parallel(num_threads=sim.schedule.nthreads):
-        tid = threadid()
-        t0 = thread_cpu()
-        for b in prange(sim.schedule.nblocks, schedule="dynamic", chunksize=1):
-            pair_block(sim, b)
-        t1 = thread_cpu()
-        sim.schedule.cpu[PAD * tid + 2] += t1 - t0
-        if tid == 0:
-            sim.schedule.turn = pg_now()
-        for p in prange(nparts, schedule="dynamic", chunksize=1):
-            particle_part(sim, p, threadid(), 0)
-        sim.schedule.cpu[PAD * tid + 3] += thread_cpu() - t1
 
 
 cdef inline void await_pair(State* sim, int b, unsigned int epoch, int tid) noexcept nogil:
@@ -169,63 +143,6 @@ cdef void take(State* sim, unsigned int epoch, int phase, int nblocks, int tid) 
 cdef void team_task(void* owner, unsigned int epoch, int phase, int nblocks, int tid) noexcept nogil:
     """What the team's threads run: their part of a phase of ``owner``, a :class:`State`."""
     take(<State*>owner, epoch, phase, nblocks, tid)
-
-
-cdef double loops_cpu(const State* sim) noexcept nogil:
-    """The CPU seconds of all threads in the pair and particle loops, in all runs."""
-    cdef int t
-    cdef double total = 0.0
-    for t in range(sim.schedule.nthreads):
-        total += sim.schedule.cpu[PAD * t] + sim.schedule.cpu[PAD * t + 1]
-    return total
-
-
-cdef inline void mark_window(State* sim, double loops_wall) noexcept nogil:
-    """Keep the timers the Tuner's window that starts now is measured from: rebuilds, and the
-    pair and particle loops' wall time (``loops_wall``) and CPU time."""
-    sim.schedule.tuner.rebuilt = sim.schedule.timers[T_REBUILD]
-    sim.schedule.tuner.loops_wall = loops_wall
-    sim.schedule.tuner.loops_cpu = loops_cpu(sim)
-
-
-cdef void tune(State* sim) noexcept nogil:
-    """Before a step: time the window that ends here and choose how to run the next
-    one (see Tuner)."""
-    cdef Tuner* u = &sim.schedule.tuner
-    cdef double now = pg_now(), window, loops_wall = sim.schedule.timers[T_PAIRS] + sim.schedule.timers[T_PARTICLES]
-    cdef double one_thread
-    cdef int probe
-    if u.interval == 0.0:   # the first step with a team
-        u.interval = TUNE_MIN
-        u.next_probe = now + TUNE_WINDOW
-        u.probed = now
-        mark_window(sim, loops_wall)
-    window = u.elapsed + now - u.start - (sim.schedule.timers[T_REBUILD] - u.rebuilt)
-    if u.steps > 0 and window >= TUNE_WINDOW:
-        probe = 1 if u.solo else 0
-        u.per_step[probe] = window / u.steps
-        if u.probing:   # keep the faster mode; compare less often while the choice stands
-            u.probing = False
-            if u.per_step[probe] < u.per_step[1 - probe]:
-                u.interval = TUNE_MIN
-            else:
-                u.solo = not u.solo
-                u.interval = min(2.0 * u.interval, TUNE_MAX)
-            u.next_probe = now + u.interval
-        elif now >= u.next_probe:
-            one_thread = window - (loops_wall - u.loops_wall) + (loops_cpu(sim) - u.loops_cpu)
-            if not u.solo and window < TUNE_AHEAD * one_thread and now < u.probed + TUNE_TRUSTED:
-                u.next_probe = now + u.interval
-            else:
-                u.probing = True
-                u.solo = not u.solo
-                u.probed = now
-        u.steps = 0
-        u.elapsed = 0.0
-        u.start = now
-        mark_window(sim, loops_wall)
-    u.steps += 1
-    u.solo_steps += u.solo
 
 
 cdef inline int estimated_work(State* sim, int i) noexcept nogil:

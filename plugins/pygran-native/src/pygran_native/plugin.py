@@ -18,6 +18,6 @@ def pygran_engines():
         name="native",
         factory=NativeEngine,
         capabilities=NativeEngine.capabilities,
-        description="PyGran's own Cython/OpenMP DEM engine",
+        description="PyGran's own Cython DEM engine",
         locate_solver=locate_solver,
     )

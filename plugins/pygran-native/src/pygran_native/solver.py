@@ -270,7 +270,6 @@ class Solver:
         skin: float = 0.0,
         threads: int | None = None,
         seed: int = 0,
-        runtime: str = "team",
     ) -> None:
         box = _array(box, "box", (2, 3))
         if not np.all(box[1] > box[0]):
@@ -283,9 +282,7 @@ class Solver:
         if not (isinstance(threads, (int, np.integer)) and 1 <= threads <= MAX_THREADS):
             raise ConfigError(f"threads: must be an integer from 1 to {MAX_THREADS}, got {threads!r}.")
         self.box, self.periodic, self.threads = box, periodic, int(threads)
-        if runtime not in ("team", "openmp"):
-            raise ConfigError(f"runtime: 'team' or 'openmp', got {runtime!r}.")
-        self._core = Core(box[0], box[1], periodic, gravity, float(skin), self.threads, runtime == "openmp")
+        self._core = Core(box[0], box[1], periodic, gravity, float(skin), self.threads)
         self.rng = np.random.default_rng(seed)
         self._model: dict | None = None
         self._next_id = 0
