@@ -105,10 +105,10 @@ def test_the_study_runs_on_liggghts_under_mpi(tmp_path):
     from pygran_core.testing.solvers import require_solver
 
     require_solver(registry.get_engine("liggghts").locate_solver)
-    argv = ["demo", "--engine", "liggghts", "--nprocs", "2", "--particles", "400"]
+    argv = ["demo", "--engine", "liggghts", "--nprocs", "2", "--particles", "600"]  # a deep bed
     assert main([*argv, "--output", str(tmp_path), "--no-progress"]) == 0
     results = json.loads((tmp_path / "summary.json").read_text())["results"]
-    assert results["engine"] == "liggghts" and results["particles"] == 400
+    assert results["engine"] == "liggghts" and results["particles"] == 600
     assert 0.55 < results["packing_fraction"] < 0.66
     assert results["discharged_fraction"] > 0.9
     assert "1 by 1 by 2 MPI processor grid" in (tmp_path / "liggghts.log").read_text()
