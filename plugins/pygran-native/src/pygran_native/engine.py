@@ -32,7 +32,7 @@ SOLVER_LAW = {"spring-dashpot": "hooke", "hertz-mindlin": "hertz", "thornton-nin
 
 
 class NativeEngine(PlacingEngine):
-    """PyGran's own DEM engine (compiled Cython/OpenMP solver)."""
+    """PyGran's own DEM engine (a compiled Cython solver on its own thread team)."""
 
     name = "native"
     capabilities = frozenset(
