@@ -84,6 +84,11 @@ def insertion_steps(first: int, freq: int | None, start: int, stop: int, end: in
     return [s for s in steps if end is None or s < end]
 
 
+#: :func:`place_spheres` and :func:`place_clumps` give up after this many batches in a row
+#: placed nothing: the region is jammed.
+JAMMED = 5
+
+
 def place_spheres(
     region: Region,
     radii: np.ndarray,
@@ -100,7 +105,8 @@ def place_spheres(
     the region (whole spheres inside it when ``all_in``) are kept when they clear all
     placed spheres and every earlier candidate of their batch. Returns ``(index, centres)``:
     the centres of ``radii[index]``, for as many as fit within ``attempts`` batches or until
-    a batch places none (the caller compares the count with what it asked for).
+    :data:`JAMMED` batches in a row place none (the caller compares the count with what it
+    asked for).
     """
     radii = np.asarray(radii, float)
     bounds = region.bounds()
@@ -108,8 +114,9 @@ def place_spheres(
     placed_index: list[np.ndarray] = []
     centres_placed, radii_placed = existing[0].reshape(-1, 3), existing[1].reshape(-1)
     n_existing = len(centres_placed)
+    empty = 0  # batches in a row that placed nothing
     for _ in range(attempts):
-        if len(pending) == 0:
+        if len(pending) == 0 or empty == JAMMED:
             break
         slots = np.resize(np.arange(len(pending)), max(4 * len(pending), 64))
         r = radii[pending[slots]]
@@ -126,14 +133,11 @@ def place_spheres(
         radii_placed = np.append(radii_placed, r[keep])
         placed_index.append(pending[slots[keep]])
         pending = np.delete(pending, slots[keep])
-        if not len(keep):
-            break  # jammed: a batch of four candidates per sphere found no free place
+        empty = 0 if len(keep) else empty + 1
     index = np.concatenate(placed_index) if placed_index else np.zeros(0, int)
     return index, centres_placed[n_existing:]
 
 
-#: :func:`place_clumps` gives up after this many batches in a row placed nothing.
-JAMMED = 5
 
 
 def place_clumps(
