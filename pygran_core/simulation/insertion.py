@@ -138,8 +138,6 @@ def place_spheres(
     return index, centres_placed[n_existing:]
 
 
-
-
 def place_clumps(
     region: Region,
     shapes: Sequence[np.ndarray],
