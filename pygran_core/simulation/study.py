@@ -179,7 +179,7 @@ def child() -> None:
     """The body of a function run's process: call the function pickled in the run's folder
     (:data:`RUN_VARIABLE`) on the run's parameters and write its results, or the error (then
     exit with status 1)."""
-    import cloudpickle  # type: ignore[import-untyped]
+    import cloudpickle
 
     path = Path(os.environ[RUN_VARIABLE])
     try:
