@@ -99,6 +99,17 @@ CREATED_DIR = "created"
 GRID = 32
 
 
+def _numbered_in_turn(count: int, ranks: int) -> np.ndarray:
+    """The order to list ``count`` new atoms in a file for ``read_dump ... add yes`` so that
+    LIGGGHTS numbers them as listed before: it deals the file's atoms to the ranks in turn
+    (atom f to rank f % ranks) and then numbers the new atoms rank by rank. Entry f is the
+    position, in the intended order, of the atom the file lists f-th."""
+    listed = np.arange(count)
+    per_rank = [(count - rank + ranks - 1) // ranks for rank in range(ranks)]
+    first = np.concatenate([[0], np.cumsum(per_rank)[:-1]]).astype(int)
+    return first[listed % ranks] + listed // ranks
+
+
 def launch_world() -> Any:
     """``MPI.COMM_WORLD`` when an MPI launcher started this process, else ``None``: the core's
     :func:`~pygran_core.simulation.specs.launch_communicator`, and also for a single rank
@@ -286,6 +297,7 @@ class LiggghtsEngine(Engine):
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
             if comm is not None and spec.nprocs not in (None, comm.size):
                 raise ConfigError(f"nprocs={spec.nprocs} differs from the {comm.size} MPI ranks of this run")
+            self._ranks = comm.size if comm is not None else spec.nprocs or 1
             self.commands = Commands(spec, self.material_table)
             self.log("neighbour lists: skin %g m, style %s", spec.skin, spec.nns_type)
             if spec.traj.cfile is not None and self._root:  # frames of an earlier run are stale
@@ -1046,6 +1058,7 @@ class LiggghtsEngine(Engine):
             path.parent.mkdir(exist_ok=True)
             ids = np.arange(first, first + count)
             rows = np.column_stack([ids, np.full(count, spec.species), centres, radii])
+            rows = rows[_numbered_in_turn(count, self._ranks)]
             bounds = "\n".join(f"{fmt(lo)} {fmt(hi)}" for lo, hi in self.spec.domain.box)
             header = (
                 f"ITEM: TIMESTEP\n0\nITEM: NUMBER OF ATOMS\n{count}\nITEM: BOX BOUNDS ff ff ff\n{bounds}\n"
