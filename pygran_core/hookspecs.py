@@ -35,6 +35,7 @@ CAPABILITIES = frozenset(
         "primitive-walls",  # analytic planes and cylinders
         "periodic",  # periodic boundaries
         "polydisperse",  # size distributions within a species
+        "pair-tables",  # DEM(pairs=...): per-pair material values, read from the material table
         "multisphere",  # clumped spheres
         "spring-dashpot",
         "hertz-mindlin",

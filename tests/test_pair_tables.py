@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pygran_core import params, simulation
-from pygran_core.errors import ConfigError
+from pygran_core.errors import ConfigError, UnsupportedFeature
 from pygran_core.simulation.materials import build_table
 
 BOX = (-0.01, 0.01, -0.01, 0.01, -0.01, 0.01)
@@ -119,3 +119,18 @@ def test_a_mesh_pair_is_honoured(tmp_path, engine):
         sim.run(2500)
         deceleration = (early[1] - sim.extractVelocities()[0, 1]) / (sim.time - early[0])
     assert deceleration == pytest.approx(0.2 * 9.81, rel=0.01)
+
+
+def test_an_engine_without_pair_tables_refuses_them(tmp_path, with_plugins):
+    """A plugin engine that does not read the material table (the toy plugin's) cannot honour
+    pairs=: refused before it starts, naming the engines that can."""
+    with_plugins("pygran-toy")
+    species = ({"material": params.glass, "radius": 1e-3},)
+    with pytest.raises(UnsupportedFeature, match=r"pairs=.*'pair-tables'.*liggghts, native, yade"):
+        simulation.DEM(
+            engine="toy",
+            box=BOX,
+            species=species,
+            pairs={(1, 1): {"coefficientFriction": 0.2}},
+            output=str(tmp_path / "toy"),
+        )

@@ -396,6 +396,8 @@ class Engine(abc.ABC):
             self.require("mpi", "several MPI ranks (nSim, nprocs)")
         if spec.threads not in (None, 1):
             self.require("threads", "threads")
+        if spec.pairs:
+            self.require("pair-tables", "per-pair material values (pairs=)")
         if spec.nns_type != "bin":
             self.require("neighbor-styles", f"the neighbour-list style nns_type={spec.nns_type!r}")
         if spec.traj.dump_modify:

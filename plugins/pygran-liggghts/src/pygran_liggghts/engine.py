@@ -143,6 +143,7 @@ LIGGGHTS_CAPABILITIES = frozenset(
         "primitive-walls",
         "periodic",
         "polydisperse",
+        "pair-tables",
         "multisphere",
         "spring-dashpot",
         "hertz-mindlin",

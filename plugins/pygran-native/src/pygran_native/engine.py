@@ -53,6 +53,7 @@ class NativeEngine(PlacingEngine):
             "monitor-species",
             "servo-walls",
             "polydisperse",
+            "pair-tables",
             "insert-by-rate",
             "threads",
             "restart",

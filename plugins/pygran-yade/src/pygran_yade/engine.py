@@ -146,6 +146,7 @@ class YadeEngine(PlacingEngine):
             "mesh-walls",
             "moving-mesh",
             "polydisperse",
+            "pair-tables",
             "insert-by-rate",
             "threads",
             "raw-commands",
