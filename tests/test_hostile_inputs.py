@@ -124,6 +124,16 @@ def test_a_word_or_path_liggghts_would_misread_is_refused(tmp_path, settings, na
     assert not (tmp_path / "X").exists()
 
 
+def test_a_raw_command_is_one_line(tmp_path):
+    """A line break in command() would be a second command in the saved input (and lost live)."""
+    with simulation.DEM(**valid(tmp_path / "out", "liggghts")) as sim:
+        with pytest.raises(ConfigError, match=r"command 'variable a equal 1\\nshell touch X' holds '\\n'"):
+            sim.command("variable a equal 1\nshell touch X")
+        sim.command("variable a equal 1")
+    assert "shell" not in (tmp_path / "out" / "in.pygran").read_text()
+    assert not (tmp_path / "X").exists()
+
+
 def test_a_mesh_file_liggghts_cannot_name_is_refused(tmp_path):
     folder = tmp_path / "mesh$dir"
     folder.mkdir()

@@ -53,7 +53,7 @@ from pygran_core.io import Frame, open_trajectory
 from pygran_core.simulation import clumps
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
 from pygran_core.simulation.engine import Engine, LostParticles, before_resume, exit_faces
-from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, given, launch_communicator
+from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, control_characters, given, launch_communicator
 from pygran_liggghts.commands import (
     BODY_ENERGY,
     CONTACT_COMPUTES,
@@ -1227,6 +1227,12 @@ class LiggghtsEngine(Engine):
         return label
 
     def _command(self, text: str) -> None:
+        bad = control_characters(text)
+        if bad:
+            raise ConfigError(
+                f"command {text!r} holds {', '.join(bad)}: LIGGGHTS takes one command a call, and the "
+                "saved input would read a line break as a second one; call command() once per line"
+            )
         self._queue([text])
         self._flush()  # now: the user expects its effect (and errors) at once
 
