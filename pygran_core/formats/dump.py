@@ -29,9 +29,10 @@ import os
 import re
 import zlib
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import IO, Any
 
@@ -413,8 +414,14 @@ def _scan(
     return blocks, kept
 
 
+#: Makes the ReadError of a frame's line: ``fail(line, message)``.
+_Fail = Callable[[int, str], ReadError]
+
+
 @dataclass
 class _Header:
+    """A frame's ``ITEM:`` lines up to its atom (or entry) columns, and where its rows start."""
+
     timestep: int | None = None
     time: float | None = None
     natoms: int | None = None
@@ -427,6 +434,93 @@ class _Header:
     natoms_line: int = 0
     body: int = 0  # byte offset of the atom block within the frame
     body_line: int = 0  # its line number
+
+    @classmethod
+    def parse(cls, data: bytes, line_no: int, extra_columns: frozenset[str], fail: _Fail) -> _Header:
+        """The header of the frame ``data`` whose first line is ``line_no``; ``extra_columns``
+        are accepted besides the known and custom ones (:func:`_check_columns`)."""
+        header = cls()
+        pos = 0
+
+        def next_line() -> str:
+            nonlocal pos, line_no
+            end = data.find(b"\n", pos)
+            if end < 0:
+                if pos >= len(data):
+                    raise fail(line_no, "the frame is truncated inside its header")
+                end = len(data)
+            text = data[pos:end].decode("latin-1").strip()
+            pos, line_no = end + 1, line_no + 1
+            return text
+
+        def number(kind: type, text: str, what: str) -> Any:
+            try:
+                return kind(text)
+            except ValueError:
+                raise fail(line_no - 1, f"{what} {text!r} is not a number") from None
+
+        while True:
+            item = next_line()
+            if not item.startswith("ITEM:"):
+                raise fail(line_no - 1, f"expected an ITEM: line, found {item[:60]!r}")
+            words = item[5:].split()
+            name = " ".join(words)
+            if name == "TIMESTEP":
+                header.timestep = number(int, next_line(), "timestep")
+            elif name == "TIME":
+                header.time = number(float, next_line(), "time")
+            elif name == "UNITS":
+                header.units = next_line()
+            elif name in ("NUMBER OF ATOMS", "NUMBER OF ENTRIES"):
+                header.natoms = number(int, next_line(), "atom count" if name[10] == "A" else "entry count")
+                header.natoms_line = line_no - 1
+                if not 0 <= header.natoms <= MAX_ATOMS:
+                    raise fail(line_no - 1, f"atom count {header.natoms} is outside 0 to {MAX_ATOMS}")
+            elif name.startswith("BOX BOUNDS"):
+                flags = words[2:]
+                triclinic = flags[:3] == ["xy", "xz", "yz"]
+                flags = flags[3:] if triclinic else flags
+                header.boundary = tuple(flags) if len(flags) == 3 else None
+                rows = []
+                for _ in range(3):
+                    text = next_line()
+                    values = [number(float, v, "box bound") for v in text.split()]
+                    if len(values) != (3 if triclinic else 2):
+                        raise fail(line_no - 1, f"bad box bounds line {text!r}")
+                    rows.append(values)
+                table = np.array(rows, dtype=np.float64)
+                header.box = np.ascontiguousarray(table[:, :2])
+                header.tilt = table[:, 2].copy() if triclinic else None
+            elif name.startswith(("ATOMS", "ENTRIES")):
+                header.columns = words[1:]
+                header.local = words[0] == "ENTRIES"
+                _check_columns(header.columns, header.local, extra_columns, partial(fail, line_no - 1))
+                break
+            else:
+                raise fail(line_no - 1, f"unknown header item {item!r}")
+        if header.natoms is None:
+            noun = "ENTRIES" if header.local else "ATOMS"
+            raise fail(line_no - 1, f"the frame has no ITEM: NUMBER OF {noun}")
+        header.body, header.body_line = pos, line_no
+        return header
+
+
+def _check_columns(
+    columns: list[str], local: bool, extra_columns: frozenset[str], fail: Callable[[str], ReadError]
+) -> None:
+    """Refuse an unknown, repeated or missing column name of ``ITEM: ATOMS`` (or ``ENTRIES``)."""
+    known = LOCAL_COLUMNS if local else KNOWN_COLUMNS
+    for name in columns:
+        if name in known or name in extra_columns or CUSTOM_COLUMN.match(name):
+            continue
+        raise fail(
+            f"unknown column {name!r}.{did_you_mean(name, known)} "
+            "Pass extra_columns=[...] to read it as floats."
+        )
+    if len(set(columns)) != len(columns):
+        raise fail(f"repeated column names in {columns}")
+    if not columns:
+        raise fail(f"ITEM: {'ENTRIES' if local else 'ATOMS'} names no columns")
 
 
 class DumpTrajectory(Trajectory):
@@ -566,7 +660,7 @@ class DumpTrajectory(Trajectory):
         data = self._read_bytes(index, block)
         kept = self._kept.get(block.file)
         ahead = None if kept is None else kept.take(block.start)
-        header = self._parse_header(index, data)
+        header = self._header(index, data)
         table = self._parse_atoms(index, data, header, ahead)
         frame = self._build_frame(index, header, table)
         self._check_sanity(index, block, frame)
@@ -605,7 +699,7 @@ class DumpTrajectory(Trajectory):
         head = self._read_bytes(
             index, _Block(block.file, block.start, min(block.end, block.start + 65536), block.line)
         )
-        header = self._parse_header(index, head)
+        header = self._header(index, head)
         return {
             "timestep": header.timestep,
             "natoms": header.natoms,
@@ -614,90 +708,9 @@ class DumpTrajectory(Trajectory):
             "columns": header.columns,
         }
 
-    def _parse_header(self, index: int, data: bytes) -> _Header:
-        header = _Header()
-        line_no = self._blocks[index].line
-        pos = 0
-
-        def next_line() -> str:
-            nonlocal pos, line_no
-            end = data.find(b"\n", pos)
-            if end < 0:
-                if pos >= len(data):
-                    raise self._error(index, line_no, "the frame is truncated inside its header")
-                end = len(data)
-            text = data[pos:end].decode("latin-1").strip()
-            pos, line_no = end + 1, line_no + 1
-            return text
-
-        def number(kind: type, text: str, what: str) -> Any:
-            try:
-                return kind(text)
-            except ValueError:
-                raise self._error(index, line_no - 1, f"{what} {text!r} is not a number") from None
-
-        while True:
-            item = next_line()
-            if not item.startswith("ITEM:"):
-                raise self._error(index, line_no - 1, f"expected an ITEM: line, found {item[:60]!r}")
-            words = item[5:].split()
-            name = " ".join(words)
-            if name == "TIMESTEP":
-                header.timestep = number(int, next_line(), "timestep")
-            elif name == "TIME":
-                header.time = number(float, next_line(), "time")
-            elif name == "UNITS":
-                header.units = next_line()
-            elif name in ("NUMBER OF ATOMS", "NUMBER OF ENTRIES"):
-                header.natoms = number(int, next_line(), "atom count" if name[10] == "A" else "entry count")
-                header.natoms_line = line_no - 1
-                if not 0 <= header.natoms <= MAX_ATOMS:
-                    raise self._error(
-                        index, line_no - 1, f"atom count {header.natoms} is outside 0 to {MAX_ATOMS}"
-                    )
-            elif name.startswith("BOX BOUNDS"):
-                flags = words[2:]
-                triclinic = flags[:3] == ["xy", "xz", "yz"]
-                flags = flags[3:] if triclinic else flags
-                header.boundary = tuple(flags) if len(flags) == 3 else None
-                rows = []
-                for _ in range(3):
-                    text = next_line()
-                    values = [number(float, v, "box bound") for v in text.split()]
-                    if len(values) != (3 if triclinic else 2):
-                        raise self._error(index, line_no - 1, f"bad box bounds line {text!r}")
-                    rows.append(values)
-                table = np.array(rows, dtype=np.float64)
-                header.box = np.ascontiguousarray(table[:, :2])
-                header.tilt = table[:, 2].copy() if triclinic else None
-            elif name.startswith(("ATOMS", "ENTRIES")):
-                header.columns = words[1:]
-                header.local = words[0] == "ENTRIES"
-                self._check_columns(index, line_no - 1, header.columns, header.local)
-                break
-            else:
-                raise self._error(index, line_no - 1, f"unknown header item {item!r}")
-        if header.natoms is None:
-            noun = "ENTRIES" if header.local else "ATOMS"
-            raise self._error(index, line_no - 1, f"the frame has no ITEM: NUMBER OF {noun}")
-        header.body, header.body_line = pos, line_no
-        return header
-
-    def _check_columns(self, index: int, line: int, columns: list[str], local: bool) -> None:
-        known = LOCAL_COLUMNS if local else KNOWN_COLUMNS
-        for name in columns:
-            if name in known or name in self.extra_columns or CUSTOM_COLUMN.match(name):
-                continue
-            raise self._error(
-                index,
-                line,
-                f"unknown column {name!r}.{did_you_mean(name, known)} "
-                "Pass extra_columns=[...] to read it as floats.",
-            )
-        if len(set(columns)) != len(columns):
-            raise self._error(index, line, f"repeated column names in {columns}")
-        if not columns:
-            raise self._error(index, line, f"ITEM: {'ENTRIES' if local else 'ATOMS'} names no columns")
+    def _header(self, index: int, data: bytes) -> _Header:
+        """The header of frame ``index``, whose text (or its start) is ``data``."""
+        return _Header.parse(data, self._blocks[index].line, self.extra_columns, partial(self._error, index))
 
     def _parse_atoms(self, index: int, data: bytes, header: _Header, ahead: _Ahead | None) -> np.ndarray:
         assert header.columns is not None and header.natoms is not None
