@@ -386,7 +386,7 @@ def test_the_worker_leaves_out_open_mpis_cm_pml_unless_the_user_chose_one(
     else:
         monkeypatch.setenv("OMPI_MCA_pml", chosen)
     with dem(tmp_path, nprocs=nprocs) as sim:
-        environ = (Path("/proc") / str(sim.engine._session.process.pid) / "environ").read_bytes()
+        environ = (Path("/proc") / str(sim.engine._channel.session.process.pid) / "environ").read_bytes()
         assert f"OMPI_MCA_pml={expected}".encode() in environ.split(b"\0")
         assert sim.createParticles(1, "single", 0.0, 0.0, 0.01, vel=(0.0, 0.0, -1.0)) == 1
         sim.run(10)

@@ -69,7 +69,7 @@ def test_mesh_driven_out_of_the_box(tmp_path):
 
 def test_worker_crash(tmp_path):
     with make(tmp_path / "crash") as sim:
-        os.kill(sim.engine._session.process.pid, signal.SIGKILL)
+        os.kill(sim.engine._channel.session.process.pid, signal.SIGKILL)
         with pytest.raises(EngineError, match=r"ended by SIGKILL \(Killed\)"):
             sim.run(10)
     works(tmp_path / "after")
@@ -88,7 +88,7 @@ sim = simulation.DEM(
 )
 sim.createParticles(1, "single", 0.005, 0.005, 0.005)
 sim.run(10)
-print(sim.engine._session._dir, flush=True)
+print(sim.engine._channel.session._dir, flush=True)
 time.sleep(600)
 """
 
@@ -193,7 +193,7 @@ def test_signal_inside_liggghts(tmp_path):
     messages = []
     for attempt in range(3):
         with make(tmp_path / f"segv{attempt}") as sim:
-            pid = sim.engine._session.process.pid
+            pid = sim.engine._channel.session.process.pid
             with pytest.raises(EngineError, match=r"ended by SIGSEGV \(Segmentation fault\)") as failure:
                 sim.command(f"shell kill -SEGV {pid}")
         messages.append(str(failure.value))

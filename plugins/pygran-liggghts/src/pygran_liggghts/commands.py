@@ -192,9 +192,6 @@ class Commands:
             command_path(spec.restart.directory, "restart dir", patterns=True, folder=True)
             command_path(spec.restart.directory / spec.restart.fname, "restart fname", patterns=True)
 
-    def close(self) -> None:
-        """Nothing to release: every path is named as it is (kept for the engine's close)."""
-
     @property
     def granular(self) -> str:
         """The ``model ...`` arguments shared by ``pair_style gran`` and ``fix wall/gran``."""

@@ -7,18 +7,12 @@ script itself runs under ``mpirun`` (the manual's mode), each rank loads LIGGGHT
 process; ``nSim=k`` then splits ``COMM_WORLD`` into k groups, each running its own
 simulation (there, a LIGGGHTS error ends the MPI job, as LIGGGHTS calls ``exit``).
 
-Commands wait in a queue only while the worker starts (the script goes on meanwhile) and,
-for particles created one by one, until the next request (their ``set atom`` lines merged
-into ranges) or until :data:`STREAM_LINES` are queued, which are then sent without waiting
-for the answer. A run is split into chunks (``run N pre no`` after the first when no
-command came in between, so LIGGGHTS skips its set-up), each ended after every insertion
-event, so that the particles lost are seen first (see :meth:`LiggghtsEngine._lost_particles`).
-
-Every command sent is appended to ``<output>/in.pygran``, which reruns unchanged with the
-``liggghts`` binary; angular velocities, which no LIGGGHTS 3.8 command sets, are written
-into its arrays and only noted there in a comment. LIGGGHTS' screen output goes to
-``<output>/liggghts.log``. Mesh frames are LIGGGHTS' own files, indexed in a ``.pvd`` as
-PyGran's VTK series are (see :meth:`LiggghtsEngine._index_meshes`).
+Commands go to LIGGGHTS through a :class:`~.channel.Channel`, which queues them while the
+worker starts and records them in ``<output>/in.pygran``. A run is split into chunks (``run N
+pre no`` after the first when no command came in between, so LIGGGHTS skips its set-up),
+each ended after every insertion event, so that the particles lost are seen first (see
+:meth:`LiggghtsEngine._lost_particles`). Mesh frames are LIGGGHTS' own files, indexed in a
+``.pvd`` as PyGran's VTK series are (see :meth:`LiggghtsEngine._index_meshes`).
 
 LIGGGHTS' ``fix insert`` keeps new particles clear of other particles, not of mesh walls: an
 insertion into a region that a mesh wall crosses is made by PyGran instead, as the placing
@@ -31,7 +25,6 @@ import itertools
 import logging
 import math
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
@@ -41,7 +34,6 @@ import numpy as np
 
 from pygran_core.errors import (
     ConfigError,
-    EngineError,
     InsertionWarning,
     PluginNotFound,
     PyGranWarning,
@@ -54,6 +46,7 @@ from pygran_core.simulation import clumps
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
 from pygran_core.simulation.engine import Engine, LostParticles, before_resume, exit_faces
 from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, control_characters, given, launch_communicator
+from pygran_liggghts.channel import LOG_NAME, Channel
 from pygran_liggghts.commands import (
     BODY_ENERGY,
     CONTACT_COMPUTES,
@@ -66,7 +59,6 @@ from pygran_liggghts.commands import (
 )
 from pygran_liggghts.library import ADDON_CAPABILITIES, Addon, load_addon, probe_addon
 from pygran_liggghts.screen import InsertionEvent, insertion_events
-from pygran_liggghts.session import LocalSession, WorkerSession
 
 if TYPE_CHECKING:
     from pygran_core.simulation.calls import (
@@ -82,15 +74,10 @@ if TYPE_CHECKING:
     from pygran_core.simulation.insertion import Obstacles
     from pygran_core.simulation.specs import RestartSpec, SimulationSpec
 
-INPUT_NAME = "in.pygran"
-LOG_NAME = "liggghts.log"
-WORKER_LOG_NAME = "worker.log"
 #: The checkpoint entry naming LIGGGHTS' own restart file.
 RESTART_KEY = "liggghts/restart"
 #: Checkpoint entries ``<TARGET_KEY>/<k>``: the target of the k-th insert call (by pack).
 TARGET_KEY = "liggghts/targets"
-#: Queued lines of particles created one by one that are sent on without waiting.
-STREAM_LINES = 1000
 #: createParticles with this many positions or more reads them from a dump file it writes in
 #: the output folder's :data:`CREATED_DIR` (``read_dump ... add yes``), not one command each.
 BULK_CREATE = 64
@@ -243,15 +230,6 @@ class LiggghtsEngine(Engine):
         #: Whether this process writes the simulation's files and messages (rank 0 of its group)
         self._root = comm is None or comm.rank == 0
         super().__init__(spec)
-        self._failure: EngineError | None = None
-        self._session: Any = None
-        self._input = None
-        self._prepared = False  # no command since the last run: the next may skip its set-up
-        self._pending: list[str] = []  # lines LIGGGHTS has not run yet
-        #: ``[first, last, "keyword value ..."]``: the ``set atom first*last`` still open to
-        #: particles created next with the same properties.
-        self._open_set: list[Any] | None = None
-        self._max_id = 0
         self._timestep = spec.dt
         self._walls: dict[str, WallSpec] = {}  # by label: obstacles of createParticles 'random'
         self._motions: dict[str, str] = {}  # label -> the moving mesh
@@ -307,15 +285,7 @@ class LiggghtsEngine(Engine):
             resume = self._resume_file()
             #: LIGGGHTS read a restart file and has not run since: it refuses create_atoms then
             self._restored = resume is not None
-            self._input = (self.output / INPUT_NAME).open("w") if self._root else None
-            # -nocite: LIGGGHTS would write log.cite into the script's working folder
-            args = ["-screen", str(self.output / LOG_NAME), "-log", "none", "-nocite"]
-            if comm is not None:
-                self._session = LocalSession(args, comm, str(self.output))
-            else:
-                self._session = WorkerSession(
-                    args, spec.nprocs or 1, self.output / LOG_NAME, self.output / WORKER_LOG_NAME
-                )
+            self._channel = Channel(self.output, comm, spec.nprocs or 1, self._root, self.log)
             if spec.dt is not None:
                 self.check_servo_speeds(spec.dt)
             self._execute(self.commands.setup(resume))
@@ -348,72 +318,9 @@ class LiggghtsEngine(Engine):
 
     # -- talking to LIGGGHTS ---------------------------------------------------------------
 
-    def _ask(self, name: str, *params: Any, wait: bool = True) -> Any:
-        """One request to the session (``wait=False``: its answer is checked by the next
-        one); a failure is kept and ends this simulation."""
-        if self._failure is not None:
-            raise EngineError(f"This LIGGGHTS simulation stopped after an error: {self._failure}")
-        try:
-            if wait:
-                return self._session.request(name, *params)
-            self._session.post(name, *params)
-        except EngineError as exc:
-            self._failure = exc
-            self.log("%s", exc)
-            raise
-
-    def _request(self, name: str, *params: Any) -> Any:
-        """Request ``name`` after the queued lines have run."""
-        self._flush()
-        return self._ask(name, *params)
-
-    def _queue(self, lines: list[str]) -> None:
-        """Append ``lines`` to the lines LIGGGHTS has not run yet."""
-        self._close_set()
-        self._pending += lines
-        self._prepared = False
-
-    def _flush(self) -> None:
-        """Run the queued lines in LIGGGHTS (waiting for the worker to start)."""
-        lines = self._take()
-        if lines:
-            self._max_id = self._ask("execute", lines)
-
-    def _post(self) -> None:
-        """Send the queued lines without waiting: LIGGGHTS runs them while Python goes on."""
-        self._ask("execute", self._take(), wait=False)
-
-    def _take(self) -> list[str]:
-        """The queued lines, now recorded in ``in.pygran``."""
-        self._close_set()
-        lines, self._pending = self._pending, []
-        if self._input is not None and lines:
-            self._input.write("".join(line + "\n" for line in lines))
-            self._input.flush()
-        return lines
-
     def _execute(self, lines: list[str]) -> None:
-        """Queue ``lines`` and run them now, unless the worker is still starting: then they run
-        with the first request after it has started (errors in them are raised there)."""
-        self._queue(lines)
-        if self._failure is not None or self._session.ready():
-            self._flush()
-
-    def _set_atoms(self, first: int, last: int, values: str) -> None:
-        """Queue ``set atom first*last values``, merged with the open one if it continues it."""
-        current = self._open_set
-        if current is not None and current[2] == values and current[1] + 1 == first:
-            current[1] = last
-            return
-        self._close_set()
-        self._open_set = [first, last, values]
-
-    def _close_set(self) -> None:
-        if self._open_set is not None:
-            first, last, values = self._open_set
-            self._open_set = None
-            atoms = f"{first}*{last}" if last > first else str(first)
-            self._pending.append(f"set atom {atoms} {values}")
+        """Run ``lines`` now, or once the worker has started (see :meth:`.Channel.execute`)."""
+        self._channel.execute(lines)
 
     def _resume_file(self) -> Path | None:
         """The LIGGGHTS restart file of the checkpoint being resumed (read instead of a new box):
@@ -464,7 +371,7 @@ class LiggghtsEngine(Engine):
         # except with a servo wall in mode auto, whose speed in contact LIGGGHTS derives at
         # init from the smallest particle present
         auto = any(mesh.servo and mesh.servo.mode == "auto" for mesh in self.spec.meshes)
-        pre = "pre no " if self._prepared and not lines and not auto else ""
+        pre = "pre no " if self._channel.prepared and not lines and not auto else ""
         # LIGGGHTS makes these as this run starts, asking for its target less what it counts
         self._asked = {label: self._asked_by(spec, dt) for label, spec in self._unplaced.items()}
         filling = [  # volume fractions inserted in this run, whose outcome is logged
@@ -473,7 +380,7 @@ class LiggghtsEngine(Engine):
             if spec.target == "volumefraction_region" and (label in self._unplaced or spec.freq)
         ]
         self._unplaced.clear()
-        self._queue(lines)
+        self._channel.queue(lines)
         start = self.step
         # a run stops after each insertion event, so that the particles it makes are seen
         # before they can leave: each one lost has a start to be placed from
@@ -482,9 +389,8 @@ class LiggghtsEngine(Engine):
         again = "" if auto else "pre no "
         runs = [f"run {n} {pre if k == 0 else again}post no" for k, n in enumerate(pieces)]
         self._before_run()
-        self._queue(runs)
-        self._max_id, losses = self._ask("run", self._take(), len(runs), sorted(self._insertions))
-        self._prepared = self._computed = True
+        losses = self._channel.run(runs, sorted(self._insertions))
+        self._computed = True
         self._restored = False
         if any(count for count, _, _ in losses):
             self._unreported += self._lost_particles(losses, pieces, dt)
@@ -518,7 +424,7 @@ class LiggghtsEngine(Engine):
             return int(spec.value) - self._particles_in(spec.region, dt), True
         if self.commands.body_types:
             return None
-        arrays = self._request("gather", ["x", "radius", "mass"])
+        arrays = self._channel.gather("x", "radius", "mass")
         inside = spec.region.contains(arrays["x"].reshape(-1, 3))
         sizes = [
             (weight * fraction, 4 / 3 * math.pi * radius**3, self.spec.species[index - 1].density)
@@ -600,7 +506,7 @@ class LiggghtsEngine(Engine):
     def _log_fractions(self, labels: list[str], step: int) -> None:
         """Log the volume fraction the regions of by-pack insertions ``labels`` hold at ``step``
         (collective: every rank gathers)."""
-        arrays = self._request("gather", ["x", "radius"])
+        arrays = self._channel.gather("x", "radius")
         for label in labels:
             spec = self._insertions[label]
             inside = spec.region.contains(arrays["x"].reshape(-1, 3))
@@ -684,7 +590,7 @@ class LiggghtsEngine(Engine):
         would make one particle more or fewer than asked."""
         bodies = bool(self.commands.body_types)
         names = ["x", "v", "f", "mass", *(["mol", "type"] if bodies else [])]
-        arrays = self._request("gather", names)
+        arrays = self._channel.gather(*names)
         x, v, f = (arrays[name].reshape(-1, 3) for name in ("x", "v", "f"))
         single = arrays["mol"] < 0 if bodies else np.ones(len(x), bool)
         if dt is not None:
@@ -698,7 +604,7 @@ class LiggghtsEngine(Engine):
         return int(np.count_nonzero(region.contains(points)))
 
     def _extract(self, quantity: str) -> np.ndarray:
-        return self._request("gather", [quantity])[quantity]
+        return self._channel.gather(quantity)[quantity]
 
     def bodies(self) -> np.ndarray:
         """The body each particle belongs to, ordered by id as :meth:`extract`: LIGGGHTS'
@@ -712,7 +618,7 @@ class LiggghtsEngine(Engine):
     def _scalar(self, quantity: str) -> float:
         if quantity in ("ke", "ke_rot"):
             return self._energy(quantity, None)
-        return float(self._request("natoms")) if quantity == "n" else super()._scalar(quantity)
+        return float(self._channel.request("natoms")) if quantity == "n" else super()._scalar(quantity)
 
     def _species_scalar(self, quantity: str, species: tuple[int, ...]) -> float:
         if quantity in ("ke", "ke_rot"):
@@ -732,7 +638,7 @@ class LiggghtsEngine(Engine):
                 "multisphere bodies are over every body; monitor species='all', or species of single spheres"
             )
         names = ["v", "omega", "radius", "mass", *(["mol"] if bodies else []), *(["type"] if species else [])]
-        arrays = self._request("gather", names)
+        arrays = self._channel.gather(*names)
         single = arrays["mol"] < 0 if bodies else np.ones(len(arrays["mass"]), bool)
         if species:
             single &= np.isin(arrays["type"], species)
@@ -749,7 +655,7 @@ class LiggghtsEngine(Engine):
                 self._before_run()
                 self._execute(["run 0 post no"])
                 self._computed = True
-            energy += self._request("scalar", BODY_ENERGY[quantity])
+            energy += self._channel.request("scalar", BODY_ENERGY[quantity])
         return float(energy)
 
     def _insert(self, spec: InsertSpec) -> str:
@@ -867,7 +773,7 @@ class LiggghtsEngine(Engine):
     def _lacking(self, spec: InsertSpec) -> float:
         """What the region of by-pack insertion ``spec`` lacks of its target (particles, volume
         or mass), counted as the placing engines count it."""
-        arrays = self._request("gather", ["x", "radius", "mass"])
+        arrays = self._channel.gather("x", "radius", "mass")
         inside = spec.region.contains(arrays["x"].reshape(-1, 3))
         if spec.target == "particles_in_region":
             return max(spec.value - np.count_nonzero(inside), 0.0)
@@ -884,7 +790,7 @@ class LiggghtsEngine(Engine):
         spec = placed.spec
         species, radii = draw_spheres(self.spec, spec, amount, placed.rng)
         velocities = spec.velocity.sample(len(radii), placed.rng)
-        existing = self._request("gather", ["x", "radius"])
+        existing = self._channel.gather("x", "radius")
         index, centres = place_spheres(
             spec.region,
             radii,
@@ -894,22 +800,20 @@ class LiggghtsEngine(Engine):
             spec.all_in,
         )
         self._allow_create()
-        first = self._max_id + 1
+        first = self._channel.max_id + 1
         lines = []
-        for k, centre in zip(index, centres):
+        for atom, k, centre in zip(itertools.count(first), index, centres):
             lines.append(f"create_atoms {species[k]} single {' '.join(map(fmt, centre))} units box")
             density = fmt(self.spec.species[species[k] - 1].density)
             velocity = " ".join(f"v{axis} {fmt(v)}" for axis, v in zip("xyz", velocities[k]))
-            lines.append(
-                f"set atom {self._max_id + 1} diameter {fmt(2 * radii[k])} density {density} {velocity}"
-            )
-            self._max_id += 1
-        self._queue(lines)
-        self._prepared = False
+            lines.append(f"set atom {atom} diameter {fmt(2 * radii[k])} density {density} {velocity}")
+        self._channel.queue(lines)
+        self._channel.max_id += len(index)
+        last = self._channel.max_id
         self._ungrouped = bool(self.commands.body_types)
         if any(spec.omega) and len(index):
-            self._set_omega(np.arange(first, self._max_id + 1), spec.omega, f"atoms {first}*{self._max_id}")
-        self._flush()
+            self._channel.set_omega(np.arange(first, last + 1), spec.omega, f"atoms {first}*{last}")
+        self._channel.flush()
         made, asked = len(index), len(radii)
         self.log(
             "insert at step %d: %d of %d particles, placed by PyGran clear of mesh %s",
@@ -986,7 +890,7 @@ class LiggghtsEngine(Engine):
             )
         self._ungrouped = bool(self.commands.body_types)
         self._allow_create()
-        first = self._max_id + 1
+        first = self._channel.max_id + 1
         radii = None  # per particle, when drawn here
         bulk = False  # read from a file with their radii
         if spec.style in ("single", "lattice"):  # lattice: the front end's sites, as on every engine
@@ -1000,19 +904,18 @@ class LiggghtsEngine(Engine):
             lines = [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
             if inside:
                 # inside the box LIGGGHTS gives them the next ids: no round trip needed
-                self._pending += lines
-                self._prepared = False
-                self._max_id += len(lines)
+                self._channel.queue(lines, keep_set_open=True)
+                self._channel.max_id += len(lines)
             else:
-                self._queue(lines)
-                self._flush()
+                self._channel.queue(lines)
+                self._channel.flush()
         else:
             centres, radii = self._random_spheres(spec)
-            self._queue(
+            self._channel.queue(
                 [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
             )
-            self._max_id += len(centres)  # all strictly inside the box
-        last = self._max_id
+            self._channel.max_id += len(centres)  # all strictly inside the box
+        last = self._channel.max_id
         count = max(0, last - first + 1)
         if count == 0:
             return 0
@@ -1023,15 +926,15 @@ class LiggghtsEngine(Engine):
             radius = radii[0] if radii is not None else spec.radius or species.radius.values[0]
             values = f"diameter {fmt(2 * radius)} {values}"
         elif not bulk:  # set density then gives each its mass from its own radius
-            self._queue([f"set atom {first + i} diameter {fmt(2 * r)}" for i, r in enumerate(radii)])
+            self._channel.queue([f"set atom {first + i} diameter {fmt(2 * r)}" for i, r in enumerate(radii)])
         if any(spec.velocity):
             vx, vy, vz = (fmt(v) for v in spec.velocity)
             values += f" vx {vx} vy {vy} vz {vz}"
-        self._set_atoms(first, last, values)  # sent with the next request
+        self._channel.set_atoms(first, last, values)  # sent with the next request
         if any(spec.omega):
-            self._set_omega(np.arange(first, last + 1), spec.omega, f"atoms {first}*{last}")
-        elif len(self._pending) >= STREAM_LINES and self._session.ready():
-            self._post()  # LIGGGHTS creates these while the script creates the next ones
+            self._channel.set_omega(np.arange(first, last + 1), spec.omega, f"atoms {first}*{last}")
+        else:
+            self._channel.stream()  # LIGGGHTS creates these while the script creates the next ones
         return count
 
     def _allow_create(self) -> None:
@@ -1066,8 +969,8 @@ class LiggghtsEngine(Engine):
                 "ITEM: ATOMS id type x y z radius"
             )
             np.savetxt(path, rows, fmt=["%d", "%d"] + ["%.17g"] * 4, header=header, comments="")
-        self._queue([f"read_dump {self.commands.path(path)} 0 x y z radius box no add yes"])
-        self._max_id += count
+        self._channel.queue([f"read_dump {self.commands.path(path)} 0 x y z radius box no add yes"])
+        self._channel.max_id += count
         return radii
 
     def _random_spheres(self, spec: CreateSpec) -> tuple[np.ndarray, np.ndarray]:
@@ -1121,16 +1024,6 @@ class LiggghtsEngine(Engine):
             tuple(cylinders),
         )
 
-    def _set_omega(self, ids: np.ndarray, omega: Sequence[float], which: str) -> None:
-        """Give the atoms ``ids`` the angular velocity ``omega``. LIGGGHTS 3.8 has no input
-        command for it, so it is written into its arrays; ``in.pygran`` notes it in a comment."""
-        self._flush()
-        if self._input is not None:
-            values = " ".join(fmt(w) for w in omega)
-            self._input.write(f"# PyGran: omega {values} given to {which} through the library interface\n")
-        self._request("assign", "omega", ids, tuple(omega))
-        self._prepared = False  # the next run's set-up sends the new values to ghost atoms
-
     def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
         if self.commands.body_types:
             types = self._extract("type")[np.isin(self._extract("id"), ids)]
@@ -1154,7 +1047,7 @@ class LiggghtsEngine(Engine):
         lines.append(f"group {group} delete")
         self._execute(lines)
         if spec.omega is not None:
-            self._set_omega(np.asarray(ids), spec.omega, f"{len(ids)} atoms chosen by set()")
+            self._channel.set_omega(np.asarray(ids), spec.omega, f"{len(ids)} atoms chosen by set()")
 
     def _wall(self, spec: WallSpec) -> str:
         if spec.kind == "mesh" and spec.mesh in self._mesh_walls.values():
@@ -1219,7 +1112,7 @@ class LiggghtsEngine(Engine):
                 f"mesh_force({name!r}): LIGGGHTS sums the force on meshes of mtype mesh/surface/stress or "
                 f"mesh/surface/stress/servo; such meshes here: {stress or 'none'}"
             )
-        return np.array(self._request("fix_vector", self.commands.mesh_ids[name], 3))
+        return np.array(self._channel.request("fix_vector", self.commands.mesh_ids[name], 3))
 
     def _viscous(self, spec: ViscousSpec) -> str:
         label, lines = self.commands.viscous(spec)
@@ -1233,8 +1126,8 @@ class LiggghtsEngine(Engine):
                 f"command {text!r} holds {', '.join(bad)}: LIGGGHTS takes one command a call, and the "
                 "saved input would read a line break as a second one; call command() once per line"
             )
-        self._queue([text])
-        self._flush()  # now: the user expects its effect (and errors) at once
+        self._channel.queue([text])
+        self._channel.flush()  # now: the user expects its effect (and errors) at once
 
     def _remove(self, handle: Handle) -> None:
         if handle.label in self._fixless:
@@ -1414,13 +1307,6 @@ class LiggghtsEngine(Engine):
         return frames
 
     def _close(self) -> None:
-        try:
-            if self._session is not None and self._failure is None:
-                self._flush()
-                self._session.close()
-        finally:
-            if self._input is not None:
-                self._input.close()
-            commands = getattr(self, "commands", None)  # None if __init__ failed before it
-            if commands is not None:
-                commands.close()
+        channel = getattr(self, "_channel", None)  # None if __init__ failed before it
+        if channel is not None:
+            channel.close()
