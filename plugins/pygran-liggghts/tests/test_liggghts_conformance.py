@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from pygran_core.testing.engines import GRAVITY, MATERIAL, RADIUS, EngineConformance, sphere_mass
+from pygran_core.testing.engines import GRAVITY, MATERIAL, RADIUS, EngineConformance
+from pygran_core.testing.validation import sphere_mass
 
 
 class TestLiggghtsConformance(EngineConformance):
