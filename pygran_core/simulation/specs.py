@@ -29,6 +29,7 @@ from pygran_core.formats.tables import read_triangles
 from pygran_core.simulation import geometry
 from pygran_core.simulation.materials import Pairs, parse_pairs
 from pygran_core.simulation.models.base import ContactModel
+from pygran_core.simulation.mpi import rank0_value
 
 Vector = tuple[float, float, float]
 BOUNDARY_FLAGS = frozenset("pfsm")
@@ -1186,44 +1187,13 @@ def split_keys(params: Mapping[str, Any]) -> tuple[str, ...]:
 
 #: The most runs ``nSim`` may ask for.
 MAX_NSIM = 10000
-#: Environment variables an MPI launcher (mpirun, srun) sets in every process it starts.
-MPI_LAUNCH_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
-
-
-def launch_communicator() -> Any:
-    """``MPI.COMM_WORLD`` when this process is one of several an MPI launcher started and
-    mpi4py is installed, else ``None``."""
-    if not any(name in os.environ for name in MPI_LAUNCH_VARIABLES):
-        return None
-    try:
-        from mpi4py import MPI
-    except ImportError:
-        return None
-    return MPI.COMM_WORLD if MPI.COMM_WORLD.size > 1 else None
-
-
-def rank_run(spec: SimulationSpec) -> SimulationSpec:
-    """This process's run of ``nSim`` runs, for an engine that makes each run on one MPI rank
-    (under ``mpirun -np nSim``, rank k makes run k); ``spec`` itself when ``nSim`` is 1."""
-    if spec.nsim == 1:
-        return spec
-    world = launch_communicator()
-    if world is None or world.size != spec.nsim:
-        started = "" if world is None else f", not {world.size}"
-        raise ConfigError(
-            f"nSim={spec.nsim} makes one run per MPI rank on the {spec.engine} engine: start the "
-            f"script with mpirun -np {spec.nsim}{started}"
-        )
-    return spec.runs[world.rank]
 
 
 def default_output(model: type) -> str:
     """The manual's default output folder: the model's name and the time of day. Under
     ``mpirun`` rank 0 reads the clock and every rank takes its name, so that all ranks (and
     the ``nSim`` runs) write into one folder."""
-    comm = launch_communicator()
-    name = f"{model.__name__}-{time.strftime('%d%m%Y-%H%M%S')}" if comm is None or comm.rank == 0 else None
-    return str(name if comm is None else comm.bcast(name, root=0))
+    return rank0_value(lambda: f"{model.__name__}-{time.strftime('%d%m%Y-%H%M%S')}")
 
 
 def _per_run(value: Any, index: int, nsim: int, where: str) -> Any:

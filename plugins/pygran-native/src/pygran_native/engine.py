@@ -24,7 +24,8 @@ from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
 from pygran_core.simulation.engine import Handle, LostParticles
 from pygran_core.simulation.insertion import Obstacles, PlacingEngine
-from pygran_core.simulation.specs import SimulationSpec, given, rank_run
+from pygran_core.simulation.mpi import rank_run
+from pygran_core.simulation.specs import SimulationSpec, given
 from pygran_native.solver import Solver
 
 #: Contact-model kernel (``ContactModel.kernel``) -> the solver's force law.
@@ -63,7 +64,8 @@ class NativeEngine(PlacingEngine):
     )
 
     def __init__(self, spec: SimulationSpec) -> None:
-        spec = rank_run(spec)  # nSim: each MPI rank makes its own run, on its own threads
+        if spec.nsim > 1:  # each MPI rank makes its own run, on its own threads
+            spec = rank_run(spec.runs, spec.engine)
         super().__init__(spec)  # refuses a model whose kernel is not among the capabilities
         try:
             self._law = SOLVER_LAW[given(spec.model.kernel, f"the {spec.model.__name__} model's kernel")]
