@@ -11,7 +11,7 @@ Commands go to LIGGGHTS through a :class:`~.channel.Channel`, which queues them 
 worker starts and records them in ``<output>/in.pygran``. A run is split into chunks (``run N
 pre no`` after the first when no command came in between, so LIGGGHTS skips its set-up),
 each ended after every insertion event, so that the particles lost are seen first (see
-:meth:`LiggghtsEngine._lost_particles`). Mesh frames are LIGGGHTS' own files, indexed in a
+:meth:`.FixInsertions.lost`). Mesh frames are LIGGGHTS' own files, indexed in a
 ``.pvd`` as PyGran's VTK series are (see :meth:`LiggghtsEngine._index_meshes`).
 
 LIGGGHTS' ``fix insert`` keeps new particles clear of other particles, not of mesh walls: an
@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import itertools
 import logging
-import math
 import os
 from dataclasses import dataclass, replace
 from functools import cache
@@ -34,19 +33,15 @@ import numpy as np
 
 from pygran_core.errors import (
     ConfigError,
-    InsertionWarning,
     PluginNotFound,
-    PyGranWarning,
     ReadError,
     UnsupportedFeature,
 )
 from pygran_core.formats import contacts as contact_schema
 from pygran_core.io import Frame, open_trajectory
-from pygran_core.simulation import clumps
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
-from pygran_core.simulation.engine import Engine, LostParticles, before_resume, exit_faces
-from pygran_core.simulation.mpi import MPI_LAUNCH_VARIABLES, launch_communicator
-from pygran_core.simulation.specs import control_characters, given
+from pygran_core.simulation.engine import Engine, LostParticles, before_resume
+from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, control_characters, given, launch_communicator
 from pygran_liggghts.channel import LOG_NAME, Channel
 from pygran_liggghts.commands import (
     BODY_ENERGY,
@@ -56,10 +51,9 @@ from pygran_liggghts.commands import (
     fmt,
     native_meshes,
     native_particles,
-    size_classes,
 )
+from pygran_liggghts.insertions import FixInsertions, report_shortfall
 from pygran_liggghts.library import ADDON_CAPABILITIES, Addon, load_addon, probe_addon
-from pygran_liggghts.screen import InsertionEvent, insertion_events
 
 if TYPE_CHECKING:
     from pygran_core.simulation.calls import (
@@ -100,7 +94,7 @@ def _numbered_in_turn(count: int, ranks: int) -> np.ndarray:
 
 def launch_world() -> Any:
     """``MPI.COMM_WORLD`` when an MPI launcher started this process, else ``None``: the core's
-    :func:`~pygran_core.simulation.mpi.launch_communicator`, and also for a single rank
+    :func:`~pygran_core.simulation.specs.launch_communicator`, and also for a single rank
     (``mpirun -np 1``), from which no worker job can be started."""
     world = launch_communicator()
     if world is None and any(name in os.environ for name in MPI_LAUNCH_VARIABLES):
@@ -242,19 +236,6 @@ class LiggghtsEngine(Engine):
         #: Insertions without a fix in LIGGGHTS: one-offs not redone on resume, and those PyGran placed
         self._fixless: set[str] = set()
         self._placings: dict[str, _Placed] = {}  # insertions PyGran makes, by label
-        #: Insertion fixes in LIGGGHTS (label -> spec), whose counts are read
-        self._insertions: dict[str, InsertSpec] = {}
-        #: label -> (first step, steps between, last step or None) of each insertion's events
-        self._insertion_steps: dict[str, tuple[int, int, int | None]] = {}
-        #: Reading insertion events from LIGGGHTS' screen file: how far it has been read, the
-        #: particles asked for at the first step of the next run by the by-pack insertions made
-        #: then, those by rate asked for per event, and the insertions whose shortfall was warned
-        self._screen_read = 0
-        self._asked: dict[str, tuple[int, bool] | None] = {}  # (particles, whether exactly)
-        self._per_event: dict[str, float] = {}
-        self._short_warned: set[str] = set()
-        #: By-pack insertions LIGGGHTS has not made yet (it makes them as the next run starts)
-        self._unplaced: dict[str, InsertSpec] = {}
         #: label -> (the insert call's number, the target given to LIGGGHTS) of each by-pack
         #: insertion present: checkpoints keep the targets, which a resumed script's replayed
         #: calls would otherwise count anew from the restart's particles
@@ -287,6 +268,8 @@ class LiggghtsEngine(Engine):
             #: LIGGGHTS read a restart file and has not run since: it refuses create_atoms then
             self._restored = resume is not None
             self._channel = Channel(self.output, comm, spec.nprocs or 1, self._root, self.log)
+            screen = self.output / LOG_NAME if self._root else None
+            self._fixes = FixInsertions(self, self._channel, self.commands, screen)
             if spec.dt is not None:
                 self.check_servo_speeds(spec.dt)
             self._execute(self.commands.setup(resume))
@@ -373,31 +356,22 @@ class LiggghtsEngine(Engine):
         # init from the smallest particle present
         auto = any(mesh.servo and mesh.servo.mode == "auto" for mesh in self.spec.meshes)
         pre = "pre no " if self._channel.prepared and not lines and not auto else ""
-        # LIGGGHTS makes these as this run starts, asking for its target less what it counts
-        self._asked = {label: self._asked_by(spec, dt) for label, spec in self._unplaced.items()}
-        filling = [  # volume fractions inserted in this run, whose outcome is logged
-            label
-            for label, spec in self._insertions.items()
-            if spec.target == "volumefraction_region" and (label in self._unplaced or spec.freq)
-        ]
-        self._unplaced.clear()
+        self._fixes.starting(dt)
         self._channel.queue(lines)
         start = self.step
         # a run stops after each insertion event, so that the particles it makes are seen
         # before they can leave: each one lost has a start to be placed from
-        stops = sorted(self._insertion_stops(start, start + nsteps))
+        stops = sorted(self._fixes.stops(start, start + nsteps))
         pieces = [b - a for a, b in zip([start, *stops], [*stops, start + nsteps])]
         again = "" if auto else "pre no "
         runs = [f"run {n} {pre if k == 0 else again}post no" for k, n in enumerate(pieces)]
         self._before_run()
-        losses = self._channel.run(runs, sorted(self._insertions))
+        losses = self._channel.run(runs, sorted(self._fixes.specs))
         self._computed = True
         self._restored = False
         if any(count for count, _, _ in losses):
-            self._unreported += self._lost_particles(losses, pieces, dt)
-        self._report_insertions(start)
-        if filling:
-            self._log_fractions(filling, start + nsteps)
+            self._unreported += self._fixes.lost(losses, pieces, dt)
+        self._fixes.report(start, start + nsteps)
         self._index_meshes()  # the frame LIGGGHTS wrote as this run started
 
     def _chunks(self, nsteps: int) -> list[int]:
@@ -414,195 +388,11 @@ class LiggghtsEngine(Engine):
         ordered = sorted(stops)
         return [b - a for a, b in zip(ordered, ordered[1:])]
 
-    def _asked_by(self, spec: InsertSpec, dt: float) -> tuple[int, bool] | None:
-        """The particles by-pack insertion ``spec`` asks for as the next run (of steps ``dt``)
-        starts, as LIGGGHTS counts them: its target less what its region holds, exactly for a
-        number of particles (:meth:`_particles_in`); for a volume or mass, what lacks over the
-        expected volume or mass of one particle, to which LIGGGHTS adds a uniform draw before
-        rounding down (about); ``None`` for the volume or mass of multisphere bodies, which
-        LIGGGHTS computes."""
-        if spec.target == "particles_in_region":
-            return int(spec.value) - self._particles_in(spec.region, dt), True
-        if self.commands.body_types:
-            return None
-        arrays = self._channel.gather("x", "radius", "mass")
-        inside = spec.region.contains(arrays["x"].reshape(-1, 3))
-        sizes = [
-            (weight * fraction, 4 / 3 * math.pi * radius**3, self.spec.species[index - 1].density)
-            for index, weight in zip(spec.species, spec.weights)
-            for radius, fraction in size_classes(self.spec.species[index - 1].radius)
-        ]
-        total = sum(share for share, _, _ in sizes)
-        if spec.target == "volumefraction_region":
-            lacking = spec.value * spec.region.volume() - float(
-                np.sum(4 / 3 * np.pi * arrays["radius"][inside] ** 3)
-            )
-            one = sum(share * volume for share, volume, _ in sizes) / total
-        else:
-            lacking = spec.value - float(np.sum(arrays["mass"][inside]))
-            one = sum(share * volume * density for share, volume, density in sizes) / total
-        return max(0, round(lacking / one)), False
-
-    def _report_insertions(self, start: int) -> None:
-        """Log the insertion events of the run that began at step ``start`` from LIGGGHTS'
-        screen file; one that inserted fewer than it asked for (its region full) is an
-        :class:`InsertionWarning`, the first time for each insertion, then logged."""
-        if not self._root:
-            return
-        try:
-            with (self.output / LOG_NAME).open("rb") as screen:
-                screen.seek(self._screen_read)
-                text = screen.read()
-        except FileNotFoundError:
-            return
-        text = text[: text.rfind(b"\n") + 1]  # whole lines only
-        self._screen_read += len(text)
-        events, per_event = insertion_events(text.decode(errors="replace"))
-        self._per_event.update(per_event)
-        first: list[tuple[InsertSpec, int]] = []  # insertions made as the run started, in order
-        for event in events:
-            spec = self._insertions.get(event.fix)
-            if spec is None:
-                continue
-            asked = self._asked.pop(event.fix, None) if event.step == start + 1 else None
-            if asked is not None:
-                asked = self._after_earlier(spec, asked, first)
-                first.append((spec, event.inserted))
-            if not event.short:
-                if asked is not None and asked[1]:  # as the placing engines log it
-                    self.log("insert at step %d: %d of %d particles", event.step, event.inserted, asked[0])
-                else:
-                    self.log("insert at step %d: %d particles", event.step, event.inserted)
-                continue
-            message = self._shortfall(event, spec, asked)
-            if event.fix in self._short_warned:
-                self._to_file(logging.WARNING, message)
-            else:
-                self._short_warned.add(event.fix)
-                self._warn(
-                    f"{message}: give a larger region or fewer particles. Further shortfalls of this "
-                    "insertion are logged in pygran.log only.",
-                    InsertionWarning,
-                )
-        self._asked.clear()
-
-    @staticmethod
-    def _after_earlier(
-        spec: InsertSpec, asked: tuple[int, bool], earlier: list[tuple[InsertSpec, int]]
-    ) -> tuple[int, bool]:
-        """What by-pack insertion ``spec`` asked for as the run started (``asked`` counted
-        before it), after the ``earlier`` insertions of that step (spec, particles made):
-        LIGGGHTS makes them one after the other, each counting what the ones before placed in
-        its region (exactly for the same region; about when another region overlaps it)."""
-        number, exact = asked
-        for other, made in earlier:
-            if other.region == spec.region:
-                number -= made  # for a volume or mass, as many expected particles: about anyway
-            else:
-                mine, theirs = spec.region.bounds(), other.region.bounds()
-                if np.all((mine[:, 0] < theirs[:, 1]) & (theirs[:, 0] < mine[:, 1])):
-                    exact = False
-        return max(number, 0), exact
-
-    def _log_fractions(self, labels: list[str], step: int) -> None:
-        """Log the volume fraction the regions of by-pack insertions ``labels`` hold at ``step``
-        (collective: every rank gathers)."""
-        arrays = self._channel.gather("x", "radius")
-        for label in labels:
-            spec = self._insertions[label]
-            inside = spec.region.contains(arrays["x"].reshape(-1, 3))
-            held = float(np.sum(4 / 3 * np.pi * arrays["radius"][inside] ** 3)) / spec.region.volume()
-            self.log(
-                "volume fraction in the region %s at step %d: %.3g of the %.3g asked for",
-                spec.region,
-                step,
-                held,
-                spec.value,
-            )
-
-    def _shortfall(self, event: InsertionEvent, spec: InsertSpec, asked: tuple[int, bool] | None) -> str:
-        """What LIGGGHTS' insertion ``event`` (of ``spec``) asked for and inserted, as the
-        placing engines say it. ``asked``: what a by-pack insertion asked for as the run
-        started (see :meth:`_asked_by`); a batch by rate asks for ``int(per + uniform)`` (exact
-        for a whole number); otherwise (a repeated by-pack insertion) its target is named."""
-        made = event.inserted
-        where = f"the region {spec.region} is full"
-        per = self._per_event.get(event.fix) if spec.mechanism == "by_rate" else None
-        if asked is None and per is not None:
-            asked = round(per), per.is_integer()
-        if asked is not None and asked[0] > made:
-            number, exact = asked
-            about = "" if exact else "about "
-            return (
-                f"insertion at step {event.step}: {made} of {about}{number} particles inserted, {where} "
-                f"(no free place for the other {about}{number - made})"
-            )
-        amount = f"{spec.value:g}" if spec.target == "particles_in_region" else f"{spec.value:.3g}"
-        return (
-            f"insertion at step {event.step}: {made} particles inserted, fewer than its target "
-            f"({spec.target} {amount}) needs, {where}"
-        )
-
-    def _insertion_stops(self, start: int, end: int) -> set[int]:
-        """The insertion events' steps strictly between ``start`` and ``end``."""
-        stops: set[int] = set()
-        for first, every, last in self._insertion_steps.values():
-            skip = max(0, -(-(start + 1 - first) // every))  # events before start + 1
-            stops.update(range(first + skip * every, min(end, last + 1 if last is not None else end), every))
-        return stops
-
-    def _lost_particles(
-        self, losses: list[tuple[int, np.ndarray, np.ndarray]], pieces: list[int], dt: float
-    ) -> LostParticles:
-        """The particles lost in the pieces of a run, ``pieces`` steps of ``dt`` long: in each, how
-        many, and the positions and velocities at its start of those present then, placed as the
-        front end places them; the others, inserted and lost within it, ``unknown``."""
-        where: dict[str, int] = {}
-        for (count, x, v), steps in zip(losses, pieces):
-            for place in [*exit_faces(self.spec, x, v, steps * dt), *["unknown"] * (count - len(x))]:
-                where[place] = where.get(place, 0) + 1
-        total = sum(where.values())
-        self.log(
-            "%d particle%s lost in the last %d steps: %s",
-            total,
-            "" if total == 1 else "s",
-            sum(pieces),
-            where,
-        )
-        return LostParticles(total, where)
-
     def _lost_since_last(self) -> LostParticles:
         """The particles LIGGGHTS lost since the last call, counted exactly in every run
         (``thermo_modify lost warn`` keeps it going; see :meth:`~.worker.Session.run`)."""
         lost, self._unreported = self._unreported, LostParticles()
         return lost
-
-    def _particles_in(self, region: Any, dt: float | None) -> int:
-        """The particles LIGGGHTS counts in ``region`` as it inserts, at the step after this one
-        (of ``dt``; ``None``: no step to move by): as LIGGGHTS 3.8's ``fix insert/pack``
-        counts them (``FixInsertPack::calc_ninsert_this``), a single sphere when its centre is
-        in it (also with ``all_in``) and a multisphere particle once, when the centre of its
-        bounding sphere is (:func:`~pygran_core.simulation.clumps.bounding_centres`). LIGGGHTS
-        counts after the step's first half has moved the particles, so they are moved here as
-        its integrators move them: a single sphere by ``dt (v + dt f / 2m)`` (``fix
-        nve/sphere``: exactly), the spheres of a clump by ``dt v`` (``fix multisphere``, within
-        ``dt^2`` times the clump's accelerations). Counted without moving them, a particle
-        crossing a face of the region in that step would be miscounted, and the insertion
-        would make one particle more or fewer than asked."""
-        bodies = bool(self.commands.body_types)
-        names = ["x", "v", "f", "mass", *(["mol", "type"] if bodies else [])]
-        arrays = self._channel.gather(*names)
-        x, v, f = (arrays[name].reshape(-1, 3) for name in ("x", "v", "f"))
-        single = arrays["mol"] < 0 if bodies else np.ones(len(x), bool)
-        if dt is not None:
-            half = v + np.where(single, 0.5 * dt / arrays["mass"], 0.0)[:, None] * f
-            x = x + dt * half
-        points = x[single]
-        if bodies:
-            templates = {k: self.spec.species[k - 1].spheres for k in self.commands.body_types}
-            _, centres = clumps.bounding_centres(x, arrays["mol"], arrays["type"], templates)
-            points = np.vstack([points, centres])
-        return int(np.count_nonzero(region.contains(points)))
 
     def _extract(self, quantity: str) -> np.ndarray:
         return self._channel.gather(quantity)[quantity]
@@ -665,8 +455,11 @@ class LiggghtsEngine(Engine):
         reached = self._meshes_reached(spec)
         if reached:
             return self._insert_clear(spec, reached)
-        if spec.mechanism == "by_pack":
-            spec = self._pack_target(number, spec)
+        if spec.mechanism == "by_pack" and self._resume is not None:  # replaying: the kept target
+            kept = self._resume.state.get(f"{TARGET_KEY}/{number}")
+            spec = spec if kept is None else replace(spec, value=float(kept))
+        elif spec.mechanism == "by_pack":
+            spec = self._fixes.target(spec)
         label, lines = self.commands.insert(spec, self.dt)
         if self.replaying and spec.mechanism == "by_pack" and not spec.freq:
             # done before the checkpoint: its particles are in the restart file, and a new
@@ -674,21 +467,9 @@ class LiggghtsEngine(Engine):
             self._fixless.add(label)
             return label
         self._execute(lines)
-        self._insertions[label] = spec
-        # LIGGGHTS' events: from the next step on, every insert_every steps; by rate, until
-        # about its duration is over (its last event may come up to one interval later)
-        every = self.commands.insert_every(spec, self.dt)
-        first = self.step + 1
-        if every is None:
-            self._insertion_steps[label] = (first, 1, first)
-        else:
-            duration = None if spec.mechanism == "by_pack" else spec.duration
-            last = None if duration is None or self.dt is None else first + round(duration / self.dt) + every
-            self._insertion_steps[label] = (first, every, last)
+        self._fixes.add(label, spec)
         if spec.mechanism == "by_pack":
             self._targets[label] = (number, spec.value)
-            if not self.replaying:
-                self._unplaced[label] = spec
         return label
 
     def _meshes_reached(self, spec: InsertSpec) -> list[str]:
@@ -828,59 +609,9 @@ class LiggghtsEngine(Engine):
                 f"insertion at step {self.step}: {made} of {asked} particles inserted, the region "
                 f"{spec.region} is full (no free place for the other {asked - made})"
             )
-            if placed.warned:
-                self._to_file(logging.WARNING, message)
-            else:
-                placed.warned = True
-                self._warn(
-                    f"{message}: give a larger region or fewer particles. Further shortfalls of this "
-                    "insertion are logged in pygran.log only.",
-                    InsertionWarning,
-                )
+            report_shortfall(self, message, placed.warned)
+            placed.warned = True
         return float(target_shares(self.spec, spec, species, radii).sum())
-
-    def _pack_target(self, number: int, spec: InsertSpec) -> InsertSpec:
-        """``spec`` with the target of insert call ``number``: while a resumed script is
-        replayed, the one its checkpoint kept; else, for a number of particles, also counting
-        those that earlier by-pack insertions into the same region will place as the next run
-        starts (LIGGGHTS inserts then; the placing engines at the call, whose counts the front
-        end adds)."""
-        if self._resume is not None:  # replaying
-            kept = self._resume.state.get(f"{TARGET_KEY}/{number}")
-            return spec if kept is None else replace(spec, value=float(kept))
-        if spec.target != "particles_in_region":
-            return spec
-        requested = spec.requested or 0
-        present = self._particles_in(spec.region, self.dt)
-        if self.commands.body_types or requested + present != spec.value:
-            self.log(
-                "insert: %g particles on top of the %d in the region as LIGGGHTS counts them when it "
-                "inserts, at step %d: a single sphere when its centre is in it, a multisphere particle "
-                "once when the centre of its bounding sphere is (sphere centres in it now: %d)",
-                requested,
-                present,
-                self.step + 1,
-                spec.value - requested,
-            )
-        spec = replace(spec, value=requested + present)
-        earlier = [other for other in self._unplaced.values() if other.region == spec.region]
-        waiting = sum(int(other.requested or 0) for other in earlier if other.target == spec.target)
-        uncounted = sorted({other.target for other in earlier if other.target != spec.target})
-        if uncounted:
-            self._warn(
-                f"insert: the particles an earlier insert() of {' and '.join(uncounted)} into this "
-                "region makes as the next run starts cannot be counted now; LIGGGHTS counts them "
-                "against this insertion's target, which may then place fewer than asked: run at least "
-                "one step between the two insert() calls",
-                PyGranWarning,
-            )
-        if waiting:
-            self.log(
-                "insert: %d particles of earlier insert() calls into this region, made as the next run "
-                "starts, counted as present",
-                waiting,
-            )
-        return replace(spec, value=spec.value + waiting)
 
     def _create(self, spec: CreateSpec) -> int:
         species = self.spec.species[spec.species - 1]
@@ -1141,9 +872,7 @@ class LiggghtsEngine(Engine):
             self._execute([f"unfix {handle.label}"])
         self._walls.pop(handle.label, None)
         self._motions.pop(handle.label, None)
-        self._insertions.pop(handle.label, None)
-        self._insertion_steps.pop(handle.label, None)
-        self._unplaced.pop(handle.label, None)
+        self._fixes.remove(handle.label)
         self._targets.pop(handle.label, None)
 
     @property
