@@ -21,6 +21,7 @@ engines make it (see :meth:`LiggghtsEngine._insert_clear`).
 
 from __future__ import annotations
 
+import functools
 import itertools
 import logging
 import os
@@ -52,7 +53,8 @@ from pygran_liggghts.commands import (
     native_meshes,
     native_particles,
 )
-from pygran_liggghts.insertions import FixInsertions, report_shortfall
+from pygran_liggghts.creation import Creator
+from pygran_liggghts.insertions import FixInsertions
 from pygran_liggghts.library import ADDON_CAPABILITIES, Addon, load_addon, probe_addon
 
 if TYPE_CHECKING:
@@ -73,23 +75,8 @@ if TYPE_CHECKING:
 RESTART_KEY = "liggghts/restart"
 #: Checkpoint entries ``<TARGET_KEY>/<k>``: the target of the k-th insert call (by pack).
 TARGET_KEY = "liggghts/targets"
-#: createParticles with this many positions or more reads them from a dump file it writes in
-#: the output folder's :data:`CREATED_DIR` (``read_dump ... add yes``), not one command each.
-BULK_CREATE = 64
-CREATED_DIR = "created"
 #: Cells along each edge of the grid :func:`reaches` lays over a triangle.
 GRID = 32
-
-
-def _numbered_in_turn(count: int, ranks: int) -> np.ndarray:
-    """The order to list ``count`` new atoms in a file for ``read_dump ... add yes`` so that
-    LIGGGHTS numbers them as listed before: it deals the file's atoms to the ranks in turn
-    (atom f to rank f % ranks) and then numbers the new atoms rank by rank. Entry f is the
-    position, in the intended order, of the atom the file lists f-th."""
-    listed = np.arange(count)
-    per_rank = [(count - rank + ranks - 1) // ranks for rank in range(ranks)]
-    first = np.concatenate([[0], np.cumsum(per_rank)[:-1]]).astype(int)
-    return first[listed % ranks] + listed // ranks
 
 
 def launch_world() -> Any:
@@ -191,8 +178,8 @@ def reaches(region: Region, triangles: np.ndarray, reach: float) -> bool:
 class _Placed:
     """An insertion PyGran makes on LIGGGHTS (see :meth:`LiggghtsEngine._insert_clear`): the
     request, the mesh walls crossing its region, its random stream, the step of its next event,
-    the steps between events (``None``: once), the step it ends before (``None``: never), what
-    is owed (by rate) and whether a full region was warned about."""
+    the steps between events (``None``: once), the step it ends before (``None``: never) and
+    what is owed (by rate)."""
 
     spec: InsertSpec
     meshes: list[str]
@@ -201,7 +188,6 @@ class _Placed:
     every: int | None
     end: int | None
     owed: float = 0.0
-    warned: bool = False
 
 
 class LiggghtsEngine(Engine):
@@ -241,7 +227,6 @@ class LiggghtsEngine(Engine):
         #: calls would otherwise count anew from the restart's particles
         self._targets: dict[str, tuple[int, float]] = {}
         self._insert_calls = 0
-        self._ungrouped = False  # atoms created since the last run, not yet in the spheres' group
         self._computed = False  # whether a run has set up LIGGGHTS' computes
         self._unreported = LostParticles()  # lost particles not yet reported to the front end
         #: Contact records (traj cfile): the last step written, whether LIGGGHTS writes those
@@ -258,7 +243,6 @@ class LiggghtsEngine(Engine):
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
             if comm is not None and spec.nprocs not in (None, comm.size):
                 raise ConfigError(f"nprocs={spec.nprocs} differs from the {comm.size} MPI ranks of this run")
-            self._ranks = comm.size if comm is not None else spec.nprocs or 1
             self.commands = Commands(spec, self.material_table)
             self.log("neighbour lists: skin %g m, style %s", spec.skin, spec.nns_type)
             if spec.traj.cfile is not None and self._root:  # frames of an earlier run are stale
@@ -270,6 +254,10 @@ class LiggghtsEngine(Engine):
             self._channel = Channel(self.output, comm, spec.nprocs or 1, self._root, self.log)
             screen = self.output / LOG_NAME if self._root else None
             self._fixes = FixInsertions(self, self._channel, self.commands, screen)
+            ranks = comm.size if comm is not None else spec.nprocs or 1
+            self._creator = Creator(
+                self, self._channel, self.commands, ranks, self._root, self._allow_create, self._obstacles
+            )
             if spec.dt is not None:
                 self.check_servo_speeds(spec.dt)
             self._execute(self.commands.setup(resume))
@@ -344,9 +332,7 @@ class LiggghtsEngine(Engine):
             # LIGGGHTS defines its contact computes before the first run only
             self._wall_contacts = bool(self._mesh_walls)
             lines += self.commands.contacts("pg_walls") if self._wall_contacts else []
-        if self._ungrouped:
-            lines.append(self.commands.regroup())
-            self._ungrouped = False
+        lines += self._creator.regroup()
         if dt != self._timestep:
             lines.append(f"timestep {fmt(dt)}")
             self._timestep = dt
@@ -539,135 +525,22 @@ class LiggghtsEngine(Engine):
             return
         if not self.replaying:
             spec = placed.spec
+            place = functools.partial(self._creator.place, label, spec, rng=placed.rng, meshes=placed.meshes)
             if spec.mechanism == "by_pack":
-                self._place(placed, self._lacking(spec))
+                place(self._creator.lacking(spec))
             else:
                 placed.owed += (
                     spec.value * given(placed.every, "an insertion's interval") * given(self.dt, "dt")
                 )
-                placed.owed -= self._place(placed, placed.owed)
+                placed.owed -= place(placed.owed)
         following = None if placed.every is None else step + placed.every
         if following is None or (placed.end is not None and following >= placed.end):
             del self._placings[label]
         else:
             placed.next_step = following
 
-    def _lacking(self, spec: InsertSpec) -> float:
-        """What the region of by-pack insertion ``spec`` lacks of its target (particles, volume
-        or mass), counted as the placing engines count it."""
-        arrays = self._channel.gather("x", "radius", "mass")
-        inside = spec.region.contains(arrays["x"].reshape(-1, 3))
-        if spec.target == "particles_in_region":
-            return max(spec.value - np.count_nonzero(inside), 0.0)
-        if spec.target == "volumefraction_region":
-            held = float(np.sum(4 / 3 * np.pi * arrays["radius"][inside] ** 3))
-            return max(spec.value * spec.region.volume() - held, 0.0)
-        return max(spec.value - float(np.sum(arrays["mass"][inside])), 0.0)
-
-    def _place(self, placed: _Placed, amount: float) -> float:
-        """Draw up to ``amount`` of ``placed``'s target, place what fits and create it; returns
-        the amount drawn, placed or not (as the placing engines count what is owed)."""
-        from pygran_core.simulation.insertion import draw_spheres, place_spheres, target_shares
-
-        spec = placed.spec
-        species, radii = draw_spheres(self.spec, spec, amount, placed.rng)
-        velocities = spec.velocity.sample(len(radii), placed.rng)
-        existing = self._channel.gather("x", "radius")
-        index, centres = place_spheres(
-            spec.region,
-            radii,
-            placed.rng,
-            (existing["x"].reshape(-1, 3), existing["radius"]),
-            self._obstacles("insert()"),
-            spec.all_in,
-        )
-        self._allow_create()
-        first = self._channel.max_id + 1
-        lines = []
-        for atom, k, centre in zip(itertools.count(first), index, centres):
-            lines.append(f"create_atoms {species[k]} single {' '.join(map(fmt, centre))} units box")
-            density = fmt(self.spec.species[species[k] - 1].density)
-            velocity = " ".join(f"v{axis} {fmt(v)}" for axis, v in zip("xyz", velocities[k]))
-            lines.append(f"set atom {atom} diameter {fmt(2 * radii[k])} density {density} {velocity}")
-        self._channel.queue(lines)
-        self._channel.max_id += len(index)
-        last = self._channel.max_id
-        self._ungrouped = bool(self.commands.body_types)
-        if any(spec.omega) and len(index):
-            self._channel.set_omega(np.arange(first, last + 1), spec.omega, f"atoms {first}*{last}")
-        self._channel.flush()
-        made, asked = len(index), len(radii)
-        self.log(
-            "insert at step %d: %d of %d particles, placed by PyGran clear of mesh %s",
-            self.step,
-            made,
-            asked,
-            ", ".join(placed.meshes),
-        )
-        if made < asked:
-            message = (
-                f"insertion at step {self.step}: {made} of {asked} particles inserted, the region "
-                f"{spec.region} is full (no free place for the other {asked - made})"
-            )
-            report_shortfall(self, message, placed.warned)
-            placed.warned = True
-        return float(target_shares(self.spec, spec, species, radii).sum())
-
     def _create(self, spec: CreateSpec) -> int:
-        species = self.spec.species[spec.species - 1]
-        if species.style == "multisphere":
-            raise UnsupportedFeature(
-                f"LIGGGHTS makes multisphere particles (species {spec.species}) only by insertion: "
-                "use insert(), or createParticles for the species of single spheres"
-            )
-        self._ungrouped = bool(self.commands.body_types)
-        self._allow_create()
-        first = self._channel.max_id + 1
-        radii = None  # per particle, when drawn here
-        bulk = False  # read from a file with their radii
-        if spec.style in ("single", "lattice"):  # lattice: the front end's sites, as on every engine
-            centres = spec.centres
-            box = np.array(self.spec.domain.box, float)
-            inside = bool(np.all((centres > box[:, 0]) & (centres < box[:, 1])))
-            bulk = inside and len(centres) >= BULK_CREATE
-            if bulk:
-                radii = self._bulk_create(spec, first, centres)
-                centres = centres[:0]  # created
-            lines = [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
-            if inside:
-                # inside the box LIGGGHTS gives them the next ids: no round trip needed
-                self._channel.queue(lines, keep_set_open=True)
-                self._channel.max_id += len(lines)
-            else:
-                self._channel.queue(lines)
-                self._channel.flush()
-        else:
-            centres, radii = self._random_spheres(spec)
-            self._channel.queue(
-                [f"create_atoms {spec.species} single {' '.join(map(fmt, c))} units box" for c in centres]
-            )
-            self._channel.max_id += len(centres)  # all strictly inside the box
-        last = self._channel.max_id
-        count = max(0, last - first + 1)
-        if count == 0:
-            return 0
-        values = f"density {fmt(species.density)}"
-        if radii is None and spec.radius is None and species.radius.kind != "constant":
-            radii = species.radius.sample(count, np.random.default_rng(spec.seed))
-        if radii is None or np.all(radii == radii[0]):
-            radius = radii[0] if radii is not None else spec.radius or species.radius.values[0]
-            values = f"diameter {fmt(2 * radius)} {values}"
-        elif not bulk:  # set density then gives each its mass from its own radius
-            self._channel.queue([f"set atom {first + i} diameter {fmt(2 * r)}" for i, r in enumerate(radii)])
-        if any(spec.velocity):
-            vx, vy, vz = (fmt(v) for v in spec.velocity)
-            values += f" vx {vx} vy {vy} vz {vz}"
-        self._channel.set_atoms(first, last, values)  # sent with the next request
-        if any(spec.omega):
-            self._channel.set_omega(np.arange(first, last + 1), spec.omega, f"atoms {first}*{last}")
-        else:
-            self._channel.stream()  # LIGGGHTS creates these while the script creates the next ones
-        return count
+        return self._creator.create(spec)
 
     def _allow_create(self) -> None:
         """Let LIGGGHTS create atoms: after reading a restart file it refuses ``create_atoms``
@@ -678,52 +551,6 @@ class LiggghtsEngine(Engine):
             self._execute(["run 0 post no"])
             self._restored = False
             self._computed = True
-
-    def _bulk_create(self, spec: CreateSpec, first: int, centres: np.ndarray) -> np.ndarray:
-        """Queue ``read_dump`` of a dump file of the particles (ids from ``first``, the species'
-        type, radii) written to :data:`CREATED_DIR` of the output folder: one command, linear
-        in their number (``create_atoms single`` per particle is quadratic). Returns the radii."""
-        species = self.spec.species[spec.species - 1]
-        count = len(centres)
-        if spec.radius is None and species.radius.kind != "constant":
-            radii = species.radius.sample(count, np.random.default_rng(spec.seed))
-        else:
-            radii = np.full(count, spec.radius or species.radius.values[0])
-        path = self.output / CREATED_DIR / f"atoms-{first}.dump"
-        if self._root:
-            path.parent.mkdir(exist_ok=True)
-            ids = np.arange(first, first + count)
-            rows = np.column_stack([ids, np.full(count, spec.species), centres, radii])
-            rows = rows[_numbered_in_turn(count, self._ranks)]
-            bounds = "\n".join(f"{fmt(lo)} {fmt(hi)}" for lo, hi in self.spec.domain.box)
-            header = (
-                f"ITEM: TIMESTEP\n0\nITEM: NUMBER OF ATOMS\n{count}\nITEM: BOX BOUNDS ff ff ff\n{bounds}\n"
-                "ITEM: ATOMS id type x y z radius"
-            )
-            np.savetxt(path, rows, fmt=["%d", "%d"] + ["%.17g"] * 4, header=header, comments="")
-        self._channel.queue([f"read_dump {self.commands.path(path)} 0 x y z radius box no add yes"])
-        self._channel.max_id += count
-        return radii
-
-    def _random_spheres(self, spec: CreateSpec) -> tuple[np.ndarray, np.ndarray]:
-        """Centres and radii of ``spec.count`` spheres placed in ``spec.region`` clear of the
-        particles and walls, as every placing engine draws them for the same seed; those
-        that did not fit, or lie outside the box, are left out."""
-        from pygran_core.simulation.insertion import place_spheres
-
-        rng = np.random.default_rng(spec.seed)
-        species = self.spec.species[spec.species - 1]
-        count = given(spec.count, "createParticles 'random''s count")
-        if spec.radius is not None:
-            radii = np.full(count, spec.radius)
-        else:
-            radii = species.radius.sample(count, rng)
-        existing = (self._extract("x"), self._extract("radius"))
-        region = given(spec.region, "createParticles 'random''s region")
-        index, centres = place_spheres(region, radii, rng, existing, self._obstacles())
-        box = np.array(self.spec.domain.box, float)
-        inside = np.all((centres > box[:, 0]) & (centres < box[:, 1]), axis=1)
-        return centres[inside], radii[index][inside]
 
     def _obstacles(self, call: str = "createParticles 'random'") -> Obstacles:
         """The plane, cylinder and mesh walls new particles of ``call`` must clear."""
