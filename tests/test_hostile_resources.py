@@ -21,7 +21,7 @@ import pytest
 from pygran_core import registry, simulation
 from pygran_core.errors import ConfigError, InsertionWarning
 from pygran_core.simulation.calls import CLOSE_PACKING, PARTICLE_BYTES, available_memory
-from pygran_core.simulation.engine import FRAME_BYTES, MAX_STEP
+from pygran_core.simulation.diagnostics import FRAME_BYTES, MAX_STEP
 from pygran_core.testing.mistakes import R, valid
 from pygran_core.testing.solvers import require_solver
 

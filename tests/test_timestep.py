@@ -161,7 +161,7 @@ def test_limits_are_computed_once_per_set_of_contacts(tmp_path, monkeypatch):
     calls = []
     original = timestep.limits
     monkeypatch.setattr(
-        "pygran_core.simulation.engine.limits", lambda *args: calls.append(args) or original(*args)
+        "pygran_core.simulation.diagnostics.limits", lambda *args: calls.append(args) or original(*args)
     )
     with _sim(tmp_path) as sim:
         sim.setupWall(species=1, plane="zplane", peq=0.0)

@@ -23,16 +23,12 @@ import functools
 import hashlib
 import itertools
 import logging
-import math
 import os
-import shutil
 import signal
 import sys
-import warnings
 from collections.abc import Callable, Collection, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import FrameType
 from typing import IO, Any, ClassVar
 
 import numpy as np
@@ -46,7 +42,6 @@ from pygran_core.errors import (
     ServoWarning,
     TimeStepWarning,
     UnsupportedFeature,
-    did_you_mean,
     unknown_key,
 )
 from pygran_core.formats import contacts as _contacts
@@ -60,7 +55,6 @@ from pygran_core.simulation.calls import (
     SetSpec,
     ViscousSpec,
     WallSpec,
-    available_memory,
 )
 from pygran_core.simulation.checkpoint import (
     Checkpoint,
@@ -69,47 +63,31 @@ from pygran_core.simulation.checkpoint import (
     read_checkpoint,
     write_checkpoint,
 )
+from pygran_core.simulation.diagnostics import (
+    FACES,
+    SERVO_WATCH,
+    LostParticles,
+    LostWatch,
+    TimeStepLimits,
+    check_clear,
+    check_run_size,
+    check_servo_speeds,
+    check_spec,
+    force_servos,
+    lost_cause,
+    servo_error,
+    servo_swing,
+    species_present,
+)
+from pygran_core.simulation.log import EngineLog
 from pygran_core.simulation.materials import MaterialTable, build_table
+from pygran_core.simulation.output import TRAJ_SCALARS, TRAJ_VECTORS
 from pygran_core.simulation.progress import Progress
-from pygran_core.simulation.specs import SimulationSpec, TrajectorySpec, positive_float, positive_int
-from pygran_core.simulation.timestep import Assessment, Body, Limits, characteristic_speed, limits
-
-LOG_NAME = "pygran.log"
-_LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
+from pygran_core.simulation.specs import SimulationSpec, positive_float, positive_int
+from pygran_core.simulation.timestep import Assessment
 
 #: Per-particle quantities ``extract`` knows, with their shape per particle.
 EXTRACTABLE = {"x": 3, "v": 3, "omega": 3, "f": 3, "torque": 3, "radius": 1, "mass": 1, "id": 1, "type": 1}
-#: Trajectory columns (``traj`` ``args``) of the quantities of :data:`EXTRACTABLE`.
-TRAJ_VECTORS = {
-    "x": ("x", "y", "z"),
-    "v": ("vx", "vy", "vz"),
-    "f": ("fx", "fy", "fz"),
-    "omega": ("omegax", "omegay", "omegaz"),
-    "torque": ("tqx", "tqy", "tqz"),
-}
-TRAJ_SCALARS = ("id", "type", "radius", "mass")
-#: ``density``: the true density of each particle's species, as LIGGGHTS' dump gives it.
-TRAJ_COLUMNS = frozenset({*TRAJ_SCALARS, "density"}).union(*TRAJ_VECTORS.values())
-#: The faces of the domain, as lost particles and :meth:`Engine.expect_outflow` name them.
-FACES = ("x-", "x+", "y-", "y+", "z-", "z+")
-#: Lost particles faster than this many times what the simulation explains (the
-#: characteristic velocity, the speeds given, a fall across the box) point to an instability.
-FAST_FACTOR = 10.0
-#: A run's last steps are this many single steps when a force servo wall is present, so that
-#: the force on it is read at each (:meth:`Engine._report_servos`).
-SERVO_WATCH = 3
-#: A servo's force swinging about its target by more than this fraction of it at each of those
-#: steps, one side then the other, is a :class:`ServoWarning`.
-SERVO_SWING = 0.05
-#: How deep (a fraction of the smaller radius) particles created at given positions may overlap:
-#: a settled bed read from a file has its contacts' overlaps (0.2 % in Dosta et al.'s drum).
-CREATE_OVERLAP_TOLERANCE = 1e-2
-#: The last step a simulation may reach: step counters are 64-bit integers.
-MAX_STEP = 2**63 - 1
-#: The fewest bytes a trajectory frame takes on disk (its header, with no particle).
-FRAME_BYTES = 100
-#: The memory a monitor value takes while kept (a Python float in a tuple), in bytes.
-SAMPLE_BYTES = 32
 #: A run's pieces are listed this many steps at a time (:meth:`Engine._run_chunks`).
 RUN_SEGMENT = 100_000
 
@@ -211,35 +189,6 @@ class Monitor:
         return {name: table[:, i] for i, name in enumerate(names)}
 
 
-@dataclass(frozen=True)
-class LostParticles:
-    """Particles lost during a run: ``count`` in all, and ``where`` by place: a face of the
-    domain they left through (``"z-"``: below the lower z bound, see :data:`FACES`),
-    ``"non-finite"`` (position or velocity NaN or infinite) or ``"unknown"``. ``max_speed``
-    is the largest speed (m/s) they had when last seen, ``None`` if unknown."""
-
-    count: int = 0
-    where: Mapping[str, int] = field(default_factory=dict)
-    max_speed: float | None = None
-
-    def __add__(self, other: LostParticles) -> LostParticles:
-        where = dict(self.where)
-        for place, n in other.where.items():
-            where[place] = where.get(place, 0) + n
-        speeds = [s for s in (self.max_speed, other.max_speed) if s is not None]
-        return LostParticles(self.count + other.count, where, max(speeds, default=None))
-
-    def places(self, exclude: frozenset[str] = frozenset()) -> str:
-        """``"150 through z-, 3 non-finite"``, leaving out the places in ``exclude``."""
-        named = {"non-finite": "{} became non-finite", "unknown": "{} where the engine cannot tell"}
-        parts = [
-            named.get(place, "{} through " + place).format(n)
-            for place, n in sorted(self.where.items())
-            if n and place not in exclude
-        ]
-        return ", ".join(parts)
-
-
 def require_capability(engine: str, capabilities: Collection[str], capability: str, what: str | None) -> None:
     """Raise :class:`UnsupportedFeature`, naming the installed engines that can, unless the
     engine ``engine`` has ``capability`` among its ``capabilities``."""
@@ -251,19 +200,6 @@ def require_capability(engine: str, capabilities: Collection[str], capability: s
         f"The {engine} engine does not support {what or capability} "
         f"(capability {capability!r}). {alternative}"
     )
-
-
-def _user_stacklevel() -> int:
-    """The ``stacklevel`` of ``warnings.warn`` that points at the first caller outside PyGran."""
-    frame: FrameType | None = sys._getframe(1)
-    level = 1
-    while frame is not None and frame.f_globals.get("__name__", "").startswith("pygran"):
-        frame, level = frame.f_back, level + 1
-    return level
-
-
-def _point(x: np.ndarray) -> str:
-    return "(" + ", ".join(f"{float(c):.6g}" for c in x) + ")"
 
 
 def _shorten(text: str, width: int = 120) -> str:
@@ -311,17 +247,14 @@ class Engine(abc.ABC):
         #: The last run's time step against the contacts present (``None``: no contact possible).
         self.time_step_check: Assessment | None = None
         self._outflow: frozenset[str] = frozenset()
-        self._limits: dict[tuple[Any, ...], Limits | None] = {}
-        self._warned: set[tuple[float, Limits]] = set()
+        self._step_limits = TimeStepLimits(spec)
         self._wall_specs: dict[int, WallSpec] = {}  # by handle id: the wall materials contacts meet
         self._insert_specs: dict[int, InsertSpec] = {}  # by handle id: species that may appear
         self._speeds = 0.0  # the largest speed the script gave particles
-        self._broken: set[int] = set()  # ids of non-finite particles counted by a _Watch
+        self._broken: set[int] = set()  # ids of non-finite particles counted by a LostWatch
         #: (species, smallest radius, more than one) of the particles present; None: read anew
         self._present: tuple[tuple[int, float, bool], ...] | None = None
-        self._logger = logging.getLogger(f"pygran.simulation.{self.name}")
-        self._log_handler = logging.FileHandler(self.output / LOG_NAME, encoding="utf-8")
-        self._log_handler.setFormatter(logging.Formatter(_LOG_FORMAT))
+        self._messages = EngineLog(self.name, self.output)
         self.log("%s engine opened, output in %s", self.name, self.output)
         try:
             self._check_spec(spec)
@@ -373,72 +306,14 @@ class Engine(abc.ABC):
 
     def _check_spec(self, spec: SimulationSpec) -> None:
         """Refuse, before the solver starts, whatever of ``spec`` this engine cannot do."""
-        model = spec.model
-        if model.kernel is None:
-            lost_by = model.kernel_lost_by
-            raise UnsupportedFeature(
-                f"The contact model {model.__name__} declares no kernel (class attribute kernel)"
-                + (f": {lost_by} overrides its parent's force law" if lost_by else "")
-                + ", so no engine can run it: subclass SpringDashpot, HertzMindlin or ThorntonNing "
-                "without overriding __init__ or their force law (normal_force...), or set kernel to the "
-                "capability of an engine that runs its law."
-            )
-        self.require(model.kernel, f"the {model.__name__} contact model")
-        if model.limit_force:
-            self.require("limit-force", "limitForce=True")
-        if any(spec.domain.periodic):
-            self.require("periodic", "periodic boundaries")
-        if spec.meshes:
-            self.require("mesh-walls", "mesh walls")
-        if spec.restart is not None:
-            self.require("restart", "restart files")
-        if spec.nsim > 1 or spec.nprocs not in (None, 1):
-            self.require("mpi", "several MPI ranks (nSim, nprocs)")
-        if spec.threads not in (None, 1):
-            self.require("threads", "threads")
-        if spec.pairs:
-            self.require("pair-tables", "per-pair material values (pairs=)")
-        if spec.nns_type != "bin":
-            self.require("neighbor-styles", f"the neighbour-list style nns_type={spec.nns_type!r}")
-        if spec.traj.dump_modify:
-            self.require("liggghts-dump", f"dump_modify {spec.traj.dump_modify}")
-        if spec.traj.cfile is not None:
-            self.require("contact-output", f"contact output (traj cfile {spec.traj.cfile.name!r})")
-        if spec.traj.margs != TrajectorySpec.margs:
-            self.require(
-                "liggghts-dump", f"traj margs {spec.traj.margs} (the columns of LIGGGHTS' mesh dump)"
-            )
-        unknown = list(dict.fromkeys(c for c in spec.traj.args if c not in TRAJ_COLUMNS))
-        if unknown:
-            hint = (
-                " A string was split into letters: give a sequence of names such as ('id', 'x', 'y', 'z')."
-                if all(len(str(c)) <= 1 for c in spec.traj.args)
-                else did_you_mean(str(unknown[0]), TRAJ_COLUMNS)
-            )
-            known = ", ".join(sorted(TRAJ_COLUMNS))
-            raise ConfigError(f"traj args: unknown column(s) {unknown}.{hint} Known columns: {known}.")
-        for species in spec.species:
-            if species.style == "multisphere":
-                self.require("multisphere", "multisphere particles")
-            if species.radius.kind != "constant":
-                self.require("polydisperse", "size distributions")
-            if species.material.get("cohesionEnergyDensity", 0) > 0:
-                self.require("cohesion", "cohesion")
-            if species.material.get("coefficientRollingFriction", 0) > 0:  # cdt, or its own model
-                if model.rolling == "cdt":
-                    self.require("rolling-friction", "rolling friction")
-                else:
-                    self.require(f"rolling-{model.rolling}", f"the rolling-friction model {model.rolling}")
+        check_spec(spec, self.require)
 
     # -- common behaviour ------------------------------------------------------------
 
     def log(self, message: str, *args: Any, level: int = logging.INFO) -> None:
         """Record ``message`` in ``<output>/pygran.log``, and on the ``pygran`` logger
         for whoever has configured logging to show it."""
-        record = self._logger.makeRecord(self._logger.name, level, __file__, 0, message, args, None)
-        self._log_handler.handle(record)
-        if self._logger.isEnabledFor(level):
-            self._logger.handle(record)
+        self._messages.log(message, *args, level=level)
 
     def _progress_line(self, text: str, stderr: bool = True) -> None:
         """A progress line into ``pygran.log``, and on stderr off a terminal (see :meth:`run`),
@@ -451,13 +326,11 @@ class Engine(abc.ABC):
     def _to_file(self, level: int, message: str) -> None:
         """Record ``message`` in ``pygran.log`` only: what is also raised or warned, so that it
         does not reach the console twice."""
-        record = self._logger.makeRecord(self._logger.name, level, __file__, 0, "%s", (message,), None)
-        self._log_handler.handle(record)
+        self._messages.to_file(level, message)
 
     def _warn(self, message: str, category: type[Warning]) -> None:
         """Issue a warning at the user's line, recorded in ``pygran.log``."""
-        self._to_file(logging.WARNING, message)
-        warnings.warn(message, category, stacklevel=_user_stacklevel())
+        self._messages.warn(message, category)
 
     def require(self, capability: str, what: str | None = None) -> None:
         """Raise :class:`UnsupportedFeature` unless this engine has ``capability``."""
@@ -551,46 +424,11 @@ class Engine(abc.ABC):
     def _check_clear(self, spec: CreateSpec) -> None:
         """Refuse ``single`` positions or lattice sites that overlap each other or the particles
         present."""
-        from scipy.spatial import cKDTree
-
-        centres = spec.centres
-        radius = spec.radius or self.spec.species[spec.species - 1].radius.min
         if self._placed is None:
             x, r = self._extract("x").reshape(-1, 3), self._extract("radius")
             finite = np.isfinite(x).all(axis=1)
             self._placed = (x[finite], r[finite])
-        present, radii = self._placed
-        # every close pair: (index of the new centre, the other's centre, its radius, the gap)
-        found: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
-        if len(present):
-            reach = radius + float(radii.max())
-            if len(present) * len(centres) <= 1_000_000:
-                gaps = np.linalg.norm(present[None, :, :] - centres[:, None, :], axis=2)
-                new, old = np.nonzero(gaps < reach)
-                gap = gaps[new, old]
-            else:
-                near = cKDTree(centres).sparse_distance_matrix(cKDTree(present), reach, output_type="ndarray")
-                new, old, gap = near["i"], near["j"], near["v"]
-            found.append((new, present[old], radii[old], gap))
-        if len(centres) > 1:
-            among = cKDTree(centres).query_pairs(2 * radius, output_type="ndarray").reshape(-1, 2)
-            gap = np.linalg.norm(centres[among[:, 0]] - centres[among[:, 1]], axis=1)
-            found.append((among[:, 1], centres[among[:, 0]], np.full(len(among), radius), gap))
-        if not found:
-            return
-        new, others, sizes, gap = (np.concatenate(parts) for parts in zip(*found))
-        depth = (sizes + radius - gap) / np.minimum(sizes, radius)
-        if not len(depth) or depth.max() <= CREATE_OVERLAP_TOLERANCE:
-            return
-        worst = int(np.argmax(depth))
-        kind = "the particle present" if worst < len(found[0][0]) and len(present) else "the new one"
-        raise ConfigError(
-            f"createParticles position {_point(centres[new[worst]])} overlaps {kind} at "
-            f"{_point(others[worst])} by {100 * min(depth[worst], 2.0):.3g} % of the smaller "
-            f"radius ({int((depth > CREATE_OVERLAP_TOLERANCE).sum())} overlapping pairs in all): "
-            "overlapping particles repel at high speed. Move the positions apart, at least the sum of "
-            "the radii."
-        )
+        check_clear(self.spec, spec, *self._placed)
 
     def set_properties(self, spec: SetSpec) -> int:
         """Assign velocity, angular velocity and/or radius to the selected particles; returns how many.
@@ -698,7 +536,7 @@ class Engine(abc.ABC):
         """
         self._check_open()
         nsteps = positive_int(nsteps, "nsteps")
-        self._check_run_size(nsteps)
+        check_run_size(self.spec, self.step, nsteps, [m.spec for m in self._monitors.values()])
         if dt is not None:
             dt = positive_float(dt, "dt")
         run_dt = dt if dt is not None else self.dt
@@ -728,7 +566,7 @@ class Engine(abc.ABC):
         elif self.step == 0:
             self._on_event()
         counted = self._lost_since_last()
-        watch = _Watch(self) if counted is None else None
+        watch = LostWatch(self.spec, self._extract, self.time, self._broken) if counted is None else None
         lost = counted or LostParticles()
         servos: dict[str, list[float]] = {name: [] for name in self._watched_servos()}
         self._progress.begin(self.step, end)
@@ -758,7 +596,7 @@ class Engine(abc.ABC):
         self._progress_line(self._progress.end(self.step), stderr=bool(self._progress.lines))
         self._placed = None  # the particles have moved
         if watch is not None:
-            lost = watch.finish()
+            lost = watch.finish(self.time)
         self._report_lost(lost, start, watch is not None)
         self._report_servos(servos)
 
@@ -766,42 +604,23 @@ class Engine(abc.ABC):
 
     def _watched_servos(self) -> list[str]:
         """The force servos whose controller :meth:`run` watches over its last steps."""
-        if "servo-walls" not in self.capabilities:
-            return []
-        return [m.name for m in self.spec.meshes if m.servo is not None and m.servo.control == "force"]
+        return list(force_servos(self.spec)) if "servo-walls" in self.capabilities else []
 
     def _servo_error(self, name: str) -> float:
-        """The servo's relative error now: (force pushing back along its axis - target) / target."""
-        servo = next(m.servo for m in self.spec.meshes if m.name == name)
-        assert servo is not None
-        axis = np.asarray(servo.axis, float) / np.linalg.norm(servo.axis)
+        """The servo's relative error now (see :func:`.diagnostics.servo_error`)."""
         try:
             force = self.mesh_force(name)  # type: ignore[attr-defined]
         except ConfigError:  # not a wall (yet): nothing to judge
             return 0.0
-        return float((-(force @ axis) - abs(servo.target)) / abs(servo.target))
+        return servo_error(force_servos(self.spec)[name], force)
 
     def _report_servos(self, servos: Mapping[str, list[float]]) -> None:
-        """A :class:`ServoWarning` for each servo whose force swung about its target, by more
-        than :data:`SERVO_SWING` of it, at each of the run's last :data:`SERVO_WATCH` + 1
-        readings (one step apart)."""
+        """A :class:`ServoWarning` for each servo whose force swung about its target at each of
+        the run's last steps (see :func:`.diagnostics.servo_swing`)."""
         for name, errors in servos.items():
-            swinging = len(errors) == SERVO_WATCH + 1 and all(
-                a * b < 0 and min(abs(a), abs(b)) > SERVO_SWING for a, b in itertools.pairwise(errors)
-            )
-            if not swinging:
-                continue
-            servo = next(m.servo for m in self.spec.meshes if m.name == name)
-            assert servo is not None
-            shown = ", ".join(f"{1 + e:.3g}" for e in errors)
-            message = (
-                f"servo wall {name!r} does not settle: the force on it swings about its target from step "
-                f"to step ({shown} times the target at the run's last {len(errors)} steps). The "
-                f"controller (LIGGGHTS', kp={servo.kp:g}, vel_max={servo.vel_max:g} m/s) is unstable on "
-                "this bed: the plate's own speed, through the contacts' damping, overturns the force each "
-                "step. Lower kp or vel_max (by 2 or more)."
-            )
-            self._warn(message, ServoWarning)
+            message = servo_swing(name, force_servos(self.spec)[name], errors)
+            if message is not None:
+                self._warn(message, ServoWarning)
 
     # -- the time step and lost particles ------------------------------------------------
 
@@ -825,9 +644,15 @@ class Engine(abc.ABC):
         self.log("outflow expected through %s", ", ".join(sorted(self._outflow)) or "no face")
 
     def _check_time_step(self, dt: float, check_dt: bool) -> None:
-        """Compare ``dt`` with the contacts that can happen now (see :meth:`_time_step_limits`):
-        warn once per time step and set of contacts; refuse a step that cannot resolve them."""
-        found = self._time_step_limits()
+        """Compare ``dt`` with the contacts that can happen now, between the species present
+        or being inserted and with the walls (see :class:`.diagnostics.TimeStepLimits`): warn
+        once per time step and set of contacts; refuse a step that cannot resolve them. The
+        particles present are read from the engine only after a call or a run may have
+        changed them (see :attr:`_present`)."""
+        if self._present is None:
+            self._present = species_present(self.spec, self._extract("type"), self._extract("radius"))
+        coming = {k for insert in self._insert_specs.values() for k in insert.species}
+        found = self._step_limits(self._present, coming, self._wall_specs.values())
         self.time_step_check = check = None if found is None else found.assess(dt)
         if found is None or check is None or check.level == "ok":
             return
@@ -835,52 +660,8 @@ class Engine(abc.ABC):
             message = f"{check.message()} Or pass check_dt=False to run() to run anyway."
             self._to_file(logging.ERROR, f"run refused: {message}")
             raise ConfigError(message)
-        if (dt, found) not in self._warned:
-            self._warned.add((dt, found))
+        if self._step_limits.first_warning(dt, found):
             self._warn(check.message(), TimeStepWarning)
-
-    def _time_step_limits(self) -> Limits | None:
-        """The shortest Rayleigh and contact times of the contacts that can happen: between the
-        species present (two particles of one) or being inserted, and of them with every
-        wall's material; cached by what they depend on. The particles present are read from
-        the engine only after a call or a run may have changed them (see :attr:`_present`)."""
-        species = self.spec.species
-        if self._present is None:
-            types, radii = self._extract("type").astype(np.int64), self._extract("radius")
-            kinds = [int(k) for k in np.unique(types) if 1 <= k <= len(species)]
-            self._present = tuple(
-                (k, float(radii[types == k].min()), int(np.count_nonzero(types == k)) > 1) for k in kinds
-            )
-        coming = {k for insert in self._insert_specs.values() for k in insert.species}
-        smallest = {k: r for k, r, _ in self._present}
-        several = {k for k, _, many in self._present if many} | coming
-        for kind in coming:
-            smallest[kind] = min(smallest.get(kind, math.inf), species[kind - 1].radius.min)
-        walls = {}
-        for wall in self._wall_specs.values():
-            mesh = next((m for m in self.spec.meshes if m.name == wall.mesh and m.material), None)
-            if mesh is not None:
-                walls[f"mesh {mesh.name!r}"] = mesh.material
-            else:
-                walls[f"walls of species {wall.species}'s material"] = species[wall.species - 1].material
-        key = (
-            tuple(sorted((k, r, k in several) for k, r in smallest.items())),
-            tuple(sorted(walls)),
-        )
-        if key not in self._limits:
-            bodies = {
-                k: Body(f"species {k}", species[k - 1].material, r, species[k - 1].density)
-                for k, r in smallest.items()
-            }
-            pairs = [
-                (bodies[a], bodies[b]) for a in bodies for b in bodies if a < b or (a == b and a in several)
-            ]
-            pairs += [
-                (body, Body(name, material)) for body in bodies.values() for name, material in walls.items()
-            ]
-            materials = [s.material for s in species] + [m.material for m in self.spec.meshes if m.material]
-            self._limits[key] = limits(self.spec.model, pairs, characteristic_speed(materials))
-        return self._limits[key]
 
     def _report_lost(self, lost: LostParticles, start: int, estimated: bool) -> None:
         """Count the particles lost in the run from ``start``; warn about those not expected."""
@@ -917,45 +698,9 @@ class Engine(abc.ABC):
         self._warn(message, LostParticlesWarning)
 
     def _lost_cause(self, lost: LostParticles) -> str:
-        """The likely cause of ``lost``: from their speeds and those of the particles left (an
-        instability throws both far faster than the simulation explains), non-finite values,
-        the time-step check, and the faces they left through."""
-        check = self.time_step_check
-        step = (
-            f"the time step is probably too large: {check.times()}; use dt <= {check.limits.safe_dt:.2g} s"
-            if check is not None and check.level != "ok"
-            else None
-        )
-        box = self.spec.domain.lengths
-        fall = math.sqrt(2 * self.spec.gravity.magnitude * float(box.max())) if self.spec.gravity else 0.0
-        materials = [s.material for s in self.spec.species]
-        explained = max(self._speeds, fall, characteristic_speed(materials))
+        """The likely cause of ``lost`` (see :func:`.diagnostics.lost_cause`)."""
         remaining = np.linalg.norm(self._extract("v").reshape(-1, 3), axis=1)
-        fastest = max(lost.max_speed or 0.0, float(remaining[np.isfinite(remaining)].max(initial=0.0)))
-        fast = fastest > FAST_FACTOR * explained
-        if fast or lost.where.get("non-finite"):
-            seen = (
-                f"speeds up to {fastest:.3g} m/s, over {FAST_FACTOR:g} times the {explained:.3g} m/s the "
-                "simulation explains"
-                if fast
-                else "non-finite positions or velocities"
-            )
-            return f"{seen}: " + (
-                step
-                or "particles probably started overlapping (created on top of each other or with a lattice "
-                "spacing below a diameter) or inside a wall"
-            )
-        faces = sorted(place for place in lost.where if place in FACES and place not in self._outflow)
-        if faces:
-            at = f" at up to {lost.max_speed:.3g} m/s" if lost.max_speed is not None else ""
-            went = f"they left{at} through {', '.join(faces)}"
-            if step is not None:
-                return f"{went} (a contact too short to resolve lets particles pass through walls): {step}"
-            return (
-                f"{went}, where no wall holds them: add a wall inside the box, or declare an opening "
-                f"with expect_outflow({', '.join(map(repr, faces))})"
-            )
-        return step or "look for particles created outside the box or beyond a wall"
+        return lost_cause(self.spec, lost, self.time_step_check, self._speeds, remaining, self._outflow)
 
     def _set_step(self, step: int, dt: float) -> None:
         """Move the clock to ``step``, ``dt`` after ``dt`` since the last change of time step."""
@@ -970,34 +715,6 @@ class Engine(abc.ABC):
         if self.spec.restart is not None:
             freqs.append(self.spec.restart.freq)
         return freqs
-
-    def _check_run_size(self, nsteps: int) -> None:
-        """Refuse, before it starts, a run whose step count overflows the step counters, whose
-        trajectory frames cannot fit on the output's disk (at :data:`FRAME_BYTES` each, however
-        few the particles) or whose monitor samples cannot fit in memory."""
-        if self.step + nsteps > MAX_STEP:
-            raise ConfigError(
-                f"run nsteps={nsteps} would take the simulation past step {MAX_STEP}, the most the step "
-                "counters hold: run fewer steps"
-            )
-        traj = self.spec.traj
-        files = sum(path is not None for path in (traj.pfile, traj.mfile, traj.cfile))
-        frames = files * (nsteps // traj.freq)
-        free = shutil.disk_usage(self.output).free
-        if frames * FRAME_BYTES > free:
-            raise ConfigError(
-                f"run nsteps={nsteps} would write {frames:.3g} trajectory frames (traj freq {traj.freq}), at "
-                f"least {frames * FRAME_BYTES / 1e9:.3g} GB, but {free / 1e9:.3g} GB are free on the disk of "
-                f"{self.output}: run fewer steps or raise traj freq"
-            )
-        samples = sum(nsteps // m.spec.freq * (2 + len(m.spec.quantities)) for m in self._monitors.values())
-        memory = available_memory()
-        if samples * SAMPLE_BYTES > memory:
-            raise ConfigError(
-                f"run nsteps={nsteps} would keep {samples:.3g} monitor values in memory, about "
-                f"{samples * SAMPLE_BYTES / 1e9:.3g} GB, but {memory / 1e9:.3g} GB are free: run fewer "
-                "steps or raise the monitors' freq"
-            )
 
     def _run_chunks(self, end: int) -> Iterator[int]:
         """The pieces of :meth:`_chunks` from this step to ``end``, listed a segment of
@@ -1175,7 +892,7 @@ class Engine(abc.ABC):
     def _abandon(self) -> None:
         """Release the log and the output folder of an engine whose construction failed (its
         subclass calls this on a failure after the base class's constructor)."""
-        self._log_handler.close()
+        self._messages.close()
         self._output_lock.close()
         self.closed = True
 
@@ -1190,7 +907,7 @@ class Engine(abc.ABC):
         finally:
             self.closed = True
             self.log("%s engine closed at step %d", self.name, self.step)
-            self._log_handler.close()
+            self._messages.close()
             self._output_lock.close()
 
     def __enter__(self) -> Engine:
@@ -1333,16 +1050,8 @@ class Engine(abc.ABC):
         return {}
 
     def check_servo_speeds(self, dt: float) -> None:
-        """LIGGGHTS' limit on servo walls, for every engine that has them: ``vel_max`` below
-        half the neighbour skin per step (a wall must not cross the skin between rebuilds)."""
-        limit = self.spec.skin / (2 * dt)
-        for mesh in self.spec.meshes:
-            if mesh.servo is not None and not mesh.servo.vel_max < limit:
-                raise ConfigError(
-                    f"mesh {mesh.name!r}: servo vel_max {mesh.servo.vel_max:g} m/s must be below "
-                    f"skin / (2 dt) = {limit:g} m/s (a servo wall moves at most half the neighbour "
-                    "skin per step, as on LIGGGHTS): lower vel_max or dt, or raise nns_skin"
-                )
+        """Refuse servo walls too fast for ``dt`` (see :func:`.diagnostics.check_servo_speeds`)."""
+        check_servo_speeds(self.spec, dt)
 
     def _lost_since_last(self) -> LostParticles | None:
         """Particles the solver lost (left a fixed boundary, became non-finite, were deleted)
@@ -1356,63 +1065,6 @@ class Engine(abc.ABC):
 
     def _close(self) -> None:
         """Release solver resources; engines holding any override."""
-
-
-class _Watch:
-    """Lost particles of an engine that does not report them (see :meth:`Engine._lost_since_last`),
-    over one run: those gone by its end, placed at the face their position and velocity at
-    its start (and gravity) were heading for, and those still present whose position or
-    velocity has become non-finite, each counted once."""
-
-    def __init__(self, engine: Engine) -> None:
-        self.engine = engine
-        self.start = engine.time
-        self.ids, self.x, self.v = self._state()
-
-    def _state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        extract = self.engine._extract
-        return extract("id"), extract("x").reshape(-1, 3), extract("v").reshape(-1, 3)
-
-    def finish(self) -> LostParticles:
-        """What was lost since the start of the run."""
-        ids, x, v = self._state()
-        gone = ~np.isin(self.ids, ids)
-        where: dict[str, int] = {}
-        for place in exit_faces(self.engine.spec, self.x[gone], self.v[gone], self.engine.time - self.start):
-            where[place] = where.get(place, 0) + 1
-        broken = ~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1))
-        fresh = [i for i in ids[broken].tolist() if i not in self.engine._broken]
-        self.engine._broken.update(fresh)
-        if fresh:
-            where["non-finite"] = where.get("non-finite", 0) + len(fresh)
-        return LostParticles(int(gone.sum()) + len(fresh), where)  # speeds when lost: unknown
-
-
-def exit_faces(spec: SimulationSpec, x: np.ndarray, v: np.ndarray, duration: float) -> list[str]:
-    """The face of the box (``"z-"``, ...) each particle at ``x`` moving at ``v`` reaches first
-    when it moves so, with gravity, for ``duration``; ``"non-finite"`` or ``"unknown"`` if none."""
-    box = np.array(spec.domain.box, float)
-    fixed = ~np.array(spec.domain.periodic)
-    gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
-    lo, hi = box[:, 0], box[:, 1]
-    places = []
-    for position, step in zip(x, v * duration + 0.5 * gravity * duration**2):
-        if not (np.isfinite(position).all() and np.isfinite(step).all()):
-            places.append("non-finite")
-            continue
-        with np.errstate(divide="ignore", invalid="ignore"):
-            bound = np.where(step > 0, hi, lo)
-            reach = np.where(fixed & (step != 0), (bound - position) / step, np.inf)
-        outside = fixed & ((position < lo) | (position > hi))
-        if outside.any():
-            axis = int(np.flatnonzero(outside)[0])
-            places.append("xyz"[axis] + ("-" if position[axis] < lo[axis] else "+"))
-        elif np.isfinite(reach).any():
-            axis = int(np.argmin(reach))
-            places.append("xyz"[axis] + ("+" if step[axis] > 0 else "-"))
-        else:
-            places.append("unknown")
-    return places
 
 
 def content_digest(value: Any) -> str:

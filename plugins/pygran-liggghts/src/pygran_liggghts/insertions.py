@@ -15,7 +15,8 @@ import numpy as np
 
 from pygran_core.errors import InsertionWarning, PyGranWarning
 from pygran_core.simulation import clumps
-from pygran_core.simulation.engine import Engine, LostParticles, exit_faces
+from pygran_core.simulation.diagnostics import LostParticles, exit_faces
+from pygran_core.simulation.engine import Engine
 from pygran_liggghts.channel import Channel
 from pygran_liggghts.commands import Commands, size_classes
 from pygran_liggghts.screen import InsertionEvent, insertion_events
