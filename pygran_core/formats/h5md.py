@@ -28,8 +28,12 @@ Contact records (:mod:`~pygran_core.formats.contacts`), when written, in the sam
     /contacts/<g>/{force,point,branch}/{step,time,value}  (F, C, 3) fx fy fz, cx cy cz, bx by bz
     /observables/<g>/contact_number/{step,time,value}     (F,) contacts in each frame
 
-Every ``value`` is chunked, gzip-compressed and resizable in frames and rows; HDF5 stores no
-chunk that holds fill values only. ``step`` and ``time`` are one pair of datasets hard-linked
+Every ``value`` is chunked (a frame and up to 65,536 rows per chunk, sized by the first
+particle frame) and resizable in frames and rows; gzip-compressed unless that frame has 65,536
+particles or more (see :class:`H5MDWriter`); HDF5 stores no chunk that holds fill values only.
+Frames are written and read block by block of whole chunks, straight from and into the
+columns where their rows allow, so a frame of 10^7 particles goes at disk speed with buffers
+of a few MB. ``step`` and ``time`` are one pair of datasets hard-linked
 into every element of a group (particles, contacts). The file is written in SWMR mode and
 flushed after every frame, so a killed writer leaves every completed frame readable;
 ``particle_number`` and ``contact_number`` are written last and set the frame counts. Next to
@@ -48,10 +52,10 @@ shell larger than what it stores, steps must increase, and every frame must be p
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from importlib.metadata import version
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -61,7 +65,7 @@ from pygran_core.formats.base import Frame, PathLike, Trajectory, TrajectoryWrit
 from pygran_core.formats.h5md_units import to_si
 from pygran_core.formats.hdf5 import HDF5_SIGNATURE, Claim, load_h5py, no_space, open_hdf5, stored_elements
 from pygran_core.formats.sanity import particle_problem, step_problem
-from pygran_core.formats.xdmf import VECTORS, XdmfSidecar, frame_groups
+from pygran_core.formats.xdmf import VECTORS, XdmfSidecar, interleaved, stacked
 
 #: H5MD scalar element names that differ from the dump column.
 RENAMED = {"type": "species"}
@@ -88,7 +92,14 @@ SI_UNITS = {
 #: What h5py raises on a damaged file (HDF5's own errors are OSError, RuntimeError, KeyError
 #: or ValueError; an object of the wrong kind gives TypeError or IndexError).
 _DAMAGE = (OSError, RuntimeError, KeyError, ValueError, TypeError, IndexError)
-_PARTICLE_CHUNK = 65536
+#: Particle rows of a chunk at least and at most (a chunk of a vector element holds at most
+#: 1.5 MB): the first particle frame's rows in as few chunks as these allow, of equal size.
+CHUNK_ROWS = (1024, 65536)
+#: Frames of this many particles or more are written without compression by default.
+LARGE_FRAME = 65536
+#: Rows read or written per HDF5 call when a frame's rows are gathered or spread (cut at
+#: multiples of whole chunks): the buffers of a frame's columns stay this small.
+BLOCK_ROWS = 65536
 
 
 def can_open(path: Path) -> bool:
@@ -121,15 +132,40 @@ def _elements(columns: Sequence[str]) -> list[tuple[str, tuple[str, ...]]]:
 
 class _Rows:
     """The row of the (frames, rows) arrays that holds each particle id: the next free row at
-    the particle's first frame, kept for good."""
+    the particle's first frame, kept for good.
+
+    Looked up in a table indexed by id while the ids are few times more than the rows (ids
+    numbered from 1, as engines give them), else by a search in the sorted ids; both are
+    numpy operations over the frame, never a loop over particles.
+    """
 
     def __init__(self) -> None:
         self.count = 0
-        self._ids = np.empty(0, dtype=np.int64)  # sorted
+        self._table: np.ndarray | None = np.empty(0, dtype=np.int64)  # row of each id, -1: none
+        self._ids = np.empty(0, dtype=np.int64)  # sorted, once the table is given up
         self._rows = np.empty(0, dtype=np.int64)
 
     def of(self, ids: np.ndarray) -> np.ndarray:
-        """The rows of ``ids`` (unique), giving new ids the next free rows in their order."""
+        """The rows of ``ids`` (unique, not negative), giving new ids the next free rows in
+        their order."""
+        top = int(ids.max())
+        if self._table is not None and top >= 4 * (self.count + len(ids)) + BLOCK_ROWS:
+            self._ids = np.flatnonzero(self._table >= 0)
+            self._rows, self._table = self._table[self._ids], None
+        if self._table is None:
+            return self._searched(ids)
+        if top >= len(self._table):
+            grown = np.full(max(top + 1, 2 * len(self._table)), -1, dtype=np.int64)
+            grown[: len(self._table)] = self._table
+            self._table = grown
+        rows = self._table[ids]
+        fresh = np.flatnonzero(rows < 0)
+        rows[fresh] = self.count + np.arange(len(fresh))
+        self._table[ids[fresh]] = rows[fresh]
+        self.count += len(fresh)
+        return rows
+
+    def _searched(self, ids: np.ndarray) -> np.ndarray:
         where = np.searchsorted(self._ids, ids)
         known = where < len(self._ids)
         known[known] = self._ids[where[known]] == ids[known]
@@ -146,16 +182,138 @@ class _Rows:
         return rows
 
 
+class _Placement(NamedTuple):
+    """Where a frame's particles are in the rows ``lo`` to ``hi`` of the file: ``where[r - lo]``
+    is the frame's particle in row r (-1: none); ``where`` None: particle i is in row lo + i."""
+
+    lo: int
+    hi: int
+    where: np.ndarray | None
+
+    @classmethod
+    def of(cls, rows: np.ndarray, order: np.ndarray | None = None) -> _Placement:
+        """The placement of particles ``order[i]`` (``i`` without ``order``) in ``rows[i]``
+        (unique)."""
+        if not len(rows):
+            return cls(0, 0, None)
+        lo, hi = int(rows.min()), int(rows.max()) + 1
+        ordered = order is None or bool((order[1:] > order[:-1]).all())
+        if ordered and hi - lo == len(rows) and bool((rows[1:] > rows[:-1]).all()):
+            return cls(lo, hi, None)
+        where = np.full(hi - lo, -1, dtype=np.int64)
+        where[rows - lo] = np.arange(len(rows)) if order is None else order
+        return cls(lo, hi, where)
+
+
+def _block_rows(chunk: int | None) -> int:
+    """The rows of a block: whole chunks of ``chunk`` rows (None: not chunked), about
+    :data:`BLOCK_ROWS`."""
+    return BLOCK_ROWS if chunk is None else chunk * max(1, BLOCK_ROWS // chunk)
+
+
+def _blocks(lo: int, hi: int, chunk: int | None) -> Iterator[tuple[int, int]]:
+    """(start, stop) of the rows ``lo`` to ``hi`` cut at the multiples of :func:`_block_rows`."""
+    step = _block_rows(chunk)
+    start = lo
+    while start < hi:
+        stop = min(hi, (start // step + 1) * step)
+        yield start, stop
+        start = stop
+
+
+def _write_rows(value: Any, k: int, columns: list[np.ndarray] | None, place: _Placement) -> None:
+    """Frame ``k`` of the (frames, rows[, components]) dataset ``value``: ``columns`` (one per
+    component) in the rows of ``place``, or None: each row's particle index (``pygran_order``).
+
+    Columns that are one contiguous array of the dataset's type (a scalar column, or x y z
+    as an engine gives them) in rows taken in order go to the file as they are; others through
+    a buffer of a block of rows."""
+    lo, hi, where = place
+    if where is None and columns is not None:
+        whole = stacked(columns) if len(columns) == 1 else interleaved(columns)
+        if whole is not None and whole.dtype == value.dtype and whole.flags.c_contiguous:
+            value.write_direct(whole, dest_sel=np.s_[k, lo:hi])
+            return
+    buffer = np.empty((min(hi - lo, _block_rows(value.chunks[1])), *value.shape[2:]), dtype=value.dtype)
+    for start, stop in _blocks(lo, hi, value.chunks[1]):
+        part = buffer[: stop - start]
+        grid = part.reshape(len(part), -1)  # a view, (rows, components)
+        if where is None:
+            taken = slice(start - lo, stop - lo)
+            sources = [np.arange(start - lo, stop - lo)] if columns is None else [c[taken] for c in columns]
+            for j, source in enumerate(sources):
+                grid[:, j] = source
+        else:
+            particles = where[start - lo : stop - lo]
+            if columns is None:
+                grid[:, 0] = particles
+            else:
+                present = particles >= 0
+                part[...] = value.fillvalue
+                for j, column in enumerate(columns):
+                    grid[present, j] = column[particles[present]]
+        value.write_direct(part, dest_sel=np.s_[k, start:stop])
+
+
+def _read_rows(dataset: Any, index: int | None, place: _Placement, n: int) -> list[np.ndarray]:
+    """The ``n`` particles of ``place`` in frame ``index`` of the (frames, rows[, components])
+    dataset ``dataset`` (``index`` None: a (rows[, components]) dataset of every frame): one
+    new contiguous int64 or float64 array per component, read into directly (a scalar in
+    rows taken in order) or through a buffer of a block of rows."""
+    lead = () if index is None else (index,)
+    tail = dataset.shape[len(lead) + 1 :]
+    kind = np.int64 if dataset.dtype.kind in "biu" else np.float64
+    columns = [np.empty(n, dtype=kind) for _ in range(int(np.prod(tail, dtype=np.int64)))]
+    lo, hi, where = place
+    if where is None and not tail and dataset.dtype.kind != "b":  # HDF5 converts numbers only
+        if n:
+            dataset.read_direct(columns[0], (*lead, slice(lo, hi)))
+        return columns
+    chunk = dataset.chunks[len(lead)] if dataset.chunks else None
+    buffer = np.empty((min(hi - lo, _block_rows(chunk)), *tail), dtype=dataset.dtype)
+    for start, stop in _blocks(lo, hi, chunk):
+        part = buffer[: stop - start]
+        dataset.read_direct(part, (*lead, slice(start, stop)))
+        grid = part.reshape(len(part), -1)  # a view, (rows, components)
+        if where is None:
+            for j, column in enumerate(columns):
+                column[start - lo : stop - lo] = grid[:, j]
+        else:
+            to = where[start - lo : stop - lo]
+            present = to >= 0
+            for j, column in enumerate(columns):
+                column[to[present]] = grid[present, j]
+    return columns
+
+
+def _permutes(order: np.ndarray) -> bool:
+    """Whether ``order`` holds 0 to len(order) - 1 once each."""
+    if not len(order):
+        return True
+    if order.min() < 0 or order.max() >= len(order):
+        return False
+    seen = np.zeros(len(order), dtype=bool)
+    seen[order] = True
+    return bool(seen.all())
+
+
 class H5MDWriter(TrajectoryWriter):
     """Appends particle frames, and contacts frames, to an H5MD file, flushing each one, and
     the XDMF sidecar of the particle frames (``xdmf=False``: none).
 
     Options: ``group`` (particle group name), ``units`` (``"si"``, the default: the data are
     in SI units; a mapping from element name to unit string; or None: no ``unit``
-    attributes), ``compression`` level (gzip 0-9), ``contacts``: whether contacts frames
+    attributes), ``compression`` level (gzip 1-9, 0: none; by default 4 for a file whose
+    first particle frame has fewer than :data:`LARGE_FRAME` particles, none for larger ones:
+    gzip writes tens of MB/s, a small part of what a disk takes, and saves mostly the columns
+    that hardly change, such as ``type`` and ``radius``), ``contacts``: whether contacts frames
     (``attrs["kind"] == "contacts"``) come besides the particle frames (the file is laid out
     for both at its first particle frame with columns). A writer whose first frame is a
     contacts frame, without ``contacts=True``, writes a file of contacts only.
+
+    A frame goes to the file without copies where it can: a column, or x y z given as the
+    columns of one (N, 3) array, in rows taken in order (the same particles as in the frame
+    before, or new ones after them); otherwise through buffers of :data:`BLOCK_ROWS` rows.
 
     The file is claimed before it is emptied (a second writer of the same file gets a
     :class:`~pygran_core.errors.WriteError` and the first one's file is untouched), and
@@ -168,7 +326,7 @@ class H5MDWriter(TrajectoryWriter):
         path: PathLike,
         group: str = "trajectory",
         units: str | dict[str, str] | None = "si",
-        compression: int = 4,
+        compression: int | None = None,
         contacts: bool = False,
         xdmf: bool = True,
     ) -> None:
@@ -183,6 +341,7 @@ class H5MDWriter(TrajectoryWriter):
         self.xdmf = xdmf
         self.count = 0
         self.contact_count = 0
+        self._chunk_rows = CHUNK_ROWS[0]
         self._file: Any = None
         self._claim: Claim | None = None
         self._sidecar: XdmfSidecar | None = None
@@ -197,14 +356,22 @@ class H5MDWriter(TrajectoryWriter):
     # -- file creation ---------------------------------------------------------------------
     def _create(self, frame: Frame | None) -> None:
         """The file, laid out for the particle frame ``frame`` (None: contacts only) and, if
-        asked or if ``frame`` is None, for contacts; then in SWMR mode."""
+        asked or if ``frame`` is None, for contacts; then in SWMR mode. Its particle count
+        sets the chunks' rows and the default compression."""
         h5py = load_h5py()
 
+        n = len(next(iter(frame.arrays.values()))) if frame is not None and frame.arrays else 0
+        self._chunk_rows = max(CHUNK_ROWS[0], -(-n // -(-n // CHUNK_ROWS[1])) if n else 0)
+        if self.compression is None:
+            self.compression = 0 if n >= LARGE_FRAME else 4
         self._claim = Claim(self.path)
         self._claim.truncate()
         # without HDF5's own file lock, which a reader in another process would hold against
         # this writer; the claim excludes other writers
-        self._file = f = h5py.File(self.path, "w", libver="latest", track_order=True, locking=False)
+        # no chunk cache: each chunk of a frame is written once, whole
+        self._file = f = h5py.File(
+            self.path, "w", libver="latest", track_order=True, locking=False, rdcc_nbytes=0
+        )
         h5md = f.create_group("h5md")
         h5md.attrs["version"] = np.array([1, 1], dtype=np.int32)
         h5md.create_group("author").attrs["name"] = "PyGran"
@@ -225,11 +392,11 @@ class H5MDWriter(TrajectoryWriter):
         root = f.create_group(f"contacts/{self.group}", track_order=True)
         clock: Any = None
         for name in ("id1", "id2"):
-            group = self._element(root, name, (0, 1), np.int64, 0, clock)
+            group = self._element(root, name, (0, 1), np.int64, 0, clock, CHUNK_ROWS[0])
             clock = group if clock is None else clock
             self._contact_values.append((group["value"], (name,)))
         for name, cols in _contacts.VECTORS.items():
-            group = self._element(root, name, (0, 1, 3), np.float64, np.nan, clock)
+            group = self._element(root, name, (0, 1, 3), np.float64, np.nan, clock, CHUNK_ROWS[0])
             self._contact_values.append((group["value"], cols))
         self._contact_clock = clock
         observables = f.require_group(f"observables/{self.group}")
@@ -253,12 +420,16 @@ class H5MDWriter(TrajectoryWriter):
             dtype = np.int64 if integer else np.float64
             fill = -1 if integer else np.nan
             tail = (3,) if len(cols) == 3 else ()
-            group = self._element(particles, element, (0, 0, *tail), dtype, fill, self._clock)
+            group = self._element(
+                particles, element, (0, 0, *tail), dtype, fill, self._clock, self._chunk_rows
+            )
             self._clock = group if self._clock is None else self._clock
             self._values.append((group["value"], cols))
         self._order = None
         if "id" in columns:
-            self._order = self._element(particles, "pygran_order", (0, 0), np.int64, -1, self._clock)["value"]
+            self._order = self._element(
+                particles, "pygran_order", (0, 0), np.int64, -1, self._clock, self._chunk_rows
+            )["value"]
         box = particles.create_group("box")
         box.attrs["dimension"] = 3
         self._boundary = frame.boundary
@@ -284,13 +455,21 @@ class H5MDWriter(TrajectoryWriter):
         )["value"]
         self._columns = columns
         if self.xdmf and "position" in dict(self._elements):
-            self._sidecar = XdmfSidecar(self.path, self.compression)
+            self._sidecar = XdmfSidecar(self.path, self.compression or 0)
 
     def _element(
-        self, parent: Any, name: str, shape: tuple[int, ...], dtype: Any, fill: Any, clock: Any
+        self,
+        parent: Any,
+        name: str,
+        shape: tuple[int, ...],
+        dtype: Any,
+        fill: Any,
+        clock: Any,
+        rows: int | None = None,
     ) -> Any:
         """A time-dependent element: its ``step`` and ``time`` hard-linked from the element
-        ``clock``, or made here when ``clock`` is None."""
+        ``clock``, or made here when ``clock`` is None; a chunk per frame, of ``rows`` rows
+        (particles or contacts, the second axis) or the whole frame (None)."""
         group = parent.create_group(name)
         if clock is None:
             group.create_dataset("step", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
@@ -300,9 +479,7 @@ class H5MDWriter(TrajectoryWriter):
         else:
             group["step"] = clock["step"]
             group["time"] = clock["time"]
-        chunks = (1, *(min(max(s, 1), _PARTICLE_CHUNK) for s in shape[1:2]), *shape[2:])
-        if len(shape) > 1 and shape[1] == 0:
-            chunks = (1, 1024, *shape[2:])
+        chunks = (1, *(max(s, 1) for s in shape[1:])) if rows is None else (1, rows, *shape[2:])
         value = group.create_dataset(
             "value",
             shape=shape,
@@ -374,19 +551,15 @@ class H5MDWriter(TrajectoryWriter):
             dataset.resize((k + 1,))
             dataset[k] = value
         for value, cols in self._contact_values:
-            if n > value.shape[1]:
-                value.resize(n, axis=1)
-            value.resize(k + 1, axis=0)
+            value.resize((k + 1, max(n, value.shape[1]), *value.shape[2:]))
             if n:
-                value[k, :n] = (
-                    np.column_stack([arrays[c] for c in cols]) if len(cols) == 3 else arrays[cols[0]]
-                )
+                _write_rows(value, k, [np.asarray(arrays[c]) for c in cols], _Placement(0, n, None))
         self._contact_number.resize((k + 1,))
         self._contact_number[k] = n
         self._file.flush()
         self.contact_count += 1
 
-    def _checked(self, frame: Frame) -> tuple[int, np.ndarray]:
+    def _checked(self, frame: Frame) -> tuple[int, _Placement]:
         """The frame's particle count and rows, once its columns, ids and step are right."""
         if self._columns is None:
             raise UnsupportedFeature(f"{self.path}: a particle frame, but the file holds contacts only")
@@ -408,37 +581,29 @@ class H5MDWriter(TrajectoryWriter):
             problem = problem or f"negative ids (such as {ids.min()}): H5MD marks absent particles with -1"
         if problem:
             raise UnsupportedFeature(f"H5MD frame {self.count}: {problem}")
-        rows = self._rows.of(ids) if ids is not None else np.arange(n)
-        self._rows.count = max(self._rows.count, n)
-        return n, rows
+        if ids is None:
+            self._rows.count = max(self._rows.count, n)
+            return n, _Placement(0, n, None)
+        return n, _Placement.of(self._rows.of(ids))
 
     def _append(self, frame: Frame) -> None:
-        n, rows = self._checked(frame)
+        n, place = self._checked(frame)
         k = self.count
-        lo, hi = (int(rows.min()), int(rows.max()) + 1) if n else (0, 0)
-        span = rows - lo
         assert self._claim is not None
-        self._claim.reserve(sum(8 * (hi - lo) * (3 if v.ndim == 3 else 1) for v, _ in self._values))
+        self._claim.reserve(
+            sum(8 * (place.hi - place.lo) * (3 if v.ndim == 3 else 1) for v, _ in self._values)
+        )
         step = frame.timestep if frame.timestep is not None else k
         for name, value in (("step", step), ("time", np.nan if frame.time is None else frame.time)):
             dataset = self._clock[name]
             dataset.resize((k + 1,))
             dataset[k] = value
-        order = [(self._order, ("pygran_order",))] if self._order is not None else []
+        order = [(self._order, None)] if self._order is not None else []
         for value, cols in [*self._values, *order]:
-            if self._rows.count > value.shape[1]:
-                value.resize(self._rows.count, axis=1)
-            value.resize(k + 1, axis=0)
+            value.resize((k + 1, max(self._rows.count, value.shape[1]), *value.shape[2:]))
             if n:
-                if cols == ("pygran_order",):
-                    data: np.ndarray = np.arange(n)
-                elif len(cols) == 3:
-                    data = np.column_stack([frame.arrays[c] for c in cols])
-                else:
-                    data = np.asarray(frame.arrays[cols[0]])
-                block = np.full((hi - lo, *value.shape[2:]), value.fillvalue, dtype=value.dtype)
-                block[span] = data
-                value[k, lo:hi] = block
+                columns = None if cols is None else [np.asarray(frame.arrays[c]) for c in cols]
+                _write_rows(value, k, columns, place)
         box = np.asarray(frame.box if frame.box is not None else np.full((3, 2), np.nan), dtype=np.float64)
         lengths = box[:, 1] - box[:, 0]
         for dataset, row in (
@@ -456,7 +621,7 @@ class H5MDWriter(TrajectoryWriter):
         self._last_step = step
         if self._sidecar is not None:
             time = float(step) if frame.time is None or np.isnan(frame.time) else float(frame.time)
-            self._sidecar.add(k, step, time, frame_groups(frame.arrays, self._elements))
+            self._sidecar.add(k, step, time, frame.arrays, self._elements)
 
     def close(self) -> None:
         if self._file is None and self._pending and self._failed is None:
@@ -548,12 +713,17 @@ class _H5MDFile(Trajectory):
         return None
 
     def _dataset(self, group: Any, name: str, min_ndim: int, max_ndim: int) -> Any:
-        """``group[name]``, which must be a numeric dataset of ``min_ndim`` to ``max_ndim`` axes."""
+        """``group[name]``, which must be a numeric dataset of ``min_ndim`` to ``max_ndim`` axes,
+        opened without a chunk cache: frames are read in whole chunks, each once, and HDF5's
+        cache would keep up to 8 MB of each dataset's last chunks (many frames of a small
+        trajectory) for nothing."""
         h5py = load_h5py()
 
-        found = group.get(name)
-        if not isinstance(found, h5py.Dataset):
+        if name not in group or group.get(name, getclass=True) is not h5py.Dataset:
             raise self._fail(f"{group.name}/{name} is missing or not a dataset")
+        uncached = h5py.h5p.create(h5py.h5p.DATASET_ACCESS)
+        uncached.set_chunk_cache(0, 0, 1.0)
+        found = h5py.Dataset(h5py.h5d.open(group.id, name.encode(), dapl=uncached))  # the first opening
         if not min_ndim <= found.ndim <= max_ndim or found.dtype.kind not in "biuf":
             raise self._fail(f"{found.name} has shape {found.shape} and type {found.dtype}")
         return found
@@ -644,15 +814,12 @@ class H5MDContacts(_H5MDFile):
         for columns, value, factor in self._values:
             if not 0 <= count <= value.shape[1]:
                 raise self._fail(f"frame {index}: {count} contacts, but {value.name} holds {value.shape[1]}")
-            data = value[index, :count]
             kind = np.int64 if columns[0] in _contacts.INT_COLUMNS else np.float64
-            if data.dtype.kind not in "biuf":
-                raise self._fail(f"frame {index}: {value.name} has type {data.dtype}")
-            data = data.astype(kind) * factor if factor != 1 else data.astype(kind)
-            if data.ndim == 2:
-                arrays.update({c: np.ascontiguousarray(data[:, j]) for j, c in enumerate(columns)})
-            else:
-                arrays[columns[0]] = data
+            read = _read_rows(value, index, _Placement(0, count, None), count)
+            for column, data in zip(columns, read):
+                arrays[column] = data.astype(kind, copy=False)
+                if factor != 1:
+                    arrays[column] *= factor
         return Frame(
             {c: arrays[c] for c in _contacts.COLUMNS},
             timestep=int(self._step[index]),
@@ -753,11 +920,17 @@ class H5MDTrajectory(_H5MDFile):
             return None
         return H5MDContacts([self.path], self.group)
 
-    def _present(self, index: int) -> tuple[np.ndarray, np.ndarray | None]:
-        """The rows holding particles in frame ``index``, and where each stood as written."""
+    def _placement(self, index: int) -> tuple[int, _Placement]:
+        """The particle count of frame ``index`` and where its particles are: the rows whose id
+        is not the fill value (the first ``particle_number`` rows without ids), in the order in
+        which they were written (``pygran_order``) or else in row order."""
         count = int(self._number[index]) if self._number is not None else None
         if self._ids is not None:
-            rows = np.flatnonzero(self._ids[index] != self._ids.fillvalue)
+            ids = np.empty(self._ids.shape[1], dtype=self._ids.dtype)
+            if len(ids):
+                self._ids.read_direct(ids, np.s_[index])
+            rows = np.flatnonzero(ids != self._ids.fillvalue)
+            del ids
             if count is not None and count != len(rows):
                 raise self._fail(f"frame {index}: {count} particles counted, but {len(rows)} rows have an id")
         else:
@@ -767,35 +940,32 @@ class H5MDTrajectory(_H5MDFile):
                 raise self._fail(f"frame {index}: {count} particles, but the elements hold {held}")
             rows = np.arange(count)
         if self._order is None or not len(rows):
-            return rows, None
-        order = self._order[index, rows[0] : rows[-1] + 1][rows - rows[0]]
-        if not np.array_equal(np.sort(order), np.arange(len(rows))):
+            return len(rows), _Placement.of(rows)
+        lo, hi = int(rows[0]), int(rows[-1]) + 1
+        order = np.empty(hi - lo, dtype=self._order.dtype)
+        self._order.read_direct(order, np.s_[index, lo:hi])
+        if hi - lo != len(rows):
+            order = order[rows - lo]
+        if not _permutes(order):
             raise self._fail(
                 f"frame {index}: {self._order.name} is not an order of its {len(rows)} particles"
             )
-        return rows, order
+        return len(rows), _Placement.of(rows, order)
 
     def _frame(self, index: int) -> Frame:
-        rows, order = self._present(index)
-        span = slice(int(rows[0]), int(rows[-1]) + 1) if len(rows) else slice(0, 0)
+        n, place = self._placement(index)
         arrays: dict[str, np.ndarray] = {}
         for name, dataset, timed in self._elements:
-            data = (dataset[index, span] if timed else dataset[span])[rows - span.start]
-            data = data.astype(np.int64 if data.dtype.kind in "biu" else np.float64)
+            columns = _read_rows(dataset, index if timed else None, place, n)
             if self._factors[name] != 1:
-                data = data * self._factors[name]
-            if order is not None:
-                placed = np.empty_like(data)
-                placed[order] = data
-                data = placed
+                for column in columns:
+                    column *= self._factors[name]
             if name in VECTORS:
-                for j, column in enumerate(VECTORS[name]):
-                    arrays[column] = np.ascontiguousarray(data[:, j])
-            elif data.ndim == 2:
-                for j in range(data.shape[1]):
-                    arrays[f"{name}[{j + 1}]"] = np.ascontiguousarray(data[:, j])
+                arrays.update(zip(VECTORS[name], columns))
+            elif dataset.ndim == 2 + timed:
+                arrays.update({f"{name}[{j + 1}]": column for j, column in enumerate(columns)})
             else:
-                arrays["type" if name == "species" else name] = data
+                arrays["type" if name == "species" else name] = columns[0]
         problem = particle_problem(arrays)
         if problem:
             raise self._fail(f"frame {index}: {problem}")

@@ -83,29 +83,44 @@ class XdmfSidecar:
         self._write_xml(_HEAD + _TAIL, at_end=False)
         self._connectivity: tuple[int, str] | None = None
 
-    def add(self, index: int, step: int, time: float, groups: Sequence[tuple[str, np.ndarray]]) -> None:
-        """Frame ``index`` of ``step`` at ``time``: ``groups`` are (name, (n,) or (n, 3) array),
-        ``position`` among them."""
+    def add(
+        self,
+        index: int,
+        step: int,
+        time: float,
+        arrays: dict[str, Any],
+        elements: Sequence[tuple[str, tuple[str, ...]]],
+    ) -> None:
+        """Frame ``index`` of ``step`` at ``time``: the columns ``arrays`` grouped as ``elements``
+        (H5MD name, columns; ``position`` among them), vectors stored as (n, 3) arrays named by
+        their element, other columns as (n,) arrays under their own name; one group is in
+        memory at a time."""
         h5py = load_h5py()
 
-        positions = dict(groups)["position"]
-        n = len(positions)
-        self._claims[1].reserve(sum(a.nbytes for _, a in groups) + 8 * n)
-        items: list[tuple[str, np.ndarray, str]] = []
+        n = len(arrays[dict(elements)["position"][0]])
+        self._claims[1].reserve(
+            sum(np.asarray(arrays[c]).nbytes for _, cols in elements for c in cols) + 8 * n
+        )
+        items: list[tuple[str, str, bool]] = []  # name, data item, vector
+        geometry = ""
         try:
             with h5py.File(self.data, "a", locking=False) as f:
                 frame = f.require_group(f"frames/{index}")
                 packed = {"compression": "gzip", "compression_opts": self.compression, "shuffle": True}
-                for j, (name, values) in enumerate(groups):
+                for j, (name, cols) in enumerate(elements):
+                    values = stacked([arrays[c] for c in cols])
                     frame.create_dataset(str(j), data=values, **(packed if n and self.compression else {}))
-                    items.append((name, values, f"{self.data.name}:/frames/{index}/{j}"))
+                    item = _item(values, f"{self.data.name}:/frames/{index}/{j}")
+                    vector = len(cols) == 3
+                    items.append((name if vector else cols[0], item, vector))
+                    geometry = item if name == "position" else geometry
+                    del values  # before the next group is stacked
                 if self._connectivity is None or self._connectivity[0] != n:
                     frame.create_dataset("vertices", data=np.arange(n, dtype=np.int64))
                     self._connectivity = (n, f"{self.data.name}:/frames/{index}/vertices")
         except (OSError, RuntimeError) as exc:
             why = "no space left" if no_space(exc) else str(exc)
             raise WriteError(f"{self.data}: frame {index} could not be written: {why}") from None
-        stored = {name: place for name, _, place in items}
         vertices = np.empty(n, dtype=np.int64)
         lines = [
             f'   <Grid Name="frame {index}" GridType="Uniform">',
@@ -113,13 +128,12 @@ class XdmfSidecar:
             f'    <Information Name="step" Value="{step}"/>',
             f'    <Topology TopologyType="Polyvertex" NumberOfElements="{n}" NodesPerElement="1">'
             f"{_item(vertices, self._connectivity[1])}</Topology>",
-            f'    <Geometry GeometryType="XYZ">{_item(positions, stored["position"])}</Geometry>',
+            f'    <Geometry GeometryType="XYZ">{geometry}</Geometry>',
         ]
-        for name, values, where in items:
-            kind = "Vector" if values.ndim == 2 else "Scalar"
+        for name, item, vector in items:
             lines.append(
-                f'    <Attribute Name={quoteattr(name)} AttributeType="{kind}" Center="Node">'
-                f"{_item(values, where)}</Attribute>"
+                f'    <Attribute Name={quoteattr(name)} AttributeType="{"Vector" if vector else "Scalar"}" '
+                f'Center="Node">{item}</Attribute>'
             )
         lines.append("   </Grid>\n")
         self._write_xml("\n".join(lines) + _TAIL, at_end=True)
@@ -142,17 +156,32 @@ class XdmfSidecar:
             claim.close()
 
 
-def frame_groups(
-    arrays: dict[str, Any], elements: Sequence[tuple[str, tuple[str, ...]]]
-) -> list[tuple[str, np.ndarray]]:
-    """The sidecar's point data of a frame: ``elements`` (H5MD name, columns), vectors as
-    (n, 3) arrays named by their element, other columns as (n,) arrays under their own name."""
-    return [
-        (name, np.column_stack([arrays[c] for c in cols]))
-        if len(cols) == 3
-        else (cols[0], np.asarray(arrays[cols[0]]))
-        for name, cols in elements
-    ]
+def interleaved(columns: Sequence[np.ndarray]) -> np.ndarray | None:
+    """The (n, k) C-contiguous array whose columns ``columns`` are (as an engine's frame
+    gives x y z: the columns of one (n, 3) array), or None when they are not."""
+    first = columns[0]
+    if not all(isinstance(c, np.ndarray) and c.ndim == 1 for c in columns):
+        return None
+    size, start = first.dtype.itemsize, first.__array_interface__["data"][0]
+    for j, column in enumerate(columns):
+        if (
+            column.dtype != first.dtype
+            or column.shape != first.shape
+            or column.strides != (len(columns) * size,)
+            or column.__array_interface__["data"][0] != start + j * size
+        ):
+            return None
+    shape = (len(first), len(columns))
+    return np.lib.stride_tricks.as_strided(first, shape, (len(columns) * size, size), writeable=False)
+
+
+def stacked(columns: Sequence[Any]) -> np.ndarray:
+    """One column as an array, or several as the (n, k) array of them (copied only when they
+    are not already the columns of one)."""
+    if len(columns) == 1:
+        return np.asarray(columns[0])
+    whole = interleaved(columns)
+    return np.column_stack(columns) if whole is None else whole
 
 
 class XdmfTrajectory(Trajectory):
