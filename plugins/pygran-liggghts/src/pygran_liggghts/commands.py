@@ -122,33 +122,19 @@ SOFT_LIMIT = 5e6
 HARD_LIMIT = 1e9
 
 
-class Commands:
-    """LIGGGHTS commands for one simulation; each method returns ``(id, lines)`` or lines."""
+class ContactLaw:
+    """The contact law of ``spec`` on the material ``table`` as LIGGGHTS writes it: its model
+    name, rolling friction model (the model's ``rolling``, default the original PyGran's
+    ``cdt``), whether forces are limited and whether the materials give cohesion and rolling
+    friction. Combinations LIGGGHTS cannot run are refused here."""
 
     def __init__(self, spec: SimulationSpec, table: MaterialTable) -> None:
-        self.spec = spec
         self.table = table
-        self._counter = itertools.count(1)
-        self.check_paths()
         self.model = MODELS[given(spec.model.kernel, "the contact model's kernel")]  # others refused
-        #: The ``rolling_friction`` model (the model's ``rolling``, default the original's cdt).
         self.rolling_model = getattr(spec.model, "rolling", "cdt")
         if self.rolling_model not in ROLLING:
             raise unknown_key("rolling-friction model", str(self.rolling_model), ROLLING)
         self.limit_force = bool(getattr(spec.model, "limit_force", False))
-        self.mesh_ids: dict[str, str] = {}
-        #: Atom type (1-based) of each mesh: its own material's, else species 1's (a wall of
-        #: another species is refused in :meth:`wall`).
-        self.mesh_types: dict[str, int] = {}
-        self.bare_meshes = {mesh.name for mesh in spec.meshes if not mesh.material}
-        for mesh in spec.meshes:
-            self.mesh_ids[mesh.name] = self.new_id("mesh")
-            self.mesh_types[mesh.name] = table.mesh_types.get(mesh.name, 0) + 1
-        if not spec.species:
-            raise ConfigError("LIGGGHTS needs at least one species: pass species=({'material': ...},)")
-        #: Atom types of the multisphere species (rigid clumps of spheres) and of the others.
-        self.body_types = [s.type for s in spec.species if s.style == "multisphere"]
-        self.sphere_types = [s.type for s in spec.species if s.style != "multisphere"]
         self.cohesion = bool(table.pairs["cohesionEnergyDensity"].any())
         self.rolling = bool(table.pairs["coefficientRollingFriction"].any())
         if self.rolling and "coeffRollingStiffness" in ROLLING[self.rolling_model]:
@@ -162,6 +148,79 @@ class Commands:
                 "LIGGGHTS: its rolling_friction models act only while the bodies overlap, and the adhesive "
                 "neck pulls on them after they have parted; drop one of the two, or run on the native engine"
             )
+
+    @property
+    def granular(self) -> str:
+        """The ``model ...`` arguments shared by ``pair_style gran`` and ``fix wall/gran``."""
+        words = f"model {self.model} tangential history"
+        if self.cohesion and self.model != ADDON_MODEL:  # Thornton-Ning's adhesion is its own (JKR)
+            words += " cohesion sjkr"
+        if self.rolling:
+            words += f" rolling_friction {self.rolling_model}"
+        if self.limit_force:
+            words += " limitForce on"
+        return words
+
+    def tables(self) -> list[str]:
+        """``fix property/global`` tables of the material table's types and pairs that the
+        model reads."""
+        table, n = self.table, self.table.size
+
+        def pairs(key: str) -> str:
+            values = table.pairs[key]
+            return f"fix pg_{key} all property/global {key} peratomtypepair {n} " + " ".join(
+                fmt(v) for v in values.ravel()
+            )
+
+        def per_type(key: str) -> str:
+            values = table.per_type[key]
+            return f"fix pg_{key} all property/global {key} peratomtype " + " ".join(fmt(v) for v in values)
+
+        lines = [per_type("youngsModulus"), per_type("poissonsRatio"), pairs("coefficientFriction")]
+        # Thornton-Ning dissipates by plasticity and adhesion hysteresis, without damping
+        lines.append(pairs("yieldPress" if self.model == ADDON_MODEL else "coefficientRestitution"))
+        if self.cohesion or self.model == ADDON_MODEL:
+            lines.append(pairs("cohesionEnergyDensity"))
+        if self.rolling:
+            lines.append(pairs("coefficientRollingFriction"))
+            if "coefficientRollingViscousDamping" in ROLLING[self.rolling_model]:
+                lines.append(pairs("coefficientRollingViscousDamping"))
+        if self.model == "hooke":
+            velocities = set(table.per_type["characteristicVelocity"].tolist())
+            if len(velocities) > 1:
+                raise ConfigError(
+                    "LIGGGHTS' hooke model takes one characteristicVelocity; "
+                    f"the materials give {sorted(velocities)}"
+                )
+            lines.append(
+                f"fix pg_characteristicVelocity all property/global characteristicVelocity scalar "
+                f"{fmt(velocities.pop())}"
+            )
+        return lines
+
+
+class Commands:
+    """LIGGGHTS commands for one simulation; each method returns ``(id, lines)`` or lines."""
+
+    def __init__(self, spec: SimulationSpec, table: MaterialTable) -> None:
+        self.spec = spec
+        self.table = table
+        self._counter = itertools.count(1)
+        self.check_paths()
+        self.law = ContactLaw(spec, table)
+        self.mesh_ids: dict[str, str] = {}
+        #: Atom type (1-based) of each mesh: its own material's, else species 1's (a wall of
+        #: another species is refused in :meth:`wall`).
+        self.mesh_types: dict[str, int] = {}
+        self.bare_meshes = {mesh.name for mesh in spec.meshes if not mesh.material}
+        for mesh in spec.meshes:
+            self.mesh_ids[mesh.name] = self.new_id("mesh")
+            self.mesh_types[mesh.name] = table.mesh_types.get(mesh.name, 0) + 1
+        if not spec.species:
+            raise ConfigError("LIGGGHTS needs at least one species: pass species=({'material': ...},)")
+        #: Atom types of the multisphere species (rigid clumps of spheres) and of the others.
+        self.body_types = [s.type for s in spec.species if s.style == "multisphere"]
+        self.sphere_types = [s.type for s in spec.species if s.style != "multisphere"]
 
     def new_id(self, kind: str) -> str:
         return f"pg_{kind}{next(self._counter)}"
@@ -191,18 +250,6 @@ class Commands:
         if spec.restart is not None:
             command_path(spec.restart.directory, "restart dir", patterns=True, folder=True)
             command_path(spec.restart.directory / spec.restart.fname, "restart fname", patterns=True)
-
-    @property
-    def granular(self) -> str:
-        """The ``model ...`` arguments shared by ``pair_style gran`` and ``fix wall/gran``."""
-        words = f"model {self.model} tangential history"
-        if self.cohesion and self.model != ADDON_MODEL:  # Thornton-Ning's adhesion is its own (JKR)
-            words += " cohesion sjkr"
-        if self.rolling:
-            words += f" rolling_friction {self.rolling_model}"
-        if self.limit_force:
-            words += " limitForce on"
-        return words
 
     # -- the simulation ------------------------------------------------------------------
 
@@ -237,8 +284,8 @@ class Commands:
             "thermo_style custom step atoms ke",
             "thermo_modify lost warn norm no",  # counted by the worker, reported by the front end
             "compute_modify thermo_temp dynamic yes",
-            *self._material_tables(),
-            f"pair_style gran {self.granular}",
+            *self.law.tables(),
+            f"pair_style gran {self.law.granular}",
             "pair_coeff * *",
         ]
         if spec.dt is not None:
@@ -305,42 +352,6 @@ class Commands:
         """The line adding the atoms of the species other than multisphere ones to the group
         ``fix nve/sphere`` integrates (with multisphere species)."""
         return f"group {SPHERES} type {' '.join(map(str, self.sphere_types))}"
-
-    def _material_tables(self) -> list[str]:
-        """``fix property/global`` tables of the material table's types and pairs."""
-        table, n = self.table, self.table.size
-
-        def pairs(key: str) -> str:
-            values = table.pairs[key]
-            return f"fix pg_{key} all property/global {key} peratomtypepair {n} " + " ".join(
-                fmt(v) for v in values.ravel()
-            )
-
-        def per_type(key: str) -> str:
-            values = table.per_type[key]
-            return f"fix pg_{key} all property/global {key} peratomtype " + " ".join(fmt(v) for v in values)
-
-        lines = [per_type("youngsModulus"), per_type("poissonsRatio"), pairs("coefficientFriction")]
-        # Thornton-Ning dissipates by plasticity and adhesion hysteresis, without damping
-        lines.append(pairs("yieldPress" if self.model == ADDON_MODEL else "coefficientRestitution"))
-        if self.cohesion or self.model == ADDON_MODEL:
-            lines.append(pairs("cohesionEnergyDensity"))
-        if self.rolling:
-            lines.append(pairs("coefficientRollingFriction"))
-            if "coefficientRollingViscousDamping" in ROLLING[self.rolling_model]:
-                lines.append(pairs("coefficientRollingViscousDamping"))
-        if self.model == "hooke":
-            velocities = set(table.per_type["characteristicVelocity"].tolist())
-            if len(velocities) > 1:
-                raise ConfigError(
-                    "LIGGGHTS' hooke model takes one characteristicVelocity; "
-                    f"the materials give {sorted(velocities)}"
-                )
-            lines.append(
-                f"fix pg_characteristicVelocity all property/global characteristicVelocity scalar "
-                f"{fmt(velocities.pop())}"
-            )
-        return lines
 
     def _dumps(self, append: bool = False) -> list[str]:
         """Particle and mesh dumps; ``append`` continues a particle dump (on resume)."""
@@ -516,13 +527,13 @@ class Commands:
             centre = given(spec.centre, "a cylinder wall's centre")
             radius = given(spec.radius, "a cylinder wall's radius")
             geometry = f"{spec.axis}cylinder {fmt(radius)} {fmt(centre[0])} {fmt(centre[1])}"
-        return wid, [f"fix {wid} all wall/gran {self.granular} primitive type {spec.species} {geometry}"]
+        return wid, [f"fix {wid} all wall/gran {self.law.granular} primitive type {spec.species} {geometry}"]
 
     def mesh_walls(self, meshes: Sequence[str]) -> tuple[str, list[str]]:
         """The one ``fix wall/gran`` LIGGGHTS allows for mesh walls, with ``meshes`` (names)."""
         wid = self.new_id("meshwalls")
         ids = " ".join(self.mesh_ids[name] for name in meshes)
-        return wid, [f"fix {wid} all wall/gran {self.granular} mesh n_meshes {len(meshes)} meshes {ids}"]
+        return wid, [f"fix {wid} all wall/gran {self.law.granular} mesh n_meshes {len(meshes)} meshes {ids}"]
 
     def motion(self, spec: MotionSpec) -> tuple[str, list[str]]:
         mid = self.new_id("move")

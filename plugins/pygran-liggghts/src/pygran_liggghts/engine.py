@@ -67,6 +67,7 @@ if TYPE_CHECKING:
         ViscousSpec,
         WallSpec,
     )
+    from pygran_core.simulation.checkpoint import Checkpoint
     from pygran_core.simulation.engine import Handle
     from pygran_core.simulation.insertion import Obstacles
     from pygran_core.simulation.specs import RestartSpec, SimulationSpec
@@ -77,6 +78,38 @@ RESTART_KEY = "liggghts/restart"
 TARGET_KEY = "liggghts/targets"
 #: Cells along each edge of the grid :func:`reaches` lays over a triangle.
 GRID = 32
+
+
+def restart_file(path: Path, checkpoint: Checkpoint, directory: Path) -> Path:
+    """The LIGGGHTS restart file that checkpoint ``checkpoint`` (read from ``path``) names, in
+    the checkpoint folder ``directory``: a checkpoint naming anything but a file beside it is a
+    :class:`ReadError`, a missing file a :class:`ConfigError`."""
+    entry = state_entry(path, checkpoint.state, RESTART_KEY, "u", (None,))
+    try:
+        name = decode_text(entry)
+    except UnicodeDecodeError:
+        name = ""
+    if not name or Path(name).name != name or name in (".", ".."):
+        raise ReadError(
+            f"{path}: the checkpoint's state entry {RESTART_KEY!r} is "
+            f"{bytes(entry)[:80]!r}, not the name of a LIGGGHTS restart file beside it"
+        )
+    if not (directory / name).is_file():
+        raise ConfigError(f"{path} needs the LIGGGHTS restart file {directory / name}, which is missing")
+    return directory / name
+
+
+def spheres_energy(quantity: str, arrays: dict[str, np.ndarray], chosen: np.ndarray) -> float:
+    """``ke`` or ``ke_rot`` of the spheres ``chosen`` (a mask) in the gathered ``arrays``
+    (``v``, ``omega``, ``radius``, ``mass``)."""
+    mass = arrays["mass"][chosen]
+    if quantity == "ke":
+        v = arrays["v"][chosen]
+        return float(0.5 * np.sum(mass * np.einsum("ij,ij->i", v, v)))
+    omega = arrays["omega"][chosen]
+    return float(
+        0.5 * np.sum(0.4 * mass * arrays["radius"][chosen] ** 2 * np.einsum("ij,ij->i", omega, omega))
+    )
 
 
 def launch_world() -> Any:
@@ -248,7 +281,9 @@ class LiggghtsEngine(Engine):
             if spec.traj.cfile is not None and self._root:  # frames of an earlier run are stale
                 for stale in (self.output / CONTACTS_DIR).glob("pg_*.dump"):
                     stale.unlink()
-            resume = self._resume_file()
+            resume = None
+            if self._resume is not None:
+                resume = restart_file(self._resume_path, self._resume, self._restart.directory)
             #: LIGGGHTS read a restart file and has not run since: it refuses create_atoms then
             self._restored = resume is not None
             self._channel = Channel(self.output, comm, spec.nprocs or 1, self._root, self.log)
@@ -293,26 +328,6 @@ class LiggghtsEngine(Engine):
     def _execute(self, lines: list[str]) -> None:
         """Run ``lines`` now, or once the worker has started (see :meth:`.Channel.execute`)."""
         self._channel.execute(lines)
-
-    def _resume_file(self) -> Path | None:
-        """The LIGGGHTS restart file of the checkpoint being resumed (read instead of a new box):
-        the checkpoint names a file beside it; anything else is a :class:`ReadError`."""
-        if self._resume is None:
-            return None
-        entry = state_entry(self._resume_path, self._resume.state, RESTART_KEY, "u", (None,))
-        try:
-            name = decode_text(entry)
-        except UnicodeDecodeError:
-            name = ""
-        if not name or Path(name).name != name or name in (".", ".."):
-            raise ReadError(
-                f"{self._resume_path}: the checkpoint's state entry {RESTART_KEY!r} is "
-                f"{bytes(entry)[:80]!r}, not the name of a LIGGGHTS restart file beside it"
-            )
-        path = self._restart.directory / name
-        if not path.is_file():
-            raise ConfigError(f"{self._resume_path} needs the LIGGGHTS restart file {path}, which is missing")
-        return path
 
     # -- engine hooks ------------------------------------------------------------------------
 
@@ -419,21 +434,12 @@ class LiggghtsEngine(Engine):
         single = arrays["mol"] < 0 if bodies else np.ones(len(arrays["mass"]), bool)
         if species:
             single &= np.isin(arrays["type"], species)
-        mass = arrays["mass"][single]
-        if quantity == "ke":
-            energy = 0.5 * np.sum(mass * np.einsum("ij,ij->i", arrays["v"][single], arrays["v"][single]))
-        else:
-            omega = arrays["omega"][single]
-            energy = 0.5 * np.sum(
-                0.4 * mass * arrays["radius"][single] ** 2 * np.einsum("ij,ij->i", omega, omega)
-            )
+        energy = spheres_energy(quantity, arrays, single)
         if bodies and species is None:
             if not self._computed:  # LIGGGHTS sets its computes up as a run starts
-                self._before_run()
-                self._execute(["run 0 post no"])
-                self._computed = True
+                self._set_up()
             energy += self._channel.request("scalar", BODY_ENERGY[quantity])
-        return float(energy)
+        return energy
 
     def _insert(self, spec: InsertSpec) -> str:
         number = self._insert_calls
@@ -544,13 +550,17 @@ class LiggghtsEngine(Engine):
 
     def _allow_create(self) -> None:
         """Let LIGGGHTS create atoms: after reading a restart file it refuses ``create_atoms``
-        until a run has set it up, so 0 steps are run then (its dumps write this step's frames
-        as the next run would)."""
+        until a run has set it up."""
         if self._restored:
-            self._before_run()
-            self._execute(["run 0 post no"])
+            self._set_up()
             self._restored = False
-            self._computed = True
+
+    def _set_up(self) -> None:
+        """Run 0 steps: LIGGGHTS sets itself up (its computes too) as a run starts, and its
+        dumps write this step's frames as the next run would."""
+        self._before_run()
+        self._execute(["run 0 post no"])
+        self._computed = True
 
     def _obstacles(self, call: str = "createParticles 'random'") -> Obstacles:
         """The plane, cylinder and mesh walls new particles of ``call`` must clear."""
