@@ -1,6 +1,12 @@
 """Each plugin works alone: a fresh virtual environment with ``pygran-core`` and that one plugin
 runs a small real job (engines: insert into a box with a floor and an STL hopper, run, read
-the trajectory back; readers: read a dump, convert it to H5MD, read a VTK mesh)."""
+the trajectory back; readers: read a dump, convert it to H5MD, read a VTK mesh).
+
+The module builds the core's wheel once, and installs the core's third-party requirements
+(numpy, scipy, h5py...) once in an environment of their own that each fresh environment sees
+through a ``.pth`` file: each then installs the core's wheel and its plugin, and pip resolves
+the plugin's requirements there, so nothing of the repository but those two is importable.
+"""
 
 from __future__ import annotations
 
@@ -80,15 +86,47 @@ print(json.dumps({
 """
 
 
-def fresh_environment(path: Path, plugin: str) -> Path:
-    """A virtual environment holding ``pygran-core`` and ``plugin`` only; its Python."""
+def pip(python: Path, *args: str) -> None:
+    """``python -m pip args``: a failure shows pip's error."""
+    command = [str(python), "-m", "pip", *args, "-q", "--disable-pip-version-check"]
+    result = subprocess.run(command, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-4000:]
+
+
+def site_packages(python: Path) -> Path:
+    query = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
+    return Path(
+        subprocess.run([str(python), "-c", query], capture_output=True, text=True, check=True).stdout.strip()
+    )
+
+
+@pytest.fixture(scope="module")
+def core_wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``pygran-core`` built once (compiled kernels included) for every environment of the module."""
+    folder = tmp_path_factory.mktemp("wheel")
+    pip(Path(sys.executable), "wheel", "--no-deps", "-w", str(folder), str(ROOT))
+    (wheel,) = folder.glob("pygran_core-*.whl")
+    return wheel
+
+
+@pytest.fixture(scope="module")
+def requirements(tmp_path_factory: pytest.TempPathFactory, core_wheel: Path) -> Path:
+    """The site-packages of an environment holding the core's third-party requirements only."""
+    folder = tmp_path_factory.mktemp("requirements")
+    subprocess.run([sys.executable, "-m", "venv", str(folder)], check=True)
+    python = folder / "bin" / "python"
+    pip(python, "install", str(core_wheel))
+    pip(python, "uninstall", "-y", "pygran-core")
+    return site_packages(python)
+
+
+def fresh_environment(path: Path, plugin: str, core_wheel: Path, requirements: Path) -> Path:
+    """A virtual environment holding ``pygran-core`` and ``plugin`` only, above the shared
+    third-party ``requirements``; its Python."""
     subprocess.run([sys.executable, "-m", "venv", str(path)], check=True)
     python = path / "bin" / "python"
-    install = [str(python), "-m", "pip", "install", "-q", "--disable-pip-version-check"]
-    result = subprocess.run(
-        [*install, str(ROOT), str(ROOT / "plugins" / plugin)], capture_output=True, text=True
-    )
-    assert result.returncode == 0, result.stderr[-4000:]
+    (site_packages(python) / "pygran-requirements.pth").write_text(f"{requirements}\n")
+    pip(python, "install", str(core_wheel), str(ROOT / "plugins" / plugin))
     return python
 
 
@@ -116,12 +154,12 @@ def installed(python: Path) -> set[str]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("plugin", ["pygran-native", "pygran-liggghts", "pygran-yade"])
-def test_engine_plugin_alone_runs_a_mesh_job(tmp_path, plugin):
+def test_engine_plugin_alone_runs_a_mesh_job(tmp_path, plugin, core_wheel, requirements):
     engine = plugin.removeprefix("pygran-")
     locate = registry.available("engine")[engine].spec.locate_solver
     if locate is not None:
         require_solver(locate)  # LIGGGHTS and YADE come from Debian: missing is a failure under CI=true
-    python = fresh_environment(tmp_path / "venv", plugin)
+    python = fresh_environment(tmp_path / "venv", plugin, core_wheel, requirements)
     assert installed(python) == {"pygran-core", plugin}
     result = run_job(
         python, ENGINE_JOB, engine, str(DATA / "meshes" / "silo.stl"), str(tmp_path / "out"), cwd=tmp_path
@@ -135,8 +173,8 @@ def test_engine_plugin_alone_runs_a_mesh_job(tmp_path, plugin):
 
 
 @pytest.mark.slow
-def test_readers_plugin_alone_converts_and_reads_meshes(tmp_path):
-    python = fresh_environment(tmp_path / "venv", "pygran-readers")
+def test_readers_plugin_alone_converts_and_reads_meshes(tmp_path, core_wheel, requirements):
+    python = fresh_environment(tmp_path / "venv", "pygran-readers", core_wheel, requirements)
     assert installed(python) == {"pygran-core", "pygran-readers"}
     listing = subprocess.run([str(python.with_name("pygran")), "plugins"], capture_output=True, text=True)
     assert "readers          pygran-readers 0.1.0" in listing.stdout
