@@ -19,7 +19,7 @@ from pygran_native.solver import Solver
 from PyGran import simulation
 from pygran_core.errors import ConfigError, ServoWarning
 
-MESHES = Path(__file__).resolve().parent / "data" / "meshes"
+MESHES = Path(__file__).resolve().parents[3] / "tests" / "data" / "meshes"
 R, G = 2e-4, 9.81
 SIDE = 1.2e-3  #: half the column's width (m); square.stl scaled by SIDE spans it at z = 3 SIDE
 WEIGHT = 100 * 4 / 3 * np.pi * R**3 * 1000 * G  #: the bed's weight (N): 100 spheres, 1000 kg/m^3

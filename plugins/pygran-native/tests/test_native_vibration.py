@@ -11,7 +11,7 @@ from pygran_native.solver import Solver
 from PyGran import simulation
 from pygran_core.errors import ConfigError
 
-MESHES = Path(__file__).resolve().parent / "data" / "meshes"
+MESHES = Path(__file__).resolve().parents[3] / "tests" / "data" / "meshes"
 AMPLITUDES, PHASES, PERIODS = (2e-4, -5e-5), (0.3, -1.2), (4e-3, 1.5e-3)
 
 
