@@ -6,6 +6,7 @@ import pytest
 from pygran_native.solver import Solver
 
 from pygran_core.simulation.models import HertzMindlin, ThorntonNing
+from pygran_core.testing.validation import SOFT
 
 R, RHO, E, NU, PY = 1e-3, 1000.0, 4e7, 0.25, 2e5
 
@@ -99,17 +100,7 @@ def test_sjkr_cohesion_holds_a_particle_against_gravity():
     s.add_plane((0, 0, 0), (0, 0, -1))
     s.add_particles([[0, 0, -R + 1e-6]], R, densities=2500.0)
     s.run(30000, 1e-6)
-    model = HertzMindlin(
-        material=dict(
-            youngsModulus=5e6,
-            poissonsRatio=0.45,
-            coefficientRestitution=0.3,
-            coefficientFriction=0.5,
-            cohesionEnergyDensity=3e5,
-            density=2500.0,
-            radius=R,
-        )
-    )
+    model = HertzMindlin(material=dict(SOFT, cohesionEnergyDensity=3e5, radius=R))
     mg = 4 / 3 * math.pi * R**3 * 2500.0 * 9.81
     overlap = R + s.positions[0, 2]
     assert overlap > 0 and abs(s.velocities[0, 2]) < 1e-4

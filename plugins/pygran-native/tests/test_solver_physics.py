@@ -7,21 +7,16 @@ import pytest
 from pygran_native.solver import Solver
 
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot
+from pygran_core.testing.validation import SOFT
 
-R, RHO, E, NU = 1e-3, 2500.0, 5e6, 0.45
+R = 1e-3
+RHO, E, NU = SOFT["density"], SOFT["youngsModulus"], SOFT["poissonsRatio"]
 MASS = 4 / 3 * math.pi * R**3 * RHO
 
 
 def material(**extra):
-    return dict(
-        youngsModulus=E,
-        poissonsRatio=NU,
-        coefficientRestitution=0.3,
-        coefficientFriction=0.5,
-        density=RHO,
-        radius=R,
-        **extra,
-    )
+    """The suite's soft material for spheres of radius R."""
+    return dict(SOFT, radius=R, **extra)
 
 
 def solver(
@@ -33,7 +28,8 @@ def solver(
     **model,
 ):
     s = Solver(box=np.array(box), periodic=periodic, gravity=gravity, skin=2e-4, threads=threads)
-    coefficients = dict(youngs=E, poisson=NU, restitution=0.3, friction=0.5) | model
+    coefficients = dict(youngs=E, poisson=NU, restitution=SOFT["coefficientRestitution"])
+    coefficients |= dict(friction=SOFT["coefficientFriction"]) | model
     s.set_contact_model(kind, **coefficients)
     return s
 

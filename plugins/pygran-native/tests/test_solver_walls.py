@@ -7,8 +7,10 @@ import pytest
 from pygran_native.solver import Solver
 
 from pygran_core.simulation.models import HertzMindlin
+from pygran_core.testing.validation import SOFT
 
-R, RHO, E, NU = 1e-3, 2500.0, 5e6, 0.45
+R = 1e-3
+RHO, E, NU = SOFT["density"], SOFT["youngsModulus"], SOFT["poissonsRatio"]
 OVERLAP = 2e-5
 
 
@@ -120,9 +122,7 @@ def test_sphere_bouncing_on_a_mesh_matches_the_plane():
 
 def test_plane_is_two_sided_with_the_model_restitution():
     v0 = 0.5
-    ref = HertzMindlin(
-        material=dict(youngsModulus=E, poissonsRatio=NU, coefficientRestitution=0.5, density=RHO, radius=R)
-    ).displacement(velocity=v0)
+    ref = HertzMindlin(material=dict(SOFT, coefficientRestitution=0.5, radius=R)).displacement(velocity=v0)
     final = {}
     for side in (1, -1):  # from above and from below the plane z = 0 of normal +z
         s = solver()
