@@ -42,7 +42,8 @@ from pygran_core.formats import contacts as contact_schema
 from pygran_core.io import Frame, open_trajectory
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
 from pygran_core.simulation.engine import Engine, LostParticles, before_resume
-from pygran_core.simulation.specs import MPI_LAUNCH_VARIABLES, control_characters, given, launch_communicator
+from pygran_core.simulation.mpi import MPI_LAUNCH_VARIABLES, launch_communicator
+from pygran_core.simulation.specs import control_characters, given
 from pygran_liggghts.channel import LOG_NAME, Channel
 from pygran_liggghts.commands import (
     BODY_ENERGY,
@@ -114,7 +115,7 @@ def spheres_energy(quantity: str, arrays: dict[str, np.ndarray], chosen: np.ndar
 
 def launch_world() -> Any:
     """``MPI.COMM_WORLD`` when an MPI launcher started this process, else ``None``: the core's
-    :func:`~pygran_core.simulation.specs.launch_communicator`, and also for a single rank
+    :func:`~pygran_core.simulation.mpi.launch_communicator`, and also for a single rank
     (``mpirun -np 1``), from which no worker job can be started."""
     world = launch_communicator()
     if world is None and any(name in os.environ for name in MPI_LAUNCH_VARIABLES):
