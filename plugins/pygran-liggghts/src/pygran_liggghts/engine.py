@@ -38,8 +38,7 @@ from pygran_core.errors import (
     ReadError,
     UnsupportedFeature,
 )
-from pygran_core.formats import contacts as contact_schema
-from pygran_core.io import Frame, open_trajectory
+from pygran_core.io import Frame
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
 from pygran_core.simulation.engine import Engine, LostParticles, before_resume
 from pygran_core.simulation.mpi import MPI_LAUNCH_VARIABLES, launch_communicator
@@ -47,13 +46,13 @@ from pygran_core.simulation.specs import control_characters, given
 from pygran_liggghts.channel import LOG_NAME, Channel
 from pygran_liggghts.commands import (
     BODY_ENERGY,
-    CONTACT_COMPUTES,
     CONTACTS_DIR,
     Commands,
     fmt,
     native_meshes,
     native_particles,
 )
+from pygran_liggghts.contact_dumps import read_contacts
 from pygran_liggghts.creation import Creator
 from pygran_liggghts.insertions import FixInsertions
 from pygran_liggghts.library import ADDON_CAPABILITIES, Addon, load_addon, probe_addon
@@ -840,35 +839,16 @@ class LiggghtsEngine(Engine):
 
     def _written_contacts(self) -> list[Frame]:
         """The contact frames LIGGGHTS has written since the last call (the first run writes
-        the frame of the step it starts at), as the schema's records, their files removed: the
-        pairs of ``compute pair/gran/local``, then the mesh-wall contacts of ``wall/gran/local``
-        with ``id2 = -(k + 1)`` for the k-th wall set up."""
-        folder = self.output / CONTACTS_DIR
-        by_step: dict[int, dict[str, Path]] = {}
-        for path in folder.glob("pg_*.*.dump"):
-            compute, number = path.name.split(".")[:2]
-            by_step.setdefault(int(number), {})[compute] = path
+        the frame of the step it starts at; see :func:`.read_contacts`), with ``id2 = -(k + 1)``
+        for the mesh-wall contacts of the k-th wall set up."""
         walls = [self._wall_numbers[label] for label in self._mesh_walls]  # by LIGGGHTS' mesh index
         box, boundary = self._bounds()
         frames = []
-        for step, paths in sorted(by_step.items()):
-            if step <= self._contacts_step or step > self.step:  # rewritten as a run starts
-                for path in paths.values():
-                    path.unlink()
-                continue
-            parts = []
-            for compute, path in sorted(paths.items()):
-                with open_trajectory(path, compute=CONTACT_COMPUTES[compute]) as dump:
-                    arrays = dump[0].arrays
-                if compute == "pg_walls":  # id2 = -(LIGGGHTS' mesh index + 1)
-                    arrays["id2"] = -(np.array(walls, dtype=np.int64)[-arrays["id2"] - 1] + 1)
-                parts.append(arrays)
-                path.unlink()
-            merged = {name: np.concatenate([part[name] for part in parts]) for name in contact_schema.COLUMNS}
+        for step, records in read_contacts(self.output / CONTACTS_DIR, walls, self._contacts_step, self.step):
             time = self._clock[1] + (step - self._clock[0]) * self.dt if self.dt is not None else None
             frames.append(
                 Frame(
-                    merged, timestep=step, time=time, box=box, boundary=boundary, attrs={"kind": "contacts"}
+                    records, timestep=step, time=time, box=box, boundary=boundary, attrs={"kind": "contacts"}
                 )
             )
             self._contacts_step = step
