@@ -222,6 +222,20 @@ class _Placed:
     end: int | None
     owed: float = 0.0
 
+    def due(self, step: int) -> bool:
+        """Whether an event is due at ``step``, those before it (a resumed step's) skipped."""
+        if self.every is not None and self.next_step < step:
+            self.next_step += -(-(step - self.next_step) // self.every) * self.every
+        return self.next_step == step
+
+    def schedule(self, step: int) -> bool:
+        """Schedule the event after the one at ``step``; whether there is one."""
+        following = None if self.every is None else step + self.every
+        if following is None or (self.end is not None and following >= self.end):
+            return False
+        self.next_step = following
+        return True
+
 
 class LiggghtsEngine(Engine):
     """A simulation on LIGGGHTS 3.x (``libliggghts``), see the module docstring."""
@@ -525,9 +539,7 @@ class LiggghtsEngine(Engine):
         """Make PyGran's insertion ``label`` if one of its events is due at ``step`` (none while a
         resumed script is replayed: the restart file holds their particles), and schedule the next."""
         placed = self._placings[label]
-        if placed.every is not None and placed.next_step < step:  # events before a resumed step
-            placed.next_step += -(-(step - placed.next_step) // placed.every) * placed.every
-        if placed.next_step != step:
+        if not placed.due(step):
             return
         if not self.replaying:
             spec = placed.spec
@@ -539,11 +551,8 @@ class LiggghtsEngine(Engine):
                     spec.value * given(placed.every, "an insertion's interval") * given(self.dt, "dt")
                 )
                 placed.owed -= place(placed.owed)
-        following = None if placed.every is None else step + placed.every
-        if following is None or (placed.end is not None and following >= placed.end):
+        if not placed.schedule(step):
             del self._placings[label]
-        else:
-            placed.next_step = following
 
     def _create(self, spec: CreateSpec) -> int:
         return self._creator.create(spec)
