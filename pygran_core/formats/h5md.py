@@ -287,9 +287,7 @@ def _read_rows(dataset: Any, index: int | None, place: _Placement, n: int) -> li
 
 
 def _permutes(order: np.ndarray) -> bool:
-    """Whether ``order`` holds 0 to len(order) - 1 once each."""
-    if not len(order):
-        return True
+    """Whether ``order`` (not empty) holds 0 to len(order) - 1 once each."""
     if order.min() < 0 or order.max() >= len(order):
         return False
     seen = np.zeros(len(order), dtype=bool)
@@ -925,32 +923,37 @@ class H5MDTrajectory(_H5MDFile):
         is not the fill value (the first ``particle_number`` rows without ids), in the order in
         which they were written (``pygran_order``) or else in row order."""
         count = int(self._number[index]) if self._number is not None else None
+        rows = None  # the rows lo to hi, unless they have gaps
         if self._ids is not None:
             ids = np.empty(self._ids.shape[1], dtype=self._ids.dtype)
             if len(ids):
                 self._ids.read_direct(ids, np.s_[index])
-            rows = np.flatnonzero(ids != self._ids.fillvalue)
+            present = ids != self._ids.fillvalue
             del ids
-            if count is not None and count != len(rows):
-                raise self._fail(f"frame {index}: {count} particles counted, but {len(rows)} rows have an id")
+            n = int(np.count_nonzero(present))
+            if count is not None and count != n:
+                raise self._fail(f"frame {index}: {count} particles counted, but {n} rows have an id")
+            lo = int(present.argmax()) if n else 0
+            hi = len(present) - int(present[::-1].argmax()) if n else 0
+            rows = None if hi - lo == n else lo + np.flatnonzero(present[lo:hi])
         else:
             held = self._rows or 0
-            count = held if count is None else count
-            if not 0 <= count <= held:
-                raise self._fail(f"frame {index}: {count} particles, but the elements hold {held}")
-            rows = np.arange(count)
-        if self._order is None or not len(rows):
-            return len(rows), _Placement.of(rows)
-        lo, hi = int(rows[0]), int(rows[-1]) + 1
-        order = np.empty(hi - lo, dtype=self._order.dtype)
-        self._order.read_direct(order, np.s_[index, lo:hi])
-        if hi - lo != len(rows):
-            order = order[rows - lo]
-        if not _permutes(order):
-            raise self._fail(
-                f"frame {index}: {self._order.name} is not an order of its {len(rows)} particles"
-            )
-        return len(rows), _Placement.of(rows, order)
+            n = held if count is None else count
+            if not 0 <= n <= held:
+                raise self._fail(f"frame {index}: {n} particles, but the elements hold {held}")
+            lo, hi = 0, n
+        order = None
+        if self._order is not None and n:
+            order = np.empty(hi - lo, dtype=self._order.dtype)
+            self._order.read_direct(order, np.s_[index, lo:hi])
+            order = order if rows is None else order[rows - lo]
+            ordered = bool((order[1:] > order[:-1]).all())
+            if not (order[0] == 0 and order[-1] == n - 1 if ordered else _permutes(order)):
+                raise self._fail(f"frame {index}: {self._order.name} is not an order of its {n} particles")
+            order = None if ordered else order
+        if rows is None:  # row lo + i holds the particle order[i]
+            return n, _Placement(lo, hi, order)
+        return n, _Placement.of(rows, order)
 
     def _frame(self, index: int) -> Frame:
         n, place = self._placement(index)
