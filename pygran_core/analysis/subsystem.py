@@ -58,9 +58,26 @@ class Keys(tuple[str, ...]):
 
 
 def _frozen(values: Any) -> np.ndarray:
+    """``values`` as an array nothing can write to: itself when it is read-only down to the
+    array that owns its memory (a frame :class:`~pygran_core.analysis.system.System` read, an
+    attribute of another object), else a read-only copy."""
+    if isinstance(values, np.ndarray) and _read_only(values):
+        return values
     array = np.array(values, copy=True)
     array.setflags(write=False)
     return array
+
+
+def _read_only(array: np.ndarray) -> bool:
+    """Whether ``array`` and every array it views are read-only, the last one owning its memory."""
+    base: Any = array
+    while isinstance(base, np.ndarray):
+        if base.flags.writeable:
+            return False
+        if base.base is None:
+            return True
+        base = base.base
+    return False
 
 
 def _signed_geometric_mean(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -281,7 +298,8 @@ class SubSystem:
             )
 
     def copy(self) -> SubSystem:
-        """An independent copy (arrays and metadata)."""
+        """An independent copy: its own metadata and arrays (read-only ones are shared, as
+        neither object can change them)."""
         return type(self)._from_parts({k: _frozen(v) for k, v in self._fields.items()}, dict(self._meta))
 
     # -- explicit in-place transforms -----------------------------------------------------

@@ -113,6 +113,13 @@ def resolve_class(name: str, module: ModuleType | None = None) -> type[SubSystem
     )
 
 
+def _freeze(values: Any) -> None:
+    """Make ``values`` and every array it views read-only."""
+    while isinstance(values, np.ndarray):
+        values.setflags(write=False)
+        values = values.base
+
+
 class _Source:
     """One SubSystem of a System: a trajectory read frame by frame, or a fixed object."""
 
@@ -139,8 +146,10 @@ class _Source:
                 f"System: {cls.__name__}= takes a file name or glob, a list of files, (file, options), an "
                 f"open trajectory or a {cls.__name__} object, not {value!r}"
             )
+        #: whether the trajectory was opened here (its frames are read for this System only)
+        self.opened = self.trajectory is not None and self.trajectory is not value
         if self.trajectory is not None and self.trajectory.n_frames == 0:
-            if self.trajectory is not value:
+            if self.opened:
                 self.trajectory.close()
             raise ReadError(
                 f"System: {cls.__name__}={value!r} holds no frames, so there is nothing to analyse (a run "
@@ -156,6 +165,9 @@ class _Source:
             assert self.fixed is not None
             return self.fixed if self.fixed.units == units else self.fixed.copy().convert(units)
         frame = self.trajectory.read_frame(min(index, self.trajectory.n_frames - 1))
+        if self.opened:  # the reader made the frame's arrays for this object alone: kept, not copied
+            for values in frame.arrays.values():
+                _freeze(values)
         obj = self.cls(**self.cls._frame_kwargs(frame), **self.options)
         return obj if obj.units == units else obj.convert(units)
 
