@@ -886,12 +886,17 @@ cdef class Core:
         out["particles_cpu"] = np.array([self.s.schedule.cpu[PAD * t + 1] for t in range(self.s.schedule.nthreads)])
         return out
 
-    def pair_count(self):
+    def list_entries(self):
         """Entries of the neighbour and wall lists."""
         return self.s.lists.nb_start[self.s.particles.n], self.s.lists.wl_start[self.s.particles.n]
 
-    def memory_bytes(self):
-        """Bytes held by the per-particle arrays and lists (allocated capacity)."""
+    def memory(self):
+        """Bytes allocated (capacity, not use) by part: ``particles`` (the per-particle columns),
+        ``list`` (the neighbour list: partners, image codes, histories), ``previous list`` (the
+        last one, which histories are carried over from at a rebuild), ``pair forces`` (what a
+        recording pass keeps, see contact_forces), ``sublist``, ``found`` (the rebuild's pairs per
+        block), ``walls`` (the wall lists, current and previous, and their records), ``halos``,
+        ``cells`` (the grid and the triangles near each cell), ``clumps``."""
         cdef Column cols[NCOLUMNS]
         cdef size_t per_particle = 0, per_body = 0, per_member = 0, found = 0
         cdef int k
@@ -905,13 +910,21 @@ cdef class Core:
         for k in range(NMCOLUMNS):
             per_member += cols[k].size
         for k in range(self.s.schedule.nblocks):
-            found += self.s.lists.found[k].cap * 5
-        return (found + self.s.particles.cap * per_particle + self.s.clumps.bcap * per_body + self.s.clumps.mcap * per_member
-                + self.s.lists.halo_cap * 6 * 8
-                + self.s.lists.nb_cap * (5 + 8 * self.s.hs) + self.s.lists.ob_cap * (5 + 8 * self.s.hs) + self.s.lists.nbf_cap * 24 + self.s.lists.sbk_cap * 8
-                + self.s.lists.wl_cap * (12 + 8 * self.s.hs) + self.s.lists.ow_cap * (12 + 8 * self.s.hs)
-                + self.s.lists.wlf_cap * WLF * 8
-                + self.s.lists.cell_cap * 8 + self.s.walls.ctri_cap * 4)
+            found += self.s.lists.found[k].cap * (sizeof(int) + sizeof(uint8_t))
+        pair = sizeof(int) + sizeof(uint8_t) + self.s.hs * sizeof(double)
+        wall = sizeof(int) + (self.s.hs + 1) * sizeof(double)
+        return {
+            "particles": self.s.particles.cap * per_particle,
+            "list": self.s.lists.nb_cap * pair,
+            "previous list": self.s.lists.ob_cap * pair,
+            "pair forces": self.s.lists.nbf_cap * 3 * sizeof(double),
+            "sublist": self.s.lists.sbk_cap * 2 * sizeof(int),
+            "found": found,
+            "walls": (self.s.lists.wl_cap + self.s.lists.ow_cap) * wall + self.s.lists.wlf_cap * WLF * sizeof(double),
+            "halos": self.s.lists.halo_cap * 6 * sizeof(double),
+            "cells": self.s.lists.cell_cap * 2 * sizeof(int) + self.s.walls.ctri_cap * sizeof(int),
+            "clumps": self.s.clumps.bcap * per_body + self.s.clumps.mcap * per_member,
+        }
 
     def elements(self):
         """Current wall elements: kind, type, wall, geometry (9), vertex ids (3), moving."""

@@ -910,9 +910,20 @@ class Solver:
         return float(translation), float(rotation)
 
     @property
+    def memory(self) -> dict[str, int]:
+        """Bytes the solver has allocated (capacity), by part: see ``Core.memory``."""
+        return {part: int(size) for part, size in self._core.memory().items()}
+
+    @property
     def memory_bytes(self) -> int:
-        """Bytes allocated for particles, thread buffers and neighbour/wall lists."""
-        return int(self._core.memory_bytes())
+        """Bytes the solver has allocated in all (:attr:`memory`)."""
+        return sum(self.memory.values())
+
+    @property
+    def list_entries(self) -> tuple[int, int]:
+        """Entries of the neighbour list (pairs within reach) and of the wall list."""
+        pairs, walls = self._core.list_entries()
+        return int(pairs), int(walls)
 
     @property
     def timings(self) -> dict:
