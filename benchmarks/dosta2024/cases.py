@@ -12,8 +12,9 @@ no rolling resistance, gravity 9.81 m/s^2 along -z.
   ``5 0.01 0.01 0 0 0.06``, read as speed, radius, radius, x, y, z); dt = 5e-7 s; the ball's
   z every 1 ms.
 - ``drum``: the published mixture (30,000 of r = 1 mm M1, 8,000 of r = 2 mm M2) in the closed
-  drum of radius 0.1 m turning at 2 rad/s about y through the origin; counts of small and large
-  particles in zone 1 (x < 0, z > 0) and zone 2 (x > 0, z < 0) every 0.1 s. ``stiff``: the
+  drum of radius 0.1 m turning at 2 rad/s about -y through the origin (MercuryDPM's angular
+  velocity (0, -2, 0): the wall rises at x > 0); counts of small and large particles in zone 1
+  (x > 0, z > 0) and zone 2 (x < 0, z < 0) every 0.1 s. ``stiff``: the
   paper's moduli at dt = 8e-7 s. ``soft``: M1 and M2 moduli divided by 500, at dt = 1e-5 s, not
   MercuryDPM's 1e-4 s: a contact of soft beads lasts about 6e-4 s at 0.1 m/s and under 3e-4 s
   at the drum's 1 m/s, so 1e-4 s gives about 3 steps per contact, which PyGran's time-step
@@ -128,11 +129,11 @@ def drum(variant: str = "stiff") -> Case:
 
     def setup(sim: Any) -> None:
         sim.createParticles("all", "single", table)
-        sim.moveMesh("drum", rotate=("origin", 0.0, 0.0, 0.0), axis=(0.0, 1.0, 0.0), omega=2.0)
+        sim.moveMesh("drum", rotate=("origin", 0.0, 0.0, 0.0), axis=(0.0, -1.0, 0.0), omega=2.0)
 
     def observe(sim: Any) -> list[float]:
         x, kind = sim.extractCoords(), sim.engine.extract("type")
-        zone1, zone2 = (x[:, 0] < 0) & (x[:, 2] > 0), (x[:, 0] > 0) & (x[:, 2] < 0)
+        zone1, zone2 = (x[:, 0] > 0) & (x[:, 2] > 0), (x[:, 0] < 0) & (x[:, 2] < 0)
         return [float(np.count_nonzero(zone & (kind == k))) for zone in (zone1, zone2) for k in (1, 2)]
 
     columns = ("zone1_small", "zone1_large", "zone2_small", "zone2_large")
