@@ -52,6 +52,7 @@ shell larger than what it stores, steps must increase, and every frame must be p
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator, Sequence
 from importlib.metadata import version
 from pathlib import Path
@@ -955,8 +956,34 @@ class H5MDTrajectory(_H5MDFile):
             return n, _Placement(lo, hi, order)
         return n, _Placement.of(rows, order)
 
+    def _read_ahead(self, index: int, place: _Placement) -> None:
+        """Ask the operating system to read the chunks of frame ``index`` from disk ahead of
+        the reads, element by element: a chunk read alone waits for the disk once per chunk.
+        Only where an element's chunks of the frame lie together in the file (as written here)."""
+        try:
+            handle = self._file.id.get_vfd_handle()
+        except (OSError, RuntimeError, ValueError):
+            return
+        if not hasattr(os, "posix_fadvise") or not isinstance(handle, int) or place.hi == place.lo:
+            return
+        for _, dataset, timed in self._elements:
+            if not timed or dataset.chunks is None:
+                continue
+            rows, corner = dataset.chunks[1], (0,) * (dataset.ndim - 2)
+            first, last = (
+                dataset.id.get_chunk_info_by_coord((index, r - r % rows, *corner))
+                for r in (place.lo, place.hi - 1)
+            )
+            if first.byte_offset is None or last.byte_offset is None:
+                continue
+            start, stop = first.byte_offset, last.byte_offset + last.size
+            size = dataset.dtype.itemsize * (place.hi - place.lo + rows) * int(np.prod(dataset.shape[2:]))
+            if 0 < stop - start <= 2 * size:
+                os.posix_fadvise(handle, start, stop - start, os.POSIX_FADV_WILLNEED)
+
     def _frame(self, index: int) -> Frame:
         n, place = self._placement(index)
+        self._read_ahead(index, place)
         arrays: dict[str, np.ndarray] = {}
         for name, dataset, timed in self._elements:
             columns = _read_rows(dataset, index if timed else None, place, n)
