@@ -15,8 +15,10 @@ from pygran_native.solver import Solver
 
 from pygran_core import params, simulation
 from pygran_core.errors import ReadError
+from pygran_core.simulation.checkpoint import encode_text
 from pygran_core.simulation.models import HertzMindlin, SpringDashpot
 from pygran_core.testing.solvers import require_solver
+from pygran_core.testing.validation import SOFT
 
 R, G = 1e-3, 9.81
 
@@ -100,18 +102,11 @@ def test_the_rolling_spring_is_part_of_the_history_and_of_checkpoints(rolling):
         np.testing.assert_array_equal(a, b)
     other = _pile(2, "cdt")
     with pytest.raises(ReadError, match="model_rolling"):
-        other.set_state({**state, "model_rolling": np.frombuffer(b"epsd4", np.uint8).copy()})
+        other.set_state({**state, "model_rolling": encode_text("epsd4")})
 
 
-SOFT = {
-    "youngsModulus": 5e6,
-    "poissonsRatio": 0.3,
-    "coefficientRestitution": 0.3,
-    "coefficientFriction": 0.5,
-    "coefficientRollingFriction": 0.1,
-    "coefficientRollingViscousDamping": 0.3,
-    "density": 2500.0,
-}
+#: The suite's soft material, less incompressible, with rolling resistance.
+ROLLING = dict(SOFT, poissonsRatio=0.3, coefficientRollingFriction=0.1, coefficientRollingViscousDamping=0.3)
 SMALL = 1e-4  # sphere radius of the heaps
 
 
@@ -129,7 +124,7 @@ def column() -> np.ndarray:
 
 @contextlib.contextmanager
 def on_a_floor(engine: str, rolling: str, output: Path, dt: float, top: float) -> Iterator[simulation.DEM]:
-    """A simulation of SOFT spheres above a floor, in a box 8 mm wide and ``top`` high. Spheres
+    """A simulation of ROLLING spheres above a floor, in a box 8 mm wide and ``top`` high. Spheres
     may roll or bounce off the floor out of the box: their loss is expected (LIGGGHTS does not
     say through which face; PyGran estimates it)."""
     with simulation.DEM(
@@ -139,7 +134,7 @@ def on_a_floor(engine: str, rolling: str, output: Path, dt: float, top: float) -
         gravity=(G, 0, 0, -1),
         dt=dt,
         output=str(output),
-        species=({"material": SOFT, "radius": SMALL},),
+        species=({"material": ROLLING, "radius": SMALL},),
         traj={"pfile": None},
         progress=False,
     ) as sim:
@@ -183,7 +178,7 @@ def impacts(engine: str, friction: float, output: Path) -> np.ndarray:
     """Velocities and angular velocities (N, 3 spheres, 6), step by step, of a sphere dropped
     spinning about a tilted axis on the floor (rolling and torsion parts) and of two spheres
     of unequal size colliding obliquely, both spinning; cdt, each contact new in the run."""
-    material = dict(SOFT, coefficientFriction=friction)
+    material = dict(ROLLING, coefficientFriction=friction)
     axis = np.array([1.2, 1.5, 0.3]) / np.linalg.norm([1.2, 1.5, 0.3])  # the pair's line of centres
     steps = []
     with simulation.DEM(
