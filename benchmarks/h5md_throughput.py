@@ -11,7 +11,8 @@ the same columns as one contiguous dataset each, written and read in the same ru
 Rates are MB (10^6 bytes) of frame data per second. A write is timed until its files are on
 disk (``fsync``), so the page cache does not count as disk; before reading, the files'
 pages are dropped from the cache (``posix_fadvise``, this benchmark's files only), so reads
-come from the disk. Reading is ``open_trajectory(path)[k]``, every column in memory.
+come from the disk (on a virtual machine, perhaps from the host's cache of it: compare the
+ratios, measured in one run, not the rates). Reading is ``open_trajectory(path)[k]``, every column in memory.
 
 Memory: a fresh process opens ``analysis.System(Particles=path)`` and steps through every
 frame, holding the current ``Particles`` as a user's loop does (``p = system.Particles``, so
