@@ -17,8 +17,10 @@ velocities, forces, radii and ids once each).
 ``--start lattice`` (default) is the settle scenario of README.md: the lattice, 8,000 settling
 steps and 4,000 of the dense bed. ``--start bed`` starts from the dense bed: the 20,000
 particles of the scenario after both phases (run once with 2 threads and kept in ``--bed``),
-repeated along the periodic x and y to N and created at rest, then runs ``--bed-steps`` (500):
-the bed's lists and contacts from the first step, at a fraction of the settle's time.
+repeated along the periodic x and y to N and created at rest 0.3 mm above the floor (see
+tiled_bed), then runs ``--bed-steps`` (1000): it falls onto the floor and rebuilds its lists on
+the way (with the bed's previous lists held, as the settle's rebuilds hold them), at a fraction
+of the settle's time.
 
 Prints per N the seconds and peak bytes per particle of each step, the solver's allocations
 (capacity) by part after the last run, the listed pairs, contacts and wall entries per
@@ -123,11 +125,16 @@ def settled_bed(path: Path) -> np.ndarray:
 
 
 def tiled_bed(n: int, path: Path) -> np.ndarray:
-    """N positions: the settled bed repeated along the periodic x and y."""
+    """N positions: the settled bed repeated along the periodic x and y, its heights stretched by
+    0.5 % (its deepest contacts overlap by just over what createParticles accepts, 1 % of the
+    radius) and raised by 0.3 mm (it falls further than half the skin, so the lists are rebuilt
+    with the bed's lists as the previous ones)."""
     tile, shape = np.array(SIZES[TILE][:2]), np.array(SHAPES[n][:2])
     if SHAPES[n][2] != SIZES[TILE][2] or np.any(shape % tile):
         raise SystemExit(f"N = {n} is not a tiling of the {TILE}-particle bed")
     bed = settled_bed(path)
+    bed[:, :2] %= tile * SETTLE_SPACING  # into the tile: a run wraps positions at its rebuilds only
+    bed[:, 2] = bed[:, 2] * 1.005 + 3e-4
     shifts = np.stack(np.meshgrid(*(np.arange(k) for k in shape // tile), indexing="ij"), -1).reshape(-1, 2)
     offsets = np.zeros((len(shifts), 1, 3))
     offsets[:, 0, :2] = shifts * tile * SETTLE_SPACING
@@ -161,6 +168,7 @@ def measure(n: int, args: argparse.Namespace) -> dict:
         "listed_pairs_per_particle": found["pairs"] / n,
         "wall_entries_per_particle": found["walls"] / n,
         "contacts_per_particle": found["contacts"] / n,
+        "rebuilds": found["rebuilds"],
         "particle_steps_per_second": {
             phase: n * count / steps.seconds[phase]
             for phase, count in (("settle", args.settle_steps), ("bed", args.bed_steps))
@@ -193,6 +201,7 @@ def run_steps(
             "pairs": pairs,
             "walls": walls,
             "contacts": len(solver.contacts()[0]),
+            "rebuilds": solver.rebuilds,
         }
         steps("output", lambda: write_frame(sim, output / "frame.h5"))
         steps(
@@ -241,7 +250,8 @@ def report(result: dict) -> None:
     per_particle = {k: result[f"{k}_per_particle"] for k in ("listed_pairs", "contacts", "wall_entries")}
     print(
         f"N = {result['N']:,} from the {result['start']} ({settle} + {bed} steps, "
-        f"{result['threads']} threads; baseline {result['baseline_mb']:.0f} MB): per particle "
+        f"{result['threads']} threads, {result['rebuilds']} rebuilds; "
+        f"baseline {result['baseline_mb']:.0f} MB): per particle "
         + ", ".join(f"{value:.2f} {name.replace('_', ' ')}" for name, value in per_particle.items())
     )
     print(f"  {'step':8s} {'seconds':>9s} {'peak B/particle':>16s}")
@@ -261,13 +271,13 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--start", choices=("lattice", "bed"), default="lattice")
     parser.add_argument("--settle-steps", type=int, help="default 8000 from the lattice, 0 from the bed")
-    parser.add_argument("--bed-steps", type=int, help="default 4000 from the lattice, 500 from the bed")
+    parser.add_argument("--bed-steps", type=int, help="default 4000 from the lattice, 1000 from the bed")
     parser.add_argument("--bed", type=Path, default=Path(tempfile.gettempdir()) / "pygran_settled_bed.npy")
     parser.add_argument("--one", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     lattice = args.start == "lattice"
     args.settle_steps = (8000 if lattice else 0) if args.settle_steps is None else args.settle_steps
-    args.bed_steps = (4000 if lattice else 500) if args.bed_steps is None else args.bed_steps
+    args.bed_steps = (4000 if lattice else 1000) if args.bed_steps is None else args.bed_steps
     if args.one:
         print(json.dumps(measure(args.n[0], args)))
         return

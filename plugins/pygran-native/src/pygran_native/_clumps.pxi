@@ -116,8 +116,9 @@ cdef inline void body_kick(const State* c, int b, const double* R, const double*
 
 
 cdef void body_row(const State* c, int b, int phase) noexcept nogil:
-    """Body b in the body loop. P_BODIES: sum its spheres' forces and torques (their buffers'
-    sums, stored by the particle loop in f and t) about its centre, with gravity and viscous
+    """Body b in the body loop. P_BODIES: sum its spheres' forces and torques (the pair loop's
+    sums, stored by the particle loop in their f and t; with ``fuse`` then cleared for the next
+    pair loop, else kept as a run's last forces) about its centre, with gravity and viscous
     drag, into bf and bt; with ``kick`` the second half kick, with ``fuse`` then the first half
     kick and drift of the next step (as particle_row does). P_BODY_DRIFT: first half kick by bf,
     bt and drift. Its spheres follow (see body_members); ``bdd[b]``: their displacement."""
@@ -141,6 +142,8 @@ cdef void body_row(const State* c, int b, int phase) noexcept nogil:
             for d in range(3):
                 F[d] += c.particles.f[3 * i + d]
                 T[d] += c.particles.t[3 * i + d] + cx[d]
+            if c.fuse:
+                clear_forces(c, i)
         for d in range(3):
             c.clumps.bf[3 * b + d] = F[d]
             c.clumps.bt[3 * b + d] = T[d]

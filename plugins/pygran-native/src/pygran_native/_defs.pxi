@@ -2,7 +2,7 @@
 
 cdef enum:
     MAXCAND = 64       # triangles in reach of one particle that wall_row classifies, at most
-    NCOLUMNS = 24      # per-particle arrays, see particle_columns
+    NCOLUMNS = 23      # per-particle arrays, see particle_columns
     NBCOLUMNS = 12     # per-body arrays of clumps, see body_columns
     NMCOLUMNS = 4      # per-member arrays of clumps, see member_columns
     NECOLUMNS = 9      # per-element arrays, see element_columns

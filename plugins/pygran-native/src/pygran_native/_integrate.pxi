@@ -1,18 +1,28 @@
-# Integration: the particle loop (summing the pair loop's buffers, gravity, viscous
-# forces, velocity Verlet kicks) and the drift.
+# Integration: the particle loop (summing the pair loop's forces, gravity, viscous forces,
+# velocity Verlet kicks) and the drift.
 
 cdef inline const double* origins(const State* c) noexcept nogil:
     """x0 for a drift that measures displacements, else NULL (see State.measure)."""
     return c.particles.x0 if c.measure else NULL
 
 
-cdef inline void drift_row(const State* c, int i, int tid, const double* F, const double* T) noexcept nogil:
-    """First half kick (force F, torque T) and drift of particle i; its squared speed and, if
-    measured, displacement since the rebuild raise thread ``tid``'s maxima (per-thread maxima
-    are a cache line apart)."""
+cdef inline void clear_forces(const State* c, int i) noexcept nogil:
+    """Particle i's f and t set to +0.0, for the pair loop to add into."""
+    memset(&c.particles.f[3 * i], 0, 3 * sizeof(double))
+    memset(&c.particles.t[3 * i], 0, 3 * sizeof(double))
+
+
+cdef inline void drift_row(const State* c, int i, int tid) noexcept nogil:
+    """First half kick of particle i by the force and torque of the last step (in f and t, which
+    are cleared then for the pair loop) and drift; its squared speed and, if measured,
+    displacement since the rebuild raise thread ``tid``'s maxima (per-thread maxima are a cache
+    line apart)."""
     cdef double s, u
+    cdef double* F = &c.particles.f[3 * i]
+    cdef double* T = &c.particles.t[3 * i]
     pg_row_kick_factors(i, c.dt, c.particles.m, c.particles.r, &s, &u)
     pg_row_drift(i, c.dt, s, u, &c.tmax[PAD * tid], c.particles.x, c.particles.v, c.particles.w, origins(c), F, T)
+    clear_forces(c, i)
 
 
 cdef inline void add_halos(const State* c, int i, int first, int end, double* F, double* T) noexcept nogil:
@@ -40,25 +50,25 @@ cdef inline void add_halos(const State* c, int i, int first, int end, double* F,
 
 
 cdef void particle_row(const State* c, int i, int tid, int first, int end) noexcept nogil:
-    """Sum the buffers (the shared one, then its halos: see add_halos) and clear them, add
-    gravity and viscous forces; second half kick, and with ``fuse`` the first half kick and
-    drift of the next step (one pass instead of two, the same arithmetic; ``f`` and ``t`` are
-    then left alone: they hold the forces of a run's last step, which is not fused). A clump's
-    sphere only stores its buffers' sums in f and t, for its body (see body_row), which gravity
-    and drag act on. A fused pass always kicks (see run_steps)."""
+    """Sum the pair loop's forces (the row's own, in f and t, which are cleared, then its
+    halos': see add_halos), add gravity and viscous forces; second half kick, and with ``fuse``
+    the first half kick and drift of the next step (one pass instead of two, the same
+    arithmetic). Without ``fuse`` (a run's last step) f and t keep the forces, for the output and
+    the next run's first drift. A clump's sphere only stores the pair loop's sums in f and t,
+    for its body (see body_row), which gravity and drag act on. A fused pass always kicks (see
+    run_steps)."""
     cdef bint member = c.clumps.nbody and c.particles.mem[i] >= 0
-    cdef double* b = &c.lists.buf[<long long>i * 6]
     cdef double F[3]
     cdef double T[3]
     cdef double s, u
     cdef int q
     if member:
         for q in range(3):
-            F[q] = 0.0 + b[q]
-            T[q] = 0.0 + b[3 + q]
-        memset(b, 0, 6 * sizeof(double))
+            F[q] = 0.0 + c.particles.f[3 * i + q]
+            T[q] = 0.0 + c.particles.t[3 * i + q]
     else:
-        pg_row_forces(i, c.grav[0], c.grav[1], c.grav[2], c.particles.m, c.particles.type, c.visc, c.lists.buf, c.particles.v, F, T)
+        pg_row_forces(i, c.grav[0], c.grav[1], c.grav[2], c.particles.m, c.particles.type, c.visc, c.particles.f,
+                      c.particles.t, c.particles.v, F, T)
     add_halos(c, i, first, end, F, T)
     if not c.fuse or member:
         for q in range(3):
@@ -76,8 +86,8 @@ cdef void particle_row(const State* c, int i, int tid, int first, int end) noexc
 cdef inline void kick_drift_rows(const State* c, int lo, int hi, int tid, double* halo) noexcept nogil:
     """Rows [lo, hi) of the particle loop through kick_drift.h (see particle_block): ``halo``
     NULL, or the entry for row lo of the one halo that holds them."""
-    pg_kick_drift(lo, hi, c.dt, &c.tmax[PAD * tid], c.grav, c.particles.m, c.particles.r, c.particles.type, c.visc, c.lists.buf, c.particles.x, c.particles.v, c.particles.w,
-                  origins(c), halo)
+    pg_kick_drift(lo, hi, c.dt, &c.tmax[PAD * tid], c.grav, c.particles.m, c.particles.r, c.particles.type, c.visc,
+                  c.particles.f, c.particles.t, c.particles.x, c.particles.v, c.particles.w, origins(c), halo)
 
 
 cdef inline int halo_run(const State* c, int i, int hi, int first, int end, int nearmax,
@@ -143,8 +153,9 @@ cdef void drift_block(const State* c, int lo, int hi, int t) noexcept nogil:
     cdef int i
     for i in range(lo, hi):
         if c.clumps.nbody and c.particles.mem[i] >= 0:
-            continue
-        drift_row(c, i, t, &c.particles.f[3 * i], &c.particles.t[3 * i])
+            clear_forces(c, i)
+        else:
+            drift_row(c, i, t)
 
 
 cdef void displacement_block(const State* c, int lo, int hi, int tid) noexcept nogil:

@@ -295,7 +295,8 @@ cdef void permute(State* sim, int n) noexcept nogil:
     """Reorder the particle arrays by ``perm`` in three parallel passes. f, t and x0 are
     recomputed after a rebuild, so they serve as scratch: x, v and w are gathered into them
     and swapped with them; r, m, type, pid (and with clumps mem) are gathered into the old x
-    and v, then copied back while x0 becomes a copy of x (see rebuild_rows)."""
+    and v, then copied back while x0 becomes a copy of x (see rebuild_rows); the fill clears f
+    and t for the pair loop."""
     cdef double* p
     parallel_rows(sim, P_GATHER, n)
     p = sim.particles.x; sim.particles.x = sim.particles.f; sim.particles.f = p
@@ -366,6 +367,7 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept no
             scan_walls(sim, i, True)
             sim.schedule.work[i] = estimated_work(sim, i)
             find_partners(sim, i)
+            clear_forces(sim, i)
 
 
 cdef inline void find_partners(State* sim, int i) noexcept nogil:

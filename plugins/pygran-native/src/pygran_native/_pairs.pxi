@@ -6,10 +6,11 @@ cdef inline int row_work(int listed, int touching, int walls) noexcept nogil:
 
 
 cdef struct Sink:
-    # Where a block of the pair loop adds forces on a partner row j: the shared buffer for its
-    # own rows (j < own), else the block's halo (see Halo): near rows from entry near + j,
+    # Where a block of the pair loop adds forces on a partner row j: the row's own f and t for
+    # its own rows (j < own), else the block's halo (see Halo): near rows from entry near + j,
     # far rows from entry far + j.
-    double* buf
+    double* f
+    double* t
     double* halo
     long long near, far
     int own, near_end
@@ -18,7 +19,8 @@ cdef struct Sink:
 cdef inline Sink block_sink(const State* c, int b) noexcept nogil:
     cdef const Halo* hb = &c.lists.halos[b]
     cdef Sink s
-    s.buf = c.lists.buf
+    s.f = c.particles.f
+    s.t = c.particles.t
     s.halo = c.lists.halo
     s.own = c.schedule.pb[b + 1]
     s.near_end = hb.near_end
@@ -27,15 +29,21 @@ cdef inline Sink block_sink(const State* c, int b) noexcept nogil:
     return s
 
 
-cdef inline double* partner_row(const Sink* s, int j, int* hmax) noexcept nogil:
-    """The 6 force and torque values of partner row j (``hmax``: the last near halo row)."""
+cdef inline double* partner_row(const Sink* s, int j, int* hmax, double** torque) noexcept nogil:
+    """Where the force on partner row j goes (3 values), and its torque (``torque``; ``hmax``:
+    the last near halo row)."""
+    cdef double* p
     if j < s.own:
-        return &s.buf[j * 6]
+        torque[0] = &s.t[3 * j]
+        return &s.f[3 * j]
     if j <= s.near_end:
         if j > hmax[0]:
             hmax[0] = j
-        return &s.halo[(s.near + j) * 6]
-    return &s.halo[(s.far + j) * 6]
+        p = &s.halo[(s.near + j) * 6]
+    else:
+        p = &s.halo[(s.far + j) * 6]
+    torque[0] = p + 3
+    return p
 
 
 cdef inline void forget_pair(const State* c, long long k) noexcept nogil:
@@ -45,9 +53,10 @@ cdef inline void forget_pair(const State* c, long long k) noexcept nogil:
 
 
 cdef inline int finish_row(const State* c, int i, int b, const double* fi, int touching) noexcept nogil:
-    """Add row i's pair sums ``fi`` and its walls' forces to its buffer; returns its work. A
-    row without contacts or walls adds nothing: its sums are +0.0, and the buffer never holds
-    -0.0 (it starts at +0.0 and only adds and subtracts), so adding them would change no bit."""
+    """Add row i's pair sums ``fi`` and its walls' forces to its f and t; returns its work. A
+    row without contacts or walls adds nothing: its sums are +0.0, and f and t never hold -0.0
+    in the pair loop (they start at +0.0 and only add and subtract), so adding them would change
+    no bit."""
     cdef int q, walls = c.lists.wl_start[i + 1] - c.lists.wl_start[i]
     cdef double F[3]
     cdef double T[3]
@@ -58,16 +67,16 @@ cdef inline int finish_row(const State* c, int i, int b, const double* fi, int t
         if walls:
             wall_row(c, i, F, T, &c.walls.sacc[<long long>SACC * c.walls.nslots * b])
         for q in range(3):
-            c.lists.buf[i * 6 + q] += fi[q] + F[q]
-            c.lists.buf[i * 6 + 3 + q] += fi[3 + q] + T[q]
+            c.particles.f[3 * i + q] += fi[q] + F[q]
+            c.particles.t[3 * i + q] += fi[3 + q] + T[q]
     return row_work(c.lists.nb_start[i + 1] - c.lists.nb_start[i], touching, walls)
 
 
 cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     """Forces of particle i's half-list contacts and walls; returns the row's work.
 
-    Block ``b`` owns the rows up to ``pb[b + 1]``: forces on them go to the shared buffer
-    ``buf``, forces on later rows to the block's halo buffers in ``halo`` (see Halo; ``hmax``:
+    Block ``b`` owns the rows up to ``pb[b + 1]``: forces on them are added into their ``f``
+    and ``t``, forces on later rows to the block's halo buffers in ``halo`` (see Halo; ``hmax``:
     the last row it wrote to the near one).
     """
     # locals: the flag store through uint8_t* may alias anything, including *c
@@ -104,6 +113,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef double cri, crj, delta, dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den, Ii = mi * ri * ri, Ir = 0.0
     cdef double* h
     cdef double* bj
+    cdef double* tj
     cdef const double* sv
     for q in range(3):
         xi[q] = x[3 * i + q]
@@ -150,7 +160,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         nb_s[k] |= TOUCH
         touching += 1
         cross3(n, Ft, cx)
-        bj = partner_row(&sink, j, hmax)
+        bj = partner_row(&sink, j, hmax, &tj)
         if c.record:
             for q in range(3):
                 nb_f[<long long>3 * k + q] = F[q]
@@ -158,7 +168,7 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
             fi[q] += F[q]
             fi[3 + q] += Mr[q] - cri * cx[q]
             bj[q] -= F[q]
-            bj[3 + q] -= Mr[q] + crj * cx[q]
+            tj[q] -= Mr[q] + crj * cx[q]
     return finish_row(c, i, b, fi, touching)
 
 
@@ -479,6 +489,7 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
     cdef double fi[6]
     cdef double* h
     cdef double* bj
+    cdef double* tj
     for r in range(nrows):
         i = first + r
         touching = 0
@@ -496,7 +507,7 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
             h[H_FN] = bt.fn[t]
             c.lists.nb_s[k] |= TOUCH
             touching += 1
-            bj = partner_row(&sink, c.lists.nb_j[k], hmax)
+            bj = partner_row(&sink, c.lists.nb_j[k], hmax, &tj)
             if c.record:
                 for q in range(3):
                     c.lists.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
@@ -504,7 +515,7 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
                 fi[q] += bt.F[q * PG_BATCH + t]
                 fi[3 + q] += bt.Ti[q * PG_BATCH + t]
                 bj[q] -= bt.F[q * PG_BATCH + t]
-                bj[3 + q] -= bt.Tj[q * PG_BATCH + t]
+                tj[q] -= bt.Tj[q * PG_BATCH + t]
             t += 1
         c.schedule.work[i] = finish_row(c, i, b, fi, touching)
         total += c.schedule.work[i]

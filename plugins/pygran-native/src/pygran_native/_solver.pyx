@@ -52,8 +52,10 @@ pair's tangential history changes sign with the pair's orientation).
 Threads: the pair loop (pair and wall forces) runs over ``nblocks`` contiguous blocks of the
 cell-sorted rows (slabs of the domain): 1 for one thread, BLOCKS per thread otherwise. The
 bounds move after every step to where the work the loop counted (listed pairs, touching
-pairs, wall entries) splits evenly. Forces on a block's own rows go to a shared buffer,
-forces on later rows to the block's halo buffers (see Halo); the particle loop, over the same
+pairs, wall entries) splits evenly. Forces on a block's own rows are added into their ``f``
+and ``t`` (zero between steps: the particle loop clears them as it reads them, and keeps there
+the forces of a run's last step only), forces on later rows go to the block's halo buffers
+(see Halo); the particle loop, over the same
 blocks (each in SPLIT parts), adds them up in block order. The bounds are part of the state
 and the order of every sum depends on the blocks only, so results are bitwise reproducible
 for a given thread count, whichever thread runs a block.
@@ -117,7 +119,7 @@ cdef extern from "pair_batch.h":
 
 cdef extern from "kick_drift.h":
     void pg_row_forces(long long i, double g0, double g1, double g2, const double* m, const int* type,
-                       const double* visc, double* buf, const double* v, double* F, double* T) noexcept nogil
+                       const double* visc, double* f, double* t, const double* v, double* F, double* T) noexcept nogil
     void pg_row_drift(long long i, double dt, double s, double u, double* peak, double* x, double* v, double* w,
                       const double* x0, const double* F, const double* T) noexcept nogil
     void pg_row_displacement(long long i, double* peak, const double* x, const double* x0) noexcept nogil
@@ -128,7 +130,7 @@ cdef extern from "kick_drift.h":
     void pg_row_kick_drift(long long i, double dt, double* peak, const double* m, const double* r, double* x,
                            double* v, double* w, const double* x0, const double* F, const double* T) noexcept nogil
     void pg_kick_drift(int lo, int hi, double dt, double* peak, const double* grav, const double* m,
-                         const double* r, const int* type, const double* visc, double* buf, double* x,
+                         const double* r, const int* type, const double* visc, double* f, double* t, double* x,
                          double* v, double* w, const double* x0, double* halo) noexcept nogil
 
 cdef extern from "team.h":
@@ -376,13 +378,7 @@ cdef class Core:
         c = cap
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
-            if cols[k].zeroed:
-                free(cols[k].p[0])
-                cols[k].p[0] = calloc(c + cols[k].extra, cols[k].size)
-                if cols[k].p[0] == NULL:
-                    raise MemoryError()
-            else:
-                cols[k].p[0] = self._grow(cols[k].p[0], (c + cols[k].extra) * cols[k].size)
+            cols[k].p[0] = self._grow(cols[k].p[0], (c + cols[k].extra) * cols[k].size)
         self.s.particles.cap = cap
         return 0
 

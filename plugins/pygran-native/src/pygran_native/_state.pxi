@@ -80,7 +80,7 @@ cdef struct Particles:
 
 cdef struct Lists:
     # The cell grid, the neighbour and wall lists (current and previous, with their contact
-    # histories), the sublist of the batched path, and the pair loop's buffers and halos.
+    # histories), the sublist of the batched path, and the pair loop's halos.
     int nc[3]
     int ax[3]          # axes from the slowest-varying in the cell index, see cell_id
     double cs[3]
@@ -128,7 +128,6 @@ cdef struct Lists:
     int *ow_e
     double *ow_h
     long long ow_cap
-    double *buf        # forces and torques of the pair loop, cap * 6 (see pair_row)
     double *halo       # the pair blocks' halo buffers, 6 per row (see Halo)
     long long halo_cap
     Halo *halos
@@ -272,87 +271,83 @@ cdef struct Column:
     int count          # values per particle
     size_t size        # bytes per particle
     int extra          # entries beyond one per particle (a CSR start array has cap + 1)
-    bint zeroed        # reallocated zero-filled, not grown (contents not kept)
     const char* key    # its name in a checkpoint (Core.get_state), NULL: not saved
 
 
-cdef inline void column(Column* c, void** p, int kind, int count, int extra, bint zeroed,
-                        const char* key) noexcept nogil:
+cdef inline void column(Column* c, void** p, int kind, int count, int extra, const char* key) noexcept nogil:
     c.p = p
     c.kind = kind
     c.count = count
     c.size = count * (sizeof(int) if kind == I32 else sizeof(int64_t) if kind == I64 else sizeof(double))
     c.extra = extra
-    c.zeroed = zeroed
     c.key = key
 
 
 cdef void particle_columns(State* s, Column* c) noexcept nogil:
     """The allocation table: the NCOLUMNS per-particle arrays of the State, which Core grows
-    together (reserve), frees (dealloc), counts (memory_bytes) and checkpoints (state_of; the
+    together (reserve), frees (dealloc), counts (Core.memory) and checkpoints (state_of; the
     clump member slots ``mem`` with the clumps)."""
-    column(&c[0], <void**>&s.particles.x, F64, 3, 0, False, "x")
-    column(&c[1], <void**>&s.particles.v, F64, 3, 0, False, "v")
-    column(&c[2], <void**>&s.particles.w, F64, 3, 0, False, "w")
-    column(&c[3], <void**>&s.particles.f, F64, 3, 0, False, "f")
-    column(&c[4], <void**>&s.particles.t, F64, 3, 0, False, "t")
-    column(&c[5], <void**>&s.particles.x0, F64, 3, 0, False, "x0")
-    column(&c[6], <void**>&s.particles.r, F64, 1, 0, False, "r")
-    column(&c[7], <void**>&s.particles.m, F64, 1, 0, False, "m")
-    column(&c[8], <void**>&s.particles.type, I32, 1, 0, False, "type")
-    column(&c[9], <void**>&s.particles.perm, I32, 1, 0, False, NULL)
-    column(&c[10], <void**>&s.particles.cell, I32, 1, 0, False, NULL)
-    column(&c[11], <void**>&s.schedule.work, I32, 1, 0, False, NULL)
-    column(&c[12], <void**>&s.particles.pid, I64, 1, 0, False, "id")
-    column(&c[13], <void**>&s.lists.nb_start, I32, 1, 1, False, "nb_start")
-    column(&c[14], <void**>&s.lists.ob_start, I32, 1, 1, False, NULL)
-    column(&c[15], <void**>&s.lists.wl_start, I32, 1, 1, False, "wl_start")
-    column(&c[16], <void**>&s.lists.ow_start, I32, 1, 1, False, NULL)
-    column(&c[17], <void**>&s.lists.last, I32, 1, 0, False, NULL)
-    column(&c[18], <void**>&s.lists.flo, I32, 1, 0, False, NULL)
-    column(&c[19], <void**>&s.lists.fhi, I32, 1, 0, False, NULL)
-    column(&c[20], <void**>&s.lists.buf, F64, 6, 0, True, NULL)   # the pair loop's, zero between steps
-    column(&c[21], <void**>&s.particles.mem, I32, 1, 0, False, NULL)
-    column(&c[22], <void**>&s.lists.sb_n, I32, 1, 0, False, NULL)
-    column(&c[23], <void**>&s.lists.sb_at, I32, 1, 0, False, NULL)
+    column(&c[0], <void**>&s.particles.x, F64, 3, 0, "x")
+    column(&c[1], <void**>&s.particles.v, F64, 3, 0, "v")
+    column(&c[2], <void**>&s.particles.w, F64, 3, 0, "w")
+    column(&c[3], <void**>&s.particles.f, F64, 3, 0, "f")
+    column(&c[4], <void**>&s.particles.t, F64, 3, 0, "t")
+    column(&c[5], <void**>&s.particles.x0, F64, 3, 0, "x0")
+    column(&c[6], <void**>&s.particles.r, F64, 1, 0, "r")
+    column(&c[7], <void**>&s.particles.m, F64, 1, 0, "m")
+    column(&c[8], <void**>&s.particles.type, I32, 1, 0, "type")
+    column(&c[9], <void**>&s.particles.perm, I32, 1, 0, NULL)
+    column(&c[10], <void**>&s.particles.cell, I32, 1, 0, NULL)
+    column(&c[11], <void**>&s.schedule.work, I32, 1, 0, NULL)
+    column(&c[12], <void**>&s.particles.pid, I64, 1, 0, "id")
+    column(&c[13], <void**>&s.lists.nb_start, I32, 1, 1, "nb_start")
+    column(&c[14], <void**>&s.lists.ob_start, I32, 1, 1, NULL)
+    column(&c[15], <void**>&s.lists.wl_start, I32, 1, 1, "wl_start")
+    column(&c[16], <void**>&s.lists.ow_start, I32, 1, 1, NULL)
+    column(&c[17], <void**>&s.lists.last, I32, 1, 0, NULL)
+    column(&c[18], <void**>&s.lists.flo, I32, 1, 0, NULL)
+    column(&c[19], <void**>&s.lists.fhi, I32, 1, 0, NULL)
+    column(&c[20], <void**>&s.particles.mem, I32, 1, 0, NULL)
+    column(&c[21], <void**>&s.lists.sb_n, I32, 1, 0, NULL)
+    column(&c[22], <void**>&s.lists.sb_at, I32, 1, 0, NULL)
 
 
 cdef void element_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the wall elements: the NECOLUMNS per-element arrays of the State,
     which Core grows together (add_elements), compacts (remove_elements), frees (dealloc) and
     checkpoints (state_of)."""
-    column(&c[0], <void**>&s.walls.ekind, I32, 1, 0, False, "ekind")
-    column(&c[1], <void**>&s.walls.etype, I32, 1, 0, False, "etype")
-    column(&c[2], <void**>&s.walls.ewall, I32, 1, 0, False, "ewall")
-    column(&c[3], <void**>&s.walls.emoving, I32, 1, 0, False, "emoving")
-    column(&c[4], <void**>&s.walls.evid, I32, 3, 0, False, "evid")
-    column(&c[5], <void**>&s.walls.egeo, F64, 9, 0, False, "egeo")
-    column(&c[6], <void**>&s.walls.eref, F64, 9, 0, False, "eref")
-    column(&c[7], <void**>&s.walls.ebuilt, F64, 9, 0, False, "ebuilt")
-    column(&c[8], <void**>&s.walls.emot, F64, NMOT, 0, False, "emot")
+    column(&c[0], <void**>&s.walls.ekind, I32, 1, 0, "ekind")
+    column(&c[1], <void**>&s.walls.etype, I32, 1, 0, "etype")
+    column(&c[2], <void**>&s.walls.ewall, I32, 1, 0, "ewall")
+    column(&c[3], <void**>&s.walls.emoving, I32, 1, 0, "emoving")
+    column(&c[4], <void**>&s.walls.evid, I32, 3, 0, "evid")
+    column(&c[5], <void**>&s.walls.egeo, F64, 9, 0, "egeo")
+    column(&c[6], <void**>&s.walls.eref, F64, 9, 0, "eref")
+    column(&c[7], <void**>&s.walls.ebuilt, F64, 9, 0, "ebuilt")
+    column(&c[8], <void**>&s.walls.emot, F64, NMOT, 0, "emot")
 
 
 cdef void body_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the clumps' bodies: the NBCOLUMNS per-body arrays of the State,
     which Core grows together (add_bodies), compacts (drop_bodies), frees (dealloc) and
     checkpoints (state_of)."""
-    column(&c[0], <void**>&s.clumps.bid, I64, 1, 0, False, "body_id")
-    column(&c[1], <void**>&s.clumps.btype, I32, 1, 0, False, "body_type")
-    column(&c[2], <void**>&s.clumps.bx, F64, 3, 0, False, "body_x")
-    column(&c[3], <void**>&s.clumps.bv, F64, 3, 0, False, "body_v")
-    column(&c[4], <void**>&s.clumps.bq, F64, 4, 0, False, "body_q")
-    column(&c[5], <void**>&s.clumps.bp, F64, 3, 0, False, "body_p")
-    column(&c[6], <void**>&s.clumps.bm, F64, 1, 0, False, "body_m")
-    column(&c[7], <void**>&s.clumps.bI, F64, 3, 0, False, "body_inertia")
-    column(&c[8], <void**>&s.clumps.bf, F64, 3, 0, False, "body_f")
-    column(&c[9], <void**>&s.clumps.bt, F64, 3, 0, False, "body_t")
-    column(&c[10], <void**>&s.clumps.bdd, F64, 1, 0, False, NULL)
-    column(&c[11], <void**>&s.clumps.mstart, I32, 1, 1, False, "body_start")
+    column(&c[0], <void**>&s.clumps.bid, I64, 1, 0, "body_id")
+    column(&c[1], <void**>&s.clumps.btype, I32, 1, 0, "body_type")
+    column(&c[2], <void**>&s.clumps.bx, F64, 3, 0, "body_x")
+    column(&c[3], <void**>&s.clumps.bv, F64, 3, 0, "body_v")
+    column(&c[4], <void**>&s.clumps.bq, F64, 4, 0, "body_q")
+    column(&c[5], <void**>&s.clumps.bp, F64, 3, 0, "body_p")
+    column(&c[6], <void**>&s.clumps.bm, F64, 1, 0, "body_m")
+    column(&c[7], <void**>&s.clumps.bI, F64, 3, 0, "body_inertia")
+    column(&c[8], <void**>&s.clumps.bf, F64, 3, 0, "body_f")
+    column(&c[9], <void**>&s.clumps.bt, F64, 3, 0, "body_t")
+    column(&c[10], <void**>&s.clumps.bdd, F64, 1, 0, NULL)
+    column(&c[11], <void**>&s.clumps.mstart, I32, 1, 1, "body_start")
 
 
 cdef void member_columns(State* s, Column* c) noexcept nogil:
     """The allocation table of the clumps' member slots: the NMCOLUMNS per-slot arrays."""
-    column(&c[0], <void**>&s.clumps.md, F64, 3, 0, False, "member_offset")
-    column(&c[1], <void**>&s.clumps.mimg, F64, 3, 0, False, "member_shift")
-    column(&c[2], <void**>&s.clumps.mrow, I32, 1, 0, False, NULL)
-    column(&c[3], <void**>&s.clumps.mbody, I32, 1, 0, False, NULL)
+    column(&c[0], <void**>&s.clumps.md, F64, 3, 0, "member_offset")
+    column(&c[1], <void**>&s.clumps.mimg, F64, 3, 0, "member_shift")
+    column(&c[2], <void**>&s.clumps.mrow, I32, 1, 0, NULL)
+    column(&c[3], <void**>&s.clumps.mbody, I32, 1, 0, NULL)

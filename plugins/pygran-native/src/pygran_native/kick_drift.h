@@ -4,28 +4,30 @@
 /* The particle loop's and the drift's arithmetic per row (used by _integrate.pxi), in C with
    restrict pointers: a store to a particle's arrays does not make the compiler reload the
    solver's state, as Cython code reading through State* must. That cuts the particle loop's
-   time by about 40 %. Rows whose forces are in the shared buffer and at most one pair block's
-   halo (with one thread, every row) go through pg_kick_drift in runs, at steps without clumps
-   that kick and fuse the next drift. */
+   time by about 40 %. Rows whose pair forces are in their own f and t and at most one pair
+   block's halo (with one thread, every row) go through pg_kick_drift in runs, at steps without
+   clumps that kick and fuse the next drift. */
 #include <math.h>
 
-/* Row i's forces from ``buf`` (then cleared), gravity (g0, g1, g2) and viscous drag into F and
-   its torque into T, as particle_row sums them before it adds any halo. */
+/* Row i's pair forces from ``f`` and ``t`` (then cleared: the pair loop adds into them), gravity
+   (g0, g1, g2) and viscous drag into F and its torque into T, as particle_row sums them before
+   it adds any halo. */
 static inline void pg_row_forces(long long i, double g0, double g1, double g2, const double* restrict m,
                                  const int* restrict type, const double* restrict visc,
-                                 double* restrict buf, const double* restrict v, double* restrict F,
-                                 double* restrict T)
+                                 double* restrict f, double* restrict t, const double* restrict v,
+                                 double* restrict F, double* restrict T)
 {
     double mi = m[i], g = visc[type[i]];
-    double* b = buf + 6 * i;
+    double* fi = f + 3 * i;
+    double* ti = t + 3 * i;
     const double* vi = v + 3 * i;
-    F[0] = (mi * g0 - g * vi[0]) + b[0];
-    F[1] = (mi * g1 - g * vi[1]) + b[1];
-    F[2] = (mi * g2 - g * vi[2]) + b[2];
-    T[0] = 0.0 + b[3];
-    T[1] = 0.0 + b[4];
-    T[2] = 0.0 + b[5];
-    b[0] = b[1] = b[2] = b[3] = b[4] = b[5] = 0.0;
+    F[0] = (mi * g0 - g * vi[0]) + fi[0];
+    F[1] = (mi * g1 - g * vi[1]) + fi[1];
+    F[2] = (mi * g2 - g * vi[2]) + fi[2];
+    T[0] = 0.0 + ti[0];
+    T[1] = 0.0 + ti[1];
+    T[2] = 0.0 + ti[2];
+    fi[0] = fi[1] = fi[2] = ti[0] = ti[1] = ti[2] = 0.0;
 }
 
 /* One half kick (``s F``, ``u T``) of a velocity v and spin w (3 values each). */
@@ -123,17 +125,17 @@ static inline void pg_row_kick_drift(long long i, double dt, double* restrict pe
 }
 
 /* Rows [lo, hi) (see pg_row_kick_drift for ``peak`` and x0) that no halo holds, or with ``halo``
-   (not NULL) that one halo holds, from its entry for row lo (added after the shared buffer, as
-   particle_row adds it, and cleared). */
+   (not NULL) that one halo holds, from its entry for row lo (added after the rows' own pair
+   forces, as particle_row adds it, and cleared). */
 static void pg_kick_drift(int lo, int hi, double dt, double* restrict peak, const double* restrict grav,
                           const double* restrict m, const double* restrict r, const int* restrict type,
-                          const double* restrict visc, double* restrict buf, double* restrict x,
+                          const double* restrict visc, double* restrict f, double* restrict t, double* restrict x,
                           double* restrict v, double* restrict w, const double* restrict x0,
                           double* restrict halo)
 {
     double F[3], T[3], top[2] = {peak[0], peak[1]};
     for (long long i = lo; i < hi; i++) {
-        pg_row_forces(i, grav[0], grav[1], grav[2], m, type, visc, buf, v, F, T);
+        pg_row_forces(i, grav[0], grav[1], grav[2], m, type, visc, f, t, v, F, T);
         if (halo) {
             double* h = halo + 6 * (i - lo);
             F[0] += h[0];
