@@ -9,6 +9,7 @@ from pygran_core import Engine
 from pygran_core.errors import ConfigError, EngineError, UnsupportedFeature
 from pygran_core.simulation.calls import parse_monitor
 from pygran_core.simulation.models import SpringDashpot
+from pygran_core.simulation.output import particle_frame
 from pygran_core.simulation.specs import parse_simulation
 
 
@@ -183,7 +184,7 @@ def test_trajectory_columns_as_one_string_as_liggghts_takes_them(tmp_path):
 def test_trajectory_frames_hold_the_selected_species_in_the_given_order(tmp_path):
     columns = ("x", "type", "id", "vz")
     with CountingEngine(tmp_path, traj={"pfile": None, "args": columns, "sel": 1}) as engine:
-        frame = engine._frame()
+        frame = particle_frame(engine.spec, engine._extract, engine.step, engine.time)
         assert tuple(frame.arrays) == columns
         np.testing.assert_array_equal(frame.arrays["type"], [1])  # of types 0 and 1
         np.testing.assert_array_equal(frame.arrays["id"], [1])
@@ -200,4 +201,4 @@ def test_set_refuses_ids_no_particle_has(tmp_path):
             ConfigError, match=r"set/velocity ids: no particle has id 99 \(the simulation has 2"
         ):
             engine.set_properties(request)
-        assert engine._calls == []  # refused before anything was recorded
+        assert engine.journal.calls == []  # refused before anything was recorded

@@ -17,7 +17,8 @@ import numpy as np
 from pygran_core import registry
 from pygran_core.errors import ConfigError, PluginNotFound
 from pygran_core.simulation import calls
-from pygran_core.simulation.engine import Engine, Handle, LostParticles, Monitor, require_capability
+from pygran_core.simulation.engine import Engine, Handle, LostParticles, Monitor
+from pygran_core.simulation.engine_hooks import require_capability
 from pygran_core.simulation.models import ContactModel
 from pygran_core.simulation.specs import SimulationSpec, optional_bool, parse_simulation, step_count
 from pygran_core.simulation.timestep import Assessment

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, UnsupportedFeature, did_you_mean
+from pygran_core.errors import ConfigError, UnsupportedFeature, did_you_mean, unknown_key
 from pygran_core.simulation.calls import CreateSpec, MonitorSpec, WallSpec, available_memory
 from pygran_core.simulation.output import TRAJ_COLUMNS
 from pygran_core.simulation.specs import ServoSpec, SimulationSpec, TrajectorySpec
@@ -169,6 +169,17 @@ def check_run_size(spec: SimulationSpec, step: int, nsteps: int, monitors: Itera
         )
 
 
+def outflow_faces(spec: SimulationSpec, faces: Iterable[str]) -> frozenset[str]:
+    """The faces (see :data:`FACES`) particles are declared to leave through, checked: a face of
+    a periodic axis is refused."""
+    for face in faces:
+        if face not in FACES:
+            raise unknown_key("outflow face", str(face), FACES)
+        if spec.domain.periodic["xyz".index(face[0])]:
+            raise ConfigError(f"outflow face {face!r}: the {face[0]} axis is periodic, nothing leaves there")
+    return frozenset(faces)
+
+
 def check_servo_speeds(spec: SimulationSpec, dt: float) -> None:
     """LIGGGHTS' limit on servo walls, for every engine that has them: ``vel_max`` below
     half the neighbour skin per step (a wall must not cross the skin between rebuilds)."""
@@ -190,6 +201,18 @@ def check_servos_are_walls(spec: SimulationSpec, walls: Collection[str | None]) 
         raise ConfigError(
             f"servo mesh {idle[0]!r} must be a wall while the simulation runs (its controller moves it "
             f"by the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
+        )
+
+
+def check_ids(ids: Iterable[int], present: np.ndarray) -> None:
+    """Refuse particle ``ids`` (of ``set``) that no particle ``present`` (their ids) has."""
+    missing = sorted(set(ids) - set(present.tolist()))
+    if missing:
+        have = f"ids {present.min()} to {present.max()}" if len(present) else "no particles"
+        raise ConfigError(
+            f"set/velocity ids: no particle has id {', '.join(map(str, missing[:10]))}"
+            f"{' ...' if len(missing) > 10 else ''} "
+            f"(the simulation has {len(present)} particles, {have})"
         )
 
 
@@ -291,11 +314,21 @@ class TimeStepLimits:
             self._found[key] = limits(self.spec.model, pairs, characteristic_speed(everything))
         return self._found[key]
 
-    def first_warning(self, dt: float, found: Limits) -> bool:
-        """Whether ``dt`` against ``found`` has not been warned about yet (now it has)."""
+    def judge(
+        self, dt: float, present: Present, coming: Collection[int], walls: Iterable[WallSpec], check_dt: bool
+    ) -> tuple[Assessment | None, str | None, str | None]:
+        """``dt`` against these limits (see :meth:`__call__`): the assessment (``None``: no
+        contact can happen), why a run of it is refused (one that cannot resolve the contacts,
+        unless not ``check_dt``) and the warning due (once per time step and set of contacts)."""
+        found = self(present, coming, walls)
+        check = None if found is None else found.assess(dt)
+        if found is None or check is None or check.level == "ok":
+            return check, None, None
+        if check.level == "error" and check_dt:
+            return check, f"{check.message()} Or pass check_dt=False to run() to run anyway.", None
         new = (dt, found) not in self._warned
         self._warned.add((dt, found))
-        return new
+        return check, None, check.message() if new else None
 
 
 # -- lost particles ------------------------------------------------------------------------------
@@ -356,6 +389,45 @@ class LostWatch:
         if fresh:
             where["non-finite"] = where.get("non-finite", 0) + len(fresh)
         return LostParticles(int(gone.sum()) + len(fresh), where)  # speeds when lost: unknown
+
+
+def lost_report(
+    engine: str,
+    spec: SimulationSpec,
+    lost: LostParticles,
+    estimated: bool,
+    run: tuple[int, int],
+    outflow: frozenset[str],
+    total: int,
+    check: Assessment | None,
+    given_speed: float,
+    speeds: np.ndarray,
+) -> tuple[str | None, str | None]:
+    """What to log of the particles ``lost`` in the ``run`` (first and last step) of the
+    ``engine`` engine through the expected ``outflow``, and the warning about the others, with
+    their likely cause (:func:`lost_cause`) and the ``total`` lost so far; ``None`` where there
+    is nothing to say. ``estimated``: found missing, not counted by the engine."""
+    expected = sum(n for place, n in lost.where.items() if place in outflow)
+    logged = None
+    if expected:
+        logged = (
+            f"{expected} particle{'' if expected == 1 else 's'} left through the expected outflow "
+            f"({', '.join(sorted(outflow))}) in the run from step {run[0]} to {run[1]}"
+        )
+    if expected == lost.count:
+        return logged, None
+    unexpected = lost.count - expected
+    how = (
+        f" (as the {engine} engine does not report lost particles, PyGran found them missing and "
+        "estimated where from where they were last seen)"
+        if estimated
+        else ""
+    )
+    cause = lost_cause(spec, lost, check, given_speed, speeds, outflow)
+    return logged, (
+        f"{unexpected} particle{'s' if unexpected > 1 else ''} lost in the run from step {run[0]} to "
+        f"{run[1]}: {lost.places(outflow)}{how}; {cause}. {total} lost in all."
+    )
 
 
 def lost_cause(
@@ -438,3 +510,57 @@ def servo_swing(name: str, servo: ServoSpec, errors: list[float]) -> str | None:
         "this bed: the plate's own speed, through the contacts' damping, overturns the force each "
         "step. Lower kp or vel_max (by 2 or more)."
     )
+
+
+class RunWatch:
+    """What one run (from step ``start`` to ``end``) is watched for: the particles it loses, as
+    the engine counts them (``lost_since_last``) or, if it does not, found missing by a
+    :class:`LostWatch`; and the force on its force servo walls (``force``, by mesh name; ``None``
+    without servo walls) at each of its last :data:`SERVO_WATCH` + 1 steps."""
+
+    def __init__(
+        self,
+        spec: SimulationSpec,
+        start: int,
+        end: int,
+        time: float,
+        extract: Callable[[str], np.ndarray],
+        lost_since_last: Callable[[], LostParticles | None],
+        broken: set[int],
+        force: Callable[[str], np.ndarray] | None,
+    ) -> None:
+        counted = lost_since_last()
+        self._count = lost_since_last
+        self._missing = LostWatch(spec, extract, time, broken) if counted is None else None
+        self._lost = counted or LostParticles()
+        self._servos = force_servos(spec) if force is not None else {}
+        self._errors: dict[str, list[float]] = {name: [] for name in self._servos}
+        self._force = force
+        self._start, self._end = start, end
+
+    def after_piece(self, step: int) -> None:
+        """Take what is watched after the piece of the run that ended at ``step``."""
+        if self._missing is None:
+            self._lost += self._count() or LostParticles()
+        if (
+            self._force is not None
+            and self._end - self._start > SERVO_WATCH
+            and step >= self._end - SERVO_WATCH
+        ):
+            for name, errors in self._errors.items():
+                try:
+                    errors.append(servo_error(self._servos[name], self._force(name)))
+                except ConfigError:  # not a wall (yet): nothing to judge
+                    errors.append(0.0)
+
+    def lost(self, time: float) -> tuple[LostParticles, bool]:
+        """The particles lost in the run, ended at ``time``, and whether they were found missing
+        (where they went estimated) rather than counted by the engine."""
+        if self._missing is not None:
+            return self._missing.finish(time), True
+        return self._lost, False
+
+    def servo_warnings(self) -> list[str]:
+        """Why the servo walls whose force swung about its target do not settle."""
+        found = (servo_swing(name, self._servos[name], errors) for name, errors in self._errors.items())
+        return [message for message in found if message is not None]

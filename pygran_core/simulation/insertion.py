@@ -1,8 +1,9 @@
 """Placing new particles without overlaps: engine-neutral, reproducible from a seed.
 
 Engines whose solver inserts particles (LIGGGHTS) use it only where theirs cannot keep clear
-of the walls (a mesh wall crossing the region); the others (native, YADE) derive from
-:class:`PlacingEngine`, so that the same request gives the same particles on every engine.
+of the walls (a mesh wall crossing the region); the others (native, YADE) hold an
+:class:`Inserter`, so that the same request gives the same particles on every engine. What new
+particles must clear of the walls comes from the walls' specs (:func:`wall_obstacles`).
 Candidates are drawn in batches and checked with k-d trees, never one Python iteration per
 particle. Spheres are placed by :func:`place_spheres`; clumps of
 multisphere species by :func:`place_clumps`, which checks their own spheres, each clump turned
@@ -11,24 +12,22 @@ its own way, as LIGGGHTS does.
 
 from __future__ import annotations
 
-import abc
-import itertools
 import json
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, ClassVar
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, InsertionWarning, ReadError
+from pygran_core.errors import ConfigError, InsertionWarning, ReadError, UnsupportedFeature
 from pygran_core.simulation import clumps
-from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region
+from pygran_core.simulation.calls import CreateSpec, InsertSpec, Region, WallSpec
 from pygran_core.simulation.checkpoint import encode_text, state_entry, state_json
-from pygran_core.simulation.engine import Engine, Handle
 from pygran_core.simulation.geometry import triangle_distance
-from pygran_core.simulation.specs import SimulationSpec, given, positive_float, positive_int
+from pygran_core.simulation.specs import SimulationSpec, given
 
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
@@ -332,44 +331,59 @@ def draw_spheres(
     return species, radii
 
 
-class PlacingEngine(Engine):
-    """An engine that adds particles itself (no insertion of its own solver), so that every
-    such engine inserts and creates the same particles for the same request and seed.
+def wall_obstacles(walls: Iterable[WallSpec], triangles: Sequence[np.ndarray]) -> Obstacles:
+    """What new spheres must clear of the ``walls``: their planes and primitive cylinders (from
+    the specs), and the ``triangles`` of the mesh walls (``(T, 3, 3)`` each, where they are now)."""
+    points, normals = [], []
+    cylinders: list[tuple[str, tuple[float, float], float]] = []
+    for wall in walls:
+        if wall.kind == "plane":
+            axis = "xyz".index(given(wall.plane, "a plane wall's plane")[0])
+            points.append(np.eye(3)[axis] * given(wall.peq, "a plane wall's peq"))
+            normals.append(np.eye(3)[axis])
+        elif wall.kind == "cylinder" and wall.axis and wall.centre and wall.radius:
+            cylinders.append((wall.axis, wall.centre, wall.radius))
+    return Obstacles(
+        np.reshape(points, (-1, 3)),
+        np.reshape(normals, (-1, 3)),
+        np.concatenate(triangles) if len(triangles) else np.zeros((0, 3, 3)),
+        tuple(cylinders),
+    )
 
-    It implements ``insert`` (by pack, once or every ``freq`` steps; by rate, every ``freq``
-    steps or every :attr:`rate_interval` seconds) at the steps :func:`insertion_steps` gives,
-    and ``createParticles`` (single, lattice, random). A subclass adds the spheres to its
-    solver in :meth:`_add_spheres`, says what they must not overlap in :meth:`_obstacles`,
-    and handles its other handles in ``_remove`` (calling ``super()._remove`` for insertions).
 
-    Multisphere species (engines with the ``multisphere`` capability) are clumps, one per
-    particle, which the subclass adds in :meth:`_add_clumps` and lists in :meth:`bodies`. They
-    are inserted by number only, turned as the insertion's ``orientation`` says (by default at
-    random, as on LIGGGHTS: each clump its own turn from the insertion's generator), placed by
-    :func:`place_clumps`, and counted in a region once, when the centre of their bounding sphere
-    is in it (as LIGGGHTS counts them); ``createParticles`` keeps their template's orientation
-    and puts a ``'single'`` or ``'lattice'`` clump's template origin at the point.
-    """
+def multisphere_templates(spec: SimulationSpec) -> dict[int, np.ndarray]:
+    """Multisphere species -> their template spheres ``(k, 4)``: ``x, y, z, r`` each."""
+    return {s.type: np.array(s.spheres, float) for s in spec.species if s.style == "multisphere"}
 
-    #: Simulated seconds between insertions by rate when ``freq`` is not given.
-    rate_interval: ClassVar[float] = 1e-2
 
-    def __init__(self, spec: SimulationSpec) -> None:
-        super().__init__(spec)
-        if not spec.species:
-            raise ConfigError(
-                f"The {self.name} engine needs at least one species: "
-                "species=({'material': ..., 'radius': ...},)"
-            )
-        self._schedules: dict[str, _Schedule] = {}
-        self._insertions = 0
-        self._run_end: int | None = None  # the step the run under way ends at
-        #: Multisphere species -> their template spheres ``(k, 4)``.
-        self._templates = {
-            s.type: np.array(s.spheres, float) for s in spec.species if s.style == "multisphere"
-        }
+class Placing(Protocol):
+    """What an :class:`Inserter` asks of the engine that holds it: the simulation, its clock,
+    its messages, the particles present and where walls stand, and adding particles to its solver."""
 
-    @abc.abstractmethod
+    spec: SimulationSpec
+    step: int
+    dt: float | None
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def replaying(self) -> bool: ...
+
+    def log(self, message: str, *args: Any, level: int = ...) -> None: ...
+
+    def _to_file(self, level: int, message: str) -> None: ...
+
+    def _warn(self, message: str, category: type[Warning]) -> None: ...
+
+    def _unsupported(self, what: str) -> UnsupportedFeature: ...
+
+    def _extract(self, quantity: str) -> np.ndarray: ...
+
+    def _obstacles(self, call: str) -> Obstacles: ...
+
+    def bodies(self) -> np.ndarray: ...
+
     def _add_spheres(
         self,
         species: np.ndarray,
@@ -380,7 +394,6 @@ class PlacingEngine(Engine):
     ) -> None:
         """Add spheres of the given species (1-based, none multisphere) to the solver."""
 
-    @abc.abstractmethod
     def _add_clumps(
         self,
         species: int,
@@ -393,61 +406,70 @@ class PlacingEngine(Engine):
         origin at each of ``origins``, turned by ``orientations`` (unit quaternions ``w, x, y,
         z``), moving at ``velocities`` (of the centre of mass) and spinning at ``omega``."""
 
-    @abc.abstractmethod
-    def bodies(self) -> np.ndarray:
-        """The clump of each sphere, ordered by id: a positive id for the spheres of clumps
-        (those of a clump in its template's order), -1 for single spheres."""
 
-    @abc.abstractmethod
-    def _obstacles(self) -> Obstacles:
-        """Walls new spheres must not overlap."""
+#: Simulated seconds between insertions by rate when ``freq`` is not given.
+RATE_INTERVAL = 1e-2
 
-    def _all_obstacles(self) -> Obstacles:
-        """:meth:`_obstacles` with every primitive cylinder wall: no sphere is placed across one."""
-        cylinders = tuple(
-            (wall.axis, wall.centre, wall.radius)
-            for wall in self._wall_specs.values()
-            if wall.kind == "cylinder" and wall.axis and wall.centre and wall.radius
-        )
-        return replace(self._obstacles(), cylinders=cylinders)
 
-    # -- drawing -----------------------------------------------------------------------
+class Inserter:
+    """Adds the particles of ``insert`` and ``createParticles`` for an engine whose solver
+    cannot place them itself (native, YADE), so that every such engine inserts and creates the
+    same particles for the same request and seed.
 
-    def _radii(self, species: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        return sample_radii(self.spec, species, rng)
+    It makes ``insert`` (by pack, once or every ``freq`` steps; by rate, every ``freq`` steps or
+    every :data:`RATE_INTERVAL` seconds) at the steps :func:`insertion_steps` gives (the engine
+    base splits a run there and calls :meth:`make_due`), and ``createParticles`` (single,
+    lattice, random), clear of the particles and of the walls (the engine's ``_obstacles``).
+    Its schedules are part of every checkpoint (:meth:`state`, :meth:`restore`).
 
-    def _share(self, request: InsertSpec, species: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        return target_shares(self.spec, request, species, radii)
+    Multisphere species (engines with the ``multisphere`` capability) are clumps, one per
+    particle. They are inserted by number only, turned as the insertion's ``orientation`` says
+    (by default at random, as on LIGGGHTS: each clump its own turn from the insertion's
+    generator), placed by :func:`place_clumps`, and counted in a region once, when the centre of
+    their bounding sphere is in it (as LIGGGHTS counts them); ``createParticles`` keeps their
+    template's orientation and puts a ``'single'`` or ``'lattice'`` clump's template origin at
+    the point.
+    """
 
-    def _draw(
-        self, request: InsertSpec, amount: float, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray]:
-        return draw_spheres(self.spec, request, amount, rng)
+    def __init__(self, engine: Placing) -> None:
+        if not engine.spec.species:
+            raise ConfigError(
+                f"The {engine.name} engine needs at least one species: "
+                "species=({'material': ..., 'radius': ...},)"
+            )
+        self.engine = engine
+        self.schedules: dict[str, _Schedule] = {}
+        self._insertions = 0
+        self.templates = multisphere_templates(engine.spec)
+
+    # -- counting ------------------------------------------------------------------------
 
     def _held(self, request: InsertSpec) -> float:
         """How much of a by-pack target the region holds: particles, volume or mass; a clump
         counts once (with its mass and volume) when the centre of its bounding sphere is in it."""
-        if self._templates:
+        extract = self.engine._extract
+        if self.templates:
             return self._held_with_clumps(request)
-        inside = request.region.contains(self._extract("x"))
+        inside = request.region.contains(extract("x"))
         if request.target == "particles_in_region":
             return float(np.count_nonzero(inside))
         if request.target == "volumefraction_region":
-            return float((4 / 3 * math.pi * self._extract("radius")[inside] ** 3).sum())
-        return float(self._extract("mass")[inside].sum())
+            return float((4 / 3 * math.pi * extract("radius")[inside] ** 3).sum())
+        return float(extract("mass")[inside].sum())
 
     def _held_with_clumps(self, request: InsertSpec) -> float:
         """:meth:`_held` with multisphere species, whose spheres each carry the clump's mass."""
-        x, bodies, types = self._extract("x"), self.bodies(), self._extract("type")
-        first, centres = clumps.bounding_centres(x, bodies, types, self._templates)
+        extract, spec = self.engine._extract, self.engine.spec
+        x, bodies, types = extract("x"), self.engine.bodies(), extract("type")
+        first, centres = clumps.bounding_centres(x, bodies, types, self.templates)
         single = bodies < 0
         inside = request.region.contains(np.vstack([x[single], centres]))
         if request.target == "particles_in_region":
             return float(np.count_nonzero(inside))
-        mass = self._extract("mass")
+        mass = extract("mass")
         if request.target == "volumefraction_region":
-            density = np.array([self.spec.species[int(t) - 1].density for t in types[first]])
-            radius = self._extract("radius")[single]
+            density = np.array([spec.species[int(t) - 1].density for t in types[first]])
+            radius = extract("radius")[single]
             volume = np.append(4 / 3 * math.pi * radius**3, mass[first] / density.reshape(-1))
             return float(volume[inside].sum())
         return float(np.append(mass[single], mass[first])[inside].sum())
@@ -464,6 +486,7 @@ class PlacingEngine(Engine):
 
     def _place(
         self,
+        call: str,
         region: Region,
         species: np.ndarray,
         radii: np.ndarray,
@@ -473,20 +496,21 @@ class PlacingEngine(Engine):
         all_in: bool = True,
         orientation: str | Sequence[float] = "template",
     ) -> int:
-        """Add the particles that fit at free places in ``region`` (clumps turned as
+        """Add the particles of ``call`` that fit at free places in ``region`` (clumps turned as
         ``orientation`` says, see :func:`.clumps.orientations`); returns how many did."""
-        existing = (self._extract("x"), self._extract("radius"))
-        kinds = sorted(self._templates)
-        obstacles = self._all_obstacles()
+        engine = self.engine
+        existing = (engine._extract("x"), engine._extract("radius"))
+        kinds = sorted(self.templates)
+        obstacles = engine._obstacles(call)
         if not np.isin(species, kinds).any():
             index, centres = place_spheres(region, radii, rng, existing, obstacles, all_in)
             if len(index):
-                self._add_spheres(species[index], centres, radii[index], velocities[index], omega)
+                engine._add_spheres(species[index], centres, radii[index], velocities[index], omega)
             return len(index)
-        shapes = [self._templates[kind] for kind in kinds]
+        shapes = [self.templates[kind] for kind in kinds]
         offsets = [clumps.bounding_sphere(shape)[0] for shape in shapes]
         shapes = [np.column_stack([shape[:, :3] - off, shape[:, 3]]) for shape, off in zip(shapes, offsets)]
-        kind = np.array([kinds.index(s) if s in self._templates else -1 for s in species.tolist()])
+        kind = np.array([kinds.index(s) if s in self.templates else -1 for s in species.tolist()])
         index, centres, turns = place_clumps(
             region, shapes, kind, radii, rng, existing, obstacles, all_in, orientation=orientation
         )
@@ -510,19 +534,25 @@ class PlacingEngine(Engine):
         ``orientations``, species by species."""
         for kind in np.unique(species):
             chosen = species == kind
-            if int(kind) in self._templates:
-                self._add_clumps(int(kind), centres[chosen], orientations[chosen], velocities[chosen], omega)
+            if int(kind) in self.templates:
+                self.engine._add_clumps(
+                    int(kind), centres[chosen], orientations[chosen], velocities[chosen], omega
+                )
             else:
-                self._add_spheres(species[chosen], centres[chosen], radii[chosen], velocities[chosen], omega)
+                self.engine._add_spheres(
+                    species[chosen], centres[chosen], radii[chosen], velocities[chosen], omega
+                )
 
     def _insert_now(self, schedule: _Schedule, amount: float) -> float:
         """Insert up to ``amount`` of the target; returns the amount drawn, placed or not."""
-        if self.replaying:
+        engine = self.engine
+        if engine.replaying:
             return 0.0  # the checkpoint being resumed holds the particles
         request = schedule.request
-        species, radii = self._draw(request, amount, schedule.rng)
+        species, radii = draw_spheres(engine.spec, request, amount, schedule.rng)
         velocities = request.velocity.sample(len(radii), schedule.rng)
         made = self._place(
+            "insert()",
             request.region,
             species,
             radii,
@@ -532,41 +562,45 @@ class PlacingEngine(Engine):
             request.all_in,
             request.orientation or "random",  # LIGGGHTS' default
         )
-        self.log("insert at step %d: %d of %d particles", self.step, made, len(radii))
+        engine.log("insert at step %d: %d of %d particles", engine.step, made, len(radii))
         if made < len(radii):
             message = (
-                f"insertion at step {self.step}: {made} of {len(radii)} particles inserted, the region "
+                f"insertion at step {engine.step}: {made} of {len(radii)} particles inserted, the region "
                 f"{request.region} is full (no free place for the other "
                 f"{len(radii) - made})"
             )
             if schedule.warned:
-                self._to_file(logging.WARNING, message)
+                engine._to_file(logging.WARNING, message)
             else:
                 schedule.warned = True
-                self._warn(
+                engine._warn(
                     f"{message}: give a larger region or fewer particles. Further shortfalls of this "
                     "insertion are logged in pygran.log only.",
                     InsertionWarning,
                 )
         if request.target == "volumefraction_region":
-            self.log(
+            engine.log(
                 "volume fraction in the region: %.3g of the %.3g asked for",
                 self._held(request) / request.region.volume(),
                 request.value,
             )
-        return float(self._share(request, species, radii).sum())
+        return float(target_shares(engine.spec, request, species, radii).sum())
 
-    def _insert(self, request: InsertSpec) -> str:
-        bodies = [k for k in request.species if k in self._templates]
+    # -- the calls -----------------------------------------------------------------------
+
+    def insert(self, request: InsertSpec) -> str:
+        """Schedule the insertion ``request`` and make its first if due now; returns its label."""
+        engine = self.engine
+        bodies = [k for k in request.species if k in self.templates]
         if bodies and request.target not in ("particles_in_region", "particlerate"):
-            raise self._unsupported(
-                f"inserting multisphere species {bodies} by {request.target} (the {self.name} engine "
+            raise engine._unsupported(
+                f"inserting multisphere species {bodies} by {request.target} (the {engine.name} engine "
                 "inserts clumps by number: particles_in_region or particlerate)"
             )
-        if self._templates and request.mechanism == "by_pack" and request.target == "particles_in_region":
+        if self.templates and request.mechanism == "by_pack" and request.target == "particles_in_region":
             # the front end added the spheres whose centres are in the region; count clumps once
             present = int(self._held(request))
-            self.log(
+            engine.log(
                 "insert: %g particles on top of the %d in the region, counted as LIGGGHTS counts them: "
                 "a single sphere when its centre is in it, a multisphere particle once when the centre "
                 "of its bounding sphere is (sphere centres in it: %d)",
@@ -581,52 +615,36 @@ class PlacingEngine(Engine):
         if request.mechanism == "by_pack":
             freq, end = request.freq, None
         else:
-            if self.dt is None:
+            if engine.dt is None:
                 raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
-            freq = request.freq or max(1, round(self.rate_interval / self.dt))
-            end = None if request.duration is None else self.step + round(request.duration / self.dt)
-        schedule = _Schedule(request, freq, self.step, end, rng, target=request.value)
-        self._schedules[label] = schedule
+            freq = request.freq or max(1, round(RATE_INTERVAL / engine.dt))
+            end = None if request.duration is None else engine.step + round(request.duration / engine.dt)
+        schedule = _Schedule(request, freq, engine.step, end, rng, target=request.value)
+        self.schedules[label] = schedule
         self._insert_due(label, schedule)  # due now: made at the call (see insertion_steps)
         return label
 
-    def _insert_due(self, label: str, schedule: _Schedule, dt: float | None = None) -> None:
-        """Make the insertion due at this step (by rate: for the next ``freq`` steps of ``dt``,
-        else of the simulation's time step) and schedule the next, or end the schedule."""
+    def _insert_due(self, label: str, schedule: _Schedule) -> None:
+        """Make the insertion due at this step (by rate: for the next ``freq`` steps of the time
+        step) and schedule the next, or end the schedule."""
         request = schedule.request
         if request.mechanism == "by_pack":
             self._insert_now(schedule, self._lacking(schedule))
         else:
-            interval = given(schedule.freq, "an insertion by rate's freq") * given(dt or self.dt, "dt")
+            interval = given(schedule.freq, "an insertion by rate's freq") * given(self.engine.dt, "dt")
             schedule.owed += request.value * interval
             schedule.owed -= self._insert_now(schedule, schedule.owed)
         following = None if schedule.freq is None else schedule.next_step + schedule.freq
         if following is None or (schedule.end_step is not None and following >= schedule.end_step):
-            del self._schedules[label]
+            del self.schedules[label]
         else:
             schedule.next_step = following
 
-    def _run_schedules(self, dt: float | None = None) -> None:
-        """Make the insertions due at this step, when a step follows (in a run, not at its end);
-        none while the script is replayed up to a checkpoint, which holds their outcome."""
-        if self._run_end is None or self.step >= self._run_end or self.replaying:
-            return
-        for label, schedule in list(self._schedules.items()):
-            if self.step == schedule.next_step:
-                self._insert_due(label, schedule, dt)
-
-    def run(self, nsteps: int, dt: float | None = None, **options: Any) -> None:
-        """:meth:`Engine.run`, making the insertions due at its first step as it starts."""
-        self._run_end = self.step + positive_int(nsteps, "nsteps")
-        try:
-            self._run_schedules(None if dt is None else positive_float(dt, "dt"))
-            super().run(nsteps, dt, **options)
-        finally:
-            self._run_end = None
-
-    def _create(self, request: CreateSpec) -> int:
-        species = self.spec.species[request.species - 1]
-        if request.radius and request.species in self._templates:
+    def create(self, request: CreateSpec) -> int:
+        """Create the particles of ``request`` now; returns how many."""
+        spec = self.engine.spec
+        species = spec.species[request.species - 1]
+        if request.radius and request.species in self.templates:
             raise ConfigError(
                 f"createParticles: species {request.species} is multisphere, its spheres' radii come from "
                 "its template; leave radius out"
@@ -646,6 +664,7 @@ class PlacingEngine(Engine):
             count = given(request.count, "createParticles('random')'s count")
             radii = np.full(count, request.radius) if request.radius else species.radius.sample(count, rng)
             return self._place(
+                "createParticles 'random'",
                 given(request.region, "createParticles('random')'s region"),
                 np.full(count, request.species),
                 radii,
@@ -664,28 +683,37 @@ class PlacingEngine(Engine):
             )
         return len(radii)
 
+    def remove(self, label: str) -> None:
+        """End the insertion ``label``."""
+        self.schedules.pop(label, None)
+
     # -- the engine's schedule ------------------------------------------------------------
 
-    def _chunks(self, nsteps: int) -> list[int]:
-        """The engine's pieces of a run, also split at every insertion due inside it."""
-        start = self.step
-        stops = set(itertools.accumulate(super()._chunks(nsteps), initial=start))
-        for schedule in self._schedules.values():
-            stops.update(
-                insertion_steps(
-                    schedule.next_step, schedule.freq, start + 1, start + nsteps, schedule.end_step
-                )
+    def due_steps(self, start: int, end: int) -> set[int]:
+        """The steps in ``(start, end)`` at which insertions are due."""
+        steps: set[int] = set()
+        for schedule in self.schedules.values():
+            steps.update(
+                insertion_steps(schedule.next_step, schedule.freq, start + 1, end, schedule.end_step)
             )
-        ordered = sorted(stops)
-        return [b - a for a, b in zip(ordered, ordered[1:])]
+        return steps
 
-    def _on_event(self) -> None:
-        self._run_schedules()
-        super()._on_event()
+    def make_due(self, end: int) -> None:
+        """Make the insertions due at this step, when a step follows before ``end`` (in a run,
+        not at its end); none while the script is replayed up to a checkpoint, which holds
+        their outcome."""
+        step = self.engine.step
+        if step >= end or self.engine.replaying:
+            return
+        for label, schedule in list(self.schedules.items()):
+            if step == schedule.next_step:
+                self._insert_due(label, schedule)
 
-    def _state(self) -> dict[str, np.ndarray]:
-        state = super()._state()
-        for label, schedule in self._schedules.items():
+    def state(self) -> dict[str, np.ndarray]:
+        """The schedules for a checkpoint: when each is due next, until when, what it owes and
+        targets, and its random generator's state."""
+        state = {}
+        for label, schedule in self.schedules.items():
             end = -1 if schedule.end_step is None else schedule.end_step
             state[f"schedules/{label}/clock"] = np.array([schedule.next_step, end], np.int64)
             state[f"schedules/{label}/owed"] = np.array(schedule.owed)
@@ -693,19 +721,17 @@ class PlacingEngine(Engine):
             state[f"schedules/{label}/rng"] = encode_text(json.dumps(schedule.rng.bit_generator.state))
         return state
 
-    def _restore_state(self, state: dict[str, np.ndarray]) -> None:
-        """The insertion schedules of the checkpoint, each entry checked (a :class:`ReadError`
-        naming the file and the key) before any schedule is changed."""
-        super()._restore_state(state)
-        path = self._resume_path
+    def restore(self, state: dict[str, np.ndarray], path: Path) -> None:
+        """The insertion schedules of the checkpoint ``path``, each entry checked (a
+        :class:`ReadError` naming the file and the key) before any schedule is changed."""
         saved = sorted({name.split("/")[1] for name in state if name.startswith("schedules/")})
         restored = []
         for label in saved:
             key = f"schedules/{label}"
-            if label not in self._schedules:
+            if label not in self.schedules:
                 raise ReadError(
                     f"{path}: the checkpoint's state entry {key!r} is an insertion the script does not "
-                    f"make (its insertions still due: {sorted(self._schedules) or 'none'})"
+                    f"make (its insertions still due: {sorted(self.schedules) or 'none'})"
                 )
             next_step, end = (int(v) for v in state_entry(path, state, f"{key}/clock", "iu", (2,)))
             owed = float(state_entry(path, state, f"{key}/owed", "biuf", ()))
@@ -724,17 +750,12 @@ class PlacingEngine(Engine):
                     f"({type(exc).__name__}: {exc})"
                 ) from None
             restored.append((label, next_step, None if end < 0 else end, owed, target, rng))
-        for label in set(self._schedules) - set(saved):
-            del self._schedules[label]
+        for label in set(self.schedules) - set(saved):
+            del self.schedules[label]
         for label, next_step, end_step, owed, target, rng in restored:
-            schedule = self._schedules[label]
+            schedule = self.schedules[label]
             schedule.next_step, schedule.end_step = next_step, end_step
             schedule.owed, schedule.target, schedule.rng = owed, target, rng
-
-    def _remove(self, handle: Handle) -> None:
-        if handle.kind != "insertion":
-            super()._remove(handle)
-        self._schedules.pop(handle.label, None)
 
 
 @dataclass

@@ -8,6 +8,7 @@ simulations never write into each other's logs and global logging state is untou
 from __future__ import annotations
 
 import logging
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -27,13 +28,26 @@ def user_stacklevel() -> int:
     return level
 
 
+def progress_shown(progress: bool | None, default: bool | None) -> tuple[bool, bool]:
+    """How a run shows its progress (``progress``, else the simulation's ``default``): whether
+    as a bar, and whether as lines on stderr. By default a bar on a terminal, lines elsewhere (a
+    file, a batch job's log); ``True`` asks for the bar, ``False`` for neither. The lines always
+    go to ``pygran.log``."""
+    terminal = sys.stderr.isatty()
+    chosen = progress if progress is not None else default
+    return (terminal if chosen is None else chosen), (chosen is None and not terminal)
+
+
 class EngineLog:
     """The messages of the ``engine`` simulation writing into ``output``. When ``enabled`` is
     false (an MPI rank other than the first of the ranks sharing a simulation), it records and
     warns nothing: each message is the simulation's once."""
 
     def __init__(self, engine: str, output: Path, enabled: bool = True) -> None:
+        self.engine = engine
         self.enabled = enabled
+        #: Whether progress lines go to stderr too (see :func:`progress_shown`).
+        self.progress_to_stderr = False
         self._logger = logging.getLogger(f"pygran.simulation.{engine}")
         self._handler = logging.FileHandler(output / LOG_NAME, encoding="utf-8")
         self._handler.setFormatter(logging.Formatter(_LOG_FORMAT))
@@ -59,6 +73,15 @@ class EngineLog:
         if self.enabled:
             self.to_file(logging.WARNING, message)
             warnings.warn(message, category, stacklevel=user_stacklevel())
+
+    def progress(self, text: str, stderr: bool = True) -> None:
+        """A progress line into ``pygran.log`` and, if ``stderr`` and :attr:`progress_to_stderr`,
+        on stderr, there from the first MPI rank only (under ``mpirun`` every rank runs the
+        script)."""
+        self.log("%s", text)
+        rank = os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0"))
+        if stderr and self.progress_to_stderr and rank == "0":
+            print(f"{self.engine}: {text}", file=sys.stderr, flush=True)
 
     def close(self) -> None:
         self._handler.close()

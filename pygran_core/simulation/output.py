@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -180,10 +180,12 @@ class Output:
         step: int,
         time: float,
         frames: Callable[[str], list[Frame]],
-        sample: Callable[[MonitorSpec], Iterable[float]],
+        scalar: Callable[[str], float],
+        species_scalar: Callable[[str, tuple[int, ...]], float],
     ) -> None:
         """Write the trajectory frames (``frames(key)`` makes them) and take the monitor samples
-        (``sample(spec)``) due at ``step``."""
+        (``scalar(quantity)``, or ``species_scalar(quantity, species)`` of some species) due at
+        ``step``."""
         if step % self.spec.traj.freq == 0:
             written = False
             for key, path in self.trajectories():
@@ -193,7 +195,9 @@ class Output:
                 self.log.to_file(logging.INFO, f"trajectory frame at step {step}, time {time!r} s")
         for monitor in self.monitors.values():
             if step % monitor.spec.freq == 0:
-                row = (float(step), time, *sample(monitor.spec))
+                kinds, quantities = monitor.spec.species, monitor.spec.quantities
+                values = (scalar(q) if kinds is None else species_scalar(q, kinds) for q in quantities)
+                row = (float(step), time, *values)
                 monitor.samples.append(row)
                 if self.writes_files:
                     with monitor.path.open("a") as handle:

@@ -129,6 +129,17 @@ class Journal:
         """Whether the call recorded last (a run) was over before the checkpoint was taken."""
         return self.checkpoint is not None and len(self.calls) < len(self.checkpoint.journal)
 
+    def compare_facts(self, checkpoint: Checkpoint, facts: dict[str, Any]) -> None:
+        """Log that the run will not continue bitwise when ``facts`` (the engine's, see
+        ``_facts``) differ from the checkpoint's."""
+        if checkpoint.facts != facts:
+            self.log.log(
+                "resuming with %s where the checkpoint had %s: the run continues, but not bitwise",
+                facts,
+                checkpoint.facts,
+                level=logging.WARNING,
+            )
+
     def resume(self) -> Checkpoint:
         """The checkpoint, at the run it was taken in: the replay is over."""
         checkpoint, self.checkpoint = self.checkpoint, None

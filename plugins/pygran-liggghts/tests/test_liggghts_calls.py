@@ -54,7 +54,7 @@ def dem(path, **params):
 def test_insertion_by_rate(tmp_path):
     """Every ``freq`` steps from the next step on, rate * freq * dt particles (here 2):
     after t = k * freq * dt the count is rate * t; ``duration`` caps it, and without
-    ``freq`` batches come every PlacingEngine.rate_interval (0.01 s) as on other engines."""
+    ``freq`` batches come every insertion.RATE_INTERVAL (0.01 s) as on other engines."""
     region = ("block", -0.009, 0.009, -0.009, 0.009, 0.001, 0.029)
     rate = 2000.0
     with dem(tmp_path / "freq") as sim:

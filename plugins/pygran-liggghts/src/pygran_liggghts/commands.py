@@ -462,14 +462,14 @@ class Commands:
     @staticmethod
     def insert_every(spec: InsertSpec, dt: float | None) -> int | None:
         """Steps between the insertions of ``spec`` (``None``: once, by pack): its ``freq``; by
-        rate without it, every :attr:`~pygran_core.simulation.insertion.PlacingEngine.rate_interval`
-        as other engines."""
+        rate without it, every :data:`~pygran_core.simulation.insertion.RATE_INTERVAL` as other
+        engines."""
         if spec.mechanism == "by_rate" and spec.freq is None:
             if dt is None:
                 raise ConfigError("Insertion by rate needs the time step: pass dt=... to DEM before insert()")
-            from pygran_core.simulation.insertion import PlacingEngine
+            from pygran_core.simulation.insertion import RATE_INTERVAL
 
-            return max(1, round(PlacingEngine.rate_interval / dt))
+            return max(1, round(RATE_INTERVAL / dt))
         return spec.freq
 
     def insert(self, spec: InsertSpec, dt: float | None) -> tuple[str, list[str]]:

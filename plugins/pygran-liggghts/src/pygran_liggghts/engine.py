@@ -22,7 +22,6 @@ engines make it (see :meth:`LiggghtsEngine._insert_clear`).
 from __future__ import annotations
 
 import functools
-import itertools
 import logging
 import os
 from dataclasses import dataclass, replace
@@ -40,8 +39,9 @@ from pygran_core.errors import (
 )
 from pygran_core.io import Frame
 from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry
-from pygran_core.simulation.engine import Engine, LostParticles, before_resume
+from pygran_core.simulation.engine import Engine, LostParticles
 from pygran_core.simulation.mpi import MPI_LAUNCH_VARIABLES, launch_communicator
+from pygran_core.simulation.output import NativeTrajectory, bounds
 from pygran_core.simulation.specs import control_characters, given
 from pygran_liggghts.channel import LOG_NAME, Channel
 from pygran_liggghts.commands import (
@@ -69,7 +69,6 @@ if TYPE_CHECKING:
     )
     from pygran_core.simulation.checkpoint import Checkpoint
     from pygran_core.simulation.engine import Handle
-    from pygran_core.simulation.insertion import Obstacles
     from pygran_core.simulation.specs import RestartSpec, SimulationSpec
 
 #: The checkpoint entry naming LIGGGHTS' own restart file.
@@ -259,11 +258,9 @@ class LiggghtsEngine(Engine):
         self._root = comm is None or comm.rank == 0
         super().__init__(spec)
         self._timestep = spec.dt
-        self._walls: dict[str, WallSpec] = {}  # by label: obstacles of createParticles 'random'
         self._motions: dict[str, str] = {}  # label -> the moving mesh
         self._mesh_walls: dict[str, str] = {}  # label -> the mesh, in the order they were added
         self._mesh_fix: str | None = None  # the one fix wall/gran of all mesh walls
-        self._restart_file: Path | None = None  # of the last checkpoint
         #: Where the resumed step's frame starts in LIGGGHTS' ``.dump``, until a run writes it again
         self._rewritten_frame: int | None = None
         #: Insertions without a fix in LIGGGHTS: one-offs not redone on resume, and those PyGran placed
@@ -296,8 +293,12 @@ class LiggghtsEngine(Engine):
                 for stale in (self.output / CONTACTS_DIR).glob("pg_*.dump"):
                     stale.unlink()
             resume = None
-            if self._resume is not None:
-                resume = restart_file(self._resume_path, self._resume, self._restart.directory)
+            if self.journal.checkpoint is not None:
+                resume = restart_file(
+                    given(self.journal.path, "the checkpoint"),
+                    self.journal.checkpoint,
+                    self._restart.directory,
+                )
             #: LIGGGHTS read a restart file and has not run since: it refuses create_atoms then
             self._restored = resume is not None
             self._channel = Channel(self.output, comm, spec.nprocs or 1, self._root, self.log)
@@ -307,35 +308,18 @@ class LiggghtsEngine(Engine):
             self._creator = Creator(
                 self, self._channel, self.commands, ranks, self._root, self._allow_create, self._obstacles
             )
-            if spec.dt is not None:
-                self.check_servo_speeds(spec.dt)
             self._execute(self.commands.setup(resume))
         except BaseException:
             self.close()
             raise
 
-    def require(self, capability: str, what: str | None = None) -> None:
-        """As :meth:`Engine.require`; a refusal of the add-on's capabilities says why it is missing."""
-        try:
-            super().require(capability, what)
-        except UnsupportedFeature as exc:
-            if capability in ADDON_CAPABILITIES:
-                raise UnsupportedFeature(f"{exc} On LIGGGHTS: {addon().reason}") from None
-            raise
+    def _why_missing(self, capability: str) -> str:
+        """Why an add-on's capability is missing: the add-on did not load."""
+        return f"On LIGGGHTS: {addon().reason}" if capability in ADDON_CAPABILITIES else ""
 
-    # -- messages: once per simulation, from rank 0 of its group ---------------------------
-
-    def log(self, message: str, *args: Any, level: int = logging.INFO) -> None:
-        if self._root:
-            super().log(message, *args, level=level)
-
-    def _to_file(self, level: int, message: str) -> None:
-        if self._root:
-            super()._to_file(level, message)
-
-    def _warn(self, message: str, category: type[Warning]) -> None:
-        if self._root:
-            super()._warn(message, category)
+    def _writes_output(self) -> bool:
+        """Messages and files once per simulation, from rank 0 of its group."""
+        return self._root
 
     # -- talking to LIGGGHTS ---------------------------------------------------------------
 
@@ -347,13 +331,6 @@ class LiggghtsEngine(Engine):
 
     def _advance(self, nsteps: int) -> None:
         dt = given(self.dt, "the time step")  # run() refuses to start without one
-        self.check_servo_speeds(dt)
-        idle = [m.name for m in self.spec.meshes if m.servo and m.name not in self._mesh_walls.values()]
-        if idle:
-            raise ConfigError(
-                f"servo mesh {idle[0]!r} must be a wall while the simulation runs (LIGGGHTS moves it by "
-                f"the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
-            )
         for label in list(self._placings):  # PyGran's insertions due as this piece starts
             self._place_due(label, self.step)
         lines = []
@@ -389,19 +366,14 @@ class LiggghtsEngine(Engine):
         self._fixes.report(start, start + nsteps)
         self._index_meshes()  # the frame LIGGGHTS wrote as this run started
 
-    def _chunks(self, nsteps: int) -> list[int]:
-        """The core's pieces of a run, also split at the events of PyGran's insertions, each
-        made as the piece it starts begins."""
+    def _event_steps(self, start: int, end: int) -> set[int]:
+        """The events of PyGran's insertions, each made as the piece of the run it starts begins."""
         from pygran_core.simulation.insertion import insertion_steps
 
-        start = self.step
-        stops = set(itertools.accumulate(super()._chunks(nsteps), initial=start))
+        steps: set[int] = set()
         for placed in self._placings.values():
-            stops.update(
-                insertion_steps(placed.next_step, placed.every, start + 1, start + nsteps, placed.end)
-            )
-        ordered = sorted(stops)
-        return [b - a for a, b in zip(ordered, ordered[1:])]
+            steps.update(insertion_steps(placed.next_step, placed.every, start + 1, end, placed.end))
+        return steps
 
     def _lost_since_last(self) -> LostParticles:
         """The particles LIGGGHTS lost since the last call, counted exactly in every run
@@ -461,8 +433,8 @@ class LiggghtsEngine(Engine):
         reached = self._meshes_reached(spec)
         if reached:
             return self._insert_clear(spec, reached)
-        if spec.mechanism == "by_pack" and self._resume is not None:  # replaying: the kept target
-            kept = self._resume.state.get(f"{TARGET_KEY}/{number}")
+        if spec.mechanism == "by_pack" and self.journal.checkpoint is not None:  # replaying: the kept target
+            kept = self.journal.checkpoint.state.get(f"{TARGET_KEY}/{number}")
             spec = spec if kept is None else replace(spec, value=float(kept))
         elif spec.mechanism == "by_pack":
             spec = self._fixes.target(spec)
@@ -571,37 +543,6 @@ class LiggghtsEngine(Engine):
         self._execute(["run 0 post no"])
         self._computed = True
 
-    def _obstacles(self, call: str = "createParticles 'random'") -> Obstacles:
-        """The plane, cylinder and mesh walls new particles of ``call`` must clear."""
-        from pygran_core.simulation.insertion import Obstacles
-
-        moving = set(self._motions.values())
-        meshes = {mesh.name: mesh for mesh in self.spec.meshes}
-        points, normals, triangles = [], [], []
-        cylinders: list[tuple[str, tuple[float, float], float]] = []
-        for wall in self._walls.values():
-            if wall.kind == "plane":
-                axis = "xyz".index(given(wall.plane, "a plane wall's plane")[0])
-                points.append(np.eye(3)[axis] * given(wall.peq, "a plane wall's peq"))
-                normals.append(np.eye(3)[axis])
-            elif wall.kind == "mesh":
-                mesh = given(wall.mesh, "a mesh wall's mesh")
-                if mesh in moving:
-                    raise UnsupportedFeature(
-                        f"{call} on LIGGGHTS while mesh {mesh!r} moves: PyGran places these particles "
-                        "clear of the walls, and the mesh's current position is LIGGGHTS'; make them "
-                        "before moveMesh"
-                    )
-                triangles.append(meshes[mesh].triangles())
-            elif wall.axis and wall.centre and wall.radius:
-                cylinders.append((wall.axis, wall.centre, wall.radius))
-        return Obstacles(
-            np.reshape(points, (-1, 3)),
-            np.reshape(normals, (-1, 3)),
-            np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
-            tuple(cylinders),
-        )
-
     def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
         if self.commands.body_types:
             types = self._extract("type")[np.isin(self._extract("id"), ids)]
@@ -647,7 +588,6 @@ class LiggghtsEngine(Engine):
             self._mesh_walls[label] = given(spec.mesh, "a mesh wall's mesh")
             lines = self._rebuild_mesh_walls()
         self._execute(lines)
-        self._walls[label] = spec
         return label
 
     def _rebuild_mesh_walls(self) -> list[str]:
@@ -716,7 +656,6 @@ class LiggghtsEngine(Engine):
             self._execute(self._rebuild_mesh_walls())
         else:
             self._execute([f"unfix {handle.label}"])
-        self._walls.pop(handle.label, None)
         self._motions.pop(handle.label, None)
         self._fixes.remove(handle.label)
         self._targets.pop(handle.label, None)
@@ -735,62 +674,61 @@ class LiggghtsEngine(Engine):
         """LIGGGHTS writes its own restart file (atoms, fix states by id) beside the checkpoint."""
         self._execute([f"write_restart {self.commands.path(self._restart.directory / self._restart_name())}"])
         targets = {f"{TARGET_KEY}/{number}": np.array(value) for number, value in self._targets.values()}
-        return {**super()._state(), RESTART_KEY: encode_text(self._restart_name()), **targets}
+        return {RESTART_KEY: encode_text(self._restart_name()), **targets}
 
     def _restore_state(self, state: dict[str, np.ndarray]) -> None:
         """LIGGGHTS has read its restart file already; the contacts of the resumed step are in
         the trajectory cut back, and LIGGGHTS writes them again as the next run starts."""
         self._contacts_step = self.step
 
-    def _checkpoint(self, path: Any) -> None:
-        previous = self._restart_file
-        super()._checkpoint(path)
-        self._restart_file = self._restart.directory / self._restart_name()
-        if "*" not in self._restart.fname and previous not in (None, self._restart_file):
-            previous.unlink(missing_ok=True)  # its checkpoint has just been replaced
+    def _checkpoint_files(self) -> list[Path]:
+        return [self._restart.directory / self._restart_name()]
 
-    def _cut_trajectory(self, key: str, path: Any) -> None:
-        """A ``.dump`` LIGGGHTS writes itself keeps its frames up to this step and is appended
-        to. LIGGGHTS writes this step's frame again as its next run starts (a new dump writes
-        the frame of the step it starts at): that frame is cut off then (see
-        :meth:`_before_run`), and stays if nothing more runs (a finished study run again).
-        A single ``.vtk`` of mesh frames keeps those before this step."""
-        if not self._native(key):
-            super()._cut_trajectory(key, path)
-            return
-        if not self._root:
-            return
+    def _native_trajectories(self) -> dict[str, NativeTrajectory]:
+        """LIGGGHTS writes ``.dump`` particles and ``.vtk`` meshes itself (see
+        :func:`.native_particles`, :func:`.native_meshes`)."""
+        found = {}
+        if native_particles(self.spec):
+            found["particles"] = NativeTrajectory(self._cut_dump)
+        if native_meshes(self.spec):
+            found["meshes"] = NativeTrajectory(self._cut_meshes, self._mesh_frame_due)
+        return found
+
+    def _cut_dump(self, original: Path, path: Path, step: int) -> int:
+        """Copy the frames of LIGGGHTS' ``.dump`` up to ``step``. LIGGGHTS writes the frame of
+        that step again as its next run starts (a new dump writes the frame of the step it
+        starts at): that frame is cut off then (see :meth:`_before_run`), and stays if nothing
+        more runs (a finished study run again)."""
         from pygran_core.formats.dump import format_frame
+        from pygran_core.io import open_trajectory
+
+        kept = 0
+        with path.open("wb") as out, open_trajectory(original) as old:
+            for index in range(len(old)):
+                frame = old[index]
+                if frame.timestep is not None and frame.timestep > step:
+                    break
+                if frame.timestep == step:
+                    self._rewritten_frame = out.tell()
+                out.write(format_frame(frame, index).encode("ascii"))
+                kept += 1
+        return kept
+
+    @staticmethod
+    def _cut_meshes(original: Path, path: Path, step: int) -> int:
+        """Copy the frames of LIGGGHTS' single ``.vtk`` of meshes before ``step``: LIGGGHTS
+        writes the frame of that step again as its next run starts."""
         from pygran_core.io import open_trajectory, open_writer
 
-        before = before_resume(path)
-        if key == "meshes":
-            os.replace(path, before)
-            with open_writer(path) as writer, open_trajectory(before) as old:
-                for index in range(len(old)):
-                    frame = old[index]
-                    if frame.timestep is not None and frame.timestep >= self.step:
-                        break
-                    writer.write_frame(frame)
-            before.unlink()
-            return
-        if before.exists():  # an earlier resume was killed while cutting: the original is there
-            path.unlink(missing_ok=True)
-        else:
-            os.replace(path, before)
-        try:
-            with path.open("wb") as out, open_trajectory(before) as old:
-                for index in range(len(old)):
-                    frame = old[index]
-                    if frame.timestep is not None and frame.timestep > self.step:
-                        break
-                    if frame.timestep == self.step:
-                        self._rewritten_frame = out.tell()
-                    out.write(format_frame(frame, index).encode("ascii"))
-        except ReadError as exc:
-            self.log("resume: %s; the original is left as %s", exc, before, level=logging.WARNING)
-            return
-        before.unlink()
+        kept = 0
+        with open_writer(path) as writer, open_trajectory(original) as old:
+            for index in range(len(old)):
+                frame = old[index]
+                if frame.timestep is not None and frame.timestep >= step:
+                    break
+                writer.write_frame(frame)
+                kept += 1
+        return kept
 
     def _before_run(self) -> None:
         """Cut off the frame of the resumed step kept in LIGGGHTS' ``.dump``: the run about to
@@ -799,26 +737,15 @@ class LiggghtsEngine(Engine):
             os.truncate(self.spec.traj.pfile, self._rewritten_frame)
             self._rewritten_frame = None
 
-    def _native(self, key: str) -> bool:
-        """Whether LIGGGHTS writes the trajectory ``key`` itself: .dump particles, .vtk meshes."""
-        if key == "particles":
-            return native_particles(self.spec)
-        return key == "meshes" and native_meshes(self.spec)
+    def _mesh_frame_due(self, step: int, time: float) -> None:
+        """Index the mesh frame LIGGGHTS writes at ``step`` (``*`` in the name: a file each)."""
+        if self._root and self._mesh_index and "*" in given(self.spec.traj.mfile, "traj mfile").name:
+            self._mesh_frames.append((step, time))
+            self._index_meshes()
 
-    def _write(self, key: str, path: Any, make_frame: Any) -> None:
-        if self._native(key):
-            if key == "meshes" and self._root and self._mesh_index and "*" in path.name:
-                self._mesh_frames.append((self.step, self.time))
-                self._index_meshes()
-            return
-        if key == "contacts":  # LIGGGHTS' dumps of them, from the first run on, gathered on rank 0
-            for frame in self._written_contacts() if self._root else []:
-                super()._write(key, path, lambda frame=frame: frame)
-            return
-        if self._root:
-            super()._write(key, path, make_frame)
-        else:
-            make_frame()  # gathering is collective: every rank takes part
+    def _contact_frames(self) -> list[Frame]:
+        """LIGGGHTS' dumps of the contacts, from the first run on, read on rank 0."""
+        return self._written_contacts() if self._root else []
 
     def _index_meshes(self) -> None:
         """Add the mesh frames LIGGGHTS has written (``*`` in the name: its step) to the
@@ -832,12 +759,12 @@ class LiggghtsEngine(Engine):
             file = path.with_name(path.name.replace("*", str(step)))
             if not file.is_file():
                 return
-            writer = self._writers.get("meshes")
+            writer = self.files.writers.get("meshes")
             if writer is None:
                 from pygran_core.io import open_writer
 
                 try:
-                    writer = self._writers["meshes"] = open_writer(path)
+                    writer = self.files.writers["meshes"] = open_writer(path)
                 except PluginNotFound as exc:
                     self.log("no .pvd index for %s: %s", path.name, exc, level=logging.WARNING)
                     self._mesh_index = False
@@ -851,7 +778,7 @@ class LiggghtsEngine(Engine):
         the frame of the step it starts at; see :func:`.read_contacts`), with ``id2 = -(k + 1)``
         for the mesh-wall contacts of the k-th wall set up."""
         walls = [self._wall_numbers[label] for label in self._mesh_walls]  # by LIGGGHTS' mesh index
-        box, boundary = self._bounds()
+        box, boundary = bounds(self.spec)
         frames = []
         for step, records in read_contacts(self.output / CONTACTS_DIR, walls, self._contacts_step, self.step):
             time = self._clock[1] + (step - self._clock[0]) * self.dt if self.dt is not None else None

@@ -2,13 +2,13 @@
 
 Material types: species ``k`` (1-based) is solver type ``k - 1``; a mesh with a material
 of its own gets a type after the species. Particle ids are 1-based as in LIGGGHTS.
-Insertion (``insert``, ``createParticles``) is :class:`PlacingEngine`'s, seeded per call
-from ``seed``.
+Insertion (``insert``, ``createParticles``) is the engine's
+:class:`~pygran_core.simulation.insertion.Inserter`'s, seeded per call from ``seed``.
 
 Multisphere species are the solver's clumps (:meth:`Solver.add_clumps`), one per particle,
-inserted and created as :class:`PlacingEngine` places and counts clumps. As on LIGGGHTS and
-YADE, extracts give every sphere of a clump, each with the clump's mass, and
-:meth:`NativeEngine.bodies` the clump of each sphere.
+inserted and created as the :class:`~pygran_core.simulation.insertion.Inserter` places and
+counts clumps. As on LIGGGHTS and YADE, extracts give every sphere of a clump, each with the
+clump's mass, and :meth:`NativeEngine.bodies` the clump of each sphere.
 """
 
 from __future__ import annotations
@@ -20,10 +20,9 @@ import numpy as np
 
 from pygran_core.errors import ConfigError, ReadError, UnsupportedFeature
 from pygran_core.formats import contacts as contact_schema
-from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
-from pygran_core.simulation.engine import Handle, LostParticles
-from pygran_core.simulation.insertion import Obstacles, PlacingEngine
+from pygran_core.simulation.engine import Engine, Handle, LostParticles
+from pygran_core.simulation.insertion import Inserter, multisphere_templates
 from pygran_core.simulation.mpi import rank_run
 from pygran_core.simulation.specs import SimulationSpec, given
 from pygran_native.solver import Solver
@@ -32,7 +31,7 @@ from pygran_native.solver import Solver
 SOLVER_LAW = {"spring-dashpot": "hooke", "hertz-mindlin": "hertz", "thornton-ning": "thornton-ning"}
 
 
-class NativeEngine(PlacingEngine):
+class NativeEngine(Engine):
     """PyGran's own DEM engine (a compiled Cython solver on its own thread team)."""
 
     name = "native"
@@ -68,6 +67,8 @@ class NativeEngine(PlacingEngine):
             spec = rank_run(spec.runs, spec.engine)
         super().__init__(spec)  # refuses a model whose kernel is not among the capabilities
         try:
+            self.inserter = Inserter(self)
+            self._templates = multisphere_templates(spec)
             self._law = SOLVER_LAW[given(spec.model.kernel, f"the {spec.model.__name__} model's kernel")]
             gravity = spec.gravity.vector if spec.gravity is not None else np.zeros(3)
             self.solver = Solver(
@@ -79,14 +80,11 @@ class NativeEngine(PlacingEngine):
             #: Solver wall handle -> the wall's index in the order walls were set up (removed ones
             #: kept): contact records name the wall by it (see :meth:`_contacts`)
             self._wall_index: dict[int, int] = {}
-            self._planes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
             self._mesh_walls: dict[str, int] = {}
             self._motions: dict[str, str] = {}
             self._drags: dict[str, ViscousSpec] = {}
             self._labels = 0
             self.log("native solver: %d threads, neighbour skin %g m", self.solver.threads, spec.skin)
-            if spec.dt is not None:
-                self.check_servo_speeds(spec.dt)
         except BaseException:
             self._abandon()
             raise
@@ -121,16 +119,6 @@ class NativeEngine(PlacingEngine):
         return f"{kind}{self._labels}"
 
     # -- particles ---------------------------------------------------------------------
-
-    def _obstacles(self) -> Obstacles:
-        """Planes and mesh triangles new particles must clear (cylinders are not checked)."""
-        triangles = [self.solver.mesh_triangles(m) for m in self._mesh_walls.values()]
-        planes = list(self._planes.values())
-        return Obstacles(
-            np.reshape([p for p, _ in planes], (-1, 3)),
-            np.reshape([n for _, n in planes], (-1, 3)),
-            np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
-        )
 
     def _add_spheres(
         self, species: np.ndarray, centres: np.ndarray, radii: np.ndarray, velocities: np.ndarray, omega: Any
@@ -208,9 +196,7 @@ class NativeEngine(PlacingEngine):
             normal[axis] = 1.0 if peq - lo <= hi - peq else -1.0
             point = np.zeros(3)
             point[axis] = peq
-            wall = self.solver.add_plane(point, normal, spec.species - 1)
-            self._planes[wall] = (point, normal)
-            self._walls[label] = wall
+            self._walls[label] = self.solver.add_plane(point, normal, spec.species - 1)
         elif spec.kind == "cylinder":
             self._walls[label] = self.solver.add_cylinder(
                 given(spec.axis, "a cylinder wall's axis"),
@@ -293,12 +279,9 @@ class NativeEngine(PlacingEngine):
 
     def _remove(self, handle: Handle) -> None:
         label = handle.label
-        if handle.kind == "insertion":
-            super()._remove(handle)
-        elif label in self._walls:
+        if label in self._walls:
             wall = self._walls.pop(label)
             self.solver.remove_wall(wall)
-            self._planes.pop(wall, None)
             for name in [n for n, w in self._mesh_walls.items() if w == wall]:
                 del self._mesh_walls[name]
         elif label in self._motions:
@@ -312,15 +295,7 @@ class NativeEngine(PlacingEngine):
     # -- running and output ----------------------------------------------------------------
 
     def _advance(self, nsteps: int) -> None:
-        idle = [m.name for m in self.spec.meshes if m.servo and m.name not in self._mesh_walls]
-        if idle:
-            raise ConfigError(
-                f"servo mesh {idle[0]!r} must be a wall while the simulation runs (its controller moves "
-                f"it by the particles' force on it): setupWall(wtype='mesh', mesh={idle[0]!r}) before run()"
-            )
-        dt = given(self.dt, "the time step")  # run() refuses to start without one
-        self.check_servo_speeds(dt)
-        self.solver.run(nsteps, dt)
+        self.solver.run(nsteps, given(self.dt, "the time step"))  # run() refuses to start without one
 
     def mesh_force(self, name: str) -> np.ndarray:
         """The force (N, x y z) the particles exert on mesh ``name`` at the last step (``mtype``
@@ -365,17 +340,15 @@ class NativeEngine(PlacingEngine):
         return found
 
     def _state(self) -> dict[str, np.ndarray]:
-        solver = {f"solver/{k}": v for k, v in self.solver.get_state().items()}
-        return {**super()._state(), **solver}
+        return {f"solver/{k}": v for k, v in self.solver.get_state().items()}
 
     def _restore_state(self, state: dict[str, np.ndarray]) -> None:
-        super()._restore_state(state)
         try:
             self.solver.set_state(
                 {k[len("solver/") :]: v for k, v in state.items() if k.startswith("solver/")}
             )
         except ReadError as exc:
-            raise ReadError(f"{self._resume_path}: {exc}") from None
+            raise ReadError(f"{self.journal.path}: {exc}") from None
 
     def _lost_since_last(self) -> LostParticles:
         """The particles the solver deleted since the last call: by the face of the box they
@@ -402,24 +375,5 @@ class NativeEngine(PlacingEngine):
             return self.solver.kinetic_energy([k - 1 for k in species])[quantity == "ke_rot"]
         return super()._species_scalar(quantity, species)
 
-    def _mesh_frame(self) -> Frame:
-        triangles = [self.solver.mesh_triangles(w) for w in self._mesh_walls.values()]
-        meshid = (
-            np.concatenate([np.full(len(t), i) for i, t in enumerate(triangles)])
-            if triangles
-            else np.zeros(0)
-        )
-        corners = np.concatenate(triangles) if triangles else np.zeros((0, 3, 3))
-        cells = np.arange(3 * len(corners)).reshape(-1, 3)
-        arrays = {
-            "points": corners.reshape(-1, 3),
-            "cells": cells,
-            "cell_types": np.full(len(cells), 5),
-            "meshid": meshid,
-        }
-        return Frame(
-            arrays,
-            timestep=self.step,
-            time=self.time,
-            attrs={"kind": "mesh", "point_data": [], "cell_data": ["meshid"]},
-        )
+    def _mesh_triangles(self, name: str) -> np.ndarray | None:
+        return self.solver.mesh_triangles(self._mesh_walls[name]) if name in self._mesh_walls else None

@@ -41,10 +41,10 @@ finite, and reports them by face and speed (:meth:`YadeEngine._lost_since_last`)
 
 Multisphere species are YADE clumps (``O.bodies.appendClumped``), one per particle, whose
 mass, centre and inertia YADE integrates over the union of the spheres on a grid of
-:data:`CLUMP_DISCRETIZATION` cells across, inserted and created as :class:`PlacingEngine`
-places and counts clumps; extracts give every sphere of a clump, as the LIGGGHTS engine's
-do. YADE has no rolling-resistance law matching LIGGGHTS' (see the README), so no
-rolling-friction capability is declared.
+:data:`CLUMP_DISCRETIZATION` cells across, inserted and created as the engine's
+:class:`~pygran_core.simulation.insertion.Inserter` places and counts clumps; extracts give
+every sphere of a clump, as the LIGGGHTS engine's do. YADE has no rolling-resistance law
+matching LIGGGHTS' (see the README), so no rolling-friction capability is declared.
 """
 
 from __future__ import annotations
@@ -56,10 +56,9 @@ from typing import Any
 import numpy as np
 
 from pygran_core.errors import ConfigError, UnsupportedFeature
-from pygran_core.io import Frame
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
-from pygran_core.simulation.engine import Handle, LostParticles
-from pygran_core.simulation.insertion import Obstacles, PlacingEngine
+from pygran_core.simulation.engine import Engine, Handle, LostParticles
+from pygran_core.simulation.insertion import Inserter, multisphere_templates
 from pygran_core.simulation.models import SpringDashpot, mixing
 from pygran_core.simulation.specs import SimulationSpec
 from pygran_yade.client import Worker
@@ -131,7 +130,7 @@ def cylinder_triangles(
     return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
 
 
-class YadeEngine(PlacingEngine):
+class YadeEngine(Engine):
     """YADE driven in a worker process (see the module docstring for the mapping)."""
 
     name = "yade"
@@ -157,6 +156,8 @@ class YadeEngine(PlacingEngine):
     def __init__(self, spec: SimulationSpec) -> None:
         super().__init__(spec)
         try:
+            self.inserter = Inserter(self)
+            self._templates = multisphere_templates(spec)
             restitution = self.material_table.pairs.get("coefficientRestitution", np.ones(1))
             if spec.model.kernel == "spring-dashpot" and len(set(restitution.ravel().tolist())) > 1:
                 raise UnsupportedFeature(
@@ -196,9 +197,6 @@ class YadeEngine(PlacingEngine):
             raise
         self._labels = 0
         self._walls: dict[str, list[int]] = {}  # label -> facet ids
-        self._obstacle: dict[
-            str, tuple[str, Any]
-        ] = {}  # label -> ("plane", (point, normal)) / ("mesh", name)
         self._mesh_walls: dict[str, str] = {}  # mesh name -> wall label
         self._motions: dict[str, str] = {}  # motion label -> mesh name
         self._engines: set[str] = set()  # labels of YADE engines (motions, drags)
@@ -326,20 +324,6 @@ class YadeEngine(PlacingEngine):
         found["id"] = found["id"] + 1
         return found
 
-    def _obstacles(self) -> Obstacles:
-        """Plane walls and mesh triangles new particles must clear."""
-        planes = [value for kind, value in self._obstacle.values() if kind == "plane"]
-        triangles = [
-            from_bytes(self.worker.call("facet_vertices", ids=self._walls[label]))
-            for label, (kind, _) in self._obstacle.items()
-            if kind == "mesh"
-        ]
-        return Obstacles(
-            np.reshape([p for p, _ in planes], (-1, 3)),
-            np.reshape([n for _, n in planes], (-1, 3)),
-            np.concatenate(triangles) if triangles else np.zeros((0, 3, 3)),
-        )
-
     def _assign(self, ids: np.ndarray, spec: SetSpec) -> None:
         types = self._extract("type")[np.isin(self._extract("id"), ids)]
         bodies = sorted({int(t) for t in types if self.spec.species[int(t) - 1].style == "multisphere"})
@@ -371,12 +355,6 @@ class YadeEngine(PlacingEngine):
             axis = "xyz".index(spec.plane[0])
             if periodic[axis]:
                 raise self._unsupported("a plane wall across a periodic axis")
-            lo, hi = box[axis]
-            normal = np.zeros(3)
-            normal[axis] = 1.0 if spec.peq - lo <= hi - spec.peq else -1.0
-            point = np.zeros(3)
-            point[axis] = spec.peq
-            self._obstacle[label] = ("plane", (point, normal))
             triangles = plane_triangle(axis, spec.peq, box, periodic)
         elif spec.kind == "cylinder":
             if spec.axis is None or spec.centre is None or spec.radius is None:
@@ -393,7 +371,6 @@ class YadeEngine(PlacingEngine):
             triangles = mesh.triangles()
             material = self._mesh_material.get(mesh.name, material)
             self._mesh_walls[mesh.name] = label
-            self._obstacle[label] = ("mesh", mesh.name)
         self._walls[label] = self.worker.call("facets", triangles=to_bytes(triangles), material=material)
         return label
 
@@ -436,14 +413,11 @@ class YadeEngine(PlacingEngine):
 
     def _remove(self, handle: Handle) -> None:
         label = handle.label
-        if handle.kind == "insertion":
-            super()._remove(handle)
-        elif label in self._walls:
+        if label in self._walls:
             self.worker.call("erase", ids=self._walls.pop(label))
-            kind, value = self._obstacle.pop(label, ("cylinder", None))  # cylinders are no obstacle
-            if kind == "mesh":
-                del self._mesh_walls[value]
-                for motion in [k for k, name in self._motions.items() if name == value]:
+            for mesh in [name for name, wall in self._mesh_walls.items() if wall == label]:
+                del self._mesh_walls[mesh]
+                for motion in [k for k, name in self._motions.items() if name == mesh]:
                     self._remove_engine(motion)
         elif label in self._engines:
             self._remove_engine(label)
@@ -458,13 +432,12 @@ class YadeEngine(PlacingEngine):
 
     # -- running and output ----------------------------------------------------------------
 
-    def run(self, nsteps: int, dt: float | None = None, **options: Any) -> None:
-        """As :meth:`Engine.run`; without any time step, a fifth of YADE's p-wave estimate
-        (``utils.PWaveTimeStep``) for the particles present, logged."""
-        if dt is None and self.dt is None:
-            self.dt = 0.2 * float(self.worker.call("scalar", quantity="pwave_dt"))
-            self.log("no time step given: using 0.2 x PWaveTimeStep = %g s", self.dt)
-        super().run(nsteps, dt, **options)
+    def _default_dt(self) -> float:
+        """A fifth of YADE's p-wave estimate (``utils.PWaveTimeStep``) for the particles
+        present, logged."""
+        dt = 0.2 * float(self.worker.call("scalar", quantity="pwave_dt"))
+        self.log("no time step given: using 0.2 x PWaveTimeStep = %g s", dt)
+        return dt
 
     def _advance(self, nsteps: int) -> None:
         self._unreported += LostParticles(**self.worker.call("run", nsteps=nsteps, dt=self.dt))
@@ -482,25 +455,10 @@ class YadeEngine(PlacingEngine):
             return float(self.worker.call("scalar", quantity=quantity))
         return super()._scalar(quantity)
 
-    def _mesh_frame(self) -> Frame:
-        labels = list(self._mesh_walls.values())
-        triangles = [from_bytes(self.worker.call("facet_vertices", ids=self._walls[lb])) for lb in labels]
-        corners = np.concatenate(triangles) if triangles else np.zeros((0, 3, 3))
-        cells = np.arange(3 * len(corners)).reshape(-1, 3)
-        arrays = {
-            "points": corners.reshape(-1, 3),
-            "cells": cells,
-            "cell_types": np.full(len(cells), 5),
-            "meshid": np.concatenate([np.full(len(t), i) for i, t in enumerate(triangles)])
-            if triangles
-            else np.zeros(0),
-        }
-        return Frame(
-            arrays,
-            timestep=self.step,
-            time=self.time,
-            attrs={"kind": "mesh", "point_data": [], "cell_data": ["meshid"]},
-        )
+    def _mesh_triangles(self, name: str) -> np.ndarray | None:
+        if name not in self._mesh_walls:
+            return None
+        return from_bytes(self.worker.call("facet_vertices", ids=self._walls[self._mesh_walls[name]]))
 
     def _close(self) -> None:
         self.worker.close()
