@@ -1,6 +1,8 @@
 """The layering of pygran_core and the plugins, read from their source: no import cycle inside
-the core or a plugin, the core imports no plugin, and the applications (``pygran_core.apps``,
-the CLI) and test helpers (``pygran_core.testing``) stay out of the library.
+the core or a plugin, the core imports no plugin, the applications (``pygran_core.apps``,
+the CLI) and test helpers (``pygran_core.testing``) stay out of the library, and a plugin's
+engine overrides no name of the ``Engine`` base class but its declared hooks
+(``pygran_core.simulation.engine_hooks.HOOKS``).
 
 Every import statement counts, wherever it stands (in a function, under ``TYPE_CHECKING``), with
 the package ``__init__`` modules it runs: an import moved into a function cannot hide a cycle.
@@ -158,3 +160,83 @@ def test_library_does_not_import_applications_or_test_helpers():
         if not on_top(name) and any(on_top(dep) for dep in deps)
     }
     assert not wrong, f"library modules import applications or test helpers: {wrong}"
+
+
+def assigned_to_self(node: ast.AST) -> set[str]:
+    """The attributes ``self.<name>`` that code under ``node`` assigns to."""
+    return {
+        leaf.attr
+        for leaf in ast.walk(node)
+        if isinstance(leaf, ast.Attribute)
+        and isinstance(leaf.ctx, ast.Store)
+        and isinstance(leaf.value, ast.Name)
+        and leaf.value.id == "self"
+    }
+
+
+def engine_overrides(tree: ast.Module, base: set[str]) -> dict[str, set[str]]:
+    """Engine class -> the names of ``base`` it defines: in its body, or as ``self.<name> = ...``
+    in its methods. Engine classes are those deriving from ``Engine`` or from one of them."""
+    engines = {"Engine"}
+    found: dict[str, set[str]] = {}
+    for node in tree.body:
+        if not isinstance(node, ast.ClassDef):
+            continue
+        if not {b.id if isinstance(b, ast.Name) else getattr(b, "attr", "") for b in node.bases} & engines:
+            continue
+        engines.add(node.name)
+        names = assigned_to_self(node)
+        for item in node.body:
+            if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                names.add(item.name)
+            elif isinstance(item, (ast.Assign, ast.AnnAssign)):
+                targets = item.targets if isinstance(item, ast.Assign) else [item.target]
+                names.update(t.id for t in targets if isinstance(t, ast.Name))
+        found[node.name] = {n for n in names & base if not (n.startswith("__") and n.endswith("__"))}
+    return found
+
+
+@functools.cache
+def engine_base_names() -> set[str]:
+    """Every name of the ``Engine`` base class: its attributes and methods, and the attributes
+    its constructor and methods set."""
+    from pygran_core.simulation.engine import Engine
+
+    tree = ast.parse((ROOT / PACKAGE / "simulation" / "engine.py").read_text())
+    return set(dir(Engine)) | assigned_to_self(tree)
+
+
+def test_overrides_are_read_from_the_source():
+    from pygran_core.simulation.engine_hooks import HOOKS, EngineHooks
+
+    assert set(HOOKS) <= set(dir(EngineHooks))
+    assert {"mesh_force", "_advance", "_native_trajectories", "inserter"} <= set(HOOKS)
+    base = engine_base_names()
+    assert {"_on_event", "files", "journal", "run", "log", "_warn", "dt"} <= base
+    source = """
+class Mine(Engine):
+    name = "mine"
+    def _on_event(self): ...
+    def _advance(self, n):
+        self.dt = 1.0
+        self.solver = None
+class Theirs(Mine):
+    def log(self, message): ...
+"""
+    found = engine_overrides(ast.parse(source), base)
+    assert found == {"Mine": {"name", "_on_event", "_advance", "dt"}, "Theirs": {"log"}}
+
+
+def test_plugin_engines_override_only_hooks():
+    from pygran_core.simulation.engine_hooks import HOOKS
+
+    base = engine_base_names()
+    wrong = {}
+    for package, folder in packages().items():
+        if package == PACKAGE:
+            continue
+        for path in sorted(folder.rglob("*.py")):
+            for engine, names in engine_overrides(ast.parse(path.read_text()), base).items():
+                if names - set(HOOKS):
+                    wrong[f"{package}.{engine}"] = sorted(names - set(HOOKS))
+    assert not wrong, f"plugin engines override names of the Engine base class that are no hooks: {wrong}"
