@@ -17,7 +17,7 @@ import numpy as np
 from pygran_core.errors import UnsupportedFeature
 from pygran_core.simulation.calls import CreateSpec, InsertSpec
 from pygran_core.simulation.engine import Engine
-from pygran_core.simulation.insertion import Obstacles, draw_spheres, place_spheres, target_shares
+from pygran_core.simulation.insertion import draw_spheres, place_spheres, target_shares
 from pygran_core.simulation.specs import given
 from pygran_liggghts.channel import Channel
 from pygran_liggghts.commands import Commands, fmt
@@ -44,7 +44,7 @@ class Creator:
     """Makes particles in one simulation's LIGGGHTS. ``engine`` gives the spec, step and
     messages; ``channel`` carries the commands; ``ranks``: LIGGGHTS' MPI ranks; ``root``:
     whether this rank writes files; ``allow`` lets LIGGGHTS create atoms (after a restart file
-    it must run first); ``obstacles`` gives the walls new particles of a call must clear."""
+    it must run first). New particles clear the walls the engine knows (``engine._obstacles``)."""
 
     def __init__(
         self,
@@ -54,7 +54,6 @@ class Creator:
         ranks: int,
         root: bool,
         allow: Callable[[], None],
-        obstacles: Callable[[str], Obstacles],
     ) -> None:
         self._engine = engine
         self._channel = channel
@@ -62,7 +61,6 @@ class Creator:
         self._ranks = ranks
         self._root = root
         self._allow = allow
-        self._obstacles = obstacles
         self._ungrouped = False  # atoms created since the last run, not yet in the spheres' group
         self._short_warned: set[str] = set()  # placed insertions whose shortfall was warned about
 
@@ -158,7 +156,7 @@ class Creator:
             radii,
             rng,
             (existing["x"].reshape(-1, 3), existing["radius"]),
-            self._obstacles("insert()"),
+            engine._obstacles("insert()"),
             spec.all_in,
         )
         self._allow()
@@ -238,7 +236,7 @@ class Creator:
             radii,
             rng,
             (existing["x"], existing["radius"]),
-            self._obstacles("createParticles 'random'"),
+            self._engine._obstacles("createParticles 'random'"),
         )
         box = np.array(self._engine.spec.domain.box, float)
         inside = np.all((centres > box[:, 0]) & (centres < box[:, 1]), axis=1)

@@ -12,19 +12,17 @@ worker starts and records them in ``<output>/in.pygran``. A run is split into ch
 pre no`` after the first when no command came in between, so LIGGGHTS skips its set-up),
 each ended after every insertion event, so that the particles lost are seen first (see
 :meth:`.FixInsertions.lost`). Mesh frames are LIGGGHTS' own files, indexed in a
-``.pvd`` as PyGran's VTK series are (see :meth:`LiggghtsEngine._index_meshes`).
+``.pvd`` as PyGran's VTK series are (see :class:`.MeshIndex`).
 
 LIGGGHTS' ``fix insert`` keeps new particles clear of other particles, not of mesh walls: an
 insertion into a region that a mesh wall crosses is made by PyGran instead, as the placing
-engines make it (see :meth:`LiggghtsEngine._insert_clear`).
+engines make it (see :mod:`.placings`).
 """
 
 from __future__ import annotations
 
-import functools
-import logging
 import os
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,7 +31,6 @@ import numpy as np
 
 from pygran_core.errors import (
     ConfigError,
-    PluginNotFound,
     ReadError,
     UnsupportedFeature,
 )
@@ -56,13 +53,15 @@ from pygran_liggghts.contact_dumps import read_contacts
 from pygran_liggghts.creation import Creator
 from pygran_liggghts.insertions import FixInsertions
 from pygran_liggghts.library import ADDON_CAPABILITIES, Addon, load_addon, probe_addon
+from pygran_liggghts.mesh_index import MeshIndex
+from pygran_liggghts.placings import Placings
+from pygran_liggghts.walls import Walls
 
 if TYPE_CHECKING:
     from pygran_core.simulation.calls import (
         CreateSpec,
         InsertSpec,
         MotionSpec,
-        Region,
         SetSpec,
         ViscousSpec,
         WallSpec,
@@ -75,8 +74,6 @@ if TYPE_CHECKING:
 RESTART_KEY = "liggghts/restart"
 #: Checkpoint entries ``<TARGET_KEY>/<k>``: the target of the k-th insert call (by pack).
 TARGET_KEY = "liggghts/targets"
-#: Cells along each edge of the grid :func:`reaches` lays over a triangle.
-GRID = 32
 
 
 def restart_file(path: Path, checkpoint: Checkpoint, directory: Path) -> Path:
@@ -187,55 +184,6 @@ class _Capabilities:
         return capabilities()
 
 
-def reaches(region: Region, triangles: np.ndarray, reach: float) -> bool:
-    """Whether a point of ``triangles`` ``(T, 3, 3)`` may lie in ``region`` grown by ``reach``:
-    tested on a grid of :data:`GRID` cells along each edge over each triangle, with the region
-    grown by a further cell's longest edge (any point of a triangle lies that close to a grid
-    point), so that a triangle in it is always found."""
-    a, b = (
-        np.array(v, float) / GRID
-        for v in zip(*[(i, j) for i in range(GRID + 1) for j in range(GRID + 1 - i)])
-    )
-    weights = np.column_stack([a, b, 1 - a - b])
-    edges = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2).max(axis=1)
-    for first in range(0, len(triangles), 256):
-        points = np.einsum("gk,tkd->tgd", weights, triangles[first : first + 256]).reshape(-1, 3)
-        margin = np.repeat(reach + edges[first : first + 256] / GRID, len(weights))
-        if region.contains(points, -margin).any():
-            return True
-    return False
-
-
-@dataclass
-class _Placed:
-    """An insertion PyGran makes on LIGGGHTS (see :meth:`LiggghtsEngine._insert_clear`): the
-    request, the mesh walls crossing its region, its random stream, the step of its next event,
-    the steps between events (``None``: once), the step it ends before (``None``: never) and
-    what is owed (by rate)."""
-
-    spec: InsertSpec
-    meshes: list[str]
-    rng: np.random.Generator
-    next_step: int
-    every: int | None
-    end: int | None
-    owed: float = 0.0
-
-    def due(self, step: int) -> bool:
-        """Whether an event is due at ``step``, those before it (a resumed step's) skipped."""
-        if self.every is not None and self.next_step < step:
-            self.next_step += -(-(step - self.next_step) // self.every) * self.every
-        return self.next_step == step
-
-    def schedule(self, step: int) -> bool:
-        """Schedule the event after the one at ``step``; whether there is one."""
-        following = None if self.every is None else step + self.every
-        if following is None or (self.end is not None and following >= self.end):
-            return False
-        self.next_step = following
-        return True
-
-
 class LiggghtsEngine(Engine):
     """A simulation on LIGGGHTS 3.x (``libliggghts``), see the module docstring."""
 
@@ -256,16 +204,13 @@ class LiggghtsEngine(Engine):
             )
         #: Whether this process writes the simulation's files and messages (rank 0 of its group)
         self._root = comm is None or comm.rank == 0
+        self._mesh_index = MeshIndex(self, self._root)  # before the base class takes its due()
         super().__init__(spec)
         self._timestep = spec.dt
-        self._motions: dict[str, str] = {}  # label -> the moving mesh
-        self._mesh_walls: dict[str, str] = {}  # label -> the mesh, in the order they were added
-        self._mesh_fix: str | None = None  # the one fix wall/gran of all mesh walls
         #: Where the resumed step's frame starts in LIGGGHTS' ``.dump``, until a run writes it again
         self._rewritten_frame: int | None = None
-        #: Insertions without a fix in LIGGGHTS: one-offs not redone on resume, and those PyGran placed
+        #: By-pack one-offs of a resumed script, made before its checkpoint: no fix in LIGGGHTS
         self._fixless: set[str] = set()
-        self._placings: dict[str, _Placed] = {}  # insertions PyGran makes, by label
         #: label -> (the insert call's number, the target given to LIGGGHTS) of each by-pack
         #: insertion present: checkpoints keep the targets, which a resumed script's replayed
         #: calls would otherwise count anew from the restart's particles
@@ -273,15 +218,7 @@ class LiggghtsEngine(Engine):
         self._insert_calls = 0
         self._computed = False  # whether a run has set up LIGGGHTS' computes
         self._unreported = LostParticles()  # lost particles not yet reported to the front end
-        #: Contact records (traj cfile): the last step written, whether LIGGGHTS writes those
-        #: with mesh walls (None: decided at the first run), each wall's number (by label)
-        self._contacts_step = -1
-        self._wall_contacts: bool | None = None
-        self._wall_numbers: dict[str, int] = {}
-        #: Mesh frames LIGGGHTS writes as ``traj mfile`` (a file per frame), (step, time) each,
-        #: not yet in the series' ``.pvd`` index (see :meth:`_index_meshes`)
-        self._mesh_frames: list[tuple[int, float]] = []
-        self._mesh_index = True  # whether an index can be written (PyGran's VTK writer is installed)
+        self._contacts_step = -1  # the last step whose contact records (traj cfile) were read
         try:
             if spec.traj.mfile is not None and spec.meshes and spec.traj.mfile.suffix != ".vtk":
                 raise ConfigError(f"LIGGGHTS writes meshes as .vtk files, not {spec.traj.mfile.name}")
@@ -304,10 +241,10 @@ class LiggghtsEngine(Engine):
             self._channel = Channel(self.output, comm, spec.nprocs or 1, self._root, self.log)
             screen = self.output / LOG_NAME if self._root else None
             self._fixes = FixInsertions(self, self._channel, self.commands, screen)
+            self._walls = Walls(spec, self.commands, self._channel)
             ranks = comm.size if comm is not None else spec.nprocs or 1
-            self._creator = Creator(
-                self, self._channel, self.commands, ranks, self._root, self._allow_create, self._obstacles
-            )
+            self._creator = Creator(self, self._channel, self.commands, ranks, self._root, self._allow_create)
+            self._placings = Placings(self, self.commands, self._walls, self._creator)
             self._execute(self.commands.setup(resume))
         except BaseException:
             self.close()
@@ -331,14 +268,8 @@ class LiggghtsEngine(Engine):
 
     def _advance(self, nsteps: int) -> None:
         dt = given(self.dt, "the time step")  # run() refuses to start without one
-        for label in list(self._placings):  # PyGran's insertions due as this piece starts
-            self._place_due(label, self.step)
-        lines = []
-        if self.spec.traj.cfile is not None and self._wall_contacts is None:
-            # LIGGGHTS defines its contact computes before the first run only
-            self._wall_contacts = bool(self._mesh_walls)
-            lines += self.commands.contacts("pg_walls") if self._wall_contacts else []
-        lines += self._creator.regroup()
+        self._placings.make_due(self.step)  # PyGran's insertions due as this piece starts
+        lines = self._walls.contact_computes() + self._creator.regroup()
         if dt != self._timestep:
             lines.append(f"timestep {fmt(dt)}")
             self._timestep = dt
@@ -364,16 +295,11 @@ class LiggghtsEngine(Engine):
         if any(count for count, _, _ in losses):
             self._unreported += self._fixes.lost(losses, pieces, dt)
         self._fixes.report(start, start + nsteps)
-        self._index_meshes()  # the frame LIGGGHTS wrote as this run started
+        self._mesh_index.update()  # the frame LIGGGHTS wrote as this run started
 
     def _event_steps(self, start: int, end: int) -> set[int]:
         """The events of PyGran's insertions, each made as the piece of the run it starts begins."""
-        from pygran_core.simulation.insertion import insertion_steps
-
-        steps: set[int] = set()
-        for placed in self._placings.values():
-            steps.update(insertion_steps(placed.next_step, placed.every, start + 1, end, placed.end))
-        return steps
+        return self._placings.event_steps(start, end)
 
     def _lost_since_last(self) -> LostParticles:
         """The particles LIGGGHTS lost since the last call, counted exactly in every run
@@ -430,9 +356,9 @@ class LiggghtsEngine(Engine):
     def _insert(self, spec: InsertSpec) -> str:
         number = self._insert_calls
         self._insert_calls += 1
-        reached = self._meshes_reached(spec)
+        reached = self._placings.reached(spec)
         if reached:
-            return self._insert_clear(spec, reached)
+            return self._placings.add(spec, reached)
         if spec.mechanism == "by_pack" and self.journal.checkpoint is not None:  # replaying: the kept target
             kept = self.journal.checkpoint.state.get(f"{TARGET_KEY}/{number}")
             spec = spec if kept is None else replace(spec, value=float(kept))
@@ -449,82 +375,6 @@ class LiggghtsEngine(Engine):
         if spec.mechanism == "by_pack":
             self._targets[label] = (number, spec.value)
         return label
-
-    def _meshes_reached(self, spec: InsertSpec) -> list[str]:
-        """The mesh walls that particles LIGGGHTS inserts for ``spec`` could overlap (its
-        ``fix insert`` keeps clear of particles only): those with a triangle in the region,
-        grown by the largest radius when only centres must be in it (see :func:`reaches`). A
-        mesh whose inside is the region, or a part of its intersection, is not one with
-        ``all_in``: LIGGGHTS inserts whole particles into the primitive inscribed in it."""
-        region = spec.region
-        parts = region.args if region.kind == "intersect" else (region,)
-        insides = [part.args[0].triangles for part in parts if part.kind == "mesh"] if spec.all_in else []
-        reach = 0.0 if spec.all_in else max(self.spec.species[k - 1].radius.max for k in spec.species)
-        bounds = region.bounds()
-        meshes = {mesh.name: mesh for mesh in self.spec.meshes}
-        reached = []
-        for name in self._mesh_walls.values():
-            triangles = meshes[name].triangles()
-            if any(inside.shape == triangles.shape and np.allclose(inside, triangles) for inside in insides):
-                continue
-            near = np.all(
-                (triangles.max(axis=1) >= bounds[:, 0] - reach)
-                & (triangles.min(axis=1) <= bounds[:, 1] + reach),
-                axis=1,
-            )
-            if near.any() and reaches(region, triangles[near], reach):
-                reached.append(name)
-        return reached
-
-    def _insert_clear(self, spec: InsertSpec, meshes: list[str]) -> str:
-        """An insertion into a region that mesh walls ``meshes`` cross, made by PyGran as the
-        placing engines make it: at the call, then every ``freq`` steps (by rate, every
-        :meth:`~.Commands.insert_every` steps for its duration), the particles drawn from the
-        insertion's seed and placed clear of particles, walls and meshes
-        (:func:`~pygran_core.simulation.insertion.place_spheres`), then created with
-        ``create_atoms``. LIGGGHTS makes multisphere particles by its own insertion only: those
-        are refused there."""
-        bodies = sorted(set(spec.species) & set(self.commands.body_types))
-        if bodies:
-            raise ConfigError(
-                f"insert() of multisphere species {bodies} into the region {spec.region}, which mesh wall "
-                f"{meshes[0]!r} crosses: LIGGGHTS inserts multisphere particles itself, clear of other "
-                "particles only, so they could overlap the mesh. Give a region clear of the mesh (with "
-                "all_in, the inside of a mesh built by simulation.geometry, region=('mesh', surface), or "
-                "its intersection with your region, is clear of that mesh)"
-            )
-        label = self.commands.new_id("insert")
-        self._fixless.add(label)
-        every = (
-            None
-            if spec.mechanism == "by_pack" and not spec.freq
-            else self.commands.insert_every(spec, self.dt)
-        )
-        end = None
-        if spec.duration is not None:
-            end = self.step + round(spec.duration / given(self.dt, "the time step"))
-        self._placings[label] = _Placed(spec, meshes, np.random.default_rng(spec.seed), self.step, every, end)
-        self._place_due(label, self.step)  # due at the call, as on the placing engines
-        return label
-
-    def _place_due(self, label: str, step: int) -> None:
-        """Make PyGran's insertion ``label`` if one of its events is due at ``step`` (none while a
-        resumed script is replayed: the restart file holds their particles), and schedule the next."""
-        placed = self._placings[label]
-        if not placed.due(step):
-            return
-        if not self.replaying:
-            spec = placed.spec
-            place = functools.partial(self._creator.place, label, spec, rng=placed.rng, meshes=placed.meshes)
-            if spec.mechanism == "by_pack":
-                place(self._creator.lacking(spec))
-            else:
-                placed.owed += (
-                    spec.value * given(placed.every, "an insertion's interval") * given(self.dt, "dt")
-                )
-                placed.owed -= place(placed.owed)
-        if not placed.schedule(step):
-            del self._placings[label]
 
     def _create(self, spec: CreateSpec) -> int:
         return self._creator.create(spec)
@@ -569,68 +419,15 @@ class LiggghtsEngine(Engine):
             self._channel.set_omega(np.asarray(ids), spec.omega, f"{len(ids)} atoms chosen by set()")
 
     def _wall(self, spec: WallSpec) -> str:
-        if spec.kind == "mesh" and spec.mesh in self._mesh_walls.values():
-            raise ConfigError(f"mesh {spec.mesh!r} is already a wall; remove that wall first")
-        if self.spec.traj.cfile is not None and (spec.kind != "mesh" or self._wall_contacts is False):
-            raise UnsupportedFeature(
-                "LIGGGHTS writes the contacts (traj cfile) with mesh walls set up before the first run only "
-                "(its compute wall/gran/local takes mesh walls and is defined before the first run): "
-                + (
-                    "make this wall a mesh (setupWall(wtype='mesh', ...))"
-                    if spec.kind != "mesh"
-                    else "set this mesh wall up before the first run"
-                )
-                + ", or drop traj cfile"
-            )
-        label, lines = self.commands.wall(spec)
-        self._wall_numbers[label] = len(self._wall_numbers)
-        if spec.kind == "mesh":
-            self._mesh_walls[label] = given(spec.mesh, "a mesh wall's mesh")
-            lines = self._rebuild_mesh_walls()
-        self._execute(lines)
-        return label
-
-    def _rebuild_mesh_walls(self) -> list[str]:
-        """Lines replacing the fix of the mesh walls by one with the current ones (LIGGGHTS
-        allows one such fix; contacts with meshes start afresh, without tangential history)."""
-        lines = [] if self._mesh_fix is None else [f"unfix {self._mesh_fix}"]
-        self._mesh_fix = None
-        if self._mesh_walls:
-            self._mesh_fix, fix = self.commands.mesh_walls(list(self._mesh_walls.values()))
-            lines += fix
-        return lines
+        return self._walls.add(spec)
 
     def _move_mesh(self, spec: MotionSpec) -> str:
-        if any(mesh.servo for mesh in self.spec.meshes if mesh.name == spec.mesh):
-            raise ConfigError(
-                f"mesh {spec.mesh!r} is a servo wall, which its controller moves: LIGGGHTS cannot "
-                "move it with moveMesh too"
-            )
-        waiting = [label for label, placed in self._placings.items() if spec.mesh in placed.meshes]
-        if waiting:
-            raise ConfigError(
-                f"moveMesh({spec.mesh!r}) while the insertion {waiting[0]}, into a region the mesh crosses, "
-                "has events to come: PyGran places its particles clear of the mesh where it stands, "
-                "and a moving mesh's position is LIGGGHTS'. Remove that insertion first, or insert "
-                "into a region clear of the mesh"
-            )
-        label, lines = self.commands.motion(spec)
-        self._execute(lines)
-        self._motions[label] = spec.mesh
-        return label
+        return self._walls.move(spec, self._placings.crossing(spec.mesh))
 
     def mesh_force(self, name: str) -> np.ndarray:
-        """The force (N, x y z) the particles exert on mesh ``name`` now, as LIGGGHTS sums it
-        over the mesh (``mtype`` ``mesh/surface/stress`` or ``mesh/surface/stress/servo``)."""
+        """See :meth:`.Walls.force`."""
         self._check_open()
-        mesh = next((m for m in self.spec.meshes if m.name == name), None)
-        if mesh is None or mesh.mtype == "mesh/surface":
-            stress = [m.name for m in self.spec.meshes if m.mtype != "mesh/surface"]
-            raise ConfigError(
-                f"mesh_force({name!r}): LIGGGHTS sums the force on meshes of mtype mesh/surface/stress or "
-                f"mesh/surface/stress/servo; such meshes here: {stress or 'none'}"
-            )
-        return np.array(self._channel.request("fix_vector", self.commands.mesh_ids[name], 3))
+        return self._walls.force(name)
 
     def _viscous(self, spec: ViscousSpec) -> str:
         label, lines = self.commands.viscous(spec)
@@ -648,15 +445,10 @@ class LiggghtsEngine(Engine):
         self._channel.flush()  # now: the user expects its effect (and errors) at once
 
     def _remove(self, handle: Handle) -> None:
-        if handle.label in self._fixless:
+        if self._placings.remove(handle.label) or handle.label in self._fixless:
             self._fixless.discard(handle.label)
-            self._placings.pop(handle.label, None)
             return
-        if self._mesh_walls.pop(handle.label, None) is not None:
-            self._execute(self._rebuild_mesh_walls())
-        else:
-            self._execute([f"unfix {handle.label}"])
-        self._motions.pop(handle.label, None)
+        self._walls.remove(handle.label)
         self._fixes.remove(handle.label)
         self._targets.pop(handle.label, None)
 
@@ -691,7 +483,7 @@ class LiggghtsEngine(Engine):
         if native_particles(self.spec):
             found["particles"] = NativeTrajectory(self._cut_dump)
         if native_meshes(self.spec):
-            found["meshes"] = NativeTrajectory(self._cut_meshes, self._mesh_frame_due)
+            found["meshes"] = NativeTrajectory(self._cut_meshes, self._mesh_index.due)
         return found
 
     def _cut_dump(self, original: Path, path: Path, step: int) -> int:
@@ -737,47 +529,15 @@ class LiggghtsEngine(Engine):
             os.truncate(self.spec.traj.pfile, self._rewritten_frame)
             self._rewritten_frame = None
 
-    def _mesh_frame_due(self, step: int, time: float) -> None:
-        """Index the mesh frame LIGGGHTS writes at ``step`` (``*`` in the name: a file each)."""
-        if self._root and self._mesh_index and "*" in given(self.spec.traj.mfile, "traj mfile").name:
-            self._mesh_frames.append((step, time))
-            self._index_meshes()
-
     def _contact_frames(self) -> list[Frame]:
         """LIGGGHTS' dumps of the contacts, from the first run on, read on rank 0."""
         return self._written_contacts() if self._root else []
-
-    def _index_meshes(self) -> None:
-        """Add the mesh frames LIGGGHTS has written (``*`` in the name: its step) to the
-        series' ``.pvd`` index, each at the simulated time of its step, as PyGran's VTK writer
-        indexes its own files. LIGGGHTS writes the frame of the step a run starts at as it
-        starts: a frame is indexed once its file is there. On resume the core has cut the
-        index back to the checkpoint's step; LIGGGHTS writes the later frames again."""
-        while self._mesh_frames and self._mesh_index:
-            path = given(self.spec.traj.mfile, "traj mfile")
-            step, time = self._mesh_frames[0]
-            file = path.with_name(path.name.replace("*", str(step)))
-            if not file.is_file():
-                return
-            writer = self.files.writers.get("meshes")
-            if writer is None:
-                from pygran_core.io import open_writer
-
-                try:
-                    writer = self.files.writers["meshes"] = open_writer(path)
-                except PluginNotFound as exc:
-                    self.log("no .pvd index for %s: %s", path.name, exc, level=logging.WARNING)
-                    self._mesh_index = False
-                    self._mesh_frames.clear()
-                    return
-            writer.index_file(file, step, time)  # type: ignore[attr-defined]
-            self._mesh_frames.pop(0)
 
     def _written_contacts(self) -> list[Frame]:
         """The contact frames LIGGGHTS has written since the last call (the first run writes
         the frame of the step it starts at; see :func:`.read_contacts`), with ``id2 = -(k + 1)``
         for the mesh-wall contacts of the k-th wall set up."""
-        walls = [self._wall_numbers[label] for label in self._mesh_walls]  # by LIGGGHTS' mesh index
+        walls = self._walls.contact_numbers()
         box, boundary = bounds(self.spec)
         frames = []
         for step, records in read_contacts(self.output / CONTACTS_DIR, walls, self._contacts_step, self.step):
