@@ -4,8 +4,8 @@ of common bulk processes", Comput. Phys. Commun. 296, 109066, set up through ``s
 Materials and pair values are the paper's (as YADE's scripts for it in
 ``examples/DEM2020Benchmark`` give them): M1 E = 1 GPa, nu = 0.2, 2500 kg/m^3; M2 E = 0.5 GPa,
 nu = 0.2, 2000 kg/m^3; steel E = 210 GPa, nu = 0.2, 7200 kg/m^3; restitution / friction
-M1-M1 0.5 / 0.3, M2-M2 0.4 / 0.4, M1-M2 0.45 / 0.2, particle-steel 0.4 / 0.2; Hertz-Mindlin,
-no rolling resistance, gravity 9.81 m/s^2 along -z.
+M1-M1 0.5 / 0.3, M2-M2 0.4 / 0.4, M1-M2 0.45 / 0.2, particle-steel 0.4 / 0.2, steel-steel
+0.6 / 0.5; Hertz-Mindlin, no rolling resistance, gravity 9.81 m/s^2 along -z.
 
 - ``penetration``: the bed of 25k or 50k beads (r = 1 mm, M1) from the published file; a steel
   ball of r = 10 mm starts at (0, 0, 0.06) m at 5 m/s downwards (the bed file's last line,
@@ -45,8 +45,9 @@ M1 = {"youngsModulus": 1e9, "poissonsRatio": 0.2, "density": 2500.0, "coefficien
       "coefficientFriction": 0.3}  # fmt: skip
 M2 = {"youngsModulus": 0.5e9, "poissonsRatio": 0.2, "density": 2000.0, "coefficientRestitution": 0.4,
       "coefficientFriction": 0.4}  # fmt: skip
-STEEL = {"youngsModulus": 210e9, "poissonsRatio": 0.2, "density": 7200.0, "coefficientRestitution": 0.4,
-         "coefficientFriction": 0.2}  # fmt: skip
+#: Steel's own values are the steel-steel pair's (the ball on the penetration box's floor).
+STEEL = {"youngsModulus": 210e9, "poissonsRatio": 0.2, "density": 7200.0, "coefficientRestitution": 0.6,
+         "coefficientFriction": 0.5}  # fmt: skip
 PARTICLE_STEEL = {"coefficientRestitution": 0.4, "coefficientFriction": 0.2}
 M1_M2 = {"coefficientRestitution": 0.45, "coefficientFriction": 0.2}
 BALL = {"radius": 0.01, "centre": (0.0, 0.0, 0.06), "speed": 5.0}
