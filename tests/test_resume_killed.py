@@ -161,15 +161,23 @@ elif point == "checkpoint-rename":  # written and sealed, not yet renamed
 
     os.replace = renaming
 elif point in ("frame", "cut"):  # a trajectory frame half written (while cutting back: "cut")
-    setitem = h5py.Dataset.__setitem__
+    setitem, write_direct = h5py.Dataset.__setitem__, h5py.Dataset.write_direct
+
+    def positions_written(dataset):
+        cutting = os.path.exists(os.path.join(os.path.dirname(dataset.file.filename), "traj.before-resume.h5"))
+        if dataset.name.endswith("position/value") and cutting == (point == "cut"):
+            reach()
 
     def writing(self, key, value):
-        cutting = os.path.exists(os.path.join(os.path.dirname(self.file.filename), "traj.before-resume.h5"))
-        if self.name.endswith("position/value") and cutting == (point == "cut"):
-            reach()
+        positions_written(self)
         return setitem(self, key, value)
 
+    def writing_direct(self, source, *args, **kwargs):
+        positions_written(self)
+        return write_direct(self, source, *args, **kwargs)
+
     h5py.Dataset.__setitem__ = writing
+    h5py.Dataset.write_direct = writing_direct
 elif point == "layout":  # the trajectory file laid out, its first frame not yet begun
     resize = h5py.Dataset.resize
 
