@@ -215,21 +215,21 @@ class Engine(EngineHooks):
         self.last_lost = LostParticles()
         #: The last run's time step against the contacts present (``None``: no contact possible).
         self.time_step_check: Assessment | None = None
-        self._messages = EngineLog(self.name, self.output, self._writes_output())
+        self.messages = EngineLog(self.name, self.output, self._writes_output())
         ranks = os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1"))
-        self._progress = Progress(spec.progress, self._messages.progress, collective=ranks != "1")
-        self.files = Output(spec, self._messages, self._writes_output(), self._native_trajectories())
+        self._progress = Progress(spec.progress, self.messages.progress, collective=ranks != "1")
+        self.files = Output(spec, self.messages, self._writes_output(), self._native_trajectories())
         self.log("%s engine opened, output in %s", self.name, self.output)
         try:
             self._check_spec(spec)
             if spec.dt is not None:
                 check_servo_speeds(spec, spec.dt)
         except PyGranError as exc:
-            self._to_file(logging.ERROR, f"refused: {exc}")
+            self.messages.to_file(logging.ERROR, f"refused: {exc}")
             self._abandon()
             raise
         try:
-            self.journal = Journal(self.name, spec.restart, self._messages)
+            self.journal = Journal(self.name, spec.restart, self.messages)
         except BaseException:
             self._abandon()
             raise
@@ -252,15 +252,7 @@ class Engine(EngineHooks):
     def log(self, message: str, *args: Any, level: int = logging.INFO) -> None:
         """Record ``message % args`` in ``<output>/pygran.log``, and on the ``pygran`` logger
         for whoever has configured logging to show it."""
-        self._messages.log(message, *args, level=level)
-
-    def _to_file(self, level: int, message: str) -> None:
-        """Record ``message`` in ``pygran.log`` only: what is also raised or warned."""
-        self._messages.to_file(level, message)
-
-    def _warn(self, message: str, category: type[Warning]) -> None:
-        """Issue a warning at the user's line, recorded in ``pygran.log``."""
-        self._messages.warn(message, category)
+        self.messages.log(message, *args, level=level)
 
     def _check_open(self) -> None:
         if self.closed:
@@ -419,7 +411,7 @@ class Engine(EngineHooks):
         if run_dt != self.dt:
             self._clock, self.dt = (self.step, self.time), run_dt
         self.log("run %d steps of dt=%g from step %d", nsteps, self.dt, self.step)
-        show, self._messages.progress_to_stderr = progress_shown(progress, self.spec.progress.show)
+        show, self.messages.progress_to_stderr = progress_shown(progress, self.spec.progress.show)
         from tqdm import tqdm
 
         start, end = self.step, self.step + nsteps
@@ -453,11 +445,11 @@ class Engine(EngineHooks):
                 self._progress.update(self.step, self.time, lambda: int(self._scalar("n")))
                 self._on_event()
                 watch.after_piece(self.step)
-        self._messages.progress(self._progress.end(self.step), stderr=bool(self._progress.lines))
+        self.messages.progress(self._progress.end(self.step), stderr=bool(self._progress.lines))
         self.scene.forget(moved_only=True)
         self._report_lost(*watch.lost(self.time), start)
         for message in watch.servo_warnings():
-            self._warn(message, ServoWarning)
+            self.messages.warn(message, ServoWarning)
 
     def _set_step(self, step: int, dt: float) -> None:
         """Move the clock to ``step``, ``dt`` after ``dt`` since the last change of time step."""
@@ -507,7 +499,7 @@ class Engine(EngineHooks):
             for name in self.scene.mesh_walls()
         ]
 
-    def _obstacles(self, call: str) -> Obstacles:
+    def obstacles(self, call: str) -> Obstacles:
         """The walls new particles of ``call`` must clear (see :func:`.insertion.wall_obstacles`)."""
         return self.scene.obstacles(self._meshes(call))
 
@@ -516,10 +508,10 @@ class Engine(EngineHooks):
         warn, or refuse a step they cannot resolve."""
         self.time_step_check, refusal, warning = self.scene.judge_time_step(dt, check_dt)
         if refusal is not None:
-            self._to_file(logging.ERROR, f"run refused: {refusal}")
+            self.messages.to_file(logging.ERROR, f"run refused: {refusal}")
             raise ConfigError(refusal)
         if warning is not None:
-            self._warn(warning, TimeStepWarning)
+            self.messages.warn(warning, TimeStepWarning)
 
     def _report_lost(self, lost: LostParticles, estimated: bool, start: int) -> None:
         """Count the particles lost in the run from ``start``; warn of the unexpected ones."""
@@ -534,7 +526,7 @@ class Engine(EngineHooks):
         if expected is not None:
             self.log("%s", expected)
         if warning is not None:
-            self._warn(warning, LostParticlesWarning)
+            self.messages.warn(warning, LostParticlesWarning)
 
     # -- checkpoints ----------------------------------------------------------------------
 
@@ -566,7 +558,7 @@ class Engine(EngineHooks):
     def _abandon(self) -> None:
         """Release the log and the output folder of an engine whose construction failed (its
         subclass calls this on a failure after the base class's constructor)."""
-        self._messages.close()
+        self.messages.close()
         self._output_lock.close()
         self.closed = True
 
@@ -580,7 +572,7 @@ class Engine(EngineHooks):
         finally:
             self.closed = True
             self.log("%s engine closed at step %d", self.name, self.step)
-            self._messages.close()
+            self.messages.close()
             self._output_lock.close()
 
     def __enter__(self) -> Engine:

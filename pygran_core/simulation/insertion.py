@@ -32,6 +32,8 @@ from pygran_core.simulation.specs import SimulationSpec, given
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
 
+    from pygran_core.simulation.log import EngineLog
+
 
 @dataclass(frozen=True)
 class Obstacles:
@@ -370,17 +372,16 @@ class Placing(Protocol):
     @property
     def replaying(self) -> bool: ...
 
+    @property
+    def messages(self) -> EngineLog: ...
+
     def log(self, message: str, *args: Any, level: int = ...) -> None: ...
-
-    def _to_file(self, level: int, message: str) -> None: ...
-
-    def _warn(self, message: str, category: type[Warning]) -> None: ...
 
     def _unsupported(self, what: str) -> UnsupportedFeature: ...
 
     def _extract(self, quantity: str) -> np.ndarray: ...
 
-    def _obstacles(self, call: str) -> Obstacles: ...
+    def obstacles(self, call: str) -> Obstacles: ...
 
     def bodies(self) -> np.ndarray: ...
 
@@ -419,7 +420,7 @@ class Inserter:
     It makes ``insert`` (by pack, once or every ``freq`` steps; by rate, every ``freq`` steps or
     every :data:`RATE_INTERVAL` seconds) at the steps :func:`insertion_steps` gives (the engine
     base splits a run there and calls :meth:`make_due`), and ``createParticles`` (single,
-    lattice, random), clear of the particles and of the walls (the engine's ``_obstacles``).
+    lattice, random), clear of the particles and of the walls (the engine's ``obstacles``).
     Its schedules are part of every checkpoint (:meth:`state`, :meth:`restore`).
 
     Multisphere species (engines with the ``multisphere`` capability) are clumps, one per
@@ -501,7 +502,7 @@ class Inserter:
         engine = self.engine
         existing = (engine._extract("x"), engine._extract("radius"))
         kinds = sorted(self.templates)
-        obstacles = engine._obstacles(call)
+        obstacles = engine.obstacles(call)
         if not np.isin(species, kinds).any():
             index, centres = place_spheres(region, radii, rng, existing, obstacles, all_in)
             if len(index):
@@ -570,10 +571,10 @@ class Inserter:
                 f"{len(radii) - made})"
             )
             if schedule.warned:
-                engine._to_file(logging.WARNING, message)
+                engine.messages.to_file(logging.WARNING, message)
             else:
                 schedule.warned = True
-                engine._warn(
+                engine.messages.warn(
                     f"{message}: give a larger region or fewer particles. Further shortfalls of this "
                     "insertion are logged in pygran.log only.",
                     InsertionWarning,

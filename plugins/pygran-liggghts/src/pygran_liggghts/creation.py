@@ -44,7 +44,7 @@ class Creator:
     """Makes particles in one simulation's LIGGGHTS. ``engine`` gives the spec, step and
     messages; ``channel`` carries the commands; ``ranks``: LIGGGHTS' MPI ranks; ``root``:
     whether this rank writes files; ``allow`` lets LIGGGHTS create atoms (after a restart file
-    it must run first). New particles clear the walls the engine knows (``engine._obstacles``)."""
+    it must run first). New particles clear the walls the engine knows (``engine.obstacles``)."""
 
     def __init__(
         self,
@@ -156,7 +156,7 @@ class Creator:
             radii,
             rng,
             (existing["x"].reshape(-1, 3), existing["radius"]),
-            engine._obstacles("insert()"),
+            engine.obstacles("insert()"),
             spec.all_in,
         )
         self._allow()
@@ -236,7 +236,7 @@ class Creator:
             radii,
             rng,
             (existing["x"], existing["radius"]),
-            self._engine._obstacles("createParticles 'random'"),
+            self._engine.obstacles("createParticles 'random'"),
         )
         box = np.array(self._engine.spec.domain.box, float)
         inside = np.all((centres > box[:, 0]) & (centres < box[:, 1]), axis=1)

@@ -29,9 +29,9 @@ def report_shortfall(engine: Engine, message: str, again: bool) -> None:
     """Report an insertion that made fewer particles than asked (``message``): as an
     :class:`InsertionWarning` the first time, in ``pygran.log`` only ``again``."""
     if again:
-        engine._to_file(logging.WARNING, message)
+        engine.messages.to_file(logging.WARNING, message)
     else:
-        engine._warn(
+        engine.messages.warn(
             f"{message}: give a larger region or fewer particles. Further shortfalls of this "
             "insertion are logged in pygran.log only.",
             InsertionWarning,
@@ -120,7 +120,7 @@ class FixInsertions:
         waiting = sum(int(other.requested or 0) for other in earlier if other.target == spec.target)
         uncounted = sorted({other.target for other in earlier if other.target != spec.target})
         if uncounted:
-            engine._warn(
+            engine.messages.warn(
                 f"insert: the particles an earlier insert() of {' and '.join(uncounted)} into this "
                 "region makes as the next run starts cannot be counted now; LIGGGHTS counts them "
                 "against this insertion's target, which may then place fewer than asked: run at least "
