@@ -44,7 +44,7 @@ cdef dict state_of(Core core):
     cdef Column cols[NCOLUMNS]
     state = {
         "nb_j": _copy_i(core.s.lists.nb_j, npair), "nb_s": _copy_b(core.s.lists.nb_s, npair),
-        "nb_h": _copy_d(core.s.lists.nb_h, npair * core.s.hs), "wl_e": _copy_i(core.s.lists.wl_e, nwall),
+        "nb_h": pair_histories(&core.s, npair), "wl_e": _copy_i(core.s.lists.wl_e, nwall),
         "wl_h": _copy_d(core.s.lists.wl_h, nwall * (core.s.hs + 1)), "visc": _copy_d(core.s.visc, core.s.ntypes),
         "slots": _copy_d(core.s.walls.slots, NSLOT * core.s.walls.nslots),
         "vib": _copy_d(core.s.walls.vib, NVIB * core.s.walls.nvib),
@@ -75,7 +75,7 @@ cdef void restore(Core core, state) except *:
     cdef long long npair = state["nb_j"].shape[0], nwall = state["wl_e"].shape[0]
     cdef Column cols[NCOLUMNS]
     core.reserve(n)
-    if reserve_pairs(&core.s, npair) < 0 or reserve_walls(&core.s, nwall) < 0:
+    if reserve_pairs(&core.s, npair) < 0 or reserve_sublist(&core.s, npair) < 0 or reserve_walls(&core.s, nwall) < 0:
         raise MemoryError()
     core.s.particles.n = 0
     core.s.walls.ne = 0
@@ -91,7 +91,6 @@ cdef void restore(Core core, state) except *:
     core.set_vibrations(np.ascontiguousarray(state["vib"], dtype=float).reshape(-1, NVIB))
     particle_columns(&core.s, cols)
     load_table(state, cols, NCOLUMNS, n)
-    _put_d(core.s.lists.nb_h, state["nb_h"], npair * core.s.hs)
     _put_d(core.s.lists.wl_h, state["wl_h"], nwall * (core.s.hs + 1))
     _put_i(core.s.lists.nb_j, state["nb_j"], npair)
     _put_i(core.s.lists.wl_e, state["wl_e"], nwall)
@@ -100,6 +99,7 @@ cdef void restore(Core core, state) except *:
         raise ValueError("nb_s: one per listed pair")
     if npair:
         memcpy(core.s.lists.nb_s, cnp.PyArray_DATA(nbs), npair)
+    put_pair_histories(&core.s, state["nb_h"], npair)
     core.set_viscous(np.ascontiguousarray(state["visc"], dtype=float))
     core.s.particles.n = n
     restore_bodies(core, state)
@@ -120,6 +120,41 @@ cdef void restore(Core core, state) except *:
     core.s.lists.sub_build = 1
     core.s.travel = INFINITY   # not saved: drifts measure until the next rebuild
     core.s.measure = 1
+
+
+cdef object pair_histories(State* sim, long long npair):
+    """The listed pairs' histories, hs each (zeros for a pair not in contact)."""
+    cdef long long k
+    out = np.zeros(npair * sim.hs, dtype=float)
+    cdef double[::1] h = out
+    for k in range(npair):
+        if sim.lists.nb_c[k] >= 0:
+            memcpy(&h[k * sim.hs], slot_history(sim, sim.lists.nb_c[k]), sim.hs * sizeof(double))
+    return out
+
+
+cdef void put_pair_histories(State* sim, a, long long npair) except *:
+    """Give each listed pair that touches or has a history other than zeros a slot holding it
+    (in list order), the others none (see Contacts)."""
+    cdef long long k, used = 0
+    a = np.ascontiguousarray(a, dtype=float).reshape(-1)
+    if a.shape[0] != npair * sim.hs:
+        raise ValueError(f"nb_h: expected {npair * sim.hs} values, got {a.shape[0]}")
+    a = a.reshape(npair, sim.hs)
+    kept = ((a != 0).any(axis=1) | (_copy_b(sim.lists.nb_s, npair) & TOUCH != 0)).view(np.uint8)
+    cdef const double[:, ::1] h = a
+    cdef const uint8_t[::1] keep = kept
+    clear_contacts(sim)
+    if reserve_contacts(sim, int(np.count_nonzero(kept))) < 0:
+        raise MemoryError()
+    for k in range(npair):
+        if keep[k]:
+            memcpy(slot_history(sim, used), &h[k, 0], sim.hs * sizeof(double))
+            sim.lists.nb_c[k] = <int>used
+            used += 1
+        else:
+            sim.lists.nb_c[k] = -1
+    sim.contacts.n = used
 
 
 cdef void restore_bodies(Core core, state) except *:

@@ -17,7 +17,8 @@ cdef inline void cross3(const double* a, const double* b, double* c) noexcept no
     c[2] = a[0] * b[1] - a[1] * b[0]
 
 
-cdef void* grow(void* p, size_t nbytes) noexcept nogil:
-    """realloc that keeps the old block on failure (returns NULL then)."""
-    cdef void* q = realloc(p, nbytes if nbytes > 0 else 1)
-    return q
+cdef extern from "arrays.h":
+    # the solver's growable arrays (see arrays.h): a pointer from grow (or NULL) grown to
+    # ``nbytes``, the old block kept on failure (NULL then); release frees one
+    void* grow "pg_grow"(void* p, size_t nbytes) noexcept nogil
+    void release "pg_release"(void* p) noexcept nogil

@@ -261,7 +261,7 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
     sim.update = update
     sim.kick = kick
     sim.fuse = fuse
-    sim.record = not fuse   # an unfused pass is the last of its run (see run_steps)
+    sim.record = not fuse and sim.contacts.recording   # an unfused pass is the last of its run (see run_steps)
     if sim.clumps.nbody:   # clumps' spheres move with their bodies, which sub_travel does not follow
         sim.lists.sub_build = 1
     reset_peaks(sim)
@@ -269,6 +269,8 @@ cdef int forces(State* sim, double dt, bint update, bint kick, bint fuse) noexce
         sim.schedule.cpu[PAD * t + 2] = 0.0
         sim.schedule.cpu[PAD * t + 3] = 0.0
     force_phase(sim)
+    if settle_slots(sim) < 0:
+        return -1
     now = pg_now()
     if sim.schedule.turn == 0.0:
         sim.schedule.turn = now

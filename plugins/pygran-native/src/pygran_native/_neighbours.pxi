@@ -9,44 +9,90 @@ cdef inline void zero_hist(double* h, int hs) noexcept nogil:
             return
 
 
-cdef uint8_t carry_pair(const State* c, int a, int b, double* h) noexcept nogil:
-    """History of new pair (a, b) from the previous list (old indices through ``perm``).
-
-    Returns the previous touching flag (``TOUCH`` or 0).
-    """
+cdef uint8_t carry_pair(const State* c, int a, int b, int* slot) noexcept nogil:
+    """The contact slot of new pair (a, b) in the previous list (old indices through ``perm``),
+    -1 if none, marked live; its history turned to the new orientation. Returns the previous
+    touching flag (``TOUCH`` or 0)."""
     cdef int oa = c.particles.perm[a], ob = c.particles.perm[b], lo = oa, hi = ob, k, q
-    cdef double sign = 1.0
+    cdef double* h
     if ob < oa:
         lo = ob
         hi = oa
-        sign = -1.0
     for k in range(c.lists.ob_start[lo], c.lists.ob_start[lo + 1]):
         if c.lists.ob_j[k] == hi:
-            for q in range(3):
-                h[q] = sign * c.lists.ob_h[k * c.hs + q]
-            for q in range(3, c.hs):
-                h[q] = c.lists.ob_h[k * c.hs + q]
-            if c.roff:   # the rolling spring torque, too, is i's for the other orientation
-                for q in range(c.roff, c.roff + 3):
-                    h[q] *= sign
+            slot[0] = c.lists.ob_c[k]
+            if slot[0] >= 0:
+                c.contacts.live[slot[0]] = 1
+                if ob < oa:   # the shear, and the rolling spring torque, are i's: j's is the opposite
+                    h = slot_history(c, slot[0])
+                    for q in range(3):
+                        h[q] = -h[q]
+                    if c.roff:
+                        for q in range(c.roff, c.roff + 3):
+                            h[q] = -h[q]
             return c.lists.ob_s[k] & TOUCH
-    memset(h, 0, c.hs * sizeof(double))
+    slot[0] = -1
     return 0
 
 
 cdef int grow_found(Found* out) noexcept nogil:
-    """Double ``out``'s capacity (at least 4096 pairs); -1 when out of memory."""
-    cdef long long cap = max(2 * out.cap, 4096)
-    cdef void* a = grow(out.j, cap * sizeof(int))
-    if a == NULL:
-        return -1
+    """Grow ``out``'s capacity by a quarter (to 4096 pairs at least), into buffers of its own
+    when it was borrowed; -1 when out of memory."""
+    cdef long long cap = max(out.cap + out.cap // 4, 4096)
+    cdef void* a
+    cdef void* b
+    if out.borrowed:
+        a = grow(NULL, cap * sizeof(int))
+        b = grow(NULL, cap * sizeof(uint8_t))
+        if a == NULL or b == NULL:
+            release(a)
+            release(b)
+            return -1
+        memcpy(a, out.j, out.cap * sizeof(int))
+        memcpy(b, out.s, out.cap * sizeof(uint8_t))
+        out.borrowed = 0
+    else:
+        a = grow(out.j, cap * sizeof(int))
+        if a == NULL:
+            return -1
+        out.j = <int*>a
+        b = grow(out.s, cap * sizeof(uint8_t))
+        if b == NULL:
+            return -1
     out.j = <int*>a
-    a = grow(out.s, cap * sizeof(uint8_t))
-    if a == NULL:
-        return -1
-    out.s = <uint8_t*>a
+    out.s = <uint8_t*>b
     out.cap = cap
     return 0
+
+
+cdef void release_found(Found* out) noexcept nogil:
+    """Drop a block's found pairs' buffers (none of its own when borrowed)."""
+    if not out.borrowed:
+        release(out.j)
+        release(out.s)
+    out.j = NULL
+    out.s = NULL
+    out.cap = 0
+    out.borrowed = 0
+
+
+cdef void lend_found(State* sim) noexcept nogil:
+    """With the batched path, before the count: each block's found pairs go to its share of the
+    sublist's arrays (partners to sb_k, codes to the bytes of sb_i), which the first pass after
+    the rebuild makes anew, instead of buffers of their own (a block whose pairs outgrow its
+    share copies them to buffers of its own, freed after the fill, see grow_found). Without it
+    (no sublist), the blocks keep their buffers from rebuild to rebuild."""
+    cdef int b, nb = sim.schedule.nblocks
+    cdef long long share = sim.lists.sbk_cap // nb
+    if not sim.batched:
+        return
+    for b in range(nb):
+        release_found(&sim.lists.found[b])
+        if share:
+            sim.lists.found[b].j = sim.lists.sb_k + b * share
+            sim.lists.found[b].s = <uint8_t*>(sim.lists.sb_i + b * share)
+            sim.lists.found[b].cap = share
+            sim.lists.found[b].borrowed = 1
 
 
 cdef inline int scan_cell(const State* c, int i, int cid, int code, int wrap, int body, Found* out,
@@ -165,46 +211,49 @@ cdef int scan_walls(const State* c, int i, bint fill) noexcept nogil:
     return cnt
 
 
-cdef int reserve_pairs(State* sim, long long need) noexcept nogil:
-    """Grow the current neighbour list (and the pair forces) to ``need`` pairs; -1 when out of
+cdef inline long long room(long long need) noexcept nogil:
+    """The capacity a list grows to for ``need`` entries: a thirty-second more (growing again
+    costs a realloc at a rebuild, and a list is rebuilt a little longer or shorter each time)."""
+    return need + need // 32 + 64
+
+
+cdef int reserve_sublist(State* sim, long long need) noexcept nogil:
+    """Grow the sublist, which only the batched path has, to ``need`` pairs; -1 when out of
     memory."""
-    cdef long long cap
+    cdef long long cap = room(need)
     cdef void *a
-    cdef void *b
-    cdef void *c
-    if need > sim.lists.nbf_cap:
-        cap = need + need // 10 + 64
-        a = grow(sim.lists.nb_f, cap * 3 * sizeof(double))
-        if a == NULL:
-            return -1
-        sim.lists.nb_f = <double*>a
-        sim.lists.nbf_cap = cap
-    if need > sim.lists.sbk_cap:
-        cap = need + need // 10 + 64
-        a = grow(sim.lists.sb_k, cap * sizeof(int))
-        if a == NULL:
-            return -1
-        sim.lists.sb_k = <int*>a
-        a = grow(sim.lists.sb_i, cap * sizeof(int))
-        if a == NULL:
-            return -1
-        sim.lists.sb_i = <int*>a
-        sim.lists.sbk_cap = cap
+    if not sim.batched or need <= sim.lists.sbk_cap:
+        return 0
+    a = grow(sim.lists.sb_k, cap * sizeof(int))
+    if a == NULL:
+        return -1
+    sim.lists.sb_k = <int*>a
+    a = grow(sim.lists.sb_i, cap * sizeof(int))
+    if a == NULL:
+        return -1
+    sim.lists.sb_i = <int*>a
+    sim.lists.sbk_cap = cap
+    return 0
+
+
+cdef int reserve_pairs(State* sim, long long need) noexcept nogil:
+    """Grow the current neighbour list to ``need`` pairs; -1 when out of memory."""
+    cdef long long cap = room(need)
+    cdef void *a
     if need <= sim.lists.nb_cap:
         return 0
-    cap = need + need // 10 + 64
     a = grow(sim.lists.nb_j, cap * sizeof(int))
     if a == NULL:
         return -1
     sim.lists.nb_j = <int*>a
-    b = grow(sim.lists.nb_s, cap * sizeof(uint8_t))
-    if b == NULL:
+    a = grow(sim.lists.nb_s, cap * sizeof(uint8_t))
+    if a == NULL:
         return -1
-    sim.lists.nb_s = <uint8_t*>b
-    c = grow(sim.lists.nb_h, cap * sim.hs * sizeof(double))
-    if c == NULL:
+    sim.lists.nb_s = <uint8_t*>a
+    a = grow(sim.lists.nb_c, cap * sizeof(int))
+    if a == NULL:
         return -1
-    sim.lists.nb_h = <double*>c
+    sim.lists.nb_c = <int*>a
     sim.lists.nb_cap = cap
     return 0
 
@@ -212,11 +261,10 @@ cdef int reserve_pairs(State* sim, long long need) noexcept nogil:
 cdef int reserve_walls(State* sim, long long need) noexcept nogil:
     """Grow the current wall list (and the wall contacts' records) to ``need`` entries; -1 when
     out of memory."""
-    cdef long long cap
+    cdef long long cap = room(need)
     cdef void *a
     cdef void *b
-    if need > sim.lists.wlf_cap:
-        cap = need + need // 10 + 64
+    if sim.contacts.recording and need > sim.lists.wlf_cap:
         a = grow(sim.lists.wl_f, cap * WLF * sizeof(double))
         if a == NULL:
             return -1
@@ -224,7 +272,6 @@ cdef int reserve_walls(State* sim, long long need) noexcept nogil:
         sim.lists.wlf_cap = cap
     if need <= sim.lists.wl_cap:
         return 0
-    cap = need + need // 10 + 64
     a = grow(sim.lists.wl_e, cap * sizeof(int))
     if a == NULL:
         return -1
@@ -363,7 +410,7 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept no
             for k in range(sim.lists.nb_start[i], sim.lists.nb_start[i + 1]):
                 j = found.j[k - pos]
                 sim.lists.nb_j[k] = j
-                sim.lists.nb_s[k] = found.s[k - pos] | carry_pair(sim, i, j, &sim.lists.nb_h[k * sim.hs])
+                sim.lists.nb_s[k] = found.s[k - pos] | carry_pair(sim, i, j, &sim.lists.nb_c[k])
             scan_walls(sim, i, True)
             sim.schedule.work[i] = estimated_work(sim, i)
             find_partners(sim, i)
@@ -461,12 +508,13 @@ cdef int rebuild(State* sim) noexcept nogil:
     ip = sim.lists.ob_start; sim.lists.ob_start = sim.lists.nb_start; sim.lists.nb_start = ip
     ip = sim.lists.ob_j; sim.lists.ob_j = sim.lists.nb_j; sim.lists.nb_j = ip
     bp = sim.lists.ob_s; sim.lists.ob_s = sim.lists.nb_s; sim.lists.nb_s = bp
-    dp = sim.lists.ob_h; sim.lists.ob_h = sim.lists.nb_h; sim.lists.nb_h = dp
+    ip = sim.lists.ob_c; sim.lists.ob_c = sim.lists.nb_c; sim.lists.nb_c = ip
     cap = sim.lists.ob_cap; sim.lists.ob_cap = sim.lists.nb_cap; sim.lists.nb_cap = cap
     ip = sim.lists.ow_start; sim.lists.ow_start = sim.lists.wl_start; sim.lists.wl_start = ip
     ip = sim.lists.ow_e; sim.lists.ow_e = sim.lists.wl_e; sim.lists.wl_e = ip
     dp = sim.lists.ow_h; sim.lists.ow_h = sim.lists.wl_h; sim.lists.wl_h = dp
     cap = sim.lists.ow_cap; sim.lists.ow_cap = sim.lists.wl_cap; sim.lists.wl_cap = cap
+    lend_found(sim)
     parallel_rows(sim, P_COUNT, nnew)
     for i in range(sim.schedule.nblocks):
         if sim.lists.found[i].failed:
@@ -479,7 +527,14 @@ cdef int rebuild(State* sim) noexcept nogil:
     if reserve_pairs(sim, sim.lists.nb_start[nnew]) < 0 or reserve_walls(sim, sim.lists.wl_start[nnew]) < 0:
         return -1
     t1 = lap(sim, T_COUNT, t1)
+    if sim.contacts.n:
+        memset(sim.contacts.live, 0, sim.contacts.n)   # the fill marks the slots it keeps
     parallel_rows(sim, P_FILL, nnew)
+    if sim.batched:   # the found pairs are copied: the sublist's arrays are free for it
+        for i in range(sim.schedule.nblocks):
+            release_found(&sim.lists.found[i])
+    if free_dead_slots(sim) < 0 or reserve_sublist(sim, sim.lists.nb_start[nnew]) < 0:
+        return -1
     prefix_last(sim)
     for i in range(9 * sim.walls.ne):
         sim.walls.ebuilt[i] = sim.walls.egeo[i]
@@ -494,4 +549,4 @@ cdef int rebuild(State* sim) noexcept nogil:
 
 
 cdef inline bint in_contact(State* sim, int k) noexcept nogil:
-    return sim.lists.nb_s[k] & TOUCH and (sim.model != THORNTON_NING or sim.lists.nb_h[k * sim.hs + H_DMAX] > 0.0)
+    return sim.lists.nb_s[k] & TOUCH and (sim.model != THORNTON_NING or pair_history(sim, k, NO_HISTORY)[H_DMAX] > 0.0)

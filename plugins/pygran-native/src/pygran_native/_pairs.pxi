@@ -46,12 +46,6 @@ cdef inline double* partner_row(const Sink* s, int j, int* hmax, double** torque
     return p
 
 
-cdef inline void forget_pair(const State* c, long long k) noexcept nogil:
-    """Listed pair k is apart: its history cleared, no longer touching."""
-    memset(&c.lists.nb_h[k * c.hs], 0, c.hs * sizeof(double))
-    c.lists.nb_s[k] &= ~TOUCH
-
-
 cdef inline int finish_row(const State* c, int i, int b, const double* fi, int touching) noexcept nogil:
     """Add row i's pair sums ``fi`` and its walls' forces to its f and t; returns its work. A
     row without contacts or walls adds nothing: its sums are +0.0, and f and t never hold -0.0
@@ -88,13 +82,13 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef const int* typ = c.particles.type
     cdef const int* nb_j = c.lists.nb_j
     cdef uint8_t* nb_s = c.lists.nb_s
-    cdef double* nb_h = c.lists.nb_h
-    cdef double* nb_f = c.lists.nb_f
+    cdef const int* nb_c = c.lists.nb_c
+    cdef const double* ct_h = c.contacts.h
     cdef const double* shiftv = &c.shiftv[0]
     cdef const Coef* coef = c.coef + c.particles.type[i] * c.ntypes
     cdef Sink sink = block_sink(c, b)
     cdef int hs = c.hs, model = c.model, rolling = c.rolling, roff = c.roff, update = c.update
-    cdef int k, j, q, res, kend = c.lists.nb_start[i + 1]
+    cdef int k, j, q, res, slot, kend = c.lists.nb_start[i + 1]
     cdef int touching = 0
     cdef double dt = c.dt
     cdef double d[3]
@@ -110,8 +104,10 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
     cdef double xi[3]
     cdef double vi[3]
     cdef double wi[3]
+    cdef double fresh[MAXHS]   # the history of a pair not in contact before (see Contacts)
     cdef double cri, crj, delta, dist2, inv, rs, Rs, ms, ri = r[i], mi = m[i], rj, mj, den, Ii = mi * ri * ri, Ir = 0.0
     cdef double* h
+    cdef double* rec
     cdef double* bj
     cdef double* tj
     cdef const double* sv
@@ -129,10 +125,11 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         dist2 = dot3(d, d)
         rj = r[j]
         rs = ri + rj
-        h = &nb_h[<long long>k * hs]
-        if dist2 >= rs * rs and not (model == THORNTON_NING and h[H_DMAX] > 0.0):   # apart (adhesion stretches)
+        slot = nb_c[k]
+        if dist2 >= rs * rs and not (model == THORNTON_NING and slot >= 0
+                                     and ct_h[<long long>slot * hs + H_DMAX] > 0.0):   # apart (adhesion stretches)
             if nb_s[k] & TOUCH:
-                forget_pair(c, k)
+                forget_pair(c, b, k)
             continue
         inv = 1.0 / sqrt(dist2)
         mj = m[j]
@@ -149,21 +146,30 @@ cdef int pair_row(const State* c, int i, int b, int* hmax) noexcept nogil:
         ms = mi * mj * rs * den
         if rolling == EPSD:   # 1.4 (m_i r_i^2)(m_j r_j^2) / (m_i r_i^2 + m_j r_j^2), as LIGGGHTS
             Ir = 1.4 * Ii * mj * rj * rj / (Ii + mj * rj * rj)
+        if slot >= 0:
+            h = slot_history(c, slot)
+        else:
+            memset(fresh, 0, hs * sizeof(double))
+            h = fresh
         res = contact_force(model, rolling, roff, &coef[typ[j]], delta, Rs, ms, Ir, n, vr, rw,
                             wrel, h, dt, update, F, Ft, Mr)
-        if res != IN_CONTACT:
-            if res == NO_CONTACT:
-                forget_pair(c, k)
-            elif nb_s[k] & TOUCH and c.record:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
-                memset(&nb_f[<long long>3 * k], 0, 3 * sizeof(double))
+        if res == NO_CONTACT:
+            forget_pair(c, b, k)
+            continue
+        if slot < 0:
+            slot = new_contact(c, b, k, h)
+        rec = record_of(c, b, slot)
+        if res != IN_CONTACT:   # Thornton-Ning's memory: no force now (see Core.contact_forces)
+            if rec != NULL and nb_s[k] & TOUCH:
+                memset(rec, 0, 3 * sizeof(double))
             continue
         nb_s[k] |= TOUCH
         touching += 1
         cross3(n, Ft, cx)
         bj = partner_row(&sink, j, hmax, &tj)
-        if c.record:
+        if rec != NULL:
             for q in range(3):
-                nb_f[<long long>3 * k + q] = F[q]
+                rec[q] = F[q]
         for q in range(3):
             fi[q] += F[q]
             fi[3 + q] += Mr[q] - cri * cx[q]
@@ -341,7 +347,8 @@ cdef struct Gather:
     const int* nb_start
     const int* nb_j
     const uint8_t* nb_s
-    const double* nb_h
+    const int* nb_c
+    const double* ct_h
     int* sb_k
     int* sb_i
     int* sb_n
@@ -349,11 +356,12 @@ cdef struct Gather:
     const double* shiftv
     const Coef* coef
     int ntypes, hs
+    int block          # the pair block
     double margin
 
 
-cdef inline Gather gather_state(const State* c) noexcept nogil:
-    """The state as the gather reads it, for one pass of the pair loop."""
+cdef inline Gather gather_state(const State* c, int b) noexcept nogil:
+    """The state as the gather reads it, for pair block b of one pass of the pair loop."""
     cdef Gather g
     g.x = c.particles.x
     g.v = c.particles.v
@@ -364,7 +372,8 @@ cdef inline Gather gather_state(const State* c) noexcept nogil:
     g.nb_start = c.lists.nb_start
     g.nb_j = c.lists.nb_j
     g.nb_s = c.lists.nb_s
-    g.nb_h = c.lists.nb_h
+    g.nb_c = c.lists.nb_c
+    g.ct_h = c.contacts.h
     g.sb_k = c.lists.sb_k
     g.sb_i = c.lists.sb_i
     g.sb_n = c.lists.sb_n
@@ -373,6 +382,7 @@ cdef inline Gather gather_state(const State* c) noexcept nogil:
     g.coef = c.coef
     g.ntypes = c.ntypes
     g.hs = c.hs
+    g.block = b
     g.margin = SUB_SKIN * c.skin
     return g
 
@@ -381,13 +391,14 @@ cdef inline void fill_entries(const Gather* g, pg_pair_batch* bt, int first, int
                               const int* partners, const int* rows, int row0) noexcept nogil:
     """Entries first..n-1 of the batch, whose distances gather_row or gather_sublists wrote:
     the rest of what pg_hertz_batch reads (entry t's row is row0 + ``rows[t]``)."""
-    cdef int t, q, i, j
+    cdef int t, q, i, j, slot
     cdef const double* h
     cdef const Coef* cf
     for t in range(first, n):
         i = row0 + rows[t]
         j = partners[t]
-        h = &g.nb_h[<long long>keys[t] * g.hs]
+        slot = g.nb_c[keys[t]]
+        h = &g.ct_h[<long long>slot * g.hs] if slot >= 0 else NO_HISTORY
         for q in range(3):
             bt.vr[q * PG_BATCH + t] = g.v[3 * i + q] - g.v[3 * j + q]
             bt.wi[q * PG_BATCH + t] = g.w[3 * i + q]
@@ -429,7 +440,7 @@ cdef inline int gather_entry(const State* c, const Gather* g, int k, int i, cons
     within = not (dist2[0] >= (ri + rj) * (ri + rj))   # NaN: within, as pair_row has it
     touched = (g.nb_s[k] & TOUCH) != 0
     if touched > within:   # one rarely taken branch: apart now, touching before
-        forget_pair(c, k)
+        forget_pair(c, g.block, k)
     return within
 
 
@@ -484,10 +495,12 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
     """Add up the batch's forces for rows first..first+nrows-1 (row r's entries end at
     ``ends[r]``), in pair_row's order, with their walls; returns their work."""
     cdef Sink sink = block_sink(c, b)
-    cdef int r, i, t = 0, k, q, touching
+    cdef int r, i, t = 0, k, q, touching, slot
     cdef long long total = 0
     cdef double fi[6]
+    cdef double fresh[MAXHS]   # the history of a pair not in contact before (see Contacts)
     cdef double* h
+    cdef double* rec
     cdef double* bj
     cdef double* tj
     for r in range(nrows):
@@ -498,19 +511,27 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
         while t < ends[r]:
             k = keys[t]
             if bt.touch[t] == 0.0:
-                forget_pair(c, k)
+                forget_pair(c, b, k)
                 t += 1
                 continue
-            h = &c.lists.nb_h[<long long>k * c.hs]
+            slot = c.lists.nb_c[k]
+            if slot >= 0:
+                h = slot_history(c, slot)
+            else:
+                memset(fresh, 0, c.hs * sizeof(double))
+                h = fresh
             for q in range(3):
                 h[H_SHEAR + q] = bt.xi[q * PG_BATCH + t]
             h[H_FN] = bt.fn[t]
+            if slot < 0:
+                slot = new_contact(c, b, k, h)
             c.lists.nb_s[k] |= TOUCH
             touching += 1
             bj = partner_row(&sink, c.lists.nb_j[k], hmax, &tj)
-            if c.record:
+            rec = record_of(c, b, slot)
+            if rec != NULL:
                 for q in range(3):
-                    c.lists.nb_f[<long long>3 * k + q] = bt.F[q * PG_BATCH + t]
+                    rec[q] = bt.F[q * PG_BATCH + t]
             for q in range(3):
                 fi[q] += bt.F[q * PG_BATCH + t]
                 fi[3 + q] += bt.Ti[q * PG_BATCH + t]
@@ -553,7 +574,7 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     cdef long long total = 0
     cdef double one[7]   # the pair values when there is one type
     cdef double* cf = NULL
-    cdef Gather g = gather_state(c)   # see Gather
+    cdef Gather g = gather_state(c, b)   # see Gather
     if c.ntypes == 1:
         one[:] = [c.coef.E, c.coef.G, c.coef.mu, c.coef.damp, c.coef.tdamp, c.coef.coh, c.coef.limit]
         cf = one

@@ -1,8 +1,8 @@
 # cython: boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """Compiled core of the native DEM solver: data in C arrays, the time-step loop nogil/threaded.
 
-One ``State`` struct holds everything, in named parts (``particles``, ``lists``, ``walls``,
-``clumps``, ``schedule``) beside the box, contact model, clock and counters (``_state.pxi``,
+One ``State`` struct holds everything, in named parts (``particles``, ``lists``, ``contacts``,
+``walls``, ``clumps``, ``schedule``) beside the box, contact model, clock and counters (``_state.pxi``,
 with the allocation tables of the per-particle, per-element, per-body and per-member arrays,
 which also name the arrays a checkpoint keeps); :class:`Core` is its Python face, and the
 kernels, in include files by concern, work on it:
@@ -12,10 +12,11 @@ kernels, in include files by concern, work on it:
   hertz, Thornton-Ning; damping, cohesion), ``_contact_tangential.pxi``, ``_contact_rolling.pxi``;
   the spring-dashpot, hertz and tangential laws themselves are ``pair_law.h``'s, which the
   batched pair loop (``pair_batch.h``) shares;
+- ``_contacts.pxi``: the contact table, a slot per pair in contact holding its history;
 - ``_geometry.pxi``: wall elements (planes, cylinders, triangles);
 - ``_motion.pxi``: moving walls (rigid motion, vibration), stress meshes and servos;
 - ``_cells.pxi``: the cell grid and the triangles near each cell;
-- ``_neighbours.pxi``: the rebuild, the neighbour and wall lists and their histories;
+- ``_neighbours.pxi``: the rebuild, the neighbour and wall lists, the contacts carried over;
 - ``_pairs.pxi``: the pair loop (pair and wall forces) and its halos;
 - ``_integrate.pxi``: the particle loop, the drift and the time-step loop;
 - ``_clumps.pxi``: rigid clumps of spheres: the body loop, its rotation, wrapping and dropping;
@@ -32,9 +33,12 @@ rebuild):
   force, torque; per member slot the sphere's offset in the body's frame, its periodic shift,
   row and body (see _clumps.pxi);
 - half neighbour list (CSR over particles): partner ``nb_j`` (j > i), periodic image
-  code ``nb_s`` (0..26, with the flags TOUCH and WRAP) and ``hs`` history values per pair:
-  tangential displacement (3), the last normal force, and for Thornton-Ning the largest
-  overlap, the unloading curvature radius and the plastic offset;
+  code ``nb_s`` (0..26, with the flags TOUCH and WRAP) and contact slot ``nb_c`` (-1 for a
+  pair not in contact) per pair;
+- contact table (see Contacts): per slot the contact's ``hs`` history values (tangential
+  displacement (3), the last normal force, and for Thornton-Ning the largest overlap, the
+  unloading curvature radius and the plastic offset), and the force a recording pass applied
+  when contact forces are recorded; so a listed pair apart costs 9 bytes, not a history;
 - its sublist (``sb_k``, ``sb_i``, ``sb_at``, ``sb_n``): each row's listed pairs that were near
   contact when it was built, which the batched pair loop visits instead of the whole list (see
   State.sb_k);
@@ -45,9 +49,10 @@ rebuild):
 
 Planes are two-sided: a new contact takes the side of the particle's centre and keeps it
 while it lasts, so a deeply plastic contact whose centre sinks past the plane is still
-pushed back to where it came from. A contact's history is carried across rebuilds and
-re-sorts by looking the pair (or particle and wall element) up in the previous list (a
-pair's tangential history changes sign with the pair's orientation).
+pushed back to where it came from. A contact is carried across rebuilds and re-sorts by
+looking the pair (or particle and wall element) up in the previous list: a pair keeps its
+slot (its tangential history changing sign with the pair's orientation), a wall entry's
+history is copied.
 
 Threads: the pair loop (pair and wall forces) runs over ``nblocks`` contiguous blocks of the
 cell-sorted rows (slabs of the domain): 1 for one thread, BLOCKS per thread otherwise. The
@@ -74,7 +79,9 @@ calling thread alone while that is faster) are built unless PYGRAN_NATIVE_TEAM_H
 
 from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
 from libc.float cimport DBL_EPSILON
-from libc.stdlib cimport malloc, calloc, realloc, free
+from libc.stdlib cimport malloc, calloc, free
+cdef extern from "<stdlib.h>":
+    void* aligned_alloc(size_t alignment, size_t size) nogil
 from libc.string cimport memcpy, memmove, memset
 from libc.stdint cimport int64_t, uint8_t
 from libc.limits cimport INT_MAX
@@ -192,6 +199,7 @@ TIMERS = ("run", "drift", "walls", "pairs", "particles", "rebuild", "rebuild_cel
 
 include "_state.pxi"
 include "_common.pxi"
+include "_contacts.pxi"
 include "_contact_normal.pxi"
 include "_contact_tangential.pxi"
 include "_contact_rolling.pxi"
@@ -312,10 +320,10 @@ cdef class Core:
         self.s.dirty = 1
         self.s.travel = INFINITY
         self.s.measure = 1
-        self.s.lists.nb_start = <int*>calloc(1, sizeof(int))
-        self.s.lists.ob_start = <int*>calloc(1, sizeof(int))
-        self.s.lists.wl_start = <int*>calloc(1, sizeof(int))
-        self.s.lists.ow_start = <int*>calloc(1, sizeof(int))
+        self.s.lists.nb_start = <int*>grow(NULL, sizeof(int))
+        self.s.lists.ob_start = <int*>grow(NULL, sizeof(int))
+        self.s.lists.wl_start = <int*>grow(NULL, sizeof(int))
+        self.s.lists.ow_start = <int*>grow(NULL, sizeof(int))
         if not 1 <= threads <= PG_MAX_THREADS:
             raise ValueError(f"threads: between 1 and {PG_MAX_THREADS}")
         self.s.schedule.nblocks = 1 if threads == 1 else BLOCKS * threads
@@ -326,14 +334,19 @@ cdef class Core:
         self.s.lists.halos = <Halo*>calloc(self.s.schedule.nblocks, sizeof(Halo))
         self.s.schedule.posted = pg_flags(self.s.schedule.nblocks)
         self.s.lists.found = <Found*>calloc(self.s.schedule.nblocks, sizeof(Found))
+        self.s.contacts.spill = <Spill*>calloc(self.s.schedule.nblocks, sizeof(Spill))
+        self.s.contacts.take = <long long*>aligned_alloc(64, 64)   # a cache line of its own
+        self.s.contacts.recording = 1
         self.s.schedule.team = pg_create(threads)
         self.s.coef = <Coef*>calloc(1, sizeof(Coef))
         self.s.visc = <double*>calloc(1, sizeof(double))
         self.s.ntypes = 1
         if not (self.s.lists.nb_start and self.s.lists.ob_start and self.s.lists.wl_start and self.s.lists.ow_start and self.s.tmax
                 and self.s.schedule.pb and self.s.schedule.tstat and self.s.schedule.cpu and self.s.lists.halos and self.s.schedule.posted and self.s.lists.found
-                and self.s.schedule.team):
+                and self.s.contacts.spill and self.s.contacts.take and self.s.schedule.team):
             raise MemoryError()
+        self.s.contacts.take[0] = 0
+        self.s.lists.nb_start[0] = self.s.lists.ob_start[0] = self.s.lists.wl_start[0] = self.s.lists.ow_start[0] = 0
 
     def __dealloc__(self):
         cdef Column cols[NCOLUMNS]
@@ -341,28 +354,36 @@ cdef class Core:
         pg_destroy(self.s.schedule.team)
         if self.s.lists.found:
             for k in range(self.s.schedule.nblocks):
-                free(self.s.lists.found[k].j)
-                free(self.s.lists.found[k].s)
+                release_found(&self.s.lists.found[k])
+        if self.s.contacts.spill:
+            for k in range(self.s.schedule.nblocks):
+                free_spill(&self.s.contacts.spill[k])
+                release(self.s.contacts.spill[k].ended)
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
-            free(cols[k].p[0])
+            release(cols[k].p[0])
         element_columns(&self.s, cols)
         for k in range(NECOLUMNS):
-            free(cols[k].p[0])
+            release(cols[k].p[0])
         body_columns(&self.s, cols)
         for k in range(NBCOLUMNS):
-            free(cols[k].p[0])
+            release(cols[k].p[0])
         member_columns(&self.s, cols)
         for k in range(NMCOLUMNS):
-            free(cols[k].p[0])
-        for p in (<size_t>self.s.lists.halo, <size_t>self.s.lists.halos, <size_t>self.s.schedule.posted, <size_t>self.s.lists.nb_j,
-                  <size_t>self.s.lists.nb_s, <size_t>self.s.lists.nb_h, <size_t>self.s.lists.nb_f, <size_t>self.s.lists.sb_k, <size_t>self.s.lists.sb_i,
-                  <size_t>self.s.lists.ob_j, <size_t>self.s.lists.ob_s, <size_t>self.s.lists.ob_h, <size_t>self.s.lists.wl_e,
-                  <size_t>self.s.lists.wl_h, <size_t>self.s.lists.wl_f, <size_t>self.s.lists.ow_e, <size_t>self.s.lists.ow_h,
-                  <size_t>self.s.lists.cell_start, <size_t>self.s.walls.ctri_start, <size_t>self.s.walls.ctri,
-                  <size_t>self.s.walls.slots, <size_t>self.s.walls.sacc, <size_t>self.s.walls.vib,
-                  <size_t>self.s.coef, <size_t>self.s.visc, <size_t>self.s.tmax,
-                  <size_t>self.s.schedule.pb, <size_t>self.s.schedule.tstat, <size_t>self.s.schedule.cpu, <size_t>self.s.lists.found):
+            release(cols[k].p[0])
+        for p in (<size_t>self.s.lists.nb_j, <size_t>self.s.lists.nb_s, <size_t>self.s.lists.nb_c,
+                  <size_t>self.s.lists.sb_k, <size_t>self.s.lists.sb_i, <size_t>self.s.lists.ob_j,
+                  <size_t>self.s.lists.ob_s, <size_t>self.s.lists.ob_c, <size_t>self.s.lists.wl_e,
+                  <size_t>self.s.lists.wl_h, <size_t>self.s.lists.wl_f, <size_t>self.s.lists.ow_e,
+                  <size_t>self.s.lists.ow_h, <size_t>self.s.contacts.h, <size_t>self.s.contacts.f,
+                  <size_t>self.s.contacts.free, <size_t>self.s.contacts.live, <size_t>self.s.lists.cell_start,
+                  <size_t>self.s.walls.ctri_start, <size_t>self.s.walls.ctri):
+            release(<void*>p)   # the growable arrays (see grow)
+        for p in (<size_t>self.s.lists.halo, <size_t>self.s.lists.halos, <size_t>self.s.schedule.posted,
+                  <size_t>self.s.contacts.take, <size_t>self.s.contacts.spill, <size_t>self.s.walls.slots,
+                  <size_t>self.s.walls.sacc, <size_t>self.s.walls.vib, <size_t>self.s.coef, <size_t>self.s.visc,
+                  <size_t>self.s.tmax, <size_t>self.s.schedule.pb, <size_t>self.s.schedule.tstat,
+                  <size_t>self.s.schedule.cpu, <size_t>self.s.lists.found):
             free(<void*>p)
 
     # ------------------------------------------------------------------ memory ----------
@@ -379,6 +400,8 @@ cdef class Core:
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
             cols[k].p[0] = self._grow(cols[k].p[0], (c + cols[k].extra) * cols[k].size)
+        self.s.particles.cell = self.s.lists.sb_n   # the rebuild's scratch (see Particles)
+        self.s.particles.perm = self.s.lists.sb_at
         self.s.particles.cap = cap
         return 0
 
@@ -443,12 +466,13 @@ cdef class Core:
         self.s.visc = vis
         self.s.ntypes = nt
         if hs != self.s.hs:
-            free(self.s.lists.nb_h)
-            free(self.s.lists.ob_h)
-            free(self.s.lists.wl_h)
-            free(self.s.lists.ow_h)
-            self.s.lists.nb_h = self.s.lists.ob_h = self.s.lists.wl_h = self.s.lists.ow_h = NULL
-            self.s.lists.nb_cap = self.s.lists.ob_cap = self.s.lists.wl_cap = self.s.lists.ow_cap = 0
+            release(self.s.contacts.h)
+            release(self.s.contacts.f)
+            release(self.s.lists.wl_h)
+            release(self.s.lists.ow_h)
+            self.s.contacts.h = self.s.contacts.f = self.s.lists.wl_h = self.s.lists.ow_h = NULL
+            self.s.contacts.cap = self.s.lists.wl_cap = self.s.lists.ow_cap = 0
+            clear_contacts(&self.s)
             memset(self.s.lists.nb_start, 0, (self.s.particles.n + 1) * sizeof(int))
             memset(self.s.lists.wl_start, 0, (self.s.particles.n + 1) * sizeof(int))
             self.s.hs = hs
@@ -459,13 +483,41 @@ cdef class Core:
         self.s.batched = model == HERTZ and not np.any(np.asarray(mur))
         self.s.dirty = 1
 
+    def set_recording(self, bint on):
+        """Keep, or not, each contact's force at a run's last step (see contact_forces): 3 values
+        per pair in contact, 7 per wall-list entry."""
+        cdef void* p
+        cdef void* q
+        if on and not self.s.contacts.recording:
+            p = grow(self.s.contacts.f, max(self.s.contacts.cap, 1) * 3 * sizeof(double))
+            if p == NULL:
+                raise MemoryError()
+            self.s.contacts.f = <double*>p
+            q = grow(self.s.lists.wl_f, max(self.s.lists.wl_cap, 1) * WLF * sizeof(double))
+            if q == NULL:
+                raise MemoryError()
+            self.s.lists.wl_f = <double*>q
+            self.s.lists.wlf_cap = self.s.lists.wl_cap
+            self.s.forces_valid = 0
+        elif not on:
+            release(self.s.contacts.f)
+            release(self.s.lists.wl_f)
+            self.s.contacts.f = self.s.lists.wl_f = NULL
+            self.s.lists.wlf_cap = 0
+        self.s.contacts.recording = on
+
+    @property
+    def recording(self):
+        return bool(self.s.contacts.recording)
+
     def set_viscous(self, double[::1] gamma):
         cdef int a
         for a in range(min(gamma.shape[0], self.s.ntypes)):
             self.s.visc[a] = gamma[a]
 
-    def add_particles(self, double[:, ::1] x, double[::1] r, double[::1] m, int[::1] typ,
-                      double[:, ::1] v, double[:, ::1] w, int64_t[::1] ids):
+    def add_particles(self, const double[:, ::1] x, const double[::1] r, const double[::1] m, const int[::1] typ,
+                      const double[:, :] v, const double[:, :] w, int64_t first_id):
+        """Add spheres, with ids from ``first_id`` on (``v`` and ``w`` may repeat one row: any strides)."""
         cdef int k = x.shape[0], i, d, base = self.s.particles.n
         self.reserve(base + k)
         for i in range(k):
@@ -479,7 +531,7 @@ cdef class Core:
             self.s.particles.r[base + i] = r[i]
             self.s.particles.m[base + i] = m[i]
             self.s.particles.type[base + i] = typ[i]
-            self.s.particles.pid[base + i] = ids[i]
+            self.s.particles.pid[base + i] = first_id + i
             self.s.particles.mem[base + i] = -1
             self.s.lists.nb_start[base + i + 1] = self.s.lists.nb_start[base]
             self.s.lists.wl_start[base + i + 1] = self.s.lists.wl_start[base]
@@ -632,7 +684,7 @@ cdef class Core:
                     self.s.lists.wl_e[k] = newidx[self.s.lists.wl_e[e]]
                     for d in range(self.s.hs + 1):
                         self.s.lists.wl_h[k * (self.s.hs + 1) + d] = self.s.lists.wl_h[e * (self.s.hs + 1) + d]
-                    for d in range(WLF):
+                    for d in range(WLF if self.s.lists.wl_f != NULL else 0):
                         self.s.lists.wl_f[k * WLF + d] = self.s.lists.wl_f[e * WLF + d]
                     k += 1
                 e += 1
@@ -772,6 +824,74 @@ cdef class Core:
             return out
         raise KeyError(name)
 
+    def by_id(self, str name):
+        """A per-particle array (``x``, ``v``, ``w``, ``f``, ``t``, ``r``, ``m``, ``type``, ``id``, or
+        ``body``: the clump's id, -1 for a free sphere) in the order of the particles' ids: each row
+        copied to its place once (when ids were deleted, its place found through their order)."""
+        cdef int n = self.s.particles.n, i, q, count = 3
+        cdef int64_t top = -1, dst
+        cdef const int64_t* pid = self.s.particles.pid
+        cdef const int64_t* rank = NULL
+        cdef const double* src = NULL
+        cdef double* od
+        cdef int* oi
+        cdef int64_t* ol
+        for i in range(n):
+            if pid[i] > top:
+                top = pid[i]
+        if top != n - 1:   # not ids 0 to n - 1 (distinct, so each row goes to its id): their ranks
+            order = np.argsort(_copy_l(pid, n), kind="stable")
+            ranks = np.empty(n, dtype=np.int64)
+            ranks[order] = np.arange(n, dtype=np.int64)
+            rank = <const int64_t*>cnp.PyArray_DATA(ranks)
+        if name == "x":
+            src = self.s.particles.x
+        elif name == "v":
+            src = self.s.particles.v
+        elif name == "w":
+            src = self.s.particles.w
+        elif name == "f":
+            src = self.s.particles.f
+        elif name == "t":
+            src = self.s.particles.t
+        elif name in ("r", "m"):
+            src = self.s.particles.r if name == "r" else self.s.particles.m
+            count = 1
+        elif name == "type":
+            out = np.empty(n, dtype=np.int32)
+            oi = <int*>cnp.PyArray_DATA(out)
+            for i in range(n):
+                oi[rank[i] if rank != NULL else pid[i]] = self.s.particles.type[i]
+            return out
+        elif name in ("id", "body"):
+            out = np.empty(n, dtype=np.int64)
+            ol = <int64_t*>cnp.PyArray_DATA(out)
+            for i in range(n):
+                dst = rank[i] if rank != NULL else pid[i]
+                if name == "id":
+                    ol[dst] = pid[i]
+                else:
+                    ol[dst] = -1 if self.s.particles.mem[i] < 0 else self.s.clumps.bid[self.s.clumps.mbody[self.s.particles.mem[i]]]
+            return out
+        else:
+            raise KeyError(name)
+        out = np.empty((n, 3), dtype=float) if count == 3 else np.empty(n, dtype=float)
+        od = <double*>cnp.PyArray_DATA(out)
+        for i in range(n):
+            dst = rank[i] if rank != NULL else pid[i]
+            for q in range(count):
+                od[count * dst + q] = src[count * i + q]
+        return out
+
+    def largest_radius(self):
+        """The largest particle radius (0 without particles)."""
+        cdef double top = 0.0
+        cdef int i
+        for i in range(self.s.particles.n):
+            if self.s.particles.r[i] > top:
+                top = self.s.particles.r[i]
+        return top
+
     def contacts(self):
         """Particle-particle contacts now: storage indices i, j, overlap, normal force."""
         cdef int i, k, q, cnt = 0, npair = self.s.lists.nb_start[self.s.particles.n]
@@ -798,7 +918,7 @@ cdef class Core:
                 oi[cnt] = i
                 oj[cnt] = self.s.lists.nb_j[k]
                 od[cnt] = self.s.particles.r[i] + self.s.particles.r[self.s.lists.nb_j[k]] - sqrt(d2)
-                of[cnt] = self.s.lists.nb_h[k * self.s.hs + H_FN]
+                of[cnt] = pair_history(&self.s, k, NO_HISTORY)[H_FN]
                 cnt += 1
         return out_i, out_j, out_d, out_f
 
@@ -810,13 +930,16 @@ cdef class Core:
         closest point of the triangle in contact, the foot point on a plane or cylinder) and
         the branch vector ``bx, by, bz`` = x1 - x2 (the periodic image in contact), x1 - c for
         a wall. Pairs first, then walls, each by storage row. A ValueError when the lists have
-        entries but no evaluation since the state was set (the forces are not checkpointed)."""
+        entries but no evaluation since the state was set or recording was switched on (the
+        forces are not checkpointed), or when the contacts' forces are not recorded."""
         cdef int i, j, k, q, cnt = 0, nwall = 0, npair = self.s.lists.nb_start[self.s.particles.n]
         cdef int nlisted = self.s.lists.wl_start[self.s.particles.n]
         cdef double dist, rc
         cdef double d[3]
         cdef const double* sv
         cdef const double* rec
+        if not self.s.contacts.recording:
+            raise ValueError("the contacts' forces are not recorded")
         for k in range(npair):
             cnt += (self.s.lists.nb_s[k] & TOUCH) != 0
         if (cnt or nlisted) and not self.s.forces_valid:
@@ -843,7 +966,8 @@ cdef class Core:
                 rc = self.s.particles.r[i] - 0.5 * (self.s.particles.r[i] + self.s.particles.r[j] - dist)   # centre to contact point
                 id1[cnt] = self.s.particles.pid[i]
                 id2[cnt] = self.s.particles.pid[j]
-                fx[cnt], fy[cnt], fz[cnt] = self.s.lists.nb_f[3 * k], self.s.lists.nb_f[3 * k + 1], self.s.lists.nb_f[3 * k + 2]
+                rec = &self.s.contacts.f[3 * <long long>self.s.lists.nb_c[k]]
+                fx[cnt], fy[cnt], fz[cnt] = rec[0], rec[1], rec[2]
                 bx[cnt], by[cnt], bz[cnt] = d[0], d[1], d[2]
                 cx[cnt] = self.s.particles.x[3 * i] - rc * d[0] / dist
                 cy[cnt] = self.s.particles.x[3 * i + 1] - rc * d[1] / dist
@@ -888,13 +1012,14 @@ cdef class Core:
 
     def memory(self):
         """Bytes allocated (capacity, not use) by part: ``particles`` (the per-particle columns),
-        ``list`` (the neighbour list: partners, image codes, histories), ``previous list`` (the
-        last one, which histories are carried over from at a rebuild), ``pair forces`` (what a
-        recording pass keeps, see contact_forces), ``sublist``, ``found`` (the rebuild's pairs per
-        block), ``walls`` (the wall lists, current and previous, and their records), ``halos``,
-        ``cells`` (the grid and the triangles near each cell), ``clumps``."""
+        ``list`` (the neighbour list: partners, image codes, contact slots), ``previous list``
+        (the last one, which contacts are carried over from at a rebuild), ``contacts`` (the
+        contact table: histories, forces when recorded, free list; and the spills), ``sublist``,
+        ``found`` (the rebuild's pairs per block, when not in the sublist's arrays), ``walls`` (the wall lists, current and
+        previous, and their records), ``halos``, ``cells`` (the grid and the triangles near each
+        cell), ``clumps``."""
         cdef Column cols[NCOLUMNS]
-        cdef size_t per_particle = 0, per_body = 0, per_member = 0, found = 0
+        cdef size_t per_particle = 0, per_body = 0, per_member = 0, found = 0, spills = 0
         cdef int k
         particle_columns(&self.s, cols)
         for k in range(NCOLUMNS):
@@ -906,14 +1031,18 @@ cdef class Core:
         for k in range(NMCOLUMNS):
             per_member += cols[k].size
         for k in range(self.s.schedule.nblocks):
-            found += self.s.lists.found[k].cap * (sizeof(int) + sizeof(uint8_t))
-        pair = sizeof(int) + sizeof(uint8_t) + self.s.hs * sizeof(double)
+            if not self.s.lists.found[k].borrowed:
+                found += self.s.lists.found[k].cap * (sizeof(int) + sizeof(uint8_t))
+            spills += (self.s.contacts.spill[k].cap * (sizeof(int) + sizeof(long long) + (self.s.hs + 3) * sizeof(double))
+                       + self.s.contacts.spill[k].ended_cap * sizeof(int))
+        pair = 2 * sizeof(int) + sizeof(uint8_t)
         wall = sizeof(int) + (self.s.hs + 1) * sizeof(double)
+        contact = (self.s.hs + (3 if self.s.contacts.recording else 0)) * sizeof(double) + sizeof(int) + sizeof(uint8_t)
         return {
             "particles": self.s.particles.cap * per_particle,
             "list": self.s.lists.nb_cap * pair,
             "previous list": self.s.lists.ob_cap * pair,
-            "pair forces": self.s.lists.nbf_cap * 3 * sizeof(double),
+            "contacts": self.s.contacts.cap * contact + spills,
             "sublist": self.s.lists.sbk_cap * 2 * sizeof(int),
             "found": found,
             "walls": (self.s.lists.wl_cap + self.s.lists.ow_cap) * wall + self.s.lists.wlf_cap * WLF * sizeof(double),

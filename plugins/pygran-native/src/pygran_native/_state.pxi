@@ -31,10 +31,13 @@ cdef struct Halo:
 cdef struct Found:
     # The pairs a block of the neighbour count found (partner, image code and WRAP flag), in
     # the order of its rows: the fill copies them into the list, so one pass searches the cells.
+    # With the batched path they are in the block's share of the sublist's arrays (``borrowed``),
+    # which the first pass after a rebuild makes anew, unless they outgrow it (see lend_found).
     int* j
     uint8_t* s
     long long cap
     int failed         # out of memory in the last count
+    int borrowed
 
 
 cdef struct Tuner:
@@ -74,13 +77,55 @@ cdef struct Particles:
     int *type
     int64_t *pid
     int *mem           # the clump member slot of each particle, -1 for a free sphere (see Clumps)
-    int *perm
+    # the rebuild's: each row's cell, then the old row of each new one (see rebuild); they are
+    # the sublist's sb_n and sb_at, which only the pair loop reads and the first one after a
+    # rebuild makes anew
     int *cell
+    int *perm
+
+
+cdef struct Spill:
+    # What a pair block changed in the contact table in a pass, for after it (see settle_slots):
+    # the new contacts it found no slot for (see new_contact): their list index, the slot they
+    # get once the table has grown (beyond its capacity), history (hs each) and, in a recording
+    # pass, force (3 each); and the slots of the contacts that ended (see forget_pair).
+    int* k
+    long long* slot
+    double* h
+    double* f
+    long long n, cap
+    int failed         # out of memory
+    int* ended
+    long long nended, ended_cap
+
+
+cdef struct Contacts:
+    # The pairs in contact: a slot each in this table, which the listed pair names (Lists.nb_c,
+    # -1: no contact), holding its history (hs values, see contact_force) and, when contact
+    # forces are recorded, the force a recording pass applied (3 values, see contact_forces). A
+    # pass gives a pair that comes into contact a slot (new_contact): one of the free list (from
+    # its end), else the next fresh one; a contact that ends leaves its slot to the free list
+    # after the pass (a rebuild makes the list anew: the slots the new list does not keep).
+    # Slots are taken through ``take`` (atomic), so the threads of a pass need no lock; when
+    # fresh slots run out, the pass puts the new contacts in its blocks' spills, and the table
+    # grows after it (see settle_slots). Which slot a contact has changes no result.
+    double *h          # hs per slot
+    double *f          # 3 per slot; NULL unless recording
+    long long n        # slots in use or free; fresh ones from n on
+    long long cap
+    int *free          # the free slots: ``nfree`` of them
+    long long nfree
+    long long *take    # the slots a pass took so far: free[nfree - 1 - take] while take < nfree,
+                       # then fresh slot n + (take - nfree) (a cache line of its own)
+    uint8_t *live      # the rebuild's marks of the slots the new list keeps
+    Spill *spill       # per pair block
+    int recording      # keep each contact's force (see Core.set_recording)
 
 
 cdef struct Lists:
-    # The cell grid, the neighbour and wall lists (current and previous, with their contact
-    # histories), the sublist of the batched path, and the pair loop's halos.
+    # The cell grid, the neighbour and wall lists (current and previous, with the wall entries'
+    # contact histories; a pair's is in Contacts), the sublist of the batched path, and the pair
+    # loop's halos.
     int nc[3]
     int ax[3]          # axes from the slowest-varying in the cell index, see cell_id
     double cs[3]
@@ -92,12 +137,9 @@ cdef struct Lists:
     int *nb_start
     int *nb_j
     uint8_t *nb_s
-    double *nb_h
+    int *nb_c          # the pair's contact slot (see Contacts), -1 if it is not in contact
     long long nb_cap
     Found* found       # per block of the rebuild's row passes, see Found
-    double *nb_f       # the force of each listed pair on i (3, see contact_forces), written only by a
-                       # pass that records (see record)
-    long long nbf_cap
     # the sublist of the batched path: row i's listed pairs that were within SUB_SKIN skins of
     # contact when it was built, in list order, are entries sb_at[i] to sb_at[i] + sb_n[i] - 1
     # of sb_k (their list indices) and sb_i (i). No other pair can come into contact while every
@@ -116,13 +158,14 @@ cdef struct Lists:
     int *ob_start
     int *ob_j
     uint8_t *ob_s
-    double *ob_h
+    int *ob_c
     long long ob_cap
     int *wl_start
     int *wl_e
     double *wl_h
     long long wl_cap
-    double *wl_f       # each listed wall entry (WLF, see wall_row, contact_forces), written as nb_f
+    double *wl_f       # each listed wall entry (WLF, see wall_row, contact_forces), written only by a
+                       # pass that records (see State.record); NULL unless recording
     long long wlf_cap
     int *ow_start
     int *ow_e
@@ -210,6 +253,7 @@ cdef struct State:
     # contact model, the clock and counters, the displacement check and the force evaluation.
     Particles particles
     Lists lists
+    Contacts contacts
     Walls walls
     Clumps clumps
     Schedule schedule
@@ -251,10 +295,11 @@ cdef struct State:
     # the particle loop kicks, and whether it fuses the next step's drift (see particle_row)
     double dt
     int update, kick, fuse
-    # the pass ends a run (the set-up pass, a run's last step): it writes nb_f and wl_f, which
-    # only contact_forces reads; the steps between skip those stores, the pair loop's largest
+    # the pass ends a run (the set-up pass, a run's last step) and contact forces are recorded:
+    # it writes the contacts' forces and wl_f, which only contact_forces reads; the steps
+    # between skip those stores
     int record
-    int forces_valid   # nb_f and wl_f hold the forces of the last recording pass (not after set_state)
+    int forces_valid   # they hold the forces of the last recording pass (not after set_state)
 
 
 cdef enum:   # the type of a Column's values
@@ -296,20 +341,18 @@ cdef void particle_columns(State* s, Column* c) noexcept nogil:
     column(&c[6], <void**>&s.particles.r, F64, 1, 0, "r")
     column(&c[7], <void**>&s.particles.m, F64, 1, 0, "m")
     column(&c[8], <void**>&s.particles.type, I32, 1, 0, "type")
-    column(&c[9], <void**>&s.particles.perm, I32, 1, 0, NULL)
-    column(&c[10], <void**>&s.particles.cell, I32, 1, 0, NULL)
-    column(&c[11], <void**>&s.schedule.work, I32, 1, 0, NULL)
-    column(&c[12], <void**>&s.particles.pid, I64, 1, 0, "id")
-    column(&c[13], <void**>&s.lists.nb_start, I32, 1, 1, "nb_start")
-    column(&c[14], <void**>&s.lists.ob_start, I32, 1, 1, NULL)
-    column(&c[15], <void**>&s.lists.wl_start, I32, 1, 1, "wl_start")
-    column(&c[16], <void**>&s.lists.ow_start, I32, 1, 1, NULL)
-    column(&c[17], <void**>&s.lists.last, I32, 1, 0, NULL)
-    column(&c[18], <void**>&s.lists.flo, I32, 1, 0, NULL)
-    column(&c[19], <void**>&s.lists.fhi, I32, 1, 0, NULL)
-    column(&c[20], <void**>&s.particles.mem, I32, 1, 0, NULL)
-    column(&c[21], <void**>&s.lists.sb_n, I32, 1, 0, NULL)
-    column(&c[22], <void**>&s.lists.sb_at, I32, 1, 0, NULL)
+    column(&c[9], <void**>&s.schedule.work, I32, 1, 0, NULL)
+    column(&c[10], <void**>&s.particles.pid, I64, 1, 0, "id")
+    column(&c[11], <void**>&s.lists.nb_start, I32, 1, 1, "nb_start")
+    column(&c[12], <void**>&s.lists.ob_start, I32, 1, 1, NULL)
+    column(&c[13], <void**>&s.lists.wl_start, I32, 1, 1, "wl_start")
+    column(&c[14], <void**>&s.lists.ow_start, I32, 1, 1, NULL)
+    column(&c[15], <void**>&s.lists.last, I32, 1, 0, NULL)
+    column(&c[16], <void**>&s.lists.flo, I32, 1, 0, NULL)
+    column(&c[17], <void**>&s.lists.fhi, I32, 1, 0, NULL)
+    column(&c[18], <void**>&s.particles.mem, I32, 1, 0, NULL)
+    column(&c[19], <void**>&s.lists.sb_n, I32, 1, 0, NULL)
+    column(&c[20], <void**>&s.lists.sb_at, I32, 1, 0, NULL)
 
 
 cdef void element_columns(State* s, Column* c) noexcept nogil:

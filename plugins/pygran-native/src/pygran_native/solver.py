@@ -394,10 +394,10 @@ class Solver:
         v = np.zeros((n, 3)) if velocities is None else _array(velocities, "velocities", (n, 3))
         w = np.zeros((n, 3)) if omegas is None else _array(omegas, "omegas", (n, 3))
         self._check_inside(x, "positions")
-        ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
-        self._core.add_particles(x, r, np.ascontiguousarray(m), t, v, w, ids)
+        first = self._next_id
+        self._core.add_particles(x, r, np.ascontiguousarray(m), t, v, w, first)
         self._next_id += n
-        return ids.copy()
+        return np.arange(first, first + n, dtype=np.int64)
 
     def _check_inside(self, x: np.ndarray, name: str) -> None:
         for d in range(3):
@@ -799,7 +799,7 @@ class Solver:
                     "per step); lower it or dt, or raise the skin."
                 )
         if self.n:
-            reach = 2 * float(self._core.array("r").max()) + self._core.skin
+            reach = 2 * self._core.largest_radius() + self._core.skin
             for d in range(3):
                 if self.periodic[d] and self.box[1, d] - self.box[0, d] < 2 * reach:
                     raise ConfigError(
@@ -810,7 +810,7 @@ class Solver:
 
     # --- outputs -----------------------------------------------------------------------
     def _sorted(self, name: str) -> np.ndarray:
-        return self._core.array(name)[np.argsort(self._core.array("id"), kind="stable")]
+        return self._core.by_id(name)
 
     n = property(lambda self: self._core.n, doc="Number of particles.")
     time = property(lambda self: self._core.time, doc="Simulated time (s).")
@@ -837,7 +837,7 @@ class Solver:
     radii = property(lambda self: self._sorted("r"), doc="(n,) radii, by id.")
     masses = property(lambda self: self._sorted("m"), doc="(n,) masses, by id.")
     types = property(lambda self: self._sorted("type"), doc="(n,) types, by id.")
-    ids = property(lambda self: np.sort(self._core.array("id")), doc="(n,) ids, ascending.")
+    ids = property(lambda self: self._sorted("id"), doc="(n,) ids, ascending.")
     bodies = property(
         lambda self: self._sorted("body"), doc="(n,) the clump of each particle (-1: a free sphere), by id."
     )
@@ -881,13 +881,29 @@ class Solver:
         point of the mesh triangle the contact used, the foot point on a plane or cylinder),
         with ``b = x1 - c``; a particle on a flat mesh surface has one contact however many of
         its triangles it reaches. A ConfigError after :meth:`set_state` until a run evaluates
-        the forces (they are not part of a checkpoint)."""
+        the forces (they are not part of a checkpoint), and when :attr:`record_contacts` is off."""
+        if not self.record_contacts:
+            raise ConfigError(
+                "contact_forces: the solver does not keep contact forces; set record_contacts = True "
+                "and run a step first."
+            )
         try:
             return self._core.contact_forces()
         except ValueError:
             raise ConfigError(
-                "contact_forces: no step since the state was restored; run a step first."
+                "contact_forces: no step since the state was restored or record_contacts was set; "
+                "run a step first."
             ) from None
+
+    @property
+    def record_contacts(self) -> bool:
+        """Whether a run keeps each contact's force for :meth:`contact_forces` (3 values per
+        contact, 24 bytes; on unless set off)."""
+        return self._core.recording
+
+    @record_contacts.setter
+    def record_contacts(self, on: bool) -> None:
+        self._core.set_recording(bool(on))
 
     def kinetic_energy(self, types=None) -> tuple[float, float]:
         """Translational and rotational kinetic energy (J) of the free spheres and the clumps (of
