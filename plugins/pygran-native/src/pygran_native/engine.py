@@ -76,6 +76,8 @@ class NativeEngine(Engine):
             )
             self._mesh_types = dict(self.material_table.mesh_types)
             self.solver.set_contact_model(self._law, **self._material_arrays())
+            # each contact's force kept (24 bytes) only for the contacts' trajectory
+            self.solver.record_contacts = spec.traj.cfile is not None
             self._walls: dict[str, int] = {}
             #: Solver wall handle -> the wall's index in the order walls were set up (removed ones
             #: kept): contact records name the wall by it (see :meth:`_contacts`)
@@ -123,14 +125,14 @@ class NativeEngine(Engine):
     def _add_spheres(
         self, species: np.ndarray, centres: np.ndarray, radii: np.ndarray, velocities: np.ndarray, omega: Any
     ) -> None:
-        density = np.array([self.spec.species[int(k) - 1].density for k in species])
+        density = np.array([0.0, *(s.density for s in self.spec.species)])  # by species number
         self.solver.add_particles(
             centres,
             radii,
-            densities=density,
-            types=np.asarray(species) - 1,
+            densities=density[species],
+            types=np.asarray(species, np.int32) - 1,
             velocities=velocities,
-            omegas=np.tile(omega, (len(radii), 1)),
+            omegas=omega,
         )
 
     def _add_clumps(
@@ -315,15 +317,16 @@ class NativeEngine(Engine):
             return solver.ids + 1
         if quantity == "type":
             return solver.types.astype(np.int64) + 1
-        return {
-            "x": solver.positions,
-            "v": solver.velocities,
-            "omega": solver.omegas,
-            "f": solver.forces,
-            "torque": solver.torques,
-            "radius": solver.radii,
-            "mass": solver.masses,
-        }[quantity]
+        extract = {  # only the one asked for
+            "x": lambda: solver.positions,
+            "v": lambda: solver.velocities,
+            "omega": lambda: solver.omegas,
+            "f": lambda: solver.forces,
+            "torque": lambda: solver.torques,
+            "radius": lambda: solver.radii,
+            "mass": lambda: solver.masses,
+        }
+        return extract[quantity]()
 
     def _contacts(self) -> dict[str, np.ndarray]:
         """The contacts of the last step (:meth:`Solver.contact_forces`) with the engine's ids:
