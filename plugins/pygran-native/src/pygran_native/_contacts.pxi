@@ -5,8 +5,12 @@ cdef extern from *:
     """
     /* the next slot number; relaxed: the numbers need only be distinct, the team's phases order the rest */
     static inline long long pg_take_slot(long long* counter) { return __atomic_fetch_add(counter, 1, __ATOMIC_RELAXED); }
+    /* ask for a cache line that is soon read and written (a contact's history: the slots of the
+       pairs a pass visits one after the other lie anywhere in the table) */
+    static inline void pg_prefetch(const void* p) { __builtin_prefetch(p, 1, 1); }
     """
     long long pg_take_slot(long long* counter) noexcept nogil
+    void pg_prefetch(const void* p) noexcept nogil
 
 
 #: the history of a pair not in contact (zeros)

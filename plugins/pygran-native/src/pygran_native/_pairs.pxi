@@ -425,7 +425,7 @@ cdef inline int gather_entry(const State* c, const Gather* g, int k, int i, cons
     distance and partner's radius, ``keys``, ``partners``), and its squared distance to
     ``dist2``; clears it if it came apart. Returns whether it is within reach (then entry n is
     kept). No branch on the reach test, whose outcome the CPU cannot predict."""
-    cdef int q, j = g.nb_j[k], within, touched
+    cdef int q, j = g.nb_j[k], within, touched, slot
     cdef double rj = g.r[j]
     cdef double d[3]
     cdef const double* sv = &g.shiftv[3 * (g.nb_s[k] & IMAGE)]
@@ -438,6 +438,8 @@ cdef inline int gather_entry(const State* c, const Gather* g, int k, int i, cons
     keys[n] = k
     partners[n] = j
     within = not (dist2[0] >= (ri + rj) * (ri + rj))   # NaN: within, as pair_row has it
+    slot = g.nb_c[k]   # its history, which fill_entries reads after the batch's gather (slot 0 when it has none)
+    pg_prefetch(&g.ct_h[<long long>(slot if slot > 0 else 0) * g.hs])
     touched = (g.nb_s[k] & TOUCH) != 0
     if touched > within:   # one rarely taken branch: apart now, touching before
         forget_pair(c, g.block, k)
