@@ -212,7 +212,7 @@ def test_overrides_are_read_from_the_source():
     assert set(HOOKS) <= set(dir(EngineHooks))
     assert {"mesh_force", "_advance", "_native_trajectories", "inserter"} <= set(HOOKS)
     base = engine_base_names()
-    assert {"_on_event", "files", "journal", "run", "log", "_warn", "dt"} <= base
+    assert {"_on_event", "files", "journal", "run", "log", "messages", "obstacles", "dt"} <= base
     source = """
 class Mine(Engine):
     name = "mine"
@@ -240,3 +240,33 @@ def test_plugin_engines_override_only_hooks():
                 if names - set(HOOKS):
                     wrong[f"{package}.{engine}"] = sorted(names - set(HOOKS))
     assert not wrong, f"plugin engines override names of the Engine base class that are no hooks: {wrong}"
+
+
+#: The most lines a class of library code may span: past it, it holds more than one job.
+CLASS_LINES = 400
+
+
+def long_classes(text: str) -> list[str]:
+    """``name (lines)`` of each class in the module ``text`` spanning more than :data:`CLASS_LINES`."""
+    return [
+        f"{node.name} ({node.end_lineno - node.lineno + 1})"
+        for node in ast.walk(ast.parse(text))
+        if isinstance(node, ast.ClassDef) and node.end_lineno - node.lineno + 1 > CLASS_LINES
+    ]
+
+
+def test_long_classes_are_found():
+    body = "\n".join(f"    x{i} = {i}" for i in range(CLASS_LINES))
+    assert long_classes(f"class Big:\n{body}\n") == [f"Big ({CLASS_LINES + 1})"]
+    assert long_classes("class Small:\n    x = 1\n") == []
+
+
+def test_no_class_in_the_library_is_over_400_lines():
+    found = {
+        name: long
+        for name, path in modules().items()
+        if path.suffix == ".py"
+        and not any(within(top, name) for top in ON_TOP)
+        and (long := long_classes(path.read_text()))
+    }
+    assert not found, f"split these classes by responsibility: {found}"

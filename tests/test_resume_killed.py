@@ -164,7 +164,8 @@ elif point in ("frame", "cut"):  # a trajectory frame half written (while cuttin
     setitem, write_direct = h5py.Dataset.__setitem__, h5py.Dataset.write_direct
 
     def positions_written(dataset):
-        cutting = os.path.exists(os.path.join(os.path.dirname(dataset.file.filename), "traj.before-resume.h5"))
+        folder = os.path.dirname(dataset.file.filename)
+        cutting = os.path.exists(os.path.join(folder, "traj.before-resume.h5"))
         if dataset.name.endswith("position/value") and cutting == (point == "cut"):
             reach()
 
