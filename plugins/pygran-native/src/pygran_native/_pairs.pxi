@@ -387,18 +387,18 @@ cdef inline Gather gather_state(const State* c, int b) noexcept nogil:
     return g
 
 
-cdef inline void fill_entries(const Gather* g, pg_pair_batch* bt, int first, int n, const int* keys,
+cdef inline void fill_entries(const Gather* g, pg_pair_batch* bt, int first, int n, const int* slots,
                               const int* partners, const int* rows, int row0) noexcept nogil:
     """Entries first..n-1 of the batch, whose distances gather_row or gather_sublists wrote:
-    the rest of what pg_hertz_batch reads (entry t's row is row0 + ``rows[t]``)."""
-    cdef int t, q, i, j, slot
+    the rest of what pg_hertz_batch reads (entry t's row is row0 + ``rows[t]``, its contact
+    slot ``slots[t]``)."""
+    cdef int t, q, i, j
     cdef const double* h
     cdef const Coef* cf
     for t in range(first, n):
         i = row0 + rows[t]
         j = partners[t]
-        slot = g.nb_c[keys[t]]
-        h = &g.ct_h[<long long>slot * g.hs] if slot >= 0 else NO_HISTORY
+        h = &g.ct_h[<long long>slots[t] * g.hs] if slots[t] >= 0 else NO_HISTORY
         for q in range(3):
             bt.vr[q * PG_BATCH + t] = g.v[3 * i + q] - g.v[3 * j + q]
             bt.wi[q * PG_BATCH + t] = g.w[3 * i + q]
@@ -420,11 +420,12 @@ cdef inline void fill_entries(const Gather* g, pg_pair_batch* bt, int first, int
 
 
 cdef inline int gather_entry(const State* c, const Gather* g, int k, int i, const double* xi, double ri,
-                             pg_pair_batch* bt, int n, int* keys, int* partners, double* dist2) noexcept nogil:
+                             pg_pair_batch* bt, int n, int* keys, int* slots, int* partners,
+                             double* dist2) noexcept nogil:
     """Listed pair k of row i (at ``xi``, radius ``ri``) written to entry n of the batch (its
-    distance and partner's radius, ``keys``, ``partners``), and its squared distance to
-    ``dist2``; clears it if it came apart. Returns whether it is within reach (then entry n is
-    kept). No branch on the reach test, whose outcome the CPU cannot predict."""
+    distance and partner's radius, ``keys``, ``slots``, ``partners``), and its squared distance
+    to ``dist2``; clears it if it came apart. Returns whether it is within reach (then entry n
+    is kept). No branch on the reach test, whose outcome the CPU cannot predict."""
     cdef int q, j = g.nb_j[k], within, touched, slot
     cdef double rj = g.r[j]
     cdef double d[3]
@@ -438,7 +439,7 @@ cdef inline int gather_entry(const State* c, const Gather* g, int k, int i, cons
     keys[n] = k
     partners[n] = j
     within = not (dist2[0] >= (ri + rj) * (ri + rj))   # NaN: within, as pair_row has it
-    slot = g.nb_c[k]   # its history, which fill_entries reads after the batch's gather (slot 0 when it has none)
+    slot = slots[n] = g.nb_c[k]   # its history, which fill_entries reads after the batch's gather
     pg_prefetch(&g.ct_h[<long long>(slot if slot > 0 else 0) * g.hs])
     touched = (g.nb_s[k] & TOUCH) != 0
     if touched > within:   # one rarely taken branch: apart now, touching before
@@ -447,11 +448,11 @@ cdef inline int gather_entry(const State* c, const Gather* g, int k, int i, cons
 
 
 cdef int gather_row(const State* c, const Gather* g, int i, int row0, int* at, pg_pair_batch* bt, int n,
-                    int* keys, int* partners, int* rows) noexcept nogil:
+                    int* keys, int* slots, int* partners, int* rows) noexcept nogil:
     """Append particle i's listed pairs within reach to the batch from entry n (their indices
-    in ``keys``, their partners in ``partners``, i - row0 in ``rows``) and make its sublist
-    (State.sb_k) from entry ``at[0]``, which it advances; clears the pairs that came apart.
-    Returns the new entry count."""
+    in ``keys``, contact slots in ``slots``, partners in ``partners``, i - row0 in ``rows``) and
+    make its sublist (State.sb_k) from entry ``at[0]``, which it advances; clears the pairs that
+    came apart. Returns the new entry count."""
     cdef int k, q, within, first = n, kept = 0, pos = at[0]
     cdef double ri = g.r[i], dist2, reach
     cdef double xi[3]
@@ -459,7 +460,7 @@ cdef int gather_row(const State* c, const Gather* g, int i, int row0, int* at, p
         xi[q] = g.x[3 * i + q]
     for k in range(g.nb_start[i], g.nb_start[i + 1]):
         rows[n] = i - row0
-        within = gather_entry(c, g, k, i, xi, ri, bt, n, keys, partners, &dist2)
+        within = gather_entry(c, g, k, i, xi, ri, bt, n, keys, slots, partners, &dist2)
         reach = ri + bt.rj[n] + g.margin
         n += within
         g.sb_k[pos + kept] = k
@@ -468,12 +469,12 @@ cdef int gather_row(const State* c, const Gather* g, int i, int row0, int* at, p
     g.sb_at[i] = pos
     g.sb_n[i] = kept
     at[0] = pos + kept
-    fill_entries(g, bt, first, n, keys, partners, rows, row0)
+    fill_entries(g, bt, first, n, slots, partners, rows, row0)
     return n
 
 
 cdef int gather_sublists(const State* c, const Gather* g, int e0, int e1, int row0, pg_pair_batch* bt,
-                         int* keys, int* partners, int* rows) noexcept nogil:
+                         int* keys, int* slots, int* partners, int* rows) noexcept nogil:
     """The pairs within reach among sublist entries e0..e1-1 (the sublists of a run of rows
     from row0, see State.sb_k) written to the batch from entry 0, as gather_row writes them;
     ``rows``: each entry's row less row0. Returns the entry count. One loop over the run's
@@ -487,13 +488,13 @@ cdef int gather_sublists(const State* c, const Gather* g, int e0, int e1, int ro
         for q in range(3):
             xi[q] = g.x[3 * i + q]
         rows[n] = i - row0
-        n += gather_entry(c, g, k, i, xi, g.r[i], bt, n, keys, partners, &dist2)
-    fill_entries(g, bt, 0, n, keys, partners, rows, row0)
+        n += gather_entry(c, g, k, i, xi, g.r[i], bt, n, keys, slots, partners, &dist2)
+    fill_entries(g, bt, 0, n, slots, partners, rows, row0)
     return n
 
 
-cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const int* keys, const int* ends,
-                        int first, int nrows, int* hmax) noexcept nogil:
+cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const int* keys, const int* slots,
+                        const int* ends, int first, int nrows, int* hmax) noexcept nogil:
     """Add up the batch's forces for rows first..first+nrows-1 (row r's entries end at
     ``ends[r]``), in pair_row's order, with their walls; returns their work."""
     cdef Sink sink = block_sink(c, b)
@@ -516,7 +517,7 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
                 forget_pair(c, b, k)
                 t += 1
                 continue
-            slot = c.lists.nb_c[k]
+            slot = slots[t]
             if slot >= 0:
                 h = slot_history(c, slot)
             else:
@@ -545,8 +546,9 @@ cdef long long add_rows(const State* c, int b, const pg_pair_batch* bt, const in
     return total
 
 
-cdef inline long long flush_rows(const State* c, int b, pg_pair_batch* bt, const int* keys, const int* rows,
-                                 int* ends, int n, int first, int nrows, const double* cf, int* hmax) noexcept nogil:
+cdef inline long long flush_rows(const State* c, int b, pg_pair_batch* bt, const int* keys, const int* slots,
+                                 const int* rows, int* ends, int n, int first, int nrows, const double* cf,
+                                 int* hmax) noexcept nogil:
     """The forces of the batch's n entries, added up for its nrows rows from ``first`` (entry t
     belongs to row first + ``rows[t]``; ``ends`` is scratch). Returns the rows' work."""
     cdef int r, t
@@ -557,7 +559,7 @@ cdef inline long long flush_rows(const State* c, int b, pg_pair_batch* bt, const
     for r in range(1, nrows):
         ends[r] += ends[r - 1]
     pg_hertz_batch(bt, n, c.dt, c.update, cf)
-    return add_rows(c, b, bt, keys, ends, first, nrows, hmax)
+    return add_rows(c, b, bt, keys, slots, ends, first, nrows, hmax)
 
 
 cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
@@ -568,6 +570,7 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
     through pair_row. Returns the rows' work."""
     cdef pg_pair_batch bt
     cdef int keys[PG_BATCH]
+    cdef int slots[PG_BATCH]
     cdef int partners[PG_BATCH]
     cdef int rows[PG_BATCH]
     cdef int ends[PG_BATCH]
@@ -589,8 +592,8 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
         if (entries + gathered > PG_BATCH or nrows == PG_BATCH
                 or not build and gathered and e1 > e0 and c.lists.sb_at[i] != e1):
             if not build:
-                n = gather_sublists(c, &g, e0, e1, first, &bt, keys, partners, rows)
-            total += flush_rows(c, b, &bt, keys, rows, ends, n, first, nrows, cf, hmax)
+                n = gather_sublists(c, &g, e0, e1, first, &bt, keys, slots, partners, rows)
+            total += flush_rows(c, b, &bt, keys, slots, rows, ends, n, first, nrows, cf, hmax)
             first = i
             n = nrows = e0 = e1 = 0
         if listed > PG_BATCH:
@@ -599,15 +602,15 @@ cdef long long batched_rows(const State* c, int b, int* hmax) noexcept nogil:
             first = i + 1
             continue
         if build:
-            n = gather_row(c, &g, i, first, &at, &bt, n, keys, partners, rows)
+            n = gather_row(c, &g, i, first, &at, &bt, n, keys, slots, partners, rows)
         elif gathered:
             if e1 == e0:
                 e0 = c.lists.sb_at[i]
             e1 = c.lists.sb_at[i] + gathered
         nrows += 1
     if not build:
-        n = gather_sublists(c, &g, e0, e1, first, &bt, keys, partners, rows)
-    return total + flush_rows(c, b, &bt, keys, rows, ends, n, first, nrows, cf, hmax)
+        n = gather_sublists(c, &g, e0, e1, first, &bt, keys, slots, partners, rows)
+    return total + flush_rows(c, b, &bt, keys, slots, rows, ends, n, first, nrows, cf, hmax)
 
 
 cdef void pair_block(const State* c, int b) noexcept nogil:
