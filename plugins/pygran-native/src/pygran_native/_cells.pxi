@@ -1,5 +1,6 @@
-# The cell grid: cells of side >= 2 r_max + skin in slabs across the axis with the most
-# cells, and the triangles within reach of each cell.
+# The cell grid: cells of side >= 2 r + skin in slabs across the axis with the most cells,
+# where r is the largest radius but for a few big particles (see split_radius), and the
+# triangles within reach of each cell.
 
 cdef inline int cell_id(const int* nc, const int* ax, const int* cc) noexcept nogil:
     """Index of the cell of coordinates cc. Axis ax[0] varies slowest: a block of consecutive
@@ -19,6 +20,37 @@ cdef inline int locate(const double* p, const double* lo, const double* cs, cons
         elif cc[d] >= nc[d]:
             cc[d] = nc[d] - 1
     return cell_id(nc, ax, cc)
+
+
+cdef double split_radius(const State* sim, double rmin, double rmax) noexcept nogil:
+    """The radius the cells fit (``Lists.rsplit``): rmax, unless some particles are over twice
+    the smallest and at most BIG_MAX of them, and an eighth of all, are; then the largest of the
+    others. Cells sized by a 10 mm ball in a bed of 1 mm beads hold a thousand beads each, so
+    the search of every bead would try a hundred times the pairs it needs (LAMMPS' ``neighbor
+    multi`` and LIGGGHTS' bins by the largest cutoff are the two ends of this choice)."""
+    cdef int i, count = 0
+    cdef double small = rmin
+    if rmax <= 2.0 * rmin:
+        return rmax
+    for i in range(sim.particles.n):
+        if sim.particles.r[i] > 2.0 * rmin:
+            count += 1
+        elif sim.particles.r[i] > small:
+            small = sim.particles.r[i]
+    if count > BIG_MAX or 8 * count > sim.particles.n:
+        return rmax
+    return small
+
+
+cdef bint box_fits(const State* sim, double rmax) noexcept nogil:
+    """Whether the cells a big particle searches (see box_range) wrap at most once around
+    each periodic axis, so that none is searched twice."""
+    cdef int d, k
+    for d in range(3):
+        k = <int>ceil((rmax + sim.lists.rsplit + sim.skin) / sim.lists.cs[d])
+        if sim.per[d] and 2 * k + 1 > sim.lists.nc[d]:
+            return False
+    return True
 
 
 cdef int setup_cells(State* sim, double rmax) noexcept nogil:

@@ -22,6 +22,8 @@ cdef enum:
     BLOCKS = 4         # blocks of the pair loop per thread (more threads than one): a thread
                        # kept from its core holds up at most 1 / (BLOCKS threads) of a pass
     SPLIT = 4          # blocks of the particle loop per pair-loop block: its threads end closer
+    BIG_MAX = 4096     # big particles (see split_radius) at most: their pairs among them are
+                       # found by trying each pair
 
 # Constants in seconds or skins, as C literals (macros), so the compiler folds them as before.
 cdef extern from *:

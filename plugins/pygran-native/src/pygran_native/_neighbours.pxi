@@ -110,8 +110,8 @@ cdef inline int scan_cell(const State* c, int i, int cid, int code, int wrap, in
         dy = xi[1] - c.particles.x[3 * j + 1] + sv[1]
         dz = xi[2] - c.particles.x[3 * j + 2] + sv[2]
         rc = c.particles.r[i] + c.particles.r[j] + c.skin
-        if dx * dx + dy * dy + dz * dz < rc * rc and not (
-                body >= 0 and c.particles.mem[j] >= 0 and c.clumps.mbody[c.particles.mem[j]] == body):
+        if dx * dx + dy * dy + dz * dz < rc * rc and c.particles.r[j] <= c.lists.rsplit and \
+                not same_body(c, body, j):
             if pos + cnt == out.cap and grow_found(out) < 0:
                 return -1
             out.j[pos + cnt] = j
@@ -121,13 +121,173 @@ cdef inline int scan_cell(const State* c, int i, int cid, int code, int wrap, in
     return cnt
 
 
+cdef inline bint same_body(const State* c, int body, int j) noexcept nogil:
+    """Whether sphere j belongs to clump ``body`` (-1: none)."""
+    return body >= 0 and c.particles.mem[j] >= 0 and c.clumps.mbody[c.particles.mem[j]] == body
+
+
+cdef inline int body_of(const State* c, int i) noexcept nogil:
+    return c.clumps.mbody[c.particles.mem[i]] if c.clumps.nbody and c.particles.mem[i] >= 0 else -1
+
+
+cdef inline int add_found(Found* out, long long pos, int cnt, int j, int code) noexcept nogil:
+    """Append partner j (image code and flags ``code``) to ``out`` after its ``cnt`` first from
+    ``pos``; the new count, or -1 when out of memory."""
+    if pos + cnt == out.cap and grow_found(out) < 0:
+        return -1
+    out.j[pos + cnt] = j
+    out.s[pos + cnt] = <uint8_t>code
+    return cnt + 1
+
+
+cdef int add_extra(State* sim, int i, int j, int code) noexcept nogil:
+    """Append the pair of small row i and big row j > i to the extras; -1 when out of memory."""
+    cdef void* p
+    if sim.lists.nextra == sim.lists.extra_cap:
+        p = grow(sim.lists.extra, (sim.lists.extra_cap + sim.lists.extra_cap // 2 + 256) * sizeof(Extra))
+        if p == NULL:
+            return -1
+        sim.lists.extra = <Extra*>p
+        sim.lists.extra_cap += sim.lists.extra_cap // 2 + 256
+    sim.lists.extra[sim.lists.nextra].i = i
+    sim.lists.extra[sim.lists.nextra].j = j
+    sim.lists.extra[sim.lists.nextra].s = <uint8_t>code
+    sim.lists.nextra += 1
+    return 0
+
+
+cdef inline void wrap_cell(const State* c, int d, int a, int* nb, int* s) noexcept nogil:
+    """Cell coordinate a (at most one grid beyond the edge) along axis d, wrapped (nb[d]) with
+    its image's sign (s[d]: 1 below the grid, -1 above), as scan_pairs."""
+    s[d] = 0
+    nb[d] = a
+    if a < 0:
+        s[d] = 1
+        nb[d] = a + c.lists.nc[d]
+    elif a >= c.lists.nc[d]:
+        s[d] = -1
+        nb[d] = a - c.lists.nc[d]
+
+
+cdef int scan_box(State* c, int i, bint before, Found* out, long long pos, int cnt) noexcept nogil:
+    """Big row i's small partners within r_i + r_j + skin, from the cells within its reach
+    (wrapped at most once, see box_fits): those after it, appended to ``out`` as scan_cell does
+    (the new count), or with ``before`` those before it, appended to the extras as pairs of
+    their rows (0). -1 when out of memory."""
+    cdef int d, k, a0, a1, a2, j, cid, code, wrap, body = body_of(c, i)
+    cdef int cc[3]
+    cdef int lo[3]
+    cdef int hi[3]
+    cdef int nb[3]
+    cdef int s[3]
+    cdef double reach = c.particles.r[i] + c.lists.rsplit + c.skin, dx, dy, dz, rc
+    cdef const double* xi = &c.particles.x[3 * i]
+    cdef const double* sv
+    locate(xi, c.lo, c.lists.cs, c.lists.nc, c.lists.ax, cc)
+    for d in range(3):
+        k = <int>ceil(reach / c.lists.cs[d])
+        lo[d] = cc[d] - k
+        hi[d] = cc[d] + k
+        if not c.per[d]:
+            lo[d] = max(lo[d], 0)
+            hi[d] = min(hi[d], c.lists.nc[d] - 1)
+    for a2 in range(lo[2], hi[2] + 1):
+        wrap_cell(c, 2, a2, nb, s)
+        for a1 in range(lo[1], hi[1] + 1):
+            wrap_cell(c, 1, a1, nb, s)
+            for a0 in range(lo[0], hi[0] + 1):
+                wrap_cell(c, 0, a0, nb, s)
+                code = 9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1
+                wrap = WRAP if s[c.lists.ax[0]] != 0 else 0
+                sv = &c.shiftv[3 * code]
+                cid = cell_id(c.lists.nc, c.lists.ax, nb)
+                for j in range(c.lists.cell_start[cid], c.lists.cell_start[cid + 1]):
+                    if j == i or (j < i) != before or c.particles.r[j] > c.lists.rsplit:
+                        continue
+                    dx = xi[0] - c.particles.x[3 * j] + sv[0]
+                    dy = xi[1] - c.particles.x[3 * j + 1] + sv[1]
+                    dz = xi[2] - c.particles.x[3 * j + 2] + sv[2]
+                    rc = c.particles.r[i] + c.particles.r[j] + c.skin
+                    if dx * dx + dy * dy + dz * dz >= rc * rc or same_body(c, body, j):
+                        continue
+                    if before:   # row j sees i through the opposite image
+                        if add_extra(c, j, i, (26 - code) | wrap) < 0:
+                            return -1
+                    else:
+                        cnt = add_found(out, pos, cnt, j, code | wrap)
+                        if cnt < 0:
+                            return -1
+    return cnt
+
+
+cdef int scan_big(State* c, int i, Found* out, long long pos) noexcept nogil:
+    """Big row i's partners after it: the small ones (scan_box), then the big ones, each
+    tried at its nearest periodic image; how many, or -1 when out of memory."""
+    cdef int q, d, j, code, cnt, body = body_of(c, i)
+    cdef int s[3]
+    cdef double dd[3]
+    cdef double rc
+    cnt = scan_box(c, i, False, out, pos, 0)
+    for q in range(c.lists.nbig):
+        j = c.lists.big[q]
+        if cnt < 0 or j <= i:
+            continue
+        for d in range(3):
+            dd[d] = c.particles.x[3 * i + d] - c.particles.x[3 * j + d]
+            s[d] = 0
+            if c.per[d] and dd[d] > 0.5 * c.L[d]:
+                s[d] = -1
+            elif c.per[d] and dd[d] < -0.5 * c.L[d]:
+                s[d] = 1
+            dd[d] += s[d] * c.L[d]
+        rc = c.particles.r[i] + c.particles.r[j] + c.skin
+        if dd[0] * dd[0] + dd[1] * dd[1] + dd[2] * dd[2] < rc * rc and not same_body(c, body, j):
+            code = 9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1
+            cnt = add_found(out, pos, cnt, j, code | (WRAP if s[c.lists.ax[0]] != 0 else 0))
+    return cnt
+
+
+cdef int by_rows(const void* a, const void* b) noexcept nogil:
+    cdef const Extra* x = <const Extra*>a
+    cdef const Extra* y = <const Extra*>b
+    if x.i != y.i:
+        return -1 if x.i < y.i else 1
+    return -1 if x.j < y.j else (1 if x.j > y.j else 0)
+
+
+cdef int find_big(State* sim) noexcept nogil:
+    """The big rows (``Lists.big``) and, sorted by row, the extras; -1 when out of memory."""
+    cdef int i, q
+    cdef void* p
+    sim.lists.nbig = 0
+    sim.lists.nextra = 0
+    if sim.lists.rsplit >= INFINITY:
+        return 0
+    for i in range(sim.particles.n):
+        if sim.particles.r[i] > sim.lists.rsplit:
+            if sim.lists.nbig == sim.lists.big_cap:
+                p = grow(sim.lists.big, (2 * sim.lists.big_cap + 16) * sizeof(int))
+                if p == NULL:
+                    return -1
+                sim.lists.big = <int*>p
+                sim.lists.big_cap = 2 * sim.lists.big_cap + 16
+            sim.lists.big[sim.lists.nbig] = i
+            sim.lists.nbig += 1
+    for q in range(sim.lists.nbig):
+        if scan_box(sim, sim.lists.big[q], True, NULL, 0, 0) < 0:
+            return -1
+    qsort(sim.lists.extra, sim.lists.nextra, sizeof(Extra), by_rows)
+    return 0
+
+
 cdef int scan_pairs(const State* c, int i, Found* out, long long pos) noexcept nogil:
-    """Partners j > i within r_i + r_j + skin, but for spheres of i's clump: written to ``out``
+    """Small partners j > i within r_i + r_j + skin (big ones come from the extras, see find_big),
+    but for spheres of i's clump: written to ``out``
     from ``pos`` (see Found); how many, or -1 when out of memory. The cells around i's are
     searched in the order of the loops below; rows are sorted by cell, so cells before i's hold
     no j > i: inside the grid (no image, no edge) only the cells ``c.lists.up`` after it are searched."""
     cdef int d0, d1, d2, k, cid, cnt = 0
-    cdef int body = c.clumps.mbody[c.particles.mem[i]] if c.clumps.nbody and c.particles.mem[i] >= 0 else -1
+    cdef int body = body_of(c, i)
     cdef int cc[3]
     cdef int nb[3]
     cdef int s[3]
@@ -357,7 +517,7 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept no
     """Rows [lo, hi), block b, of a parallel pass of the rebuild (and bodies [lo, hi) of a body
     loop, which the team hands out as rows too)."""
     cdef int i, d, n = sim.schedule.rows, j, cnt
-    cdef long long k, pos = 0
+    cdef long long k, x, pos = 0
     cdef Found* found = &sim.lists.found[b]
     cdef int* perm = sim.particles.perm
     cdef double* sr = sim.particles.f
@@ -396,8 +556,17 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept no
                 sim.particles.x0[3 * i + d] = sim.particles.x[3 * i + d]
     elif phase == P_COUNT:   # the pairs go to the block's Found, the fill copies them
         found.failed = 0
+        x = 0
         for i in range(lo, hi):
-            cnt = scan_pairs(sim, i, found, pos)
+            if sim.particles.r[i] > sim.lists.rsplit:
+                cnt = scan_big(sim, i, found, pos)
+            else:
+                cnt = scan_pairs(sim, i, found, pos)
+                while x < sim.lists.nextra and sim.lists.extra[x].i < i:
+                    x += 1
+                while cnt >= 0 and x < sim.lists.nextra and sim.lists.extra[x].i == i:
+                    cnt = add_found(found, pos, cnt, sim.lists.extra[x].j, sim.lists.extra[x].s)
+                    x += 1
             if cnt < 0:
                 found.failed = 1
                 cnt = 0
@@ -450,17 +619,24 @@ cdef int rebuild(State* sim) noexcept nogil:
     histories."""
     cdef int i, d, n = sim.particles.n, nnew, dead = 0
     cdef long long lost = 0
-    cdef double rmax = 0.0
+    cdef double rmax = 0.0, rmin = INFINITY
     cdef int *ip
     cdef uint8_t *bp
     cdef double *dp
     cdef long long cap
     cdef double t0 = pg_now(), t1
     for i in range(n):
-        if sim.particles.r[i] > rmax:
-            rmax = sim.particles.r[i]
-    if setup_cells(sim, rmax) < 0:
+        rmax = max(rmax, sim.particles.r[i])
+        rmin = min(rmin, sim.particles.r[i])
+    sim.lists.rsplit = split_radius(sim, rmin, rmax)
+    if setup_cells(sim, sim.lists.rsplit) < 0:
         return -1
+    if sim.lists.rsplit < rmax and not box_fits(sim, rmax):
+        sim.lists.rsplit = rmax
+        if setup_cells(sim, rmax) < 0:
+            return -1
+    if sim.lists.rsplit >= rmax:
+        sim.lists.rsplit = INFINITY
     if sim.walls.binned_dirty or sim.walls.binned_reach != rmax + sim.skin or any_moving(sim) \
             or sim.walls.binned_nc[0] != sim.lists.nc[0] or sim.walls.binned_nc[1] != sim.lists.nc[1] or sim.walls.binned_nc[2] != sim.lists.nc[2]:
         if bin_triangles(sim, rmax + sim.skin) < 0:
@@ -514,6 +690,8 @@ cdef int rebuild(State* sim) noexcept nogil:
     ip = sim.lists.ow_e; sim.lists.ow_e = sim.lists.wl_e; sim.lists.wl_e = ip
     dp = sim.lists.ow_h; sim.lists.ow_h = sim.lists.wl_h; sim.lists.wl_h = dp
     cap = sim.lists.ow_cap; sim.lists.ow_cap = sim.lists.wl_cap; sim.lists.wl_cap = cap
+    if find_big(sim) < 0:
+        return -1
     lend_found(sim)
     parallel_rows(sim, P_COUNT, nnew)
     for i in range(sim.schedule.nblocks):

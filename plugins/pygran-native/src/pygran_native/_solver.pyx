@@ -77,9 +77,9 @@ them (see force_phase). The team's heuristics (team.h, and the Tuner, which runs
 calling thread alone while that is faster) are built unless PYGRAN_NATIVE_TEAM_HEURISTICS=0.
 """
 
-from libc.math cimport sqrt, floor, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
+from libc.math cimport sqrt, floor, ceil, fabs, cos, sin, cbrt, M_PI, isfinite, INFINITY
 from libc.float cimport DBL_EPSILON
-from libc.stdlib cimport malloc, calloc, free
+from libc.stdlib cimport malloc, calloc, free, qsort
 cdef extern from "<stdlib.h>":
     void* aligned_alloc(size_t alignment, size_t size) nogil
 from libc.string cimport memcpy, memmove, memset
@@ -282,6 +282,12 @@ cdef class Core:
         return self.s.rebuilds
 
     @property
+    def grid(self):
+        """The last rebuild's cells per axis, the radius they fit (inf: every particle's) and
+        the big particles, which search the cells within their reach (see split_radius)."""
+        return (tuple(self.s.lists.nc[d] for d in range(3)), self.s.lists.rsplit, self.s.lists.nbig)
+
+    @property
     def ne(self):
         return self.s.walls.ne
 
@@ -377,7 +383,8 @@ cdef class Core:
                   <size_t>self.s.lists.wl_h, <size_t>self.s.lists.wl_f, <size_t>self.s.lists.ow_e,
                   <size_t>self.s.lists.ow_h, <size_t>self.s.contacts.h, <size_t>self.s.contacts.f,
                   <size_t>self.s.contacts.free, <size_t>self.s.contacts.live, <size_t>self.s.lists.cell_start,
-                  <size_t>self.s.walls.ctri_start, <size_t>self.s.walls.ctri):
+                  <size_t>self.s.walls.ctri_start, <size_t>self.s.walls.ctri, <size_t>self.s.lists.big,
+                  <size_t>self.s.lists.extra):
             release(<void*>p)   # the growable arrays (see grow)
         for p in (<size_t>self.s.lists.halo, <size_t>self.s.lists.halos, <size_t>self.s.schedule.posted,
                   <size_t>self.s.contacts.take, <size_t>self.s.contacts.spill, <size_t>self.s.walls.slots,

@@ -122,6 +122,14 @@ cdef struct Contacts:
     int recording      # keep each contact's force (see Core.set_recording)
 
 
+cdef struct Extra:
+    # A pair of a small particle's row i and a big one's row j > i, found from the big one's
+    # side (see find_extras): image code and WRAP flag as row i sees j.
+    int i
+    int j
+    uint8_t s
+
+
 cdef struct Lists:
     # The cell grid, the neighbour and wall lists (current and previous, with the wall entries'
     # contact histories; a pair's is in Contacts), the sublist of the batched path, and the pair
@@ -130,6 +138,16 @@ cdef struct Lists:
     int ax[3]          # axes from the slowest-varying in the cell index, see cell_id
     double cs[3]
     int ncells
+    # the cells fit the particles up to radius rsplit; the few bigger ones (rows big[0..nbig),
+    # see split_radius) search the cells within their reach, and their pairs with small rows
+    # before them are the extras, sorted by row
+    double rsplit
+    int *big
+    int nbig
+    int big_cap
+    Extra *extra
+    long long nextra
+    long long extra_cap
     int up[14]         # the offsets of the cell index to the cell itself and the 13 after it
                        # among its 27 neighbours (inside the grid), see scan_pairs
     int *cell_start

@@ -12,9 +12,10 @@ Conventions (LIGGGHTS):
 
 - velocity Verlet for translation and rotation of spheres (moment of inertia
   ``2/5 m r^2``), gravity, viscous force ``F = -gamma v`` per particle type;
-- neighbour search: cell list of side ``>= 2 r_max + skin``, half neighbour list rebuilt
-  when a particle plus a moving wall have moved more than half the skin since the last
-  rebuild; at each rebuild particles are wrapped into periodic directions, sorted by
+- neighbour search: cell list of side ``>= 2 r + skin`` (r the largest radius but for a few
+  particles over twice the smallest, which search the cells in their reach), half neighbour
+  list rebuilt when a particle plus a moving wall have moved more than half the skin since
+  the last rebuild; at each rebuild particles are wrapped into periodic directions, sorted by
   cell, and those outside a fixed boundary or non-finite are deleted and counted in
   :attr:`Solver.lost` (LIGGGHTS ``boundary f``), by face and with their speed
   (:meth:`Solver.take_lost`); a non-finite particle forces a rebuild at once;
@@ -402,3 +403,11 @@ class Solver(Walls, Bodies, Checkpoints):
     def rebuilds(self) -> int:
         """Neighbour-list rebuilds so far."""
         return int(self._core.rebuilds)
+
+    @property
+    def grid(self) -> tuple[tuple[int, int, int], float, int]:
+        """The last rebuild's cell grid: cells per axis, the largest radius they fit (``inf``:
+        every particle's) and how many big particles search the cells within their reach
+        (those over twice the smallest radius, when few)."""
+        cells, radius, big = self._core.grid
+        return tuple(int(c) for c in cells), float(radius), int(big)
