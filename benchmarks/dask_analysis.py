@@ -181,6 +181,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(dir=args.folder) as folder:
         path = Path(folder) / "bed.h5"
         rate = write_trajectory(path, n, args.frames)
+        os.sync()  # the kernel's write-back of the 4 GB would otherwise run beside the first cluster
         frame_bytes = n * 9 * 8
         print(
             f"{args.frames} frames of {n} to {n - (args.frames - 1) * (n // 1000)} particles: "
