@@ -123,10 +123,6 @@ cdef int reserve_contacts(State* sim, long long need) noexcept nogil:
     if p == NULL:
         return -1
     sim.contacts.free = <int*>p
-    p = grow(sim.contacts.live, cap)
-    if p == NULL:
-        return -1
-    sim.contacts.live = <uint8_t*>p
     sim.contacts.cap = cap
     return 0
 
@@ -183,20 +179,69 @@ cdef void free_spill(Spill* s) noexcept nogil:
     s.cap = 0
 
 
-cdef int free_dead_slots(State* sim) noexcept nogil:
-    """At a rebuild, once the new list has its slots (marked in ``live``): the free list made
-    anew, of the others (ascending); the table keeps room for a sixteenth more contacts. -1
-    when out of memory."""
-    cdef long long slot, nfree = 0, alive
-    for slot in range(sim.contacts.n):
-        if not sim.contacts.live[slot]:
-            sim.contacts.free[nfree] = <int>slot
-            nfree += 1
-    sim.contacts.nfree = nfree
+cdef inline void swap_slot(State* sim, long long slot, double* carry) noexcept nogil:
+    """Exchange the contents of ``slot`` (history, and force when recording) with ``carry``."""
+    cdef double tmp
+    cdef int q
+    cdef double* h = slot_history(sim, slot)
+    for q in range(sim.hs):
+        tmp = h[q]
+        h[q] = carry[q]
+        carry[q] = tmp
+    if sim.contacts.recording:
+        for q in range(3):
+            tmp = sim.contacts.f[3 * slot + q]
+            sim.contacts.f[3 * slot + q] = carry[MAXHS + q]
+            carry[MAXHS + q] = tmp
+
+
+cdef int compact_slots(State* sim, long long npair) noexcept nogil:
+    """At a rebuild, once the new list (``npair`` entries) names the slots it keeps: the kept
+    contacts renumbered in list order and moved there, so that a pass reads the table front to
+    back (slots freed and retaken over a run would scatter the pairs of neighbouring rows over
+    the whole table); no free slot remains. The moves follow each chain of the renumbering once:
+    first those starting at a kept slot beyond the new count, then the cycles. ``free`` holds the
+    new number of each old slot meanwhile (-1: not kept). -1 when out of memory."""
+    cdef long long k, slot, dest, m = 0, old = sim.contacts.n
+    cdef double carry[MAXHS + 3]
+    memset(carry, 0, sizeof(carry))
+    for slot in range(old):
+        sim.contacts.free[slot] = -1
+    for k in range(npair):
+        if sim.lists.nb_c[k] >= 0:
+            sim.contacts.free[sim.lists.nb_c[k]] = <int>m
+            sim.lists.nb_c[k] = <int>m
+            m += 1
+    for slot in range(m, old):   # chains from a slot no contact moves into, ending at a dropped one
+        if sim.contacts.free[slot] < 0:
+            continue
+        swap_slot(sim, slot, carry)
+        dest = sim.contacts.free[slot]
+        sim.contacts.free[slot] = -1
+        while True:
+            swap_slot(sim, dest, carry)
+            k = sim.contacts.free[dest]
+            sim.contacts.free[dest] = -1
+            if k < 0:
+                break
+            dest = k
+    for slot in range(m):   # what is left are cycles (and contacts already in place)
+        dest = sim.contacts.free[slot]
+        if dest < 0 or dest == slot:
+            continue
+        swap_slot(sim, slot, carry)
+        sim.contacts.free[slot] = -1
+        while dest != slot:
+            swap_slot(sim, dest, carry)
+            k = sim.contacts.free[dest]
+            sim.contacts.free[dest] = -1
+            dest = k
+        swap_slot(sim, slot, carry)
+    sim.contacts.n = m
+    sim.contacts.nfree = 0
     sim.contacts.take[0] = 0
-    alive = sim.contacts.n - nfree
-    if nfree + sim.contacts.cap - sim.contacts.n < alive // 16 + 64:
-        return reserve_contacts(sim, sim.contacts.n + alive // 16 + 64)
+    if sim.contacts.cap - m < m // 16 + 64:
+        return reserve_contacts(sim, m + m // 16 + 64)
     return 0
 
 

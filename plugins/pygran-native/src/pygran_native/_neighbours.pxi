@@ -11,7 +11,7 @@ cdef inline void zero_hist(double* h, int hs) noexcept nogil:
 
 cdef uint8_t carry_pair(const State* c, int a, int b, int* slot) noexcept nogil:
     """The contact slot of new pair (a, b) in the previous list (old indices through ``perm``),
-    -1 if none, marked live; its history turned to the new orientation. Returns the previous
+    -1 if none; its history turned to the new orientation. Returns the previous
     touching flag (``TOUCH`` or 0)."""
     cdef int oa = c.particles.perm[a], ob = c.particles.perm[b], lo = oa, hi = ob, k, q
     cdef double* h
@@ -22,7 +22,6 @@ cdef uint8_t carry_pair(const State* c, int a, int b, int* slot) noexcept nogil:
         if c.lists.ob_j[k] == hi:
             slot[0] = c.lists.ob_c[k]
             if slot[0] >= 0:
-                c.contacts.live[slot[0]] = 1
                 if ob < oa:   # the shear, and the rolling spring torque, are i's: j's is the opposite
                     h = slot_history(c, slot[0])
                     for q in range(3):
@@ -705,13 +704,11 @@ cdef int rebuild(State* sim) noexcept nogil:
     if reserve_pairs(sim, sim.lists.nb_start[nnew]) < 0 or reserve_walls(sim, sim.lists.wl_start[nnew]) < 0:
         return -1
     t1 = lap(sim, T_COUNT, t1)
-    if sim.contacts.n:
-        memset(sim.contacts.live, 0, sim.contacts.n)   # the fill marks the slots it keeps
     parallel_rows(sim, P_FILL, nnew)
     if sim.batched:   # the found pairs are copied: the sublist's arrays are free for it
         for i in range(sim.schedule.nblocks):
             release_found(&sim.lists.found[i])
-    if free_dead_slots(sim) < 0 or reserve_sublist(sim, sim.lists.nb_start[nnew]) < 0:
+    if compact_slots(sim, sim.lists.nb_start[nnew]) < 0 or reserve_sublist(sim, sim.lists.nb_start[nnew]) < 0:
         return -1
     prefix_last(sim)
     for i in range(9 * sim.walls.ne):

@@ -382,7 +382,7 @@ cdef class Core:
                   <size_t>self.s.lists.ob_s, <size_t>self.s.lists.ob_c, <size_t>self.s.lists.wl_e,
                   <size_t>self.s.lists.wl_h, <size_t>self.s.lists.wl_f, <size_t>self.s.lists.ow_e,
                   <size_t>self.s.lists.ow_h, <size_t>self.s.contacts.h, <size_t>self.s.contacts.f,
-                  <size_t>self.s.contacts.free, <size_t>self.s.contacts.live, <size_t>self.s.lists.cell_start,
+                  <size_t>self.s.contacts.free, <size_t>self.s.lists.cell_start,
                   <size_t>self.s.walls.ctri_start, <size_t>self.s.walls.ctri, <size_t>self.s.lists.big,
                   <size_t>self.s.lists.extra):
             release(<void*>p)   # the growable arrays (see grow)

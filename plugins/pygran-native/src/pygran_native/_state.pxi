@@ -105,7 +105,7 @@ cdef struct Contacts:
     # forces are recorded, the force a recording pass applied (3 values, see contact_forces). A
     # pass gives a pair that comes into contact a slot (new_contact): one of the free list (from
     # its end), else the next fresh one; a contact that ends leaves its slot to the free list
-    # after the pass (a rebuild makes the list anew: the slots the new list does not keep).
+    # after the pass (a rebuild renumbers the contacts it keeps in list order, see compact_slots).
     # Slots are taken through ``take`` (atomic), so the threads of a pass need no lock; when
     # fresh slots run out, the pass puts the new contacts in its blocks' spills, and the table
     # grows after it (see settle_slots). Which slot a contact has changes no result.
@@ -117,7 +117,6 @@ cdef struct Contacts:
     long long nfree
     long long *take    # the slots a pass took so far: free[nfree - 1 - take] while take < nfree,
                        # then fresh slot n + (take - nfree) (a cache line of its own)
-    uint8_t *live      # the rebuild's marks of the slots the new list keeps
     Spill *spill       # per pair block
     int recording      # keep each contact's force (see Core.set_recording)
 
