@@ -31,6 +31,7 @@ class Core:
     step: int
     lost: int
     rebuilds: int
+    grid: tuple[tuple[int, int, int], float, int]
     ne: int
     nslots: int
     nvib: int

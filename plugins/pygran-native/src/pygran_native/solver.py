@@ -409,5 +409,5 @@ class Solver(Walls, Bodies, Checkpoints):
         """The last rebuild's cell grid: cells per axis, the largest radius they fit (``inf``:
         every particle's) and how many big particles search the cells within their reach
         (those over twice the smallest radius, when few)."""
-        cells, radius, big = self._core.grid
-        return tuple(int(c) for c in cells), float(radius), int(big)
+        (nx, ny, nz), radius, big = self._core.grid
+        return (int(nx), int(ny), int(nz)), float(radius), int(big)
