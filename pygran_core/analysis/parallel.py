@@ -26,10 +26,9 @@ from pygran_core.io import Trajectory
 
 #: Frames one worker process holds at most at any time (its tasks wait for each other beyond it).
 FRAMES_PER_WORKER = 2
-#: Tasks per worker thread. The last tasks to finish leave the other workers idle, up to a
-#: task's time: with 4 per thread, 50 frames on 2 workers ran 1.5-1.95x faster than on 1; with
-#: 16 (one to two frames a task), 1.8-2.0x. A task costs about 25 ms more than its frames (it
-#: opens the trajectory), so many frames still make a few long tasks.
+#: Tasks per worker thread: while the last tasks run, the other workers idle, up to a task's
+#: time, so tasks are short; each opens the trajectories (about 25 ms), so a long trajectory
+#: still makes few tasks of many frames.
 TASKS_PER_THREAD = 16
 _frames_held = threading.BoundedSemaphore(FRAMES_PER_WORKER)
 

@@ -111,11 +111,9 @@ cdef inline int scan_cell(const State* c, int i, int cid, int code, int wrap, in
         rc = c.particles.r[i] + c.particles.r[j] + c.skin
         if dx * dx + dy * dy + dz * dz < rc * rc and c.particles.r[j] <= c.lists.rsplit and \
                 not same_body(c, body, j):
-            if pos + cnt == out.cap and grow_found(out) < 0:
+            cnt = add_found(out, pos, cnt, j, code | wrap)
+            if cnt < 0:
                 return -1
-            out.j[pos + cnt] = j
-            out.s[pos + cnt] = <uint8_t>(code | wrap)
-            cnt += 1
         j += 1
     return cnt
 
@@ -153,6 +151,11 @@ cdef int add_extra(State* sim, int i, int j, int code) noexcept nogil:
     sim.lists.extra[sim.lists.nextra].s = <uint8_t>code
     sim.lists.nextra += 1
     return 0
+
+
+cdef inline bint cell_exists(const State* c, int d, int a) noexcept nogil:
+    """Whether cell coordinate a along axis d is in the grid or, on a periodic axis, an image."""
+    return c.per[d] or 0 <= a < c.lists.nc[d]
 
 
 cdef inline void wrap_cell(const State* c, int d, int a, int* nb, int* s) noexcept nogil:
@@ -298,29 +301,17 @@ cdef int scan_pairs(const State* c, int i, Found* out, long long pos) noexcept n
                 return -1
         return cnt
     for d2 in range(-1, 2):
-        nb[2] = cc[2] + d2
-        s[2] = 0
-        if nb[2] < 0 or nb[2] >= c.lists.nc[2]:
-            if not c.per[2]:
-                continue
-            s[2] = 1 if nb[2] < 0 else -1
-            nb[2] += s[2] * c.lists.nc[2]
+        if not cell_exists(c, 2, cc[2] + d2):
+            continue
+        wrap_cell(c, 2, cc[2] + d2, nb, s)
         for d1 in range(-1, 2):
-            nb[1] = cc[1] + d1
-            s[1] = 0
-            if nb[1] < 0 or nb[1] >= c.lists.nc[1]:
-                if not c.per[1]:
-                    continue
-                s[1] = 1 if nb[1] < 0 else -1
-                nb[1] += s[1] * c.lists.nc[1]
+            if not cell_exists(c, 1, cc[1] + d1):
+                continue
+            wrap_cell(c, 1, cc[1] + d1, nb, s)
             for d0 in range(-1, 2):
-                nb[0] = cc[0] + d0
-                s[0] = 0
-                if nb[0] < 0 or nb[0] >= c.lists.nc[0]:
-                    if not c.per[0]:
-                        continue
-                    s[0] = 1 if nb[0] < 0 else -1
-                    nb[0] += s[0] * c.lists.nc[0]
+                if not cell_exists(c, 0, cc[0] + d0):
+                    continue
+                wrap_cell(c, 0, cc[0] + d0, nb, s)
                 cnt = scan_cell(c, i, cell_id(c.lists.nc, c.lists.ax, nb), 9 * (s[0] + 1) + 3 * (s[1] + 1) + s[2] + 1,
                                 WRAP if s[c.lists.ax[0]] != 0 else 0, body, out, pos, cnt)
                 if cnt < 0:
