@@ -196,12 +196,10 @@ cdef inline void swap_slot(State* sim, long long slot, double* carry) noexcept n
 
 
 cdef int compact_slots(State* sim, long long npair) noexcept nogil:
-    """At a rebuild, once the new list (``npair`` entries) names the slots it keeps: the kept
-    contacts renumbered in list order and moved there, so that a pass reads the table front to
-    back (slots freed and retaken over a run would scatter the pairs of neighbouring rows over
-    the whole table); no free slot remains. The moves follow each chain of the renumbering once:
-    first those starting at a kept slot beyond the new count, then the cycles. ``free`` holds the
-    new number of each old slot meanwhile (-1: not kept). -1 when out of memory."""
+    """The kept contacts of the new list (``npair`` entries) renumbered in list order and moved
+    there; no free slot remains. The moves follow each chain of the renumbering once: first
+    those starting at a kept slot beyond the new count, then the cycles. ``free`` holds the new
+    number of each old slot meanwhile (-1: not kept). -1 when out of memory."""
     cdef long long k, slot, dest, m = 0, old = sim.contacts.n
     cdef double carry[MAXHS + 3]
     memset(carry, 0, sizeof(carry))
@@ -243,6 +241,42 @@ cdef int compact_slots(State* sim, long long npair) noexcept nogil:
     if sim.contacts.cap - m < m // 16 + 64:
         return reserve_contacts(sim, m + m // 16 + 64)
     return 0
+
+
+cdef int free_dropped_slots(State* sim) noexcept nogil:
+    """The free list made anew from the slots the new list does not keep (``free`` marks the
+    kept ones with 1, the others 0: see the fill in rebuild_rows), the unused tail of the table
+    given back; the table keeps room for a sixteenth more contacts. -1 when out of memory."""
+    cdef long long slot, n = sim.contacts.n, nfree = 0
+    while n > 0 and sim.contacts.free[n - 1] == 0:
+        n -= 1
+    for slot in range(n):   # in place: the entry written is never after the one read
+        if sim.contacts.free[slot] == 0:
+            sim.contacts.free[nfree] = <int>slot
+            nfree += 1
+    sim.contacts.n = n
+    sim.contacts.nfree = nfree
+    sim.contacts.take[0] = 0
+    if nfree + sim.contacts.cap - n < (n - nfree) // 16 + 64:
+        return reserve_contacts(sim, n + (n - nfree) // 16 + 64)
+    return 0
+
+
+cdef int renew_slots(State* sim, long long npair) noexcept nogil:
+    """At a rebuild, once the new list (``npair`` entries) names the slots it keeps. Slots freed
+    and retaken over a run scatter the contacts of neighbouring rows over the whole table, and a
+    pass then reads it at random: when the kept contacts run in list order for fewer than
+    ORDERED_RUN slots on average (counted by the fill, per block), they are renumbered in list
+    order (compact_slots, serial); otherwise the numbering stays and only the free list is made
+    anew (free_dropped_slots: a settle rebuilds every few steps). -1 when out of memory."""
+    cdef long long kept = 0, breaks = 0
+    cdef int b
+    for b in range(sim.schedule.nblocks):
+        kept += sim.lists.found[b].kept
+        breaks += sim.lists.found[b].breaks
+    if breaks * ORDERED_RUN > kept:
+        return compact_slots(sim, npair)
+    return free_dropped_slots(sim)
 
 
 cdef void clear_contacts(State* sim) noexcept nogil:

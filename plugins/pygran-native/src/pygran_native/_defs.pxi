@@ -4,6 +4,8 @@ cdef enum:
     MAXCAND = 64       # triangles in reach of one particle that wall_row classifies, at most
     MAXHS = 10         # history values of a contact, at most (Thornton-Ning with a rolling spring)
     SPILL_KEPT = 256   # contacts a pair block's spill keeps room for between passes (see settle_slots)
+    ORDERED_RUN = 8    # contacts in list order per run of consecutive slots, on average, below
+                       # which a rebuild renumbers them (see renew_slots)
     NCOLUMNS = 21      # per-particle arrays, see particle_columns
     NBCOLUMNS = 12     # per-body arrays of clumps, see body_columns
     NMCOLUMNS = 4      # per-member arrays of clumps, see member_columns

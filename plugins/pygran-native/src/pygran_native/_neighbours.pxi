@@ -563,13 +563,20 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept no
             pos += cnt
             sim.lists.nb_start[i + 1] = cnt
             sim.lists.wl_start[i + 1] = scan_walls(sim, i, False)
-    elif phase == P_FILL:
+    elif phase == P_FILL:   # also marks the kept slots in the contact table's free list
         pos = sim.lists.nb_start[lo]
+        found.kept = found.breaks = 0
+        x = -2
         for i in range(lo, hi):
             for k in range(sim.lists.nb_start[i], sim.lists.nb_start[i + 1]):
                 j = found.j[k - pos]
                 sim.lists.nb_j[k] = j
                 sim.lists.nb_s[k] = found.s[k - pos] | carry_pair(sim, i, j, &sim.lists.nb_c[k])
+                if sim.lists.nb_c[k] >= 0:
+                    sim.contacts.free[sim.lists.nb_c[k]] = 1
+                    found.kept += 1
+                    found.breaks += sim.lists.nb_c[k] != x + 1
+                    x = sim.lists.nb_c[k]
             scan_walls(sim, i, True)
             sim.schedule.work[i] = estimated_work(sim, i)
             find_partners(sim, i)
@@ -695,11 +702,12 @@ cdef int rebuild(State* sim) noexcept nogil:
     if reserve_pairs(sim, sim.lists.nb_start[nnew]) < 0 or reserve_walls(sim, sim.lists.wl_start[nnew]) < 0:
         return -1
     t1 = lap(sim, T_COUNT, t1)
+    memset(sim.contacts.free, 0, sim.contacts.n * sizeof(int))
     parallel_rows(sim, P_FILL, nnew)
     if sim.batched:   # the found pairs are copied: the sublist's arrays are free for it
         for i in range(sim.schedule.nblocks):
             release_found(&sim.lists.found[i])
-    if compact_slots(sim, sim.lists.nb_start[nnew]) < 0 or reserve_sublist(sim, sim.lists.nb_start[nnew]) < 0:
+    if renew_slots(sim, sim.lists.nb_start[nnew]) < 0 or reserve_sublist(sim, sim.lists.nb_start[nnew]) < 0:
         return -1
     prefix_last(sim)
     for i in range(9 * sim.walls.ne):

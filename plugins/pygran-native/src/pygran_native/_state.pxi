@@ -38,6 +38,8 @@ cdef struct Found:
     long long cap
     int failed         # out of memory in the last count
     int borrowed
+    long long kept     # contacts the fill carried over in the block's rows
+    long long breaks   # of them, those whose slot does not follow the previous one's (see renew_slots)
 
 
 cdef struct Tuner:
@@ -105,7 +107,8 @@ cdef struct Contacts:
     # forces are recorded, the force a recording pass applied (3 values, see contact_forces). A
     # pass gives a pair that comes into contact a slot (new_contact): one of the free list (from
     # its end), else the next fresh one; a contact that ends leaves its slot to the free list
-    # after the pass (a rebuild renumbers the contacts it keeps in list order, see compact_slots).
+    # after the pass (a rebuild renumbers the contacts it keeps in list order when their order has
+    # decayed, see renew_slots).
     # Slots are taken through ``take`` (atomic), so the threads of a pass need no lock; when
     # fresh slots run out, the pass puts the new contacts in its blocks' spills, and the table
     # grows after it (see settle_slots). Which slot a contact has changes no result.
