@@ -72,6 +72,22 @@ def test_penetration_miniature_agrees_on_native_and_liggghts(tmp_path):
     assert tracks["native"][-1] > free[-1] + 5e-4  # resisted: over 0.5 mm above free flight
 
 
+def test_jittered_bed_moves_each_coordinate_by_at_most_the_jitter_with_a_seed():
+    """``run.py --jitter``'s bed: every coordinate moved, none by more than the jitter, the
+    radii and the file's rows untouched, the same bed for the same seed."""
+    rows = cases.bed("25k")
+    original = rows.copy()
+    moved = cases.jittered(rows, 1e-9)
+    shift = moved[:, 1:] - rows[:, 1:]
+    assert np.array_equal(rows, original)
+    assert np.array_equal(moved[:, 0], rows[:, 0])
+    assert 0 < np.abs(shift).min() and np.abs(shift).max() <= 1e-9
+    assert 0.9e-9 < np.abs(shift).max()
+    assert np.array_equal(cases.jittered(rows, 1e-9), moved)
+    assert not np.array_equal(cases.jittered(rows, 1e-9, seed=2), moved)
+    assert cases.jittered(rows, 0.0) is rows
+
+
 @pytest.mark.parametrize("engine", ENGINES)
 def test_drum_triangle_file_turns_about_an_axis_through_a_point(tmp_path, engine):
     """The drum's 9-column wall file as a mesh, moved to a centre c and turned at 2 rad/s

@@ -76,6 +76,17 @@ def soft(material: dict[str, float], factor: float = 500.0) -> dict[str, float]:
     return dict(material, youngsModulus=material["youngsModulus"] / factor)
 
 
+def jittered(rows: np.ndarray, jitter: float, seed: int = 1) -> np.ndarray:
+    """``rows`` (``radius x y z``) with each coordinate moved by up to ``jitter`` metres
+    (uniform, seeded): run twice on one engine, once jittered by far less than any overlap,
+    a case shows how far its own chaos carries two runs apart."""
+    if not jitter:
+        return rows
+    moved = np.array(rows, dtype=float)
+    moved[:, 1:] += np.random.default_rng(seed).uniform(-jitter, jitter, moved[:, 1:].shape)
+    return moved
+
+
 def bed(size: str) -> np.ndarray:
     """The penetration bed ``(N, 4)`` rows ``radius x y z`` (its malformed last line skipped)."""
     with warnings.catch_warnings():
@@ -85,11 +96,15 @@ def bed(size: str) -> np.ndarray:
 
 
 def penetration(
-    size: str = "25k", rows: np.ndarray | None = None, box: tuple[float, ...] | None = None
+    size: str = "25k",
+    rows: np.ndarray | None = None,
+    box: tuple[float, ...] | None = None,
+    jitter: float = 0.0,
 ) -> Case:
-    """The penetration case with the bed of ``size`` (or ``rows``, a part of it, in ``box``)."""
-    rows = bed(size) if rows is None else rows
-    walls = rows is None or box is None
+    """The penetration case with the bed of ``size`` (or ``rows``, a part of it, in ``box``,
+    without the walls), its beads moved by up to ``jitter`` (see :func:`jittered`)."""
+    walls = box is None
+    rows = jittered(bed(size) if rows is None else rows, jitter)
     keywords: dict[str, Any] = {
         "model": simulation.models.HertzMindlin,
         "box": box or (-0.052, 0.052, -0.033, 0.033, -0.093, 0.109),
@@ -112,11 +127,13 @@ def penetration(
     return Case("penetration", 1e-3, ("z",), keywords, setup, observe, len(rows) + 1)
 
 
-def drum(variant: str = "stiff") -> Case:
-    """The rotating drum, ``stiff`` or ``soft`` (see the module docstring)."""
+def drum(variant: str = "stiff", jitter: float = 0.0) -> Case:
+    """The rotating drum, ``stiff`` or ``soft`` (see the module docstring), its particles moved
+    by up to ``jitter`` (see :func:`jittered`)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         table = read_spheres(DATA / "drum_particles.txt.gz", strict=False)
+    rows = jittered(np.column_stack([table.radius, table.positions]), jitter)
     small, large = (M1, M2) if variant == "stiff" else (soft(M1), soft(M2))
     keywords = {
         "model": simulation.models.HertzMindlin,
@@ -129,7 +146,7 @@ def drum(variant: str = "stiff") -> Case:
     }
 
     def setup(sim: Any) -> None:
-        sim.createParticles("all", "single", table)
+        sim.createParticles("all", "single", rows)
         sim.moveMesh("drum", rotate=("origin", 0.0, 0.0, 0.0), axis=(0.0, -1.0, 0.0), omega=2.0)
 
     def observe(sim: Any) -> list[float]:
@@ -138,16 +155,19 @@ def drum(variant: str = "stiff") -> Case:
         return [float(np.count_nonzero(zone & (kind == k))) for zone in (zone1, zone2) for k in (1, 2)]
 
     columns = ("zone1_small", "zone1_large", "zone2_small", "zone2_large")
-    return Case(f"drum-{variant}", 0.1, columns, keywords, setup, observe, len(table))
+    return Case(f"drum-{variant}", 0.1, columns, keywords, setup, observe, len(rows))
 
 
-def silo(orifice: str, material: str, fill: Path, count: int = SILO_FILL) -> Case:
+def silo(orifice: str, material: str, fill: Path, count: int = SILO_FILL, jitter: float = 0.0) -> Case:
     """The silo of ``orifice`` ('small', 'large') with ``material`` ('M1', 'M2'), its fill of
-    ``count`` spheres read from ``fill`` (made by :func:`make_silo_fill` when missing)."""
+    ``count`` spheres read from ``fill`` (made by :func:`make_silo_fill` when missing), moved
+    by up to ``jitter`` (see :func:`jittered`)."""
     walls = read_triangles(DATA / f"silo_{orifice}_walls.txt.gz")
     depth = ORIFICE_DEPTH[orifice]
     keywords = silo_keywords(orifice, material)
-    rows = np.loadtxt(fill) if fill.is_file() else make_silo_fill(orifice, material, fill, count)
+    rows = jittered(
+        np.loadtxt(fill) if fill.is_file() else make_silo_fill(orifice, material, fill, count), jitter
+    )
     top = float(walls[..., 2].max())
 
     def setup(sim: Any) -> None:

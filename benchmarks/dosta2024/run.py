@@ -14,10 +14,13 @@ steps per second, the engine's settings) and the simulation's own folder ``<case
 time on the engines with restart; ``--resume`` continues from the newest). The silo's fill is
 made once, by pouring on the native engine with a fixed seed, and kept as
 ``OUT/silo-<orifice>-<material>-fill.txt`` for every engine (``--fill N`` pours N spheres
-instead of 100,000, for a quick try).
+instead of 100,000, for a quick try). ``--jitter 1e-9`` moves every particle by up to 1e-9 m
+at the start (seeded) and writes ``<engine>+jitter``: against the unjittered run of the same
+engine it shows how far the case's own chaos carries two runs apart, the floor under any
+agreement of two engines.
 ``compare`` overlays the engines' CSVs, one PNG per case, and prints the agreement table: per
-case and column the largest difference of each engine from the first engine's values at the
-common times.
+case and column the largest difference of each engine from the first engine's values (a
+jittered run: from its own engine's) at the common times.
 """
 
 from __future__ import annotations
@@ -45,24 +48,24 @@ SIZES = {
 }
 
 
-def build(case: str, size: str, out: Path, fill: int) -> cases.Case:
+def build(case: str, size: str, out: Path, fill: int, jitter: float) -> cases.Case:
     if size not in SIZES[case]:
         raise SystemExit(f"{case} sizes: {', '.join(SIZES[case])}; got {size!r}")
     if case == "penetration":
-        return cases.penetration(size)
+        return cases.penetration(size, jitter=jitter)
     if case == "drum":
-        return cases.drum(size)
+        return cases.drum(size, jitter)
     orifice, material = size.split("-")
     suffix = "" if fill == cases.SILO_FILL else f"-{fill}"
-    return cases.silo(orifice, material, out / f"silo-{size}{suffix}-fill.txt", fill)
+    return cases.silo(orifice, material, out / f"silo-{size}{suffix}-fill.txt", fill, jitter)
 
 
 def run(args: argparse.Namespace) -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    case = build(args.case, args.size, out, args.fill)
+    case = build(args.case, args.size, out, args.fill, args.jitter)
     label = f"{case.name}-{args.size}" if args.case == "penetration" else case.name
-    name = f"{label}-{args.engine}"
+    name = f"{label}-{args.engine}" + ("+jitter" if args.jitter else "")
     dt = case.keywords["dt"]
     steps = round(case.interval / dt)
     total = round(args.until / dt)  # the last piece is shorter when --until is not a whole interval
@@ -107,6 +110,7 @@ def run(args: argparse.Namespace) -> None:
                 "threads": sim.spec.threads,
                 "nprocs": sim.spec.nprocs,
                 "particles": case.particles,
+                "jitter": args.jitter,
             }
     wall = time.perf_counter() - start
     write_csv(table, case.columns, rows)
@@ -146,21 +150,23 @@ def compare(folder: Path) -> None:
         data = np.atleast_2d(np.loadtxt(table, delimiter=",", skiprows=1))
         runs.setdefault(label, {})[engine] = data
         names[label] = tuple(header)
-    print(f"{'case':<24} {'column':<14} {'engine':<10} {'max |diff|':>12} {'relative':>10}  vs")
+    print(f"{'case':<24} {'column':<14} {'engine':<14} {'max |diff|':>12} {'relative':>10}  vs")
     for label, engines in runs.items():
         figure, axes = plt.subplots(
             1, len(names[label]) - 1, figsize=(5 * (len(names[label]) - 1), 4), squeeze=False
         )
-        reference_engine = sorted(engines)[0]
-        reference = engines[reference_engine]
+        first = sorted(e for e in engines if "+" not in e)[0]
         for column, axis in enumerate(axes[0], start=1):
             for engine, data in sorted(engines.items()):
                 axis.plot(data[:, 0], data[:, column], label=engine)
-                common = min(len(data), len(reference))
+                # a jittered run against its own engine (the case's spread), the others against the first
+                reference_engine = engine.partition("+")[0] if "+" in engine else first
+                reference = engines.get(reference_engine)
+                common = 0 if reference is None else min(len(data), len(reference))
                 if engine != reference_engine and common:
                     diff = np.abs(data[:common, column] - reference[:common, column]).max()
                     scale = np.abs(reference[:common, column]).max() or 1.0
-                    print(f"{label:<24} {names[label][column]:<14} {engine:<10} {diff:>12.4g} "
+                    print(f"{label:<24} {names[label][column]:<14} {engine:<14} {diff:>12.4g} "
                           f"{diff / scale:>10.3g}  {reference_engine}")  # fmt: skip
             axis.set_xlabel("time (s)")
             axis.set_ylabel(names[label][column])
@@ -192,6 +198,12 @@ def main(argv: list[str] | None = None) -> None:
         "--threads", type=int, default=None, help="threads (native, YADE) or MPI ranks (LIGGGHTS)"
     )
     parser.add_argument("--fill", type=int, default=cases.SILO_FILL, help="silo: spheres poured for its fill")
+    parser.add_argument(
+        "--jitter",
+        type=float,
+        default=0.0,
+        help="move the particles by up to this (m) at the start; writes <engine>+jitter",
+    )
     run(parser.parse_args(argv))
 
 
