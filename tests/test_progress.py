@@ -4,6 +4,7 @@ script's declared steps) on stderr and in pygran.log; none on stderr when not sh
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -13,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from pygran_core.errors import ConfigError
+from pygran_core.simulation import mpi
 from pygran_core.simulation.progress import Progress, duration
 from pygran_core.simulation.specs import ProgressSpec, parse_progress
 
@@ -41,12 +43,19 @@ LINE = re.compile(
 )
 
 
-def run_script(folder: Path, progress: str) -> tuple[str, str]:
-    """Run the script with stdout and stderr redirected to files; returns (stderr, pygran.log)."""
+def run_script(folder: Path, progress: str, env: dict[str, str] | None = None) -> tuple[str, str]:
+    """Run the script with stdout and stderr redirected to files, with ``env`` added to the
+    environment; returns (stderr, pygran.log)."""
     (folder / "study.py").write_text(SCRIPT.replace("{PROGRESS}", progress))
     with (folder / "stdout.txt").open("w") as out, (folder / "stderr.txt").open("w") as err:
         subprocess.run(
-            [sys.executable, "study.py"], cwd=folder, stdout=out, stderr=err, check=True, timeout=120
+            [sys.executable, "study.py"],
+            cwd=folder,
+            stdout=out,
+            stderr=err,
+            check=True,
+            timeout=120,
+            env={**os.environ, **(env or {})},
         )
     return (folder / "stderr.txt").read_text(), (folder / "out" / "pygran.log").read_text()
 
@@ -67,6 +76,32 @@ def test_lines_on_stderr_and_in_the_log_when_output_goes_to_a_file(tmp_path: Pat
     assert stderr.count("native: run of ") == 2  # a summary after each run that had lines
     assert "\x1b" not in stderr and "\r" not in stderr  # no progress bar, no terminal codes
     assert log.count("progress: step ") == len(lines)
+
+
+def test_a_later_rank_of_a_launcher_keeps_its_lines_in_the_log(tmp_path: Path) -> None:
+    # under mpirun every rank runs the script: only the first shows progress on stderr
+    stderr, log = run_script(tmp_path, "{'every': 1e-9}", env={"OMPI_COMM_WORLD_RANK": "1"})
+    assert "progress:" not in stderr
+    assert "progress: step " in log
+
+
+@pytest.mark.parametrize(
+    ("env", "rank", "size"),
+    [
+        ({}, 0, 1),
+        ({"OMPI_COMM_WORLD_RANK": "3", "OMPI_COMM_WORLD_SIZE": "4"}, 3, 4),
+        ({"PMI_RANK": "2", "PMI_SIZE": "8"}, 2, 8),
+        ({"PMIX_RANK": "5"}, 5, 1),
+    ],
+)
+def test_launch_rank_and_size_from_each_launcher(
+    monkeypatch: pytest.MonkeyPatch, env: dict[str, str], rank: int, size: int
+) -> None:
+    for name in ("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE", "PMI_RANK", "PMI_SIZE", "PMIX_RANK"):
+        monkeypatch.delenv(name, raising=False)
+    for name, value in env.items():
+        monkeypatch.setenv(name, value)
+    assert (mpi.launch_rank(), mpi.launch_size()) == (rank, size)
 
 
 def test_no_lines_on_stderr_when_not_shown(tmp_path: Path) -> None:

@@ -69,6 +69,7 @@ from pygran_core.simulation.engine_hooks import EngineHooks, Handle
 from pygran_core.simulation.insertion import Obstacles
 from pygran_core.simulation.log import EngineLog, progress_shown
 from pygran_core.simulation.materials import MaterialTable, build_table
+from pygran_core.simulation.mpi import launch_rank, launch_size
 from pygran_core.simulation.output import Monitor, Output, mesh_frame, particle_frame
 from pygran_core.simulation.progress import Progress
 from pygran_core.simulation.resume import Journal
@@ -92,13 +93,13 @@ def claim_output(output: Path) -> IO[str]:
     releases it, however it ends). A folder that cannot be made or written, or that another
     live simulation holds, is a :class:`ConfigError` saying which. Under an MPI launcher the
     ranks of one run share its folder: rank 0 locks it for all of them."""
-    rank = os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0"))
+    rank = launch_rank()
     try:
         output.mkdir(parents=True, exist_ok=True)
         if not os.access(output, os.W_OK | os.X_OK):
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
         lock = open(output / LOCK_NAME, "a+", encoding="utf-8")
-        if rank != "0":
+        if rank != 0:
             return lock  # held open, unlocked: rank 0's lock covers the run
     except OSError as exc:
         what = "a file is in its place or in a parent's" if exc.errno in (errno.EEXIST, errno.ENOTDIR) else ""
@@ -216,8 +217,7 @@ class Engine(EngineHooks):
         #: The last run's time step against the contacts present (``None``: no contact possible).
         self.time_step_check: Assessment | None = None
         self.messages = EngineLog(self.name, self.output, self._writes_output())
-        ranks = os.environ.get("OMPI_COMM_WORLD_SIZE", os.environ.get("PMI_SIZE", "1"))
-        self._progress = Progress(spec.progress, self.messages.progress, collective=ranks != "1")
+        self._progress = Progress(spec.progress, self.messages.progress, collective=launch_size() > 1)
         self.files = Output(spec, self.messages, self._writes_output(), self._native_trajectories())
         self.log("%s engine opened, output in %s", self.name, self.output)
         try:

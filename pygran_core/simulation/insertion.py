@@ -66,6 +66,19 @@ class Obstacles:
         return ok
 
 
+def report_shortfall(messages: EngineLog, message: str, again: bool) -> None:
+    """Report an insertion that made fewer particles than asked (``message``): as an
+    :class:`InsertionWarning` the first time, in ``pygran.log`` only ``again``."""
+    if again:
+        messages.to_file(logging.WARNING, message)
+    else:
+        messages.warn(
+            f"{message}: give a larger region or fewer particles. Further shortfalls of this "
+            "insertion are logged in pygran.log only.",
+            InsertionWarning,
+        )
+
+
 def insertion_steps(first: int, freq: int | None, start: int, stop: int, end: int | None = None) -> list[int]:
     """The steps in ``[start, stop)`` at which insertions are due: ``first``, then every
     ``freq`` steps (``None``: only ``first``), before ``end`` (``None``: no end).
@@ -570,15 +583,8 @@ class Inserter:
                 f"{request.region} is full (no free place for the other "
                 f"{len(radii) - made})"
             )
-            if schedule.warned:
-                engine.messages.to_file(logging.WARNING, message)
-            else:
-                schedule.warned = True
-                engine.messages.warn(
-                    f"{message}: give a larger region or fewer particles. Further shortfalls of this "
-                    "insertion are logged in pygran.log only.",
-                    InsertionWarning,
-                )
+            report_shortfall(engine.messages, message, schedule.warned)
+            schedule.warned = True
         if request.target == "volumefraction_region":
             engine.log(
                 "volume fraction in the region: %.3g of the %.3g asked for",

@@ -8,12 +8,13 @@ simulations never write into each other's logs and global logging state is untou
 from __future__ import annotations
 
 import logging
-import os
 import sys
 import warnings
 from pathlib import Path
 from types import FrameType
 from typing import Any
+
+from pygran_core.simulation.mpi import launch_rank
 
 LOG_NAME = "pygran.log"
 _LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
@@ -79,8 +80,7 @@ class EngineLog:
         on stderr, there from the first MPI rank only (under ``mpirun`` every rank runs the
         script)."""
         self.log("%s", text)
-        rank = os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0"))
-        if stderr and self.progress_to_stderr and rank == "0":
+        if stderr and self.progress_to_stderr and launch_rank() == 0:
             print(f"{self.engine}: {text}", file=sys.stderr, flush=True)
 
     def close(self) -> None:

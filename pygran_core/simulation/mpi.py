@@ -15,7 +15,28 @@ from pygran_core.errors import ConfigError
 #: Environment variables an MPI launcher (mpirun, srun) sets in every process it starts.
 MPI_LAUNCH_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
 
+#: Environment variables holding this process's rank, per launcher (Open MPI, MPICH and Slurm's PMI, PMIx).
+MPI_RANK_VARIABLES = ("OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK")
+
 T = TypeVar("T")
+
+
+def launch_size() -> int:
+    """How many processes this one's MPI launcher started, 1 without a launcher (from its
+    environment, as :func:`launch_rank`)."""
+    for name in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE"):
+        if name in os.environ:
+            return int(os.environ[name])
+    return 1
+
+
+def launch_rank() -> int:
+    """This process's rank as its MPI launcher numbered it, 0 without a launcher; read from the
+    launcher's environment, so it needs no mpi4py and no communicator."""
+    for name in MPI_RANK_VARIABLES:
+        if name in os.environ:
+            return int(os.environ[name])
+    return 0
 
 
 def launch_communicator() -> Any:

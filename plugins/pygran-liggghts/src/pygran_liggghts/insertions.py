@@ -5,7 +5,6 @@ event made, read from LIGGGHTS' screen file and reported as the placing engines 
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -13,29 +12,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pygran_core.errors import InsertionWarning, PyGranWarning
+from pygran_core.errors import PyGranWarning
 from pygran_core.simulation import clumps
 from pygran_core.simulation.diagnostics import LostParticles, exit_faces
 from pygran_core.simulation.engine import Engine
+from pygran_core.simulation.insertion import report_shortfall
 from pygran_liggghts.channel import Channel
 from pygran_liggghts.commands import Commands, size_classes
 from pygran_liggghts.screen import InsertionEvent, insertion_events
 
 if TYPE_CHECKING:
     from pygran_core.simulation.calls import InsertSpec
-
-
-def report_shortfall(engine: Engine, message: str, again: bool) -> None:
-    """Report an insertion that made fewer particles than asked (``message``): as an
-    :class:`InsertionWarning` the first time, in ``pygran.log`` only ``again``."""
-    if again:
-        engine.messages.to_file(logging.WARNING, message)
-    else:
-        engine.messages.warn(
-            f"{message}: give a larger region or fewer particles. Further shortfalls of this "
-            "insertion are logged in pygran.log only.",
-            InsertionWarning,
-        )
 
 
 class FixInsertions:
@@ -266,7 +253,7 @@ class FixInsertions:
                     self._engine.log("insert at step %d: %d particles", event.step, event.inserted)
                 continue
             report_shortfall(
-                self._engine, self._shortfall(event, spec, asked), event.fix in self._short_warned
+                self._engine.messages, self._shortfall(event, spec, asked), event.fix in self._short_warned
             )
             self._short_warned.add(event.fix)
         self._asked.clear()
