@@ -391,3 +391,26 @@ def test_the_worker_leaves_out_open_mpis_cm_pml_unless_the_user_chose_one(
         assert sim.createParticles(1, "single", 0.0, 0.0, 0.01, vel=(0.0, 0.0, -1.0)) == 1
         sim.run(10)
         assert sim.extractCoords()[0, 2] == pytest.approx(0.01 - 10 * DT)
+
+
+def test_beds_from_arrays_on_two_ranks_beside_mesh_walls(tmp_path):
+    """LIGGGHTS 3.8 crashes when ``read_dump`` moves new atoms between ranks beside contact
+    histories: on 2 ranks with a mesh wall, and again after a run (the pair style's), a bed
+    from an array still comes out whole, each particle where it was asked, and settles on
+    the mesh floor."""
+    floor = np.array([[[-0.01, -0.01, 0.0], [0.01, -0.01, 0.0], [0.01, 0.01, 0.0]],
+                      [[-0.01, -0.01, 0.0], [0.01, 0.01, 0.0], [-0.01, 0.01, 0.0]]])  # fmt: skip
+    grid = np.arange(-0.0075, 0.0076, 0.0025)
+    first = np.array([(x, y, z) for x in grid for y in grid for z in (0.004, 0.008, 0.022, 0.026)])
+    second = np.array([(x, y, z) for x in grid for y in grid for z in (0.013, 0.017)])
+    with dem(tmp_path, nprocs=2, mesh={"floor": {"triangles": floor, "material": MATERIAL}}) as sim:
+        assert sim.createParticles(1, "single", first) == len(first)  # below and above z = 0.015
+        np.testing.assert_allclose(sim.extractCoords(), first, atol=1e-12)
+        sim.run(100)
+        assert sim.createParticles(1, "single", second) == len(second)
+        assert len(sim.extractIds()) == len(first) + len(second)
+        np.testing.assert_allclose(sim.extractCoords()[len(first) :], second, atol=1e-12)
+        sim.run(3000)
+        assert sim.extractCoords()[:, 2].min() > R * 0.9  # held by the mesh floor
+    log = (tmp_path / "pygran.log").read_text()
+    assert log.count("created one by one") == 2

@@ -17,11 +17,10 @@ import numpy as np
 from pygran_core.errors import UnsupportedFeature
 from pygran_core.simulation.calls import CreateSpec, InsertSpec
 from pygran_core.simulation.engine import Engine
-from pygran_core.simulation.insertion import draw_spheres, place_spheres, target_shares
+from pygran_core.simulation.insertion import draw_spheres, place_spheres, report_shortfall, target_shares
 from pygran_core.simulation.specs import given
 from pygran_liggghts.channel import Channel
 from pygran_liggghts.commands import Commands, fmt
-from pygran_liggghts.insertions import report_shortfall
 
 #: createParticles with this many positions or more reads them from a dump file it writes in
 #: the output folder's :data:`CREATED_DIR` (``read_dump ... add yes``), not one command each.
@@ -54,6 +53,7 @@ class Creator:
         ranks: int,
         root: bool,
         allow: Callable[[], None],
+        histories: Callable[[], bool],
     ) -> None:
         self._engine = engine
         self._channel = channel
@@ -61,6 +61,7 @@ class Creator:
         self._ranks = ranks
         self._root = root
         self._allow = allow
+        self._histories = histories
         self._ungrouped = False  # atoms created since the last run, not yet in the spheres' group
         self._short_warned: set[str] = set()  # placed insertions whose shortfall was warned about
 
@@ -89,7 +90,7 @@ class Creator:
             centres = spec.centres
             box = np.array(self._engine.spec.domain.box, float)
             inside = bool(np.all((centres > box[:, 0]) & (centres < box[:, 1])))
-            bulk = inside and len(centres) >= BULK_CREATE
+            bulk = inside and len(centres) >= BULK_CREATE and self._can_read(len(centres))
             if bulk:
                 radii = self._bulk(spec, first, centres)
                 centres = centres[:0]  # created
@@ -187,9 +188,26 @@ class Creator:
                 f"insertion at step {engine.step}: {made} of {asked} particles inserted, the region "
                 f"{spec.region} is full (no free place for the other {asked - made})"
             )
-            report_shortfall(engine, message, label in self._short_warned)
+            report_shortfall(engine.messages, message, label in self._short_warned)
             self._short_warned.add(label)
         return float(target_shares(engine.spec, spec, species, radii).sum())
+
+    def _can_read(self, count: int) -> bool:
+        """Whether ``count`` new atoms can be read from a file here. LIGGGHTS 3.8's ``read_dump``
+        deals them to the ranks in turn and moves each to its owner without setting their
+        contact histories (it calls no fix's ``set_arrays``), and a fix of contact histories
+        (the mesh walls', or the pair style's after a run) then crashes on the move. With
+        several ranks and such a fix, the atoms are created one by one on their owners
+        (``create_atoms``; time quadratic in the number of atoms), and the log says so."""
+        if self._ranks == 1 or not self._histories():
+            return True
+        self._engine.log(
+            "createParticles: %d particles created one by one (LIGGGHTS 3.8 crashes reading them "
+            "from a file on %d ranks beside contact histories)",
+            count,
+            self._ranks,
+        )
+        return False
 
     def _bulk(self, spec: CreateSpec, first: int, centres: np.ndarray) -> np.ndarray:
         """Queue ``read_dump`` of a dump file of the particles (ids from ``first``, the species'

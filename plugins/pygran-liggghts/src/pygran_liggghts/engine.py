@@ -243,7 +243,15 @@ class LiggghtsEngine(Engine):
             self._fixes = FixInsertions(self, self._channel, self.commands, screen)
             self._walls = Walls(spec, self.commands, self._channel)
             ranks = comm.size if comm is not None else spec.nprocs or 1
-            self._creator = Creator(self, self._channel, self.commands, ranks, self._root, self._allow_create)
+            self._creator = Creator(
+                self,
+                self._channel,
+                self.commands,
+                ranks,
+                self._root,
+                self._allow_create,
+                self._holds_histories,
+            )
             self._placings = Placings(self, self.commands, self._walls, self._creator)
             self._execute(self.commands.setup(resume))
         except BaseException:
@@ -385,6 +393,11 @@ class LiggghtsEngine(Engine):
         if self._restored:
             self._set_up()
             self._restored = False
+
+    def _holds_histories(self) -> bool:
+        """Whether LIGGGHTS keeps contact histories now: of mesh walls, or the pair style's
+        once a run has set it up."""
+        return bool(self._walls.meshes) or self._computed
 
     def _set_up(self) -> None:
         """Run 0 steps: LIGGGHTS sets itself up (its computes too) as a run starts, and its
