@@ -135,7 +135,8 @@ def write_csv(path: Path, columns: tuple[str, ...], rows: dict[str, list[str]]) 
 
 
 def compare(folder: Path) -> None:
-    """One PNG per case overlaying its engines, and the agreement table on stdout."""
+    """One PNG per case, its engines overlaid (top) and each one's difference from its reference
+    (bottom), and the agreement table on stdout."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -152,28 +153,33 @@ def compare(folder: Path) -> None:
         names[label] = tuple(header)
     print(f"{'case':<24} {'column':<14} {'engine':<14} {'max |diff|':>12} {'relative':>10}  vs")
     for label, engines in runs.items():
-        figure, axes = plt.subplots(
-            1, len(names[label]) - 1, figsize=(5 * (len(names[label]) - 1), 4), squeeze=False
-        )
+        ncolumns = len(names[label]) - 1
+        figure, axes = plt.subplots(2, ncolumns, figsize=(5 * ncolumns, 7), squeeze=False, sharex="col")
         first = sorted(e for e in engines if "+" not in e)[0]
-        for column, axis in enumerate(axes[0], start=1):
-            for engine, data in sorted(engines.items()):
-                axis.plot(data[:, 0], data[:, column], label=engine)
+        for column in range(1, ncolumns + 1):
+            top, bottom = axes[0][column - 1], axes[1][column - 1]
+            for index, (engine, data) in enumerate(sorted(engines.items())):
+                top.plot(data[:, 0], data[:, column], label=engine, color=f"C{index}")
                 # a jittered run against its own engine (the case's spread), the others against the first
                 reference_engine = engine.partition("+")[0] if "+" in engine else first
                 reference = engines.get(reference_engine)
                 common = 0 if reference is None else min(len(data), len(reference))
-                if engine != reference_engine and common:
-                    diff = np.abs(data[:common, column] - reference[:common, column]).max()
-                    scale = np.abs(reference[:common, column]).max() or 1.0
-                    print(f"{label:<24} {names[label][column]:<14} {engine:<14} {diff:>12.4g} "
-                          f"{diff / scale:>10.3g}  {reference_engine}")  # fmt: skip
-            axis.set_xlabel("time (s)")
-            axis.set_ylabel(names[label][column])
-            axis.legend()
+                if engine == reference_engine or not common:
+                    continue
+                gap = np.abs(data[:common, column] - reference[:common, column])
+                bottom.plot(data[:common, 0], gap, label=f"{engine} - {reference_engine}", color=f"C{index}")
+                scale = np.abs(reference[:common, column]).max() or 1.0
+                print(f"{label:<24} {names[label][column]:<14} {engine:<14} {gap.max():>12.4g} "
+                      f"{gap.max() / scale:>10.3g}  {reference_engine}")  # fmt: skip
+            top.set_ylabel(names[label][column])
+            top.legend()
+            bottom.set_xlabel("time (s)")
+            bottom.set_ylabel(f"|difference| of {names[label][column]}")
+            if bottom.lines:
+                bottom.legend()
         figure.suptitle(label)
         figure.tight_layout()
-        figure.savefig(folder / f"{label}.png", dpi=120)
+        figure.savefig(folder / f"{label}.png", dpi=110)
         plt.close(figure)
 
 
