@@ -507,7 +507,7 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept no
     """Rows [lo, hi), block b, of a parallel pass of the rebuild (and bodies [lo, hi) of a body
     loop, which the team hands out as rows too)."""
     cdef int i, d, n = sim.schedule.rows, j, cnt
-    cdef long long k, x, pos = 0
+    cdef long long k, x, pos = 0, kept = 0, breaks = 0, last = -2
     cdef Found* found = &sim.lists.found[b]
     cdef int* perm = sim.particles.perm
     cdef double* sr = sim.particles.f
@@ -565,8 +565,6 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept no
             sim.lists.wl_start[i + 1] = scan_walls(sim, i, False)
     elif phase == P_FILL:   # also marks the kept slots in the contact table's free list
         pos = sim.lists.nb_start[lo]
-        found.kept = found.breaks = 0
-        x = -2
         for i in range(lo, hi):
             for k in range(sim.lists.nb_start[i], sim.lists.nb_start[i + 1]):
                 j = found.j[k - pos]
@@ -574,13 +572,15 @@ cdef void rebuild_rows(State* sim, int phase, int lo, int hi, int b) noexcept no
                 sim.lists.nb_s[k] = found.s[k - pos] | carry_pair(sim, i, j, &sim.lists.nb_c[k])
                 if sim.lists.nb_c[k] >= 0:
                     sim.contacts.free[sim.lists.nb_c[k]] = 1
-                    found.kept += 1
-                    found.breaks += sim.lists.nb_c[k] != x + 1
-                    x = sim.lists.nb_c[k]
+                    kept += 1
+                    breaks += sim.lists.nb_c[k] != last + 1
+                    last = sim.lists.nb_c[k]
             scan_walls(sim, i, True)
             sim.schedule.work[i] = estimated_work(sim, i)
             find_partners(sim, i)
             clear_forces(sim, i)
+        found.kept = kept   # once: the blocks' Found share cache lines
+        found.breaks = breaks
 
 
 cdef inline void find_partners(State* sim, int i) noexcept nogil:
