@@ -17,6 +17,8 @@ MPI_LAUNCH_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
 
 #: Environment variables holding this process's rank, per launcher (Open MPI, MPICH and Slurm's PMI, PMIx).
 MPI_RANK_VARIABLES = ("OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK")
+#: Environment variables holding how many processes the launcher started (Open MPI, PMI).
+MPI_SIZE_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE")
 
 T = TypeVar("T")
 
@@ -24,7 +26,7 @@ T = TypeVar("T")
 def launch_size() -> int:
     """How many processes this one's MPI launcher started, 1 without a launcher (from its
     environment, as :func:`launch_rank`)."""
-    for name in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE"):
+    for name in MPI_SIZE_VARIABLES:
         if name in os.environ:
             return int(os.environ[name])
     return 1
