@@ -9,6 +9,7 @@ import re
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -68,10 +69,10 @@ def test_lines_on_stderr_and_in_the_log_when_output_goes_to_a_file(tmp_path: Pat
     values = [(int(m[1]), int(m[2]), int(m[3]), float(m[4]), float(m[5]), int(m[6])) for m in lines if m]
     steps = [v[0] for v in values]
     assert steps == sorted(steps) and steps[-1] == 1500
-    for step, ran, total, time, speed, script in values:
+    for step, ran, total, simulated, speed, script in values:
         assert total == (1000 if step <= 1000 else 500)
         assert ran == (step if step <= 1000 else step - 1000)
-        assert time == pytest.approx(step * 5e-6, rel=1e-6)
+        assert simulated == pytest.approx(step * 5e-6, rel=1e-6)
         assert speed > 0 and script == step  # the script's steps count over both runs
     assert stderr.count("native: run of ") == 2  # a summary after each run that had lines
     assert "\x1b" not in stderr and "\r" not in stderr  # no progress bar, no terminal codes
@@ -144,3 +145,51 @@ def test_under_mpi_every_rank_counts_at_every_update() -> None:
     for step in (10, 20, 30):
         progress.update(step, 0.0, particles)
     assert len(counted) == 3 and progress.lines == 1
+
+
+RESUMED = textwrap.dedent(
+    """
+    import sys
+    from pathlib import Path
+    from pygran_core import params, simulation
+
+    resume = any(Path("out/restart").glob("restart.*.h5"))
+    with simulation.DEM(
+        engine="native",
+        box=(0, 0.01, 0, 0.01, 0, 0.01),
+        gravity=(9.81, 0, 0, -1),
+        dt=5e-6,
+        output="out",
+        species=({"material": params.organic, "radius": ("constant", 5e-4)},),
+        restart=(1000, "restart", "restart.*.h5", resume),
+        progress={"every": 1e-9, "steps": 101000},
+        threads=1,
+    ) as sim:
+        sim.insert(species=1, value=50, region=("block", 0, 0.01, 0, 0.01, 0, 0.01))
+        sim.run(1000)
+        sim.run(100000)
+    """
+)
+
+
+def test_a_resumed_script_counts_the_steps_before_its_checkpoint(tmp_path: Path) -> None:
+    # killed in its second run, then run again: it resumes from a checkpoint of that run, and
+    # its lines count the script's steps from the script's start and the run's from the run's
+    (tmp_path / "study.py").write_text(RESUMED)
+    child = subprocess.Popen([sys.executable, "study.py"], cwd=tmp_path, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while not (tmp_path / "out/restart/restart.3000.h5").exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    child.kill()
+    child.wait()
+    (tmp_path / "out/pygran.log").rename(tmp_path / "first.log")
+    subprocess.run([sys.executable, "study.py"], cwd=tmp_path, check=True, timeout=120, capture_output=True)
+    log = (tmp_path / "out/pygran.log").read_text()
+    resumed = int(re.search(r"resumed from .* at step (\d+)", log).group(1))
+    assert 3000 <= resumed < 101000
+    lines = re.findall(r"progress: step (\d+), run (\d+) of (\d+) .* script (\d+) of 101000 steps", log)
+    assert lines
+    for step, ran, total, script in (map(int, line) for line in lines):
+        assert step > resumed and (ran, total, script) == (step - 1000, 100000, step)
+    summary = re.search(r"run of (\d+) steps took", log.split("resumed from")[1])
+    assert int(summary.group(1)) == 101000 - resumed

@@ -419,6 +419,7 @@ class Engine(EngineHooks):
         self.journal.record(f"run {nsteps} {self.dt!r}")
         if self.journal.finished_before():
             self._set_step(end, run_dt)
+            self._progress.skip(nsteps)
             return  # a run the checkpoint's script had finished before it
         if self.journal.checkpoint is not None:
             self._restore(self.journal.resume())  # the run the checkpoint was taken in
@@ -430,7 +431,7 @@ class Engine(EngineHooks):
         watch = RunWatch(
             self.spec, start, end, self.time, self._extract, self._lost_since_last, self.scene.broken, servos
         )
-        self._progress.begin(self.step, end)
+        self._progress.begin(self.step, end, first=start)
         with tqdm(
             total=nsteps, initial=self.step - start, unit="step", disable=not show, desc=f"{self.name} run"
         ) as bar:

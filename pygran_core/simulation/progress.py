@@ -44,19 +44,29 @@ class Progress:
         collective: bool = False,
     ) -> None:
         self.spec, self._write, self._clock, self._collective = spec, write, clock, collective
-        self.done = 0  #: steps run by the script so far, over all its runs
-        self._start = (0, 0, 0.0, 0)  # first step, end step, clock and script steps at the run's start
+        self.done = 0  #: steps of the script so far, over all its runs (a resumed script's too)
+        # the run's first and end step, the step and clock this process began it at, and the
+        # script's steps before the run
+        self._run = (0, 0, 0, 0.0, 0)
         self._last = 0.0
         self.lines = 0  #: lines written in the current run
 
-    def begin(self, step: int, end: int) -> None:
+    def skip(self, steps: int) -> None:
+        """Count a run a resumed script had finished before its checkpoint."""
+        self.done += steps
+
+    def begin(self, step: int, end: int, first: int | None = None) -> None:
+        """Start timing a run that ends at ``end``, from ``step``; ``first``: the run's first
+        step when ``step`` is later (the run resumed from a checkpoint taken in it)."""
         now = self._clock()
-        self._start, self._last, self.lines = (step, end, now, self.done), now, 0
+        first = step if first is None else first
+        self._run, self._last, self.lines = (first, end, step, now, self.done), now, 0
+        self.done += step - first
 
     def update(self, step: int, simulated: float, particles: Callable[[], int]) -> None:
         """Count the steps up to ``step``; write a line if one is due (``particles`` is called
         then only, unless ``collective``: counting may gather them from the solver)."""
-        first, _, _, before = self._start
+        first, _, _, _, before = self._run
         self.done = before + step - first
         count = particles() if self._collective else None
         now = self._clock()
@@ -67,15 +77,15 @@ class Progress:
 
     def end(self, step: int) -> str:
         """The run's summary: steps, wall time and speed."""
-        first, _, started, _ = self._start
+        _, _, began, started, _ = self._run
         elapsed = self._clock() - started
-        rate = (step - first) / elapsed if elapsed > 0 else math.inf
-        return f"run of {step - first} steps took {duration(elapsed)} ({rate:.3g} steps/s)"
+        rate = (step - began) / elapsed if elapsed > 0 else math.inf
+        return f"run of {step - began} steps took {duration(elapsed)} ({rate:.3g} steps/s)"
 
     def line(self, step: int, simulated: float, particles: int, now: float) -> str:
-        first, end, started, _ = self._start
+        first, end, began, started, _ = self._run
         ran, total = step - first, end - first
-        rate = ran / (now - started) if now > started and ran else math.nan
+        rate = (step - began) / (now - started) if now > started and step > began else math.nan
         parts = [
             f"progress: step {step}, run {ran} of {total} ({100 * ran / total:.0f} %), t = {simulated:.6g} s",
             f"{particles * rate:.3g} particle-steps/s",
