@@ -6,14 +6,16 @@ run cuts its trajectory back; after its last checkpoint, as when a finished stud
 run again), then the same script is run again. Every file a kill leaves is
 readable (or a ``ReadError``, never a hang), and the run that finishes ends where an
 uninterrupted run ends: bitwise on the native engine (particles, monitor and every trajectory
-frame); on LIGGGHTS, which rebuilds its neighbour lists from its restart file, with the same
-particles, monitor and frames and positions within half a radius. Engines with the ``restart``
-capability only (YADE has none). Also: a checkpoint whose insertion state, monitor tables or
+frame); on YADE to rounding (its collider lists the pairs not touching anew, which may change
+the order forces are summed in); on LIGGGHTS, which rebuilds its neighbour lists from its
+restart file, with the same particles, monitor and frames and positions within half a radius.
+Also: a checkpoint whose insertion state, monitor tables or
 LIGGGHTS restart entry is malformed (sealed anew, as a tool rewriting it would) is a
 ``ReadError`` naming the file and the key."""
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
@@ -121,6 +123,56 @@ with simulation.DEM(**settings) as sim:
     sim.setupWall(species=1, plane="zplane", peq=-0.004)
     sim.run(1000)
     np.savez(output / "final.npz", id=sim.extractIds(), x=sim.extractCoords(), monitor=n.values["n"])
+'''
+
+#: YADE: 40 spheres in a drum of triangles turning about y, between two plane walls, with drag;
+#: the walls made after the spheres (a replayed script makes them again with other body ids);
+#: the drag removed half-way; a checkpoint every 400 steps.
+YADE = '''
+"""Spheres tumbling in a turning drum made of triangles, the drag removed half-way."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pygran_core import params, simulation
+
+output = Path(sys.argv[1])
+turn = np.linspace(0.0, 2 * np.pi, 25)
+ring = np.stack([9e-3 * np.cos(turn), np.zeros_like(turn), 9e-3 * np.sin(turn)], 1)
+low, high = ring + [0, -3e-3, 0], ring + [0, 3e-3, 0]
+drum = np.concatenate(
+    [np.stack([low[:-1], low[1:], high[1:]], 1), np.stack([low[:-1], high[1:], high[:-1]], 1)]
+)
+across, along, up = np.arange(-5e-3, 6e-3, 2.5e-3), [-1.5e-3, 1.5e-3], np.arange(-5.5e-3, 3e-3, 2.5e-3)
+grid = np.stack(np.meshgrid(across, along, up), -1)  # 40 spheres, inside the drum
+settings = {
+    "engine": "yade",
+    "model": simulation.HertzMindlin,
+    "box": (-0.01, 0.01, -0.004, 0.004, -0.01, 0.01),
+    "gravity": (9.81, 0, 0, -1),
+    "dt": 5e-6,
+    "output": str(output),
+    "progress": False,
+    "species": ({"material": params.cohesionless, "radius": 1e-3},),
+    "mesh": {"drum": {"triangles": drum, "material": params.steel}},
+    "traj": {"pfile": "traj.h5", "freq": 400, "args": ("id", "type", "x", "y", "z", "vx", "vz", "radius")},
+    "restart": (400, "restart", "restart.*.h5", any((output / "restart").glob("restart.*.h5"))),
+}
+with simulation.DEM(**settings) as sim:
+    sim.createParticles(1, "single", grid.reshape(-1, 3))
+    sim.setupWall(species=1, plane="yplane", peq=-3e-3)
+    sim.setupWall(species=1, plane="yplane", peq=3e-3)
+    sim.setupWall(wtype="mesh", mesh="drum")
+    sim.moveMesh("drum", rotate=("origin", 0, 0, 0), axis=(0, 1, 0), omega=3.0)
+    drag = sim.addViscous(species=1, gamma=2e-5)
+    ke = sim.monitor(quantities=("ke",), freq=200, file="monitor.txt")
+    sim.run(2400)
+    sim.remove(drag)
+    sim.run(2400)
+    final = {q: sim.engine.extract(q) for q in ("id", "x", "v", "omega", "radius")}
+    np.savez(output / "final.npz", monitor=ke.values["ke"], **final)
 '''
 
 #: Runs a script (``argv[3:]``) and SIGKILLs itself at the ``argv[2]``-th time it reaches
@@ -263,8 +315,29 @@ def assert_continued(got: Outcome, expected: Outcome) -> None:
         np.testing.assert_array_equal(np.sort(arrays["id"]), np.sort(reference["id"]), err_msg=f"step {step}")
 
 
+def assert_to_rounding(got: Outcome, expected: Outcome) -> None:
+    """YADE: the same particles and frames, every number within rounding of the straight run's."""
+    assert got.final.keys() == expected.final.keys()
+    for key in expected.final:
+        np.testing.assert_allclose(got.final[key], expected.final[key], rtol=1e-9, atol=1e-12, err_msg=key)
+    monitors = [np.loadtxt(io.StringIO(outcome.monitor)) for outcome in (got, expected)]
+    np.testing.assert_allclose(*monitors, rtol=1e-9, atol=1e-15)
+    assert [step for step, _ in got.frames] == [step for step, _ in expected.frames]
+    for (step, arrays), (_, reference) in zip(got.frames, expected.frames):
+        assert arrays.keys() == reference.keys()
+        for key in reference:
+            np.testing.assert_allclose(
+                arrays[key], reference[key], rtol=1e-9, atol=1e-12, err_msg=f"{key} at step {step}"
+            )
+
+
 #: How a resumed study is compared, by study (the engine, then a variant).
-SAME = {"native": assert_same, "liggghts": assert_continued, "liggghts-dump": assert_continued}
+SAME = {
+    "native": assert_same,
+    "yade": assert_to_rounding,
+    "liggghts": assert_continued,
+    "liggghts-dump": assert_continued,
+}
 
 
 @pytest.fixture(scope="module")
@@ -274,6 +347,7 @@ def scripts(tmp_path_factory) -> Path:
         ("native.py", NATIVE),
         ("liggghts.py", LIGGGHTS),
         ("liggghts-dump.py", LIGGGHTS.replace("traj.h5", "traj.dump")),  # the dump LIGGGHTS writes
+        ("yade.py", YADE),
         ("killer.py", KILLER),
         ("checker.py", CHECKER),
     ):
@@ -381,14 +455,13 @@ def straight(scripts, tmp_path_factory):
     return run
 
 
-def test_yade_declares_no_restart():
-    """Which engines these tests are for: the kills below cover every engine with ``restart``."""
-    assert "restart" not in registry.get_engine("yade").capabilities
-
-
 @pytest.mark.parametrize(
     ("engine", "frames", "particles"),
-    [("native", list(range(0, 10001, 250)), 600), ("liggghts", list(range(0, 3001, 200)), 100)],
+    [
+        ("native", list(range(0, 10001, 250)), 600),
+        ("yade", list(range(0, 4801, 400)), 40),
+        ("liggghts", list(range(0, 3001, 200)), 100),
+    ],
 )
 def test_the_studies_write_what_the_kills_are_about(straight, engine, frames, particles):
     result, opened, closed = straight(engine)
@@ -397,7 +470,9 @@ def test_the_studies_write_what_the_kills_are_about(straight, engine, frames, pa
     assert closed > opened
 
 
-@pytest.mark.parametrize(("engine", "kills", "after_checkpoint"), [("native", 10, 3), ("liggghts", 3, 0)])
+@pytest.mark.parametrize(
+    ("engine", "kills", "after_checkpoint"), [("native", 10, 3), ("yade", 3, 1), ("liggghts", 3, 0)]
+)
 def test_killed_at_random_moments_resumes(scripts, straight, tmp_path, engine, kills, after_checkpoint):
     """SIGKILLs at seeded random moments of the simulation (a fraction of its duration on the
     uninterrupted run, after the engine opened); after each, the files left are readable and
@@ -450,6 +525,8 @@ def test_killed_before_the_first_frame_starts_over(scripts, straight, tmp_path, 
         ("native", "checkpoint-dataset", 4, 1500),  # in the 4th checkpoint (step 2000), at its positions
         ("native", "checkpoint-rename", 9, 4000),  # the 9th checkpoint written and sealed, not renamed
         ("native", "frame", 30, 7000),  # in the 30th frame (step 7250)
+        ("yade", "checkpoint-rename", 5, 1600),  # the 5th checkpoint (step 2000) sealed, not renamed
+        ("yade", "frame", 8, 2400),  # in the 8th frame (step 2800)
         ("liggghts", "checkpoint-rename", 3, 1200),  # LIGGGHTS' restart file of step 1800 written
         ("liggghts", "frame", 14, 2400),  # in the 14th frame (step 2600)
         ("liggghts-dump", "checkpoint-rename", 3, 1200),  # LIGGGHTS' dump written up to step 1800
@@ -485,6 +562,7 @@ def test_a_resumed_run_killed_again_resumes(scripts, straight, tmp_path, engine,
     "engine",
     [
         "native",
+        "yade",
         "liggghts",
         "liggghts-dump",
     ],
@@ -670,7 +748,7 @@ def resume_damaged(engine: str, tmp_path: Path, damage: Any) -> tuple[Path, pyte
     return path, info
 
 
-@pytest.mark.parametrize("engine", ["native", "liggghts"])
+@pytest.mark.parametrize("engine", ["native", "yade", "liggghts"])
 def test_a_monitor_table_of_another_width_is_a_read_error(tmp_path, engine):
     path, info = resume_damaged(
         engine, tmp_path, lambda c: c.monitors.update({k: v[:, :3] for k, v in c.monitors.items()})
@@ -691,3 +769,22 @@ def test_a_malformed_liggghts_restart_entry_is_a_read_error(tmp_path, entry):
 
     path, info = resume_damaged("liggghts", tmp_path, damage)
     assert str(info.value).startswith(f"{path}: ") and "'liggghts/restart'" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("key", "entry", "message"),
+    [
+        ("yade/scene", None, "no state entry 'yade/scene'"),
+        ("yade/scene", encode_text("not a YADE scene"), "YADE cannot read the scene back"),
+        ("yade/walls", encode_text("[1, 2]"), "'yade/walls'"),
+    ],
+    ids=["missing", "garbage", "walls not a table"],
+)
+def test_a_malformed_yade_scene_is_a_read_error(tmp_path, key, entry, message):
+    def damage(checkpoint):
+        checkpoint.state.pop(key)
+        if entry is not None:
+            checkpoint.state[key] = entry
+
+    path, info = resume_damaged("yade", tmp_path, damage)
+    assert str(info.value).startswith(f"{path}: ") and message in str(info.value), str(info.value)

@@ -11,7 +11,7 @@ Sizes: penetration ``25k``, ``50k``; drum ``stiff``, ``soft``; silo ``small-M1``
 written as it goes), ``<case>-<engine>.json`` (set-up time, the runs' wall time and particle-
 steps per second, the engine's settings) and the simulation's own folder ``<case>-<engine>/``
 (``pygran.log`` with progress lines, checkpoints every ``--checkpoint`` seconds of simulated
-time on the engines with restart; ``--resume`` continues from the newest). The silo's fill is
+time on the engines with restart, every engine here; ``--resume`` continues from the newest). The silo's fill is
 made once, by pouring on the native engine with a fixed seed, and kept as
 ``OUT/silo-<orifice>-<material>-fill.txt`` for every engine (``--fill N`` pours N spheres
 instead of 100,000, for a quick try). ``--jitter 1e-9`` moves every particle by up to 1e-9 m

@@ -45,22 +45,30 @@ mass, centre and inertia YADE integrates over the union of the spheres on a grid
 :class:`~pygran_core.simulation.insertion.Inserter` places and counts clumps; extracts give
 every sphere of a clump, as the LIGGGHTS engine's do. YADE has no rolling-resistance law
 matching LIGGGHTS' (see the README), so no rolling-friction capability is declared.
+
+Checkpoints hold the scene as YADE serializes it (``O.sceneToString``: bodies, interactions
+with their shear histories, engines, clock), read back on resume after the script's calls
+up to it have been replayed. The collider then lists the pairs not yet touching anew, which
+changes the order forces are summed in: a resumed run agrees with an uninterrupted one to
+rounding (about 1e-13 relative), not bitwise.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from pygran_core.errors import ConfigError, UnsupportedFeature
+from pygran_core.errors import ConfigError, EngineError, ReadError, UnsupportedFeature
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
+from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry, state_json
 from pygran_core.simulation.engine import Engine, Handle, LostParticles
 from pygran_core.simulation.insertion import Inserter, multisphere_templates
 from pygran_core.simulation.models import SpringDashpot, mixing
-from pygran_core.simulation.specs import SimulationSpec
+from pygran_core.simulation.specs import SimulationSpec, given
 from pygran_yade.client import Worker
 from pygran_yade.worker import from_bytes, to_bytes
 
@@ -150,6 +158,7 @@ class YadeEngine(Engine):
             "threads",
             "raw-commands",
             "multisphere",
+            "restart",
         }
     )
 
@@ -459,6 +468,30 @@ class YadeEngine(Engine):
         if name not in self._mesh_walls:
             return None
         return from_bytes(self.worker.call("facet_vertices", ids=self._walls[self._mesh_walls[name]]))
+
+    # -- checkpoints ----------------------------------------------------------------------
+
+    def _state(self) -> dict[str, np.ndarray]:
+        """YADE's own serialization of the scene, the worker's bookkeeping (see
+        ``Simulation.save``) and each wall's facets: a replayed script creates no particles,
+        so the walls it makes again get other body ids than those of the scene read back."""
+        saved = self.worker.call("save")
+        return {
+            "yade/scene": np.frombuffer(saved["scene"], np.uint8).copy(),
+            "yade/book": encode_text(saved["book"]),
+            "yade/walls": encode_text(json.dumps(self._walls)),
+        }
+
+    def _restore_state(self, state: dict[str, np.ndarray]) -> None:
+        path = given(self.journal.path, "the checkpoint's file")
+        scene = state_entry(path, state, "yade/scene", "u", (None,)).tobytes()
+        walls = state_json(path, state, "yade/walls", dict)
+        book = decode_text(state_entry(path, state, "yade/book", "u", (None,)))
+        try:
+            self.worker.call("load", scene=scene, book=book)
+        except EngineError as exc:
+            raise ReadError(f"{path}: YADE cannot read the scene back: {exc}") from None
+        self._walls = {label: [int(i) for i in ids] for label, ids in walls.items()}
 
     def _close(self) -> None:
         self.worker.close()

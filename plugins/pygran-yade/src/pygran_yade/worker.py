@@ -12,6 +12,7 @@ sees PyGran.
 from __future__ import annotations
 
 import io
+import json
 import math
 import os
 import pickle
@@ -81,6 +82,33 @@ def kinetic_energy(state, quantity) -> float:
     return 0.5 * sum(state.inertia[a] * local[a] ** 2 for a in range(3))
 
 
+def motion_engine(yade, kind, ids, params, now):
+    """The YADE engine that moves the bodies ``ids``: ``rotate``, ``translate`` or ``wiggle``
+    (starting at time ``now``)."""
+    if kind == "rotate":
+        return yade.RotationEngine(
+            ids=ids,
+            rotationAxis=vector(params["axis"]),
+            angularVelocity=params["omega"],
+            rotateAroundZero=True,
+            zeroPoint=vector(params["origin"]),
+        )
+    if kind == "translate":
+        v = np.asarray(params["velocity"], float)
+        speed = float(np.linalg.norm(v))
+        return yade.TranslationEngine(
+            ids=ids, velocity=speed, translationAxis=vector(v / speed if speed else (1, 0, 0))
+        )
+    # displacement A sin(2 pi (t - t0) / T), starting now: YADE sets the velocity
+    # -A w sin(w t + fi) (w = 2 pi f), with fi = -pi/2 - w t0 that is A w cos(w (t - t0)), the
+    # derivative of the displacement
+    f = 1.0 / params["period"]
+    phase = -math.pi / 2 - 2 * math.pi * f * now
+    return yade.HarmonicMotionEngine(
+        ids=ids, A=vector(params["amplitude"]), f=vector((f, f, f)), fi=vector((phase,) * 3)
+    )
+
+
 def read_message(stream):
     header = stream.read(4)
     if len(header) < 4:
@@ -110,8 +138,10 @@ class Simulation:
         self.clump_of: dict[int, int] = {}  # clump member id -> clump id
         self.own_mass: dict[int, float] = {}  # clump member id -> the sphere's own mass
         self.bounds: np.ndarray | None = None  # fixed-boundary box; spheres leaving it are deleted
-        self.drags: dict[str, dict] = {}  # label -> gamma, species, {radius: LinearDragEngine}
-        self.engines: dict[str, list] = {}  # label -> the YADE engines it added
+        self.drags: dict[str, dict] = {}  # label -> gamma, species, {radius: engine label}
+        # label -> the YADE labels of the engines it added; engines are found by their YADE
+        # label, which a scene read back from a checkpoint keeps (Python objects it does not)
+        self.engines: dict[str, list[str]] = {}
 
     # -- setup ----------------------------------------------------------------------------
 
@@ -281,31 +311,8 @@ class Simulation:
     # -- engines --------------------------------------------------------------------------
 
     def motion(self, label, kind, ids, params):
-        """Rigid motion of the facets ``ids``: ``rotate``, ``translate`` or ``wiggle``."""
-        y = self.yade
-        if kind == "rotate":
-            engine = y.RotationEngine(
-                ids=ids,
-                rotationAxis=vector(params["axis"]),
-                angularVelocity=params["omega"],
-                rotateAroundZero=True,
-                zeroPoint=vector(params["origin"]),
-            )
-        elif kind == "translate":
-            v = np.asarray(params["velocity"], float)
-            speed = float(np.linalg.norm(v))
-            engine = y.TranslationEngine(
-                ids=ids, velocity=speed, translationAxis=vector(v / speed if speed else (1, 0, 0))
-            )
-        else:  # displacement A sin(2 pi (t - t0) / T), starting now
-            # YADE sets the velocity -A w sin(w t + fi) (w = 2 pi f): with fi = -pi/2 - w t0
-            # that is A w cos(w (t - t0)), the derivative of the displacement above
-            f = 1.0 / params["period"]
-            phase = -math.pi / 2 - 2 * math.pi * f * self.O.time
-            engine = y.HarmonicMotionEngine(
-                ids=ids, A=vector(params["amplitude"]), f=vector((f, f, f)), fi=vector((phase,) * 3)
-            )
-        self._insert_engine(label, engine)
+        """Rigid motion of the facets ``ids`` (see :func:`motion_engine`)."""
+        self._insert_engine(label, motion_engine(self.yade, kind, ids, params, self.O.time))
 
     def drag_force(self, label, gamma, species):
         """Viscous force ``-gamma v`` on the spheres of ``species``, now and later inserted:
@@ -320,23 +327,63 @@ class Simulation:
         if species not in drag["species"]:
             return
         radius = self.O.bodies[i].shape.radius
-        engine = drag["engines"].get(radius)
-        if engine is None:
+        name = drag["engines"].get(radius)
+        if name is None:
             engine = self.yade.LinearDragEngine(nu=drag["gamma"] / (6 * math.pi * radius))
-            drag["engines"][radius] = engine
-            self._insert_engine(label, engine)
+            drag["engines"][radius] = self._insert_engine(label, engine)
+        else:
+            engine = self._engine(name)
         engine.ids = list(engine.ids) + [i]
 
-    def _insert_engine(self, label, engine):
-        """Put ``engine`` just before the integrator and file it under ``label``."""
-        self.engines.setdefault(label, []).append(engine)
+    def _insert_engine(self, label, engine) -> str:
+        """Put ``engine`` just before the integrator, file it under ``label``; returns the YADE
+        label it is given."""
+        names = self.engines.setdefault(label, [])
+        engine.label = f"pygran_{label}_{len(names)}"
+        names.append(engine.label)
         listed = list(self.O.engines)
         self.O.engines = listed[:-1] + [engine, listed[-1]]
+        return engine.label
+
+    def _engine(self, name):
+        return next(e for e in self.O.engines if e.label == name)
 
     def remove_engine(self, label):
-        engines = self.engines.pop(label)
+        names = set(self.engines.pop(label))
         self.drags.pop(label, None)
-        self.O.engines = [e for e in self.O.engines if all(e is not x for x in engines)]
+        self.O.engines = [e for e in self.O.engines if e.label not in names]
+
+    # -- checkpoints ----------------------------------------------------------------------
+
+    def save(self):
+        """The scene as YADE serializes it (bodies, interactions with their histories, engines,
+        clock; ``O.sceneToString``) and this side's bookkeeping as JSON, for a checkpoint."""
+        book = {
+            "species": sorted(self.species.items()),
+            "clump_of": sorted(self.clump_of.items()),
+            "own_mass": sorted(self.own_mass.items()),
+            "drags": {
+                label: dict(drag, species=sorted(drag["species"]), engines=[*drag["engines"].items()])
+                for label, drag in self.drags.items()
+            },
+            "engines": self.engines,
+        }
+        return {"scene": self.O.sceneToString(), "book": json.dumps(book)}
+
+    def load(self, scene, book):
+        """Replace the scene by a :meth:`save` result. Its interactions continue as they were;
+        the collider lists the pairs not yet touching again, so the order forces are summed in
+        changes: a resumed run differs from an uninterrupted one in the last digits."""
+        self.O.stringToScene(scene)
+        book = json.loads(book)
+        self.species = {int(i): int(s) for i, s in book["species"]}
+        self.clump_of = {int(i): int(c) for i, c in book["clump_of"]}
+        self.own_mass = {int(i): float(m) for i, m in book["own_mass"]}
+        self.drags = {
+            label: {"gamma": d["gamma"], "species": set(d["species"]), "engines": dict(d["engines"])}
+            for label, d in book["drags"].items()
+        }
+        self.engines = book["engines"]
 
     # -- running and results ----------------------------------------------------------
 
