@@ -5,6 +5,7 @@ about an axis through a point, beds created from the files' rows, and a bulk cre
 
 from __future__ import annotations
 
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -166,3 +167,22 @@ def test_bulk_creation_of_100k_on_liggghts(tmp_path):
     np.testing.assert_array_equal(got, x)
     np.testing.assert_allclose(mass, params.glass["density"] * 4 / 3 * np.pi * 1e-9, rtol=1e-12)
     assert "read_dump" in (tmp_path / "in.pygran").read_text()
+
+
+def test_a_silo_fill_stopped_between_waves_ends_as_a_straight_one(tmp_path):
+    """40 spheres poured into the small silo in 2 waves (settling 0.3 s each): stopped after
+    its first wave (the second wave's file gone), the fill continues from the first and ends
+    with the straight fill's rows, bitwise; every sphere inside the silo, above its orifice."""
+    engine_ready("native")
+    straight = cases.make_silo_fill("small", "M1", tmp_path / "a" / "fill.txt", 40, wave_size=20)
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    (tmp_path / "b" / "fill-pour" / "wave-2.txt").unlink()
+    (tmp_path / "b" / "fill.txt").unlink()
+    resumed = cases.make_silo_fill("small", "M1", tmp_path / "b" / "fill.txt", 40, wave_size=20)
+    np.testing.assert_array_equal(resumed, straight)
+    np.testing.assert_array_equal(np.loadtxt(tmp_path / "b" / "fill.txt"), straight)
+    radius, x, y, z = straight.T
+    assert len(straight) == 40 and np.all(radius == cases.SILO_RADIUS)
+    assert np.hypot(x, y).max() < 0.1 - cases.SILO_RADIUS + 1e-4
+    assert z.min() > -cases.ORIFICE_DEPTH["small"] + cases.SILO_RADIUS - 1e-4
+    assert z.max() < 0.0  # poured from above the cylinder's foot (z = 0), fallen into the cone

@@ -194,23 +194,52 @@ def silo_keywords(orifice: str, material: str) -> dict[str, Any]:
     }
 
 
-def make_silo_fill(orifice: str, material: str, path: Path, count: int, seed: int = 2024) -> np.ndarray:
+#: Spheres poured per wave of a silo fill, and the seconds each wave settles.
+FILL_WAVE, FILL_SETTLE = 12_500, 0.3
+
+
+def make_silo_fill(
+    orifice: str,
+    material: str,
+    path: Path,
+    count: int,
+    seed: int = 2024,
+    wave_size: int = FILL_WAVE,
+    settle: float = FILL_SETTLE,
+) -> np.ndarray:
     """Pour ``count`` spheres into the silo closed by a plane at its orifice, in waves of at
-    most 12,500 into the cylinder above the spheres poured so far, each settled for 0.3 s, on
-    the native engine with ``seed``; the rows ``radius x y z`` written to ``path`` and returned."""
+    most ``wave_size`` into the cylinder above the spheres poured so far, each settled for
+    ``settle`` s on the native engine; the rows ``radius x y z`` written to ``path`` and
+    returned. Each wave is a simulation of its own, seeded ``seed`` plus its number, from the
+    rows the wave before it left in ``<path stem>-pour/wave-<k>.txt``: a fill stopped between
+    waves continues from its last finished wave and ends as it would have (the bed at rest,
+    each wave only needs the positions of the last)."""
     keywords = silo_keywords(orifice, material)
-    waves = max(1, math.ceil(count / 12_500))
-    output = path.parent / f"{path.stem}-pour"
-    with simulation.DEM(
-        engine="native", output=str(output), seed=seed, traj={"pfile": None}, **keywords
-    ) as sim:
-        sim.setupWall(species=1, plane="zplane", peq=-ORIFICE_DEPTH[orifice])
-        for wave in range(waves):
-            heights = sim.extractCoords()[:, 2]
-            bottom = max(0.0, float(heights.max()) + 2 * SILO_RADIUS) if len(heights) else 0.0
-            region = ("cylinder", "z", 0.0, 0.0, 0.09, bottom, 0.31)
-            sim.insert(species=1, value=count // waves + (wave < count % waves), region=region)
-            sim.run(round(0.3 / keywords["dt"]))
-        rows = np.column_stack([sim.extractRadii(), sim.extractCoords()])
+    waves = max(1, math.ceil(count / wave_size))
+    folder = path.parent / f"{path.stem}-pour"
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = np.zeros((0, 4))
+    for wave in range(1, waves + 1):
+        kept = folder / f"wave-{wave}.txt"
+        if kept.is_file():
+            rows = np.loadtxt(kept, ndmin=2)
+            continue
+        with simulation.DEM(
+            engine="native",
+            output=str(folder / f"wave-{wave}"),
+            seed=seed + wave,
+            traj={"pfile": None},
+            **keywords,
+        ) as sim:
+            sim.setupWall(species=1, plane="zplane", peq=-ORIFICE_DEPTH[orifice])
+            if len(rows):
+                sim.createParticles(1, "single", rows)
+            bottom = float(rows[:, 3].max()) + 2 * SILO_RADIUS if len(rows) else 0.0
+            region = ("cylinder", "z", 0.0, 0.0, 0.09, max(0.0, bottom), 0.31)
+            sim.insert(species=1, value=count // waves + (wave <= count % waves), region=region)
+            sim.run(round(settle / keywords["dt"]))
+            rows = np.column_stack([sim.extractRadii(), sim.extractCoords()])
+        np.savetxt(kept.with_suffix(".partial"), rows, fmt="%.17g", header="radius x y z")
+        kept.with_suffix(".partial").replace(kept)
     np.savetxt(path, rows, fmt="%.17g", header="radius x y z")
     return rows
