@@ -88,12 +88,18 @@ def test_liggghts_mesh_frames_are_indexed_with_their_time(tmp_path):
     assert sorted(p.name for p in tmp_path.glob("walls*.vtk")) == sorted({name for _, _, name in entries})
 
 
-def test_a_resumed_run_continues_the_index(tmp_path):
-    """Resumed at step 100 from a copy of the finished run: the index keeps its entries up to
-    the checkpoint, then the new frames follow, as in the run straight through."""
+@pytest.mark.parametrize("checkpoint", [100, 200])
+def test_a_resumed_run_continues_the_index(tmp_path, checkpoint):
+    """Resumed from a copy of the finished run, at step 100 (the drum still: that frame is
+    indexed as the first file, and LIGGGHTS' copy written again as the run resumes is not
+    kept) or 200 (turning: the frame's own file, written again in place): the index keeps its
+    entries up to the checkpoint, then the new frames follow, and the folder holds the files
+    the index names, as in the run straight through."""
     first = tmp_path / "first"
     study(first, (100, "restart", "restart.*.h5"))
     resumed = tmp_path / "resumed"
     shutil.copytree(first, resumed)
-    study(resumed, (100, "restart", "restart.*.h5", True, "restart.100.h5"))
-    assert check(resumed) == check(first)
+    study(resumed, (100, "restart", "restart.*.h5", True, f"restart.{checkpoint}.h5"))
+    entries = check(resumed)
+    assert entries == check(first)
+    assert sorted(p.name for p in resumed.glob("walls*.vtk")) == sorted({name for _, _, name in entries})

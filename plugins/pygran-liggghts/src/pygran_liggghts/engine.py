@@ -483,8 +483,11 @@ class LiggghtsEngine(Engine):
 
     def _restore_state(self, state: dict[str, np.ndarray]) -> None:
         """LIGGGHTS has read its restart file already; the contacts of the resumed step are in
-        the trajectory cut back, and LIGGGHTS writes them again as the next run starts."""
+        the trajectory cut back, and LIGGGHTS writes them again as the next run starts, as it
+        writes the mesh frame of that step again when one is due there (the index holds it)."""
         self._contacts_step = self.step
+        if self.step % self.spec.traj.freq == 0:
+            self._mesh_index.again(self.step, self.time)
 
     def _checkpoint_files(self) -> list[Path]:
         return [self._restart.directory / self._restart_name()]

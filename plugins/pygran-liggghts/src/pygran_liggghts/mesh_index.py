@@ -17,7 +17,7 @@ class MeshIndex:
     """The index of ``engine``'s mesh frames, kept by the rank that writes files (``enabled``).
     LIGGGHTS writes the frame of the step a run starts at as it starts: a frame is indexed once
     its file is there. On resume the core has cut the index back to the checkpoint's step, and
-    LIGGGHTS writes the later frames again."""
+    LIGGGHTS writes that step's frame (see :meth:`again`) and the later ones again."""
 
     def __init__(self, engine: Engine, enabled: bool) -> None:
         self._engine = engine
@@ -27,9 +27,15 @@ class MeshIndex:
 
     def due(self, step: int, time: float) -> None:
         """LIGGGHTS writes a mesh frame at ``step`` (``time``): index it once it is there."""
+        self.again(step, time)
+        self.update()
+
+    def again(self, step: int, time: float) -> None:
+        """LIGGGHTS will write the frame of ``step``, where a resumed run starts, again: the
+        index, resumed after the engine's state, takes it (or drops the copy) at the next
+        :meth:`update`."""
         if self._enabled and "*" in given(self._engine.spec.traj.mfile, "traj mfile").name:
             self._waiting.append((step, time))
-            self.update()
 
     def update(self) -> None:
         """Index the frames waiting whose files LIGGGHTS has written."""

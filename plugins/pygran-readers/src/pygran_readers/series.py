@@ -82,8 +82,9 @@ class SeriesWriter(TrajectoryWriter):
         self.index = Path(index) if index is not None else index_path(self.path)
         self.count = 0
         self._indexed = False  # whether the index holds this writer's (or the resumed) entries
-        self._last: bytes | None = None  # the content digest of the last file written
+        self._last: bytes | None = None  # the content digest of the last file indexed
         self._last_file = ""
+        self._last_step: int | None = None  # the step of the last frame indexed
 
     @abc.abstractmethod
     def encode(self, frame: Frame) -> bytes:
@@ -97,7 +98,8 @@ class SeriesWriter(TrajectoryWriter):
         return self.path.with_name(f"{self.path.stem}{step}{self.path.suffix}")
 
     def resume(self, step: int) -> None:
-        """Keep the entries of the index an earlier run wrote for the frames up to ``step``."""
+        """Keep the entries of the index an earlier run wrote for the frames up to ``step``; an
+        unchanged frame after them is indexed as the last kept one's file, as if never stopped."""
         if not self.index.is_file():
             return
         kept = []
@@ -109,9 +111,17 @@ class SeriesWriter(TrajectoryWriter):
             if cycle > step:
                 break
             kept.append(_entry(time, cycle, entry.get("file", "")))
+            self._last_step, self._last_file = cycle, entry.get("file", "")
         self.count = len(kept)
         write_atomically(self.index, (PVD_HEAD + "".join(kept) + PVD_TAIL).encode("utf-8"))
         self._indexed = True
+        if not kept:
+            return
+        try:
+            with open_trajectory(self.index.parent / self._last_file) as frames:
+                self._last = content_digest(frames[0])
+        except (OSError, ReadError, IndexError):
+            self._last = None  # its file unreadable: the next frame is written in full
 
     def write_frame(self, frame: Frame) -> None:
         step = int(frame.timestep) if frame.timestep is not None else self.count
@@ -124,23 +134,30 @@ class SeriesWriter(TrajectoryWriter):
             write_atomically(target, self.encode(frame))
             self._last = content
             self._last_file = Path(os.path.relpath(target, self.index.parent)).as_posix()
-        self._append(_entry(time, step, self._last_file))
+        self._append(_entry(time, step, self._last_file), step)
 
     def index_file(self, file: Path, step: int, time: float) -> None:
         """Index ``file``, the frame at ``step`` (``time``) that a solver wrote itself. A file
         holding what the last one indexed holds (time and step aside) is removed and that one
-        indexed in its place, as :meth:`write_frame` writes an unchanged frame once."""
+        indexed in its place, as :meth:`write_frame` writes an unchanged frame once. A frame
+        the index holds already (a solver writes the frame it resumes at again) is not indexed
+        twice: its file is removed unless it is the one the index names."""
+        name = Path(os.path.relpath(file, self.index.parent)).as_posix()
+        if self._last_step is not None and step <= self._last_step:
+            if name != self._last_file:
+                file.unlink()
+            return
         with open_trajectory(file) as frames:
             content = content_digest(frames[0])
         if content == self._last:
             file.unlink()
         else:
-            self._last = content
-            self._last_file = Path(os.path.relpath(file, self.index.parent)).as_posix()
-        self._append(_entry(time, step, self._last_file))
+            self._last, self._last_file = content, name
+        self._append(_entry(time, step, self._last_file), step)
 
-    def _append(self, entry: str) -> None:
-        """Add ``entry`` to the index."""
+    def _append(self, entry: str, step: int) -> None:
+        """Add ``entry``, the frame at ``step``, to the index."""
+        self._last_step = step
         if self._indexed:  # the new entry replaces the closing tags, which follow it again
             with open(self.index, "r+b") as handle:
                 handle.seek(-len(PVD_TAIL), os.SEEK_END)
