@@ -212,8 +212,7 @@ class Simulation:
         for i in ids:
             self.species[i] = species
         for label in self.drags:
-            for i in ids:
-                self._drag_one(label, i, species)
+            self._drag(label, ids)
         return ids
 
     def assign(self, ids, velocity, omega, radius):
@@ -319,21 +318,23 @@ class Simulation:
         YADE's ``LinearDragEngine`` (``b = 6 pi nu r``), one engine per particle radius."""
         self.drags[label] = {"gamma": gamma, "species": set(species), "engines": {}}
         self.engines[label] = []
-        for i, s in self.species.items():
-            self._drag_one(label, i, s)
+        self._drag(label, list(self.species))
 
-    def _drag_one(self, label, i, species):
+    def _drag(self, label, ids):
+        """Put the spheres ``ids`` of the drag's species under its engine of their radius."""
         drag = self.drags[label]
-        if species not in drag["species"]:
-            return
-        radius = self.O.bodies[i].shape.radius
-        name = drag["engines"].get(radius)
-        if name is None:
-            engine = self.yade.LinearDragEngine(nu=drag["gamma"] / (6 * math.pi * radius))
-            drag["engines"][radius] = self._insert_engine(label, engine)
-        else:
-            engine = self._engine(name)
-        engine.ids = list(engine.ids) + [i]
+        by_radius: dict[float, list[int]] = {}
+        for i in ids:
+            if self.species[i] in drag["species"]:
+                by_radius.setdefault(self.O.bodies[i].shape.radius, []).append(i)
+        for radius, chosen in by_radius.items():
+            name = drag["engines"].get(radius)
+            if name is None:
+                engine = self.yade.LinearDragEngine(nu=drag["gamma"] / (6 * math.pi * radius))
+                drag["engines"][radius] = self._insert_engine(label, engine)
+            else:
+                engine = self._engine(name)
+            engine.ids = list(engine.ids) + chosen
 
     def _insert_engine(self, label, engine) -> str:
         """Put ``engine`` just before the integrator, file it under ``label``; returns the YADE
