@@ -11,8 +11,8 @@ Sizes: penetration ``25k``, ``50k``; drum ``stiff``, ``soft``; silo ``small-M1``
 written as it goes), ``<case>-<engine>.json`` (set-up time, the runs' wall time and particle-
 steps per second, the engine's settings) and the simulation's own folder ``<case>-<engine>/``
 (``pygran.log`` with progress lines, checkpoints every ``--checkpoint`` seconds of simulated
-time on the engines with restart, every engine here; ``--resume`` continues from the newest). The silo's fill is
-made once, by pouring on the native engine with a fixed seed, and kept as
+time on the engines with restart, every engine here; ``--resume`` continues from the newest).
+The silo's fill is made once, by pouring on the native engine with a fixed seed, and kept as
 ``OUT/silo-<orifice>-<material>-fill.txt`` for every engine (``--fill N`` pours N spheres
 instead of 100,000, for a quick try). ``--jitter 1e-9`` moves every particle by up to 1e-9 m
 at the start (seeded) and writes ``<engine>+jitter``: against the unjittered run of the same
@@ -38,6 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 
 import cases
+import gates
 
 from pygran_core import registry, simulation
 
@@ -181,6 +182,18 @@ def compare(folder: Path) -> None:
         figure.tight_layout()
         figure.savefig(folder / f"{label}.png", dpi=110)
         plt.close(figure)
+    print("\ngates (see gates.py):")
+    for label, engines in runs.items():
+        for verdict in gates.verdicts(label, engines):
+            print(verdict.line())
+        if label.startswith("silo-"):
+            orifice = label.split("-")[1]
+            for engine, data in sorted(engines.items()):
+                rate, beverloo = gates.steady_rate(data), gates.beverloo_rate(orifice)
+                print(
+                    f"{label:<22} {engine:<16} steady rate {rate:8.0f} particles/s from 0.2 s; Beverloo "
+                    f"{beverloo:.0f} (flat bottom): {rate / beverloo:.2f}x"
+                )
 
 
 def main(argv: list[str] | None = None) -> None:
