@@ -10,8 +10,9 @@ Sizes: penetration ``25k``, ``50k``; drum ``stiff``, ``soft``; silo ``small-M1``
 ``<case>-<engine>.csv`` (``time,<columns>``: the paper's observable at the paper's interval,
 written as it goes), ``<case>-<engine>.json`` (set-up time, the runs' wall time and particle-
 steps per second, the engine's settings) and the simulation's own folder ``<case>-<engine>/``
-(``pygran.log`` with progress lines, checkpoints every ``--checkpoint`` seconds of simulated
-time on the engines with restart, every engine here; ``--resume`` continues from the newest).
+(``pygran.log`` with progress lines, checkpoints every 10,000 steps or ``--checkpoint`` seconds
+of simulated time on the engines with restart, every engine here; ``--resume`` continues from
+the newest, within a recording interval too).
 The silo's fill is made once, by pouring on the native engine with a fixed seed, and kept as
 ``OUT/silo-<orifice>-<material>-fill.txt`` for every engine (``--fill N`` pours N spheres
 instead of 100,000, for a quick try). ``--jitter 1e-9`` moves every particle by up to 1e-9 m
@@ -42,6 +43,9 @@ import gates
 
 from pygran_core import registry, simulation
 
+#: Steps between checkpoints: at most about an hour of YADE's slowest case (the 100,000
+#: spheres of the silo) is run again after a stop.
+CHECKPOINT_STEPS = 10_000
 SIZES = {
     "penetration": ("25k", "50k"),
     "drum": ("stiff", "soft"),
@@ -72,7 +76,8 @@ def run(args: argparse.Namespace) -> None:
     total = round(args.until / dt)  # the last piece is shorter when --until is not a whole interval
     restart = None
     if "restart" in registry.get_engine(args.engine).capabilities:
-        restart = {"freq": steps * max(1, round(args.checkpoint / case.interval)), "fname": "restart.*.h5",
+        every = max(1, round(args.checkpoint / dt)) if args.checkpoint else CHECKPOINT_STEPS
+        restart = {"freq": every, "fname": "restart.*.h5",
                    "resume": args.resume}  # fmt: skip
     elif args.resume:
         raise SystemExit(f"the {args.engine} engine has no restart: run without --resume")
@@ -212,7 +217,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--until", type=float, required=True, help="simulated seconds")
     parser.add_argument("--out", required=True)
     parser.add_argument("--resume", action="store_true")
-    parser.add_argument("--checkpoint", type=float, default=0.1, help="simulated seconds between checkpoints")
+    parser.add_argument(
+        "--checkpoint",
+        type=float,
+        help=f"simulated seconds between checkpoints (default {CHECKPOINT_STEPS} steps)",
+    )
     parser.add_argument(
         "--threads", type=int, default=None, help="threads (native, YADE) or MPI ranks (LIGGGHTS)"
     )
