@@ -127,7 +127,8 @@ with simulation.DEM(**settings) as sim:
 
 #: YADE: 40 spheres in a drum of triangles turning about y, between two plane walls, with drag;
 #: the walls made after the spheres (a replayed script makes them again with other body ids);
-#: the drag removed half-way; a checkpoint every 400 steps.
+#: the drag removed half-way; YADE's default time step (replayed from the checkpoint's
+#: journal on resume); a checkpoint every 400 steps.
 YADE = '''
 """Spheres tumbling in a turning drum made of triangles, the drag removed half-way."""
 
@@ -152,7 +153,6 @@ settings = {
     "model": simulation.HertzMindlin,
     "box": (-0.01, 0.01, -0.004, 0.004, -0.01, 0.01),
     "gravity": (9.81, 0, 0, -1),
-    "dt": 5e-6,
     "output": str(output),
     "progress": False,
     "species": ({"material": params.cohesionless, "radius": 1e-3},),
@@ -777,8 +777,10 @@ def test_a_malformed_liggghts_restart_entry_is_a_read_error(tmp_path, entry):
         ("yade/scene", None, "no state entry 'yade/scene'"),
         ("yade/scene", encode_text("not a YADE scene"), "YADE cannot read the scene back"),
         ("yade/walls", encode_text("[1, 2]"), "'yade/walls'"),
+        ("yade/walls", encode_text('{"wall1": "x"}'), "'yade/walls'"),
+        ("yade/book", encode_text("{"), "'yade/book'"),
     ],
-    ids=["missing", "garbage", "walls not a table"],
+    ids=["missing", "garbage", "walls not a table", "walls without ids", "book not JSON"],
 )
 def test_a_malformed_yade_scene_is_a_read_error(tmp_path, key, entry, message):
     def damage(checkpoint):

@@ -400,7 +400,8 @@ class Engine(EngineHooks):
         if dt is not None:
             dt = positive_float(dt, "dt")
         elif self.dt is None:
-            self.dt = self._default_dt()
+            replayed = self.journal.replayed_dt()
+            self.dt = replayed if replayed is not None else self._default_dt()
         run_dt = dt if dt is not None else self.dt
         if run_dt is None:
             raise ConfigError("No time step: pass dt to run(nsteps, dt) or dt=... to DEM")

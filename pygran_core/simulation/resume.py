@@ -125,6 +125,14 @@ class Journal:
         """The result of the call recorded last."""
         self.calls[-1][1] = value
 
+    def replayed_dt(self) -> float | None:
+        """While :attr:`replaying`, the time step the checkpoint's script gave the run it made
+        next (a default time step needs the particles, which a replay does not create)."""
+        if self.checkpoint is None or len(self.calls) >= len(self.checkpoint.journal):
+            return None
+        call = self.checkpoint.journal[len(self.calls)][0].split()
+        return float(call[2]) if call[0] == "run" and len(call) == 3 else None
+
     def finished_before(self) -> bool:
         """Whether the call recorded last (a run) was over before the checkpoint was taken."""
         return self.checkpoint is not None and len(self.calls) < len(self.checkpoint.journal)

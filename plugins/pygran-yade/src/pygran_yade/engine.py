@@ -64,7 +64,7 @@ import numpy as np
 
 from pygran_core.errors import ConfigError, EngineError, ReadError, UnsupportedFeature
 from pygran_core.simulation.calls import MotionSpec, SetSpec, ViscousSpec, WallSpec
-from pygran_core.simulation.checkpoint import decode_text, encode_text, state_entry, state_json
+from pygran_core.simulation.checkpoint import encode_text, state_entry, state_json
 from pygran_core.simulation.engine import Engine, Handle, LostParticles
 from pygran_core.simulation.insertion import Inserter, multisphere_templates
 from pygran_core.simulation.models import SpringDashpot, mixing
@@ -486,12 +486,14 @@ class YadeEngine(Engine):
         path = given(self.journal.path, "the checkpoint's file")
         scene = state_entry(path, state, "yade/scene", "u", (None,)).tobytes()
         walls = state_json(path, state, "yade/walls", dict)
-        book = decode_text(state_entry(path, state, "yade/book", "u", (None,)))
+        book = state_json(path, state, "yade/book", dict)
+        if not all(isinstance(ids, list) and all(isinstance(i, int) for i in ids) for ids in walls.values()):
+            raise ReadError(f"{path}: the state entry 'yade/walls' does not map each wall to its body ids")
         try:
-            self.worker.call("load", scene=scene, book=book)
+            self.worker.call("load", scene=scene, book=json.dumps(book))
         except EngineError as exc:
             raise ReadError(f"{path}: YADE cannot read the scene back: {exc}") from None
-        self._walls = {label: [int(i) for i in ids] for label, ids in walls.items()}
+        self._walls = walls
 
     def _close(self) -> None:
         self.worker.close()
