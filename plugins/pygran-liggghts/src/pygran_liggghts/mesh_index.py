@@ -34,7 +34,8 @@ class MeshIndex:
         """LIGGGHTS will write the frame of ``step``, where a resumed run starts, again: the
         index, resumed after the engine's state, takes it (or drops the copy) at the next
         :meth:`update`."""
-        if self._enabled and "*" in given(self._engine.spec.traj.mfile, "traj mfile").name:
+        mfile = self._engine.spec.traj.mfile
+        if self._enabled and mfile is not None and "*" in mfile.name:
             self._waiting.append((step, time))
 
     def update(self) -> None:

@@ -98,8 +98,9 @@ class SeriesWriter(TrajectoryWriter):
         return self.path.with_name(f"{self.path.stem}{step}{self.path.suffix}")
 
     def resume(self, step: int) -> None:
-        """Keep the entries of the index an earlier run wrote for the frames up to ``step``; an
-        unchanged frame after them is indexed as the last kept one's file, as if never stopped."""
+        """Keep the entries of the index an earlier run wrote for the frames up to ``step``; a
+        solver's file after them holding the last kept frame unchanged is then indexed as that
+        frame's file (:meth:`index_file`), as if the run had never stopped."""
         if not self.index.is_file():
             return
         kept = []
