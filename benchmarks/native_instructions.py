@@ -31,26 +31,33 @@ import sys
 import tempfile
 from pathlib import Path
 
+from native_solver import settled_bed
+
 HERE = Path(__file__).resolve().parent
 N = 20000
+BED = Path(tempfile.gettempdir()) / "pygran_settled_bed_20000.npz"
 #: cachegrind's summary lines, e.g. ``==12== I   refs:      8,613,687,866``.
 COUNT = {"Ir": re.compile(r"I\s+refs:\s+([\d,]+)"), "D1miss": re.compile(r"D1\s+misses:\s+([\d,]+)")}
 
 
 def counts(build: str, settle: int, bed: int, folder: Path) -> dict[str, int]:
-    """Cachegrind's totals for one run of ``native_solver.py``'s phases on ``build``."""
+    """Cachegrind's totals for one run of ``native_solver.py``'s phases on ``build`` (from the
+    settled bed in ``BED``, made beforehand)."""
     env = dict(os.environ)
     if build != "-":
         env["PYTHONPATH"] = os.pathsep.join(filter(None, (build, env.get("PYTHONPATH"))))
     command = ["valgrind", "--tool=cachegrind", "--cache-sim=yes", f"--cachegrind-out-file={folder}/cg.out"]
     command += [sys.executable, str(HERE / "native_solver.py"), "--one-variant", "--threads", "1"]
-    command += ["--n", str(N), "--settle-steps", str(settle), "--bed-steps", str(bed)]
-    done = subprocess.run(command, capture_output=True, text=True, env=env, cwd=HERE, check=True)
-    return {name: int(pattern.findall(done.stderr)[-1].replace(",", "")) for name, pattern in COUNT.items()}
+    command += ["--n", str(N), "--settle-steps", str(settle), "--bed-steps", str(bed), "--bed", str(BED)]
+    done = subprocess.run(command, capture_output=True, text=True, env=env, cwd=HERE)
+    found = {name: pattern.findall(done.stderr) for name, pattern in COUNT.items()}
+    if done.returncode or not all(found.values()):
+        raise SystemExit(f"cachegrind on {build} failed (exit {done.returncode}):\n{done.stderr[-2000:]}")
+    return {name: int(values[-1].replace(",", "")) for name, values in found.items()}
 
 
 def per_step(build: str, settle: int, bed: int) -> dict[str, dict[str, float]]:
-    """Per particle-step counts of each phase (and both) on ``build``."""
+    """Per particle-step counts of each phase on ``build``."""
     with tempfile.TemporaryDirectory() as folder:
         base = counts(build, 1, 1, Path(folder))
         runs = {
@@ -71,6 +78,7 @@ def main() -> None:
     args = parser.parse_args()
     if shutil.which("valgrind") is None:
         raise SystemExit("valgrind is not installed (Debian: apt-get install -y valgrind)")
+    settled_bed(BED)  # made once, outside the counts
     table = {build: per_step(build, args.settle_steps, args.bed_steps) for build in args.builds}
     first = table[args.builds[0]]
     print(f"per particle-step, N = {N}, 1 thread; ratio to {args.builds[0]}:")

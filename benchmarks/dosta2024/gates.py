@@ -17,14 +17,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cases
 import numpy as np
 
 #: Beverloo's constants as the paper compares with them: discharge coefficient, empty
 #: annulus (in particle diameters) and the bed's packing fraction.
 BEVERLOO_C, BEVERLOO_K, PACKING = 0.58, 1.5, 0.6
-#: Orifice diameters (m) and the silo spheres' diameter.
+#: Orifice diameters (m).
 ORIFICE_DIAMETER = {"small": 0.04, "large": 0.06}
-SILO_DIAMETER = 4e-3
 #: The engine every other is compared with.
 REFERENCE = "native"
 
@@ -68,8 +68,9 @@ def beverloo_rate(
     """Particles per second through a flat-bottomed silo's ``orifice``: Beverloo's mass rate
     ``C rho_b sqrt(g) (D - k d)^(5/2)`` over one sphere's mass, with ``rho_b`` the packing
     fraction times the spheres' density (which cancels)."""
-    opening = ORIFICE_DIAMETER[orifice] - k * SILO_DIAMETER
-    return c * packing * math.sqrt(9.81) * opening**2.5 / (math.pi * SILO_DIAMETER**3 / 6)
+    diameter = 2 * cases.SILO_RADIUS
+    opening = ORIFICE_DIAMETER[orifice] - k * diameter
+    return c * packing * math.sqrt(cases.G) * opening**2.5 / (math.pi * diameter**3 / 6)
 
 
 def steady_rate(table: np.ndarray, start: float = 0.2) -> float:
@@ -124,9 +125,9 @@ def verdicts(label: str, runs: dict[str, np.ndarray]) -> list[Verdict]:
         for engine in engines[1:]:
             times = np.intersect1d(np.round(times, 9), np.round(runs[engine][:, 0], 9))
         tables = [runs[e][np.isin(np.round(runs[e][:, 0], 9), times)] for e in engines]
-        off = _drum_off(tables)
-        for engine, gap in zip(engines, off):
-            found.append(_verdict(label, engine, "mean", times, gap, 0.05, "of mean"))
+        if len(times):
+            for engine, gap in zip(engines, _drum_off(tables)):
+                found.append(_verdict(label, engine, "mean", times, gap, 0.05, "of mean"))
     for engine, table in sorted(runs.items()):
         own = engine.partition("+")[0]
         reference = own if "+" in engine else REFERENCE
@@ -146,8 +147,7 @@ def verdicts(label: str, runs: dict[str, np.ndarray]) -> list[Verdict]:
                 _verdict(label, engine, reference, times, _drum_off([mine, theirs])[0], 0.05, "of mean")
             )
         else:
-            start = runs[reference][0, 1]
-            gone, theirs_gone = start - mine[:, 1], start - theirs[:, 1]
+            gone, theirs_gone = table[0, 1] - mine[:, 1], runs[reference][0, 1] - theirs[:, 1]
             gap = np.abs(gone - theirs_gone) / np.where(theirs_gone > 0, theirs_gone, 1.0)
             found.append(_verdict(label, engine, reference, times, gap, 0.10, "of gone"))
     return found

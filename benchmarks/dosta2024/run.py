@@ -89,6 +89,8 @@ def run(args: argparse.Namespace) -> None:
     if args.resume and table.is_file():
         with table.open() as handle:
             rows = {r[0]: r for r in list(csv.reader(handle))[1:]}
+    # the steps before the checkpoint a resumed run continues from were run by another process
+    resumed_at = newest_checkpoint(out / name / "restart") if args.resume else 0
     particle_steps, start = 0, time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # particles leaving the silo are lost by design
@@ -104,7 +106,7 @@ def run(args: argparse.Namespace) -> None:
                 done += piece
                 if sim.engine.replaying:  # this interval's row is in the CSV already
                     continue
-                particle_steps += len(sim.extractIds()) * piece
+                particle_steps += len(sim.extractIds()) * (done - max(done - piece, resumed_at))
                 now = f"{done * dt:.6g}"
                 rows[now] = [now, *map(repr, case.observe(sim))]
                 write_csv(table, case.columns, rows)
@@ -130,6 +132,12 @@ def run(args: argparse.Namespace) -> None:
     }
     (out / f"{name}.json").write_text(json.dumps(report, indent=1))
     print(json.dumps(report))
+
+
+def newest_checkpoint(folder: Path) -> int:
+    """The step of the newest checkpoint ``restart.<step>.h5`` in ``folder`` (0 if none)."""
+    steps = [int(p.name.split(".")[1]) for p in folder.glob("restart.*.h5") if p.name.split(".")[1].isdigit()]
+    return max(steps, default=0)
 
 
 def write_csv(path: Path, columns: tuple[str, ...], rows: dict[str, list[str]]) -> None:
@@ -161,7 +169,8 @@ def compare(folder: Path) -> None:
     for label, engines in runs.items():
         ncolumns = len(names[label]) - 1
         figure, axes = plt.subplots(2, ncolumns, figsize=(5 * ncolumns, 7), squeeze=False, sharex="col")
-        first = sorted(e for e in engines if "+" not in e)[0]
+        plain = sorted(e for e in engines if "+" not in e)
+        first = gates.REFERENCE if gates.REFERENCE in plain else plain[0]
         for column in range(1, ncolumns + 1):
             top, bottom = axes[0][column - 1], axes[1][column - 1]
             for index, (engine, data) in enumerate(sorted(engines.items())):
@@ -201,6 +210,13 @@ def compare(folder: Path) -> None:
                 )
 
 
+def positive_seconds(text: str) -> float:
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+    return value
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["compare"]:
@@ -219,7 +235,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--resume", action="store_true")
     parser.add_argument(
         "--checkpoint",
-        type=float,
+        type=positive_seconds,
         help=f"simulated seconds between checkpoints (default {CHECKPOINT_STEPS} steps)",
     )
     parser.add_argument(
