@@ -54,7 +54,8 @@ run_main() {
 
 run_tests() {
     local status=0
-    PYGRAN_STRICT_PLUGINS=1 "$VENV/bin/python" -m pytest -p no:cacheprovider "$@" || status=$?
+    # the slowest tests listed at the end: the suite is kept under 20 minutes
+    PYGRAN_STRICT_PLUGINS=1 "$VENV/bin/python" -m pytest -p no:cacheprovider --durations=20 "$@" || status=$?
     if ((status == 5)); then
         echo "pytest collected no tests: failing" >&2
         return 1

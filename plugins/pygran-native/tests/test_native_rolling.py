@@ -254,7 +254,7 @@ def poured_pile_angle(engine: str, rolling: str, seed: int, output: Path) -> flo
 
 @pytest.mark.parametrize("rolling", ["cdt", "epsd", "epsd2"])
 def test_a_poured_pile_has_the_angle_liggghts_gives(tmp_path, rolling):
-    """The same pours on both engines, the angle averaged over 3 of them (one pour's angle
+    """The same pours on both engines, the angle averaged over 2 of them (one pour's angle
     varies by 0.5 to 0.7 degrees from seed to seed, on either engine). Measured over 6 pours
     each (native, LIGGGHTS): cdt 10.2 and 10.9 degrees, epsd 15.2 and 15.0, epsd2 12.0 and
     11.9. Native's former tangential law (Coulomb's limit on spring plus dashpot, lever r)
@@ -262,7 +262,7 @@ def test_a_poured_pile_has_the_angle_liggghts_gives(tmp_path, rolling):
     require_solver(find_library)
     angles = {
         engine: np.mean(
-            [poured_pile_angle(engine, rolling, seed, tmp_path / f"{engine}{seed}") for seed in (1, 2, 3)]
+            [poured_pile_angle(engine, rolling, seed, tmp_path / f"{engine}{seed}") for seed in (1, 2)]
         )
         for engine in ("native", "liggghts")
     }
