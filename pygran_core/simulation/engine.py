@@ -417,7 +417,7 @@ class Engine(EngineHooks):
 
         start, end = self.step, self.step + nsteps
         self._run_span = (start, end)
-        self.journal.record(f"run {nsteps} {self.dt!r}")
+        self.journal.record_run(nsteps, self.dt)
         if self.journal.finished_before():
             self._set_step(end, run_dt)
             self._progress.skip(nsteps)

@@ -125,9 +125,14 @@ class Journal:
         """The result of the call recorded last."""
         self.calls[-1][1] = value
 
+    def record_run(self, nsteps: int, dt: float) -> None:
+        """Record a run of ``nsteps`` steps of ``dt`` (see :meth:`record`)."""
+        self.record(f"run {nsteps} {dt!r}")
+
     def replayed_dt(self) -> float | None:
-        """While :attr:`replaying`, the time step the checkpoint's script gave the run it made
-        next (a default time step needs the particles, which a replay does not create)."""
+        """While :attr:`replaying`, the time step of the run the checkpoint's script made next,
+        as :meth:`record_run` wrote it (a default time step needs the particles, which a
+        replay does not create)."""
         if self.checkpoint is None or len(self.calls) >= len(self.checkpoint.journal):
             return None
         call = self.checkpoint.journal[len(self.calls)][0].split()
