@@ -478,7 +478,7 @@ class YadeEngine(Engine):
         saved = self.worker.call("save")
         return {
             "yade/scene": np.frombuffer(saved["scene"], np.uint8).copy(),
-            "yade/book": encode_text(saved["book"]),
+            "yade/book": encode_text(json.dumps(saved["book"])),
             "yade/walls": encode_text(json.dumps(self._walls)),
         }
 
@@ -490,7 +490,7 @@ class YadeEngine(Engine):
         if not all(isinstance(ids, list) and all(isinstance(i, int) for i in ids) for ids in walls.values()):
             raise ReadError(f"{path}: the state entry 'yade/walls' does not map each wall to its body ids")
         try:
-            self.worker.call("load", scene=scene, book=json.dumps(book))
+            self.worker.call("load", scene=scene, book=book)
         except EngineError as exc:
             raise ReadError(f"{path}: YADE cannot read the scene back: {exc}") from None
         self._walls = walls

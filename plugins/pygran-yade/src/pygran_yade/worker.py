@@ -12,7 +12,6 @@ sees PyGran.
 from __future__ import annotations
 
 import io
-import json
 import math
 import os
 import pickle
@@ -358,7 +357,7 @@ class Simulation:
 
     def save(self):
         """The scene as YADE serializes it (bodies, interactions with their histories, engines,
-        clock; ``O.sceneToString``) and this side's bookkeeping as JSON, for a checkpoint."""
+        clock; ``O.sceneToString``) and this side's bookkeeping in plain values, for a checkpoint."""
         book = {
             "species": sorted(self.species.items()),
             "clump_of": sorted(self.clump_of.items()),
@@ -369,14 +368,13 @@ class Simulation:
             },
             "engines": self.engines,
         }
-        return {"scene": self.O.sceneToString(), "book": json.dumps(book)}
+        return {"scene": self.O.sceneToString(), "book": book}
 
     def load(self, scene, book):
         """Replace the scene by a :meth:`save` result. Its interactions continue as they were;
         the collider lists the pairs not yet touching again, so the order forces are summed in
         changes: a resumed run differs from an uninterrupted one in the last digits."""
         self.O.stringToScene(scene)
-        book = json.loads(book)
         self.species = {int(i): int(s) for i, s in book["species"]}
         self.clump_of = {int(i): int(c) for i, c in book["clump_of"]}
         self.own_mass = {int(i): float(m) for i, m in book["own_mass"]}
