@@ -147,28 +147,19 @@ def test_under_mpi_every_rank_counts_at_every_update() -> None:
     assert len(counted) == 3 and progress.lines == 1
 
 
-RESUMED = textwrap.dedent(
-    """
-    import sys
-    from pathlib import Path
-    from pygran_core import params, simulation
-
-    resume = any(Path("out/restart").glob("restart.*.h5"))
-    with simulation.DEM(
-        engine="native",
-        box=(0, 0.01, 0, 0.01, 0, 0.01),
-        gravity=(9.81, 0, 0, -1),
-        dt=5e-6,
-        output="out",
-        species=({"material": params.organic, "radius": ("constant", 5e-4)},),
-        restart=(1000, "restart", "restart.*.h5", resume),
-        progress={"every": 1e-9, "steps": 101000},
-        threads=1,
-    ) as sim:
-        sim.insert(species=1, value=50, region=("block", 0, 0.01, 0, 0.01, 0, 0.01))
-        sim.run(1000)
-        sim.run(100000)
-    """
+#: The study above, checkpointed every 1,000 steps (resuming from the newest when there is
+#: one), its second run 100,000 steps long.
+#: The study above checkpointed every 1,000 steps (resuming from the newest when there is one),
+#: its second run 100,000 steps long.
+CHECKPOINTED = (
+    "    progress={PROGRESS},\n"
+    '    restart=(1000, "restart", "restart.*.h5", any(Path("out/restart").glob("restart.*.h5"))),\n'
+    "    threads=1,\n"
+)
+RESUMED = "from pathlib import Path\n" + (
+    SCRIPT.replace("    progress={PROGRESS},\n", CHECKPOINTED)
+    .replace("sim.run(500)", "sim.run(100000)")
+    .replace("{PROGRESS}", '{"every": 1e-9, "steps": 101000}')
 )
 
 
